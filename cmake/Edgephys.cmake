@@ -1,0 +1,30 @@
+# Project-wide warning and sanitizer flags, applied through edgephys_set_options(target).
+function(edgephys_set_options target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
+                                           -Wold-style-cast -Wcast-align -Woverloaded-virtual
+                                           -Wnull-dereference -Wimplicit-fallthrough)
+  if(EDGEPHYS_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+endfunction()
+
+if(EDGEPHYS_SANITIZE)
+  if(NOT EDGEPHYS_SANITIZE MATCHES "^(address|undefined|thread)$")
+    message(FATAL_ERROR "EDGEPHYS_SANITIZE must be address, undefined or thread")
+  endif()
+  add_compile_options(-fsanitize=${EDGEPHYS_SANITIZE} -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=${EDGEPHYS_SANITIZE})
+  if(EDGEPHYS_SANITIZE STREQUAL "undefined")
+    add_compile_options(-fno-sanitize-recover=undefined)
+  endif()
+endif()
+
+# edgephys_add_test(<name> SOURCES <files...> LIBS <targets...> [LABELS <labels...>])
+# One GoogleTest executable; every TEST becomes its own CTest case (gtest_discover_tests).
+function(edgephys_add_test name)
+  cmake_parse_arguments(T "" "" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
+  edgephys_set_options(${name})
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${T_LABELS}" TIMEOUT 300)
+endfunction()

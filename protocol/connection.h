@@ -1,0 +1,147 @@
+// Connection: one established edgephys connection, both ends (relay and client use the same
+// class). It owns the per-connection protocol state and nothing else: no socket, no clock.
+// Time is injected (`now`, seconds on any monotonic clock) and packets leave through a
+// PacketWriter, so a test can pump two Connections in one thread deterministically.
+//
+// Wire format of the packets it produces (docs/protocol.md, "Data packets"):
+//   packet prefix (packet.h, type kData or kDisconnect, connection id)
+//   u16 sequence, u16 ack, u32 ack_bits          (little-endian; ack_bits bit i = ack-1-i seen)
+//   chunks until the end of the packet:
+//     u8 0x01 reliable unit: u16 unit id, u8 flags (bit0: last unit of its message), u16 len, bytes
+//     u8 0x02 unreliable payload: u16 len, bytes (at most one per packet)
+//   kDisconnect: one byte DisconnectReason instead of chunks.
+//
+// Channels:
+//  * Reliable-ordered: SendReliable() queues a message; it is cut into units of at most
+//    kMaxReliableUnitSize bytes, each resent on an RTT-based timeout until the packet carrying
+//    it is acknowledged. The receiver drops duplicate units and delivers whole messages exactly
+//    once, in send order. Receive-side memory is bounded by the window (kReliableWindow units)
+//    and by ConnectionConfig::max_message_size for the message being reassembled.
+//  * Unreliable-sequenced: SendUnreliable() sends one packet now. The receiver delivers its
+//    payload only if the packet is newer than every unreliable payload it has delivered
+//    (older ones are dropped as stale and counted).
+//
+// Thread-safety: none. One thread owns a Connection (the room's thread on the relay).
+// Cost: ProcessPacket and SendUnreliable are O(packet size) and allocate nothing once the
+// connection has reached its steady-state buffers.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <span>
+#include <vector>
+
+#include "protocol/packet.h"
+#include "protocol/status.h"
+
+namespace edgephys {
+
+inline constexpr size_t kConnectionHeaderSize = kPacketPrefixSize + 8;
+inline constexpr size_t kMaxReliableUnitSize = 1024;
+inline constexpr uint16_t kReliableWindow = 1024;  // units in flight / buffered, each way
+// Largest unreliable payload that fits one packet with its chunk header.
+inline constexpr size_t kMaxUnreliablePayload = kMaxPacketSize - kConnectionHeaderSize - 3;
+
+// Stable numbers (they travel in kDisconnect packets and in schema/control.fbs).
+enum class DisconnectReason : uint8_t {
+  kNone = 0,
+  kTimeout,
+  kClientLeft,
+  kServerShutdown,
+  kKicked,
+  kProtocolError,     // the peer broke the protocol (oversized message, window overrun)
+  kReliableOverflow,  // our own reliable queue for this peer is full
+};
+
+struct ConnectionConfig {
+  double keepalive_interval_s = 0.1;  // send at least one packet this often
+  double timeout_s = 5.0;             // nothing received for this long: disconnect (kTimeout)
+  size_t max_message_size = 1 << 20;  // reliable message limit, both ways (bytes)
+  size_t max_pending_reliable_bytes = 8 << 20;  // SendReliable() beyond this: kQueueFull
+  double min_resend_s = 0.03;         // floor of the RTT-based resend timeout
+  double max_resend_s = 1.0;          // ceiling of the resend timeout
+};
+
+// Real-time status of one connection (GameNetworkingSockets style); the relay exports it.
+struct ConnectionStats {
+  double rtt_s = 0;             // smoothed round-trip time
+  double rtt_var_s = 0;         // round-trip time variation
+  double loss = 0;              // smoothed fraction of our packets not acknowledged (0..1)
+  uint64_t packets_sent = 0;
+  uint64_t packets_received = 0;
+  uint64_t bytes_sent = 0;
+  uint64_t bytes_received = 0;
+  uint64_t reliable_resends = 0;    // reliable units sent more than once
+  uint64_t reliable_delivered = 0;  // whole reliable messages delivered to the handler
+  uint64_t stale_dropped = 0;       // unreliable payloads dropped as older than delivered
+  uint64_t duplicates_dropped = 0;  // packets or reliable units received twice
+  size_t pending_reliable_bytes = 0;  // queued or unacknowledged reliable bytes
+};
+
+// Where a Connection writes each packet it produces. The span is valid only during the call.
+class PacketWriter {
+ public:
+  virtual ~PacketWriter() = default;
+  virtual void WritePacket(std::span<const uint8_t> packet) = 0;
+};
+
+// What a Connection reports while processing a packet. Spans are valid only during the call.
+class ConnectionHandler {
+ public:
+  virtual ~ConnectionHandler() = default;
+  // A whole reliable message, in order, exactly once.
+  virtual void OnReliableMessage(std::span<const uint8_t> message) = 0;
+  // The unreliable payload of packet `sequence`, newer than every payload delivered before.
+  virtual void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) = 0;
+  // One of our packets (as numbered by SendUnreliable) was acknowledged by the peer.
+  // Called at most once per sequence; packets never acknowledged are never reported.
+  virtual void OnPacketAcked(uint16_t sequence) { (void)sequence; }
+};
+
+class Connection {
+ public:
+  Connection(uint32_t connection_id, const ConnectionConfig& config, double now);
+  ~Connection();
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  uint32_t id() const { return connection_id_; }
+
+  // Queues `message` (1 .. config.max_message_size bytes) on the reliable channel; it goes out
+  // on the next Update(). Errors: kTooLarge, kQueueFull (pending bytes limit), kNotConnected.
+  Status SendReliable(std::span<const uint8_t> message);
+
+  // Sends one packet now carrying `payload` (1 .. kMaxUnreliablePayload bytes) and the current
+  // acks. Returns the packet sequence, which OnPacketAcked() later reports if it arrives.
+  Result<uint16_t> SendUnreliable(std::span<const uint8_t> payload, double now, PacketWriter& out);
+
+  // Parses a kData or kDisconnect packet addressed to this connection (the caller matched the
+  // prefix's connection id and the sender's address). Reports deliveries to `handler`. A
+  // malformed packet changes no state and returns kMalformed; a kDisconnect packet marks the
+  // connection disconnected with the peer's reason.
+  Status ProcessPacket(std::span<const uint8_t> packet, double now, ConnectionHandler& handler);
+
+  // Sends due reliable units (new ones, then those whose resend timeout expired), acks the
+  // peer is owed and keep-alives; detects the timeout. Call at least every few milliseconds
+  // to tens of milliseconds.
+  void Update(double now, PacketWriter& out);
+
+  // Sends `reason` to the peer (a few redundant copies, as it is not acknowledged) and marks
+  // the connection disconnected. Idempotent.
+  void Disconnect(DisconnectReason reason, PacketWriter& out);
+
+  bool connected() const { return disconnect_reason_ == DisconnectReason::kNone; }
+  DisconnectReason disconnect_reason() const { return disconnect_reason_; }
+  const ConnectionStats& stats() const { return stats_; }
+
+ private:
+  struct Impl;
+  uint32_t connection_id_;
+  DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
+  ConnectionStats stats_;
+  Impl* impl_;  // owned; the channel state (kept out of the header)
+};
+
+}  // namespace edgephys

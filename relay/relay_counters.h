@@ -1,0 +1,95 @@
+// RelayCounters: the relay's observable state as plain atomics. The relay's threads write
+// them with relaxed increments (no locks, no allocation on the hot path); the Prometheus
+// exporter (metrics/) and tests only read them. One instance per relay process.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <initializer_list>
+
+#include "protocol/connection.h"
+#include "protocol/packet.h"
+
+namespace edgephys {
+
+// Number of RejectReason values in schema/control.fbs (None .. BadCookie).
+inline constexpr size_t kRejectReasonCount = 14;
+inline constexpr size_t kDisconnectReasonCount = 7;
+
+// A fixed-bucket histogram safe to Observe() from one thread while others read it.
+// Bounds are upper bucket limits in ascending order (Prometheus `le`), +Inf implied.
+template <size_t N>
+class AtomicHistogram {
+ public:
+  constexpr explicit AtomicHistogram(std::array<double, N> bounds) : bounds_(bounds) {}
+
+  void Observe(double value) {
+    size_t i = 0;
+    while (i < N && value > bounds_[i]) ++i;
+    buckets_[i].fetch_add(1, std::memory_order_relaxed);
+    // Sum kept in nanounits to stay a lock-free integer add.
+    sum_nano_.fetch_add(static_cast<int64_t>(value * 1e9), std::memory_order_relaxed);
+  }
+
+  const std::array<double, N>& bounds() const { return bounds_; }
+  // Non-cumulative count of bucket i (i == N: above the last bound).
+  uint64_t bucket(size_t i) const { return buckets_[i].load(std::memory_order_relaxed); }
+  double sum() const { return static_cast<double>(sum_nano_.load(std::memory_order_relaxed)) / 1e9; }
+
+ private:
+  std::array<double, N> bounds_;
+  std::array<std::atomic<uint64_t>, N + 1> buckets_{};
+  std::atomic<int64_t> sum_nano_{0};
+};
+
+struct RelayCounters {
+  using Counter = std::atomic<uint64_t>;
+  using Gauge = std::atomic<int64_t>;
+
+  static void Inc(Counter& c, uint64_t n = 1) { c.fetch_add(n, std::memory_order_relaxed); }
+  static uint64_t Get(const Counter& c) { return c.load(std::memory_order_relaxed); }
+
+  Gauge rooms{0};
+  Gauge clients{0};
+  Gauge entities{0};
+
+  Counter packets_received{0};
+  Counter packets_sent{0};
+  Counter bytes_received{0};
+  Counter bytes_sent{0};
+  Counter entity_updates_sent{0};      // entity states written into outgoing packets
+  Counter entity_updates_received{0};  // entity states accepted from owners
+  Counter reliable_resends{0};
+  Counter reliable_messages_received{0};
+  Counter connections_accepted{0};
+  Counter send_errors{0};              // socket refused a datagram
+
+  // Incoming datagrams dropped, by DropReason.
+  std::array<Counter, static_cast<size_t>(DropReason::kCount)> packets_rejected{};
+  // Individual entity updates dropped inside accepted packets (not owner, NaN...), by DropReason.
+  std::array<Counter, static_cast<size_t>(DropReason::kCount)> updates_rejected{};
+  // Connect / join / command refusals sent to clients, by schema RejectReason.
+  std::array<Counter, kRejectReasonCount> requests_rejected{};
+  // Connections ended, by DisconnectReason.
+  std::array<Counter, kDisconnectReasonCount> disconnects{};
+
+  // Round-trip time samples (seconds), one per connection per second.
+  AtomicHistogram<10> rtt_seconds{{0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5}};
+  // Wall time of one room tick (seconds).
+  AtomicHistogram<10> tick_seconds{
+      {0.00001, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.05}};
+
+  void RejectPacket(DropReason r) { Inc(packets_rejected[static_cast<size_t>(r)]); }
+  void RejectUpdate(DropReason r) { Inc(updates_rejected[static_cast<size_t>(r)]); }
+  void RejectRequest(uint16_t reject_reason) {
+    if (reject_reason < kRejectReasonCount) Inc(requests_rejected[reject_reason]);
+  }
+  void CountDisconnect(DisconnectReason r) {
+    size_t i = static_cast<size_t>(r);
+    if (i < kDisconnectReasonCount) Inc(disconnects[i]);
+  }
+};
+
+}  // namespace edgephys
