@@ -56,6 +56,8 @@ enum class DropReason : uint8_t {
   kNotOwner,           // state update for an entity the sender does not own
   kInvalidValue,       // NaN / infinite / out-of-range value in a message
   kRateLimited,
+  kUnknownEntity,      // state update for an entity id the room does not have
+  kNotJoined,          // state update from a connection that has joined no room
   kCount               // number of reasons; not a reason
 };
 

@@ -1,0 +1,46 @@
+# edgephys relay image.
+#   docker build -t edgephys-relay .
+#   docker run --rm -p 7777:7777/udp -p 9464:9464 edgephys-relay
+# Build stage: full Debian 12 toolchain and -dev packages (scripts/setup.sh is the single list).
+FROM debian:bookworm AS build
+ENV DEBIAN_FRONTEND=noninteractive
+WORKDIR /src
+# Copied alone first so the dependency layer is cached across source changes.
+COPY scripts/setup.sh scripts/setup.sh
+RUN bash scripts/setup.sh && rm -rf /var/lib/apt/lists/*
+COPY . .
+RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TESTS=OFF \
+ && cmake --build build -j2 --target edgephys-relay
+
+# Run stage: only the shared libraries the relay loads.
+#   libssl3                    libcrypto.so.3 (OpenSSL::Crypto: join-token MACs, cookies)
+#   libspdlog1.10, libfmt9     logging (Debian's spdlog is built against the shared fmt)
+#   libprometheus-cpp-core1.0, libprometheus-cpp-pull1.0 (pulls libcivetweb1)  /metrics
+#   libflatbuffers2            flatbuffers::flatbuffers
+# libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. The relay does not link
+# Bullet yet (physics_backend/ is not built); add libbullet3.24 here when it does: the ldd check
+# below fails the build until then.
+FROM debian:bookworm-slim
+ENV DEBIAN_FRONTEND=noninteractive
+RUN apt-get update \
+ && apt-get install -y --no-install-recommends \
+      libssl3 \
+      libspdlog1.10 \
+      libfmt9 \
+      libprometheus-cpp-core1.0 \
+      libprometheus-cpp-pull1.0 \
+      libcivetweb1 \
+      libflatbuffers2 \
+ && rm -rf /var/lib/apt/lists/*
+RUN groupadd --system edgephys \
+ && useradd --system --gid edgephys --no-create-home --home-dir /nonexistent \
+      --shell /usr/sbin/nologin edgephys
+COPY --from=build /src/build/relay/edgephys-relay /usr/local/bin/edgephys-relay
+# Fail the image build, not the first container start, if a runtime library is missing.
+RUN if ldd /usr/local/bin/edgephys-relay | grep -q 'not found'; then \
+      ldd /usr/local/bin/edgephys-relay; exit 1; \
+    fi
+EXPOSE 7777/udp 9464/tcp
+USER edgephys
+ENTRYPOINT ["/usr/local/bin/edgephys-relay"]
+CMD ["--bind", "0.0.0.0:7777", "--metrics", "0.0.0.0:9464"]

@@ -1,0 +1,349 @@
+#include "client/client.h"
+
+#include <cstring>
+
+#include "protocol/handshake.h"
+
+namespace edgephys {
+
+Client::Client(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener)
+    : config_(config),
+      socket_(socket),
+      listener_(listener != nullptr ? listener : &null_listener_),
+      receive_buffer_(kMaxPacketSize + 512),
+      payload_buffer_(kMaxUnreliablePayload) {
+  batch_.states.reserve(64);
+}
+
+Client::~Client() = default;
+
+Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, double now) {
+  if (state_ != ClientState::kIdle) {
+    return Status(StatusCode::kInvalidArgument, "Connect() called twice");
+  }
+  server_ = server;
+  token_.assign(token.begin(), token.end());
+  nonce_ = SecureRandom64();
+  state_ = ClientState::kHandshaking;
+  handshake_started_ = now;
+  SendHandshake(now);
+  return Status::Ok();
+}
+
+void Client::SendHandshake(double now) {
+  last_handshake_send_ = now;
+  flatbuffers::FlatBufferBuilder fbb(256);
+  if (cookie_.empty()) {
+    FinishControl(fbb, schema::CreateHello(fbb, nonce_));
+    auto packet = BuildHandshakePacket(PacketType::kHello, fbb, kMinHelloPacketSize);
+    (void)socket_->SendTo(server_, packet);
+  } else {
+    FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie_),
+                                             fbb.CreateVector(token_), nonce_));
+    auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
+    (void)socket_->SendTo(server_, packet);
+  }
+}
+
+void Client::Update(double now) {
+  now_ = now;
+  for (int i = 0; i < 4096; ++i) {
+    Endpoint from;
+    size_t n = socket_->ReceiveFrom(&from, receive_buffer_);
+    if (n == 0) break;
+    if (from != server_ || n > kMaxPacketSize) continue;  // not our relay / oversized
+    std::span<const uint8_t> packet(receive_buffer_.data(), n);
+    PacketPrefix prefix{};
+    DropReason reason{};
+    if (!ParsePacketPrefix(packet, &prefix, &reason)) continue;
+    if (prefix.type == PacketType::kData || prefix.type == PacketType::kDisconnect) {
+      if (connection_ && prefix.connection_id == connection_->id() && connection_->connected()) {
+        (void)connection_->ProcessPacket(packet, now, *this);
+      }
+    } else {
+      HandleHandshakePacket(packet, now);
+    }
+  }
+
+  if (state_ == ClientState::kHandshaking) {
+    if (now - handshake_started_ > config_.handshake_timeout_s) {
+      state_ = ClientState::kFailed;
+      return;
+    }
+    if (now - last_handshake_send_ >= config_.handshake_resend_s) SendHandshake(now);
+    return;
+  }
+  if (state_ != ClientState::kConnected) return;
+  if (joined_ && now >= next_publish_) {
+    Publish(now);
+    next_publish_ = now + 1.0 / std::max(1.0, config_.publish_rate_hz);
+  }
+  connection_->Update(now, *this);
+  if (!connection_->connected()) {
+    state_ = ClientState::kDisconnected;
+    disconnect_reason_ = connection_->disconnect_reason();
+    joined_ = false;
+    listener_->OnDisconnected(disconnect_reason_);
+  }
+}
+
+void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) {
+  if (state_ != ClientState::kHandshaking) return;
+  PacketPrefix prefix{};
+  DropReason reason{};
+  ParsePacketPrefix(packet, &prefix, &reason);
+  const auto* msg = VerifyControlMessage(packet.subspan(kPacketPrefixSize));
+  if (msg == nullptr) return;
+  if (prefix.type == PacketType::kChallenge && msg->body_type() == schema::Body::Challenge) {
+    const auto* cookie = msg->body_as_Challenge()->cookie();
+    if (cookie == nullptr || !cookie_.empty()) return;
+    cookie_.assign(cookie->begin(), cookie->end());
+    SendHandshake(now);
+  } else if (prefix.type == PacketType::kAccept && msg->body_type() == schema::Body::Accept) {
+    const auto* accept = msg->body_as_Accept();
+    ConnectionConfig cc = config_.connection;
+    if (accept->keepalive_ms() > 0) cc.keepalive_interval_s = accept->keepalive_ms() / 1000.0;
+    if (accept->timeout_ms() > 0) cc.timeout_s = accept->timeout_ms() / 1000.0;
+    connection_ = std::make_unique<Connection>(accept->connection_id(), cc, now);
+    player_id_ = accept->player_id();
+    state_ = ClientState::kConnected;
+    listener_->OnConnected(player_id_);
+  } else if (prefix.type == PacketType::kReject && msg->body_type() == schema::Body::Reject) {
+    reject_reason_ = static_cast<uint16_t>(msg->body_as_Reject()->reason());
+    state_ = ClientState::kRejected;
+    listener_->OnRejected(reject_reason_);
+  }
+}
+
+Status Client::JoinRoom(std::string_view room) {
+  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  flatbuffers::FlatBufferBuilder fbb(128);
+  FinishControl(fbb, schema::CreateJoinRoom(fbb, fbb.CreateString(room.data(), room.size())));
+  return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+}
+
+Status Client::LeaveRoom() {
+  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  flatbuffers::FlatBufferBuilder fbb(32);
+  FinishControl(fbb, schema::CreateLeaveRoom(fbb));
+  Status st = connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+  ResetRoom();
+  return st;
+}
+
+void Client::ResetRoom() {
+  joined_ = false;
+  room_.clear();
+  entities_.clear();
+  despawned_.clear();
+  owned_.clear();
+  players_.clear();
+  tracker_ = ReplicationTracker();
+}
+
+Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
+  if (state_ != ClientState::kConnected || !joined_) {
+    return Status(StatusCode::kNotConnected, "join a room first");
+  }
+  EntityState st{0, desc.position, desc.rotation};
+  if (!IsValidState(st)) return Status(StatusCode::kInvalidArgument, "transform not finite/unit");
+  uint32_t id = 0;
+  while (next_local_id_ < 65536) {
+    uint32_t candidate = entity_id_base_ + next_local_id_++;
+    if (owned_.count(candidate) == 0) {
+      id = candidate;
+      break;
+    }
+  }
+  if (id == 0) return Status(StatusCode::kResourceExhausted, "entity id block used up");
+  st.entity_id = id;
+
+  flatbuffers::FlatBufferBuilder fbb(256);
+  schema::Transform transform(
+      schema::Vec3(desc.position.x, desc.position.y, desc.position.z),
+      schema::Quat(desc.rotation.x, desc.rotation.y, desc.rotation.z, desc.rotation.w),
+      schema::Vec3(desc.scale.x, desc.scale.y, desc.scale.z));
+  auto name = fbb.CreateString(desc.name);
+  schema::ContainerBuilder cb(fbb);
+  cb.add_entity_id(id);
+  cb.add_parent_id(desc.parent);
+  cb.add_owner(player_id_);
+  cb.add_flags(desc.flags);
+  cb.add_transform(&transform);
+  cb.add_name(name);
+  auto container = cb.Finish();
+  FinishControl(fbb, schema::CreateSpawn(fbb, container));
+  Status sent = connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+  if (!sent.ok()) return sent;
+  // The spawn carries the initial transform: version 1 needs no state packet.
+  owned_[id] = OwnedEntity{st, 1};
+  return id;
+}
+
+Status Client::Despawn(uint32_t entity_id) {
+  if (owned_.erase(entity_id) == 0) return Status(StatusCode::kNotFound, "not an owned entity");
+  tracker_.Forget(entity_id);
+  flatbuffers::FlatBufferBuilder fbb(32);
+  FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
+  return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+}
+
+Status Client::PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation) {
+  auto it = owned_.find(entity_id);
+  if (it == owned_.end()) return Status(StatusCode::kNotFound, "not an owned entity");
+  EntityState st{entity_id, position, rotation};
+  if (!IsValidState(st)) return Status(StatusCode::kInvalidArgument, "transform not finite/unit");
+  it->second.state = st;
+  ++it->second.version;
+  return Status::Ok();
+}
+
+void Client::Publish(double now) {
+  if (owned_.empty()) return;
+  const double resend_after = connection_->stats().rtt_s * 1.25 + 1.0 / config_.publish_rate_hz;
+  const uint32_t time_ms = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
+  sent_scratch_.clear();
+  auto flush = [&]() {
+    size_t size = encoder_.Finish();
+    if (size == 0) return;
+    Result<uint16_t> seq = connection_->SendUnreliable({payload_buffer_.data(), size}, now, *this);
+    if (seq.ok()) {
+      for (const auto& [id, version] : sent_scratch_) tracker_.OnSent(*seq, id, version, now);
+    }
+    sent_scratch_.clear();
+  };
+  encoder_.Begin(payload_buffer_, time_ms);
+  for (const auto& [id, e] : owned_) {
+    if (!tracker_.NeedsSend(id, e.version, now, resend_after)) continue;
+    if (!encoder_.Add(e.state)) {
+      flush();
+      encoder_.Begin(payload_buffer_, time_ms);
+      encoder_.Add(e.state);
+    }
+    sent_scratch_.emplace_back(id, e.version);
+  }
+  flush();
+}
+
+Status Client::SendStateUnchecked(const EntityState& state, double now) {
+  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  FloatStateEncoder encoder;
+  encoder.Begin(payload_buffer_, static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0)));
+  encoder.Add(state);
+  size_t size = encoder.Finish();
+  return connection_->SendUnreliable({payload_buffer_.data(), size}, now, *this).status();
+}
+
+Status Client::SendReliableUnchecked(std::span<const uint8_t> message) {
+  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  return connection_->SendReliable(message);
+}
+
+void Client::Disconnect() {
+  if (connection_ && connection_->connected()) {
+    connection_->Disconnect(DisconnectReason::kClientLeft, *this);
+  }
+  if (state_ == ClientState::kConnected || state_ == ClientState::kHandshaking) {
+    state_ = ClientState::kDisconnected;
+    disconnect_reason_ = DisconnectReason::kClientLeft;
+  }
+  joined_ = false;
+}
+
+const ConnectionStats* Client::stats() const {
+  return connection_ ? &connection_->stats() : nullptr;
+}
+
+const RemoteEntity* Client::FindEntity(uint32_t id) const {
+  auto it = entities_.find(id);
+  return it == entities_.end() ? nullptr : &it->second;
+}
+
+void Client::OnReliableMessage(std::span<const uint8_t> message) {
+  const auto* msg = VerifyControlMessage(message);
+  if (msg == nullptr) return;  // a relay bug or a corrupted peer; nothing to apply
+  switch (msg->body_type()) {
+    case schema::Body::Joined: {
+      const auto* j = msg->body_as_Joined();
+      ResetRoom();
+      joined_ = true;
+      room_ = j->room() ? j->room()->str() : std::string();
+      entity_id_base_ = j->entity_id_base();
+      next_local_id_ = 1;
+      listener_->OnJoined(room_, entity_id_base_);
+      break;
+    }
+    case schema::Body::RoomState: {
+      const auto* rs = msg->body_as_RoomState();
+      players_.clear();
+      if (rs->players()) players_.assign(rs->players()->begin(), rs->players()->end());
+      break;
+    }
+    case schema::Body::Spawn: {
+      const auto* c = msg->body_as_Spawn()->container();
+      if (c == nullptr || c->transform() == nullptr) return;
+      despawned_.erase(c->entity_id());
+      RemoteEntity& e = entities_[c->entity_id()];
+      e.id = c->entity_id();
+      e.owner = c->owner();
+      e.parent = c->parent_id();
+      e.flags = c->flags();
+      e.spawned = true;
+      if (!e.has_state) {
+        const auto* t = c->transform();
+        e.state = {e.id,
+                   {t->position().x(), t->position().y(), t->position().z()},
+                   {t->rotation().x(), t->rotation().y(), t->rotation().z(), t->rotation().w()}};
+      }
+      listener_->OnEntitySpawned(e);
+      break;
+    }
+    case schema::Body::Despawn: {
+      uint32_t id = msg->body_as_Despawn()->entity_id();
+      entities_.erase(id);
+      despawned_.insert(id);
+      listener_->OnEntityDespawned(id);
+      break;
+    }
+    case schema::Body::PlayerJoined: {
+      uint32_t p = msg->body_as_PlayerJoined()->player_id();
+      players_.push_back(p);
+      listener_->OnPlayerJoined(p);
+      break;
+    }
+    case schema::Body::PlayerLeft: {
+      uint32_t p = msg->body_as_PlayerLeft()->player_id();
+      std::erase(players_, p);
+      listener_->OnPlayerLeft(p);
+      break;
+    }
+    case schema::Body::Error: {
+      const auto* e = msg->body_as_Error();
+      listener_->OnError(static_cast<uint16_t>(e->reason()), e->entity_id(),
+                         e->detail() ? e->detail()->string_view() : std::string_view());
+      break;
+    }
+    default:
+      break;
+  }
+}
+
+void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
+  if (!joined_ || !DecodeStateBatch(payload, &batch_).ok()) return;
+  for (const EntityState& st : batch_.states) {
+    if (owned_.count(st.entity_id) != 0 || despawned_.count(st.entity_id) != 0) continue;
+    if (!IsValidState(st)) continue;
+    RemoteEntity& e = entities_[st.entity_id];
+    e.id = st.entity_id;
+    e.state = st;
+    e.has_state = true;
+    e.state_time_ms = batch_.time_ms;
+    if (e.spawned) listener_->OnEntityUpdated(e);
+  }
+}
+
+void Client::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
+
+void Client::WritePacket(std::span<const uint8_t> packet) { (void)socket_->SendTo(server_, packet); }
+
+}  // namespace edgephys

@@ -1,0 +1,201 @@
+// edgephys client SDK (the "GHost" side): connect to a relay with a join token, join a room,
+// spawn entities, publish their transforms and see everyone else's.
+//
+// Usage (one thread; time and I/O injected, like the relay):
+//
+//   auto socket = edgephys::UdpSocket::Open(*edgephys::ParseEndpoint("0.0.0.0:0"));
+//   edgephys::Client client(edgephys::ClientConfig{}, socket->get(), &my_listener);
+//   client.Connect(relay_endpoint, token_bytes, now);
+//   // every frame:
+//   client.Update(now);                       // handshake, receive, resend, publish
+//   if (client.state() == ClientState::kConnected && !client.joined()) client.JoinRoom("lobby");
+//   auto id = client.Spawn({.position = {0, 1, 0}});        // after OnJoined
+//   client.PublishTransform(*id, position, rotation);        // any time; sent at publish rate
+//   for (auto& [id, e] : client.entities()) render(e.state); // or use the listener callbacks
+//
+// Entities: each player owns a block of 65,536 entity ids (from Joined). Spawn() picks the next
+// free id in that block. Only the owner may move or despawn an entity; the relay drops (and
+// counts) anything else. State reaches others on the unreliable channel, converging under loss:
+// the SDK re-sends an entity's latest state until the relay acknowledges it.
+//
+// Thread-safety: none; use a Client from one thread. Listener callbacks run inside Update()
+// and the public methods, on that thread; they must not call Update() re-entrantly.
+// Memory: O(entities in the room). No allocation per received state in steady state.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "protocol/connection.h"
+#include "protocol/datagram_socket.h"
+#include "protocol/replication_tracker.h"
+#include "protocol/state_codec.h"
+#include "protocol/status.h"
+
+namespace edgephys {
+
+struct ClientConfig {
+  ConnectionConfig connection;      // keep-alive and timeout are taken from the relay's Accept
+  double handshake_resend_s = 0.25; // Hello / Connect repeated this often until answered
+  double handshake_timeout_s = 5.0; // give up (kFailed) after this long without Accept
+  double publish_rate_hz = 30.0;    // owned entities' transforms sent at most this often
+};
+
+enum class ClientState {
+  kIdle,           // nothing started
+  kHandshaking,    // Hello / Connect in flight
+  kConnected,      // Accept received; JoinRoom may be sent
+  kRejected,       // the relay refused: see reject_reason()
+  kDisconnected,   // connection ended: see disconnect_reason()
+  kFailed,         // no answer within handshake_timeout_s
+};
+
+// An entity in the joined room, as this client knows it.
+struct RemoteEntity {
+  uint32_t id = 0;
+  uint32_t owner = 0;          // player id; 0 = the room
+  uint32_t parent = 0;
+  uint32_t flags = 0;
+  bool spawned = false;        // Spawn received (a state may arrive first)
+  bool has_state = false;      // at least one state received after the spawn transform
+  EntityState state;           // latest received transform
+  uint32_t state_time_ms = 0;  // relay time of that state
+};
+
+// Callbacks, all optional. Called from Update() (or the call that caused them).
+class ClientListener {
+ public:
+  virtual ~ClientListener() = default;
+  virtual void OnConnected(uint32_t player_id) { (void)player_id; }
+  virtual void OnRejected(uint16_t reason) { (void)reason; }
+  virtual void OnDisconnected(DisconnectReason reason) { (void)reason; }
+  virtual void OnJoined(std::string_view room, uint32_t entity_id_base) {
+    (void)room, (void)entity_id_base;
+  }
+  virtual void OnPlayerJoined(uint32_t player_id) { (void)player_id; }
+  virtual void OnPlayerLeft(uint32_t player_id) { (void)player_id; }
+  virtual void OnEntitySpawned(const RemoteEntity& entity) { (void)entity; }
+  virtual void OnEntityUpdated(const RemoteEntity& entity) { (void)entity; }
+  virtual void OnEntityDespawned(uint32_t entity_id) { (void)entity_id; }
+  // The relay refused a request (RejectReason code, schema/control.fbs).
+  virtual void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
+    (void)reason, (void)entity_id, (void)detail;
+  }
+};
+
+struct SpawnDesc {
+  Vec3f position;
+  Quatf rotation;
+  Vec3f scale{1, 1, 1};
+  uint32_t parent = 0;
+  uint32_t flags = 0;          // schema::EntityFlags bits (Persistent, Kinematic, ...)
+  std::string name;
+};
+
+class Client final : private ConnectionHandler, private PacketWriter {
+ public:
+  // `socket` (and `listener`, if given) are not owned and must outlive the client.
+  Client(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener = nullptr);
+  ~Client() override;
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+
+  // Starts the handshake with the relay at `server`. `token` is the binary join token (decode
+  // the printable form with Base64UrlDecode). kInvalidArgument if already started.
+  Status Connect(const Endpoint& server, std::span<const uint8_t> token, double now);
+
+  // Receives everything pending, advances the handshake, resends, publishes due transforms.
+  void Update(double now);
+
+  // Joins the room the token grants (kNotConnected before kConnected). OnJoined follows.
+  Status JoinRoom(std::string_view room);
+  Status LeaveRoom();
+
+  // Spawns an entity owned by this client; returns its id. kNotConnected before OnJoined,
+  // kResourceExhausted when the id block is used up, kInvalidArgument on a non-finite or
+  // non-unit transform.
+  Result<uint32_t> Spawn(const SpawnDesc& desc);
+  // kNotFound if this client does not own `entity_id`.
+  Status Despawn(uint32_t entity_id);
+  // Records the latest transform of an owned entity; it goes out at the publish rate.
+  // kNotFound if not owned, kInvalidArgument if not finite / not unit.
+  Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
+  // Sends a state for any id, owned or not, unchecked, in its own packet now. For tests and
+  // tools that exercise the relay's authority checks; games use PublishTransform.
+  Status SendStateUnchecked(const EntityState& state, double now);
+  // Sends raw bytes on the reliable channel. For tests and tools.
+  Status SendReliableUnchecked(std::span<const uint8_t> message);
+
+  // Sends a disconnect (kClientLeft) to the relay.
+  void Disconnect();
+
+  ClientState state() const { return state_; }
+  bool joined() const { return joined_; }
+  uint32_t player_id() const { return player_id_; }
+  uint32_t entity_id_base() const { return entity_id_base_; }
+  const std::string& room() const { return room_; }
+  uint16_t reject_reason() const { return reject_reason_; }
+  DisconnectReason disconnect_reason() const { return disconnect_reason_; }
+  // nullptr before kConnected.
+  const ConnectionStats* stats() const;
+  // Others' entities (and own entities are not listed).
+  const std::unordered_map<uint32_t, RemoteEntity>& entities() const { return entities_; }
+  const RemoteEntity* FindEntity(uint32_t id) const;
+  const std::vector<uint32_t>& players() const { return players_; }
+
+ private:
+  struct OwnedEntity {
+    EntityState state;
+    uint32_t version = 1;
+  };
+  void OnReliableMessage(std::span<const uint8_t> message) override;
+  void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override;
+  void OnPacketAcked(uint16_t sequence) override;
+  void WritePacket(std::span<const uint8_t> packet) override;
+  void HandleHandshakePacket(std::span<const uint8_t> packet, double now);
+  void SendHandshake(double now);
+  void Publish(double now);
+  void ResetRoom();
+
+  ClientConfig config_;
+  DatagramSocket* socket_;
+  ClientListener* listener_;
+  ClientListener null_listener_;
+  ClientState state_ = ClientState::kIdle;
+  Endpoint server_;
+  std::vector<uint8_t> token_;
+  std::vector<uint8_t> cookie_;
+  uint64_t nonce_ = 0;
+  double handshake_started_ = 0;
+  double last_handshake_send_ = -1e9;
+  std::unique_ptr<Connection> connection_;
+  uint32_t player_id_ = 0;
+  uint16_t reject_reason_ = 0;
+  DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
+
+  bool joined_ = false;
+  std::string room_;
+  uint32_t entity_id_base_ = 0;
+  uint32_t next_local_id_ = 1;
+  std::vector<uint32_t> players_;
+  std::unordered_map<uint32_t, RemoteEntity> entities_;
+  std::unordered_set<uint32_t> despawned_;  // tombstones: late states for these are ignored
+  std::unordered_map<uint32_t, OwnedEntity> owned_;
+  ReplicationTracker tracker_;
+  double next_publish_ = 0;
+  double now_ = 0;
+
+  std::vector<uint8_t> receive_buffer_;
+  std::vector<uint8_t> payload_buffer_;
+  std::vector<std::pair<uint32_t, uint32_t>> sent_scratch_;
+  StateBatch batch_;
+  FloatStateEncoder encoder_;
+};
+
+}  // namespace edgephys

@@ -1,0 +1,612 @@
+#include "protocol/connection.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "protocol/connection_test_util.h"
+
+namespace edgephys {
+namespace {
+
+using testing::Bytes;
+using testing::CapturingWriter;
+using testing::kTestConnectionId;
+using testing::Link;
+using testing::PacketBuilder;
+using testing::RecordingHandler;
+
+// The impairment every end-to-end test below must survive.
+NetworkConditions Harsh(uint64_t seed) {
+  NetworkConditions c;
+  c.loss = 0.2;
+  c.duplicate = 0.05;
+  c.reorder = 0.1;
+  c.latency_s = 0.05;
+  c.jitter_s = 0.02;
+  c.seed = seed;
+  return c;
+}
+
+// Message `index`: varied sizes (mostly small, some spanning several units), content derived
+// from the index so corruption or reordering is detected.
+Bytes TestMessage(uint32_t index, std::mt19937& rng) {
+  uint32_t pick = rng() % 100;
+  size_t size = pick < 70 ? 4 + rng() % 200 : pick < 90 ? 200 + rng() % 1300 : 1500 + rng() % 4000;
+  Bytes message(size);
+  StoreU32LE(message.data(), index);
+  for (size_t i = 4; i < size; ++i) message[i] = static_cast<uint8_t>(index * 31 + i * 7);
+  return message;
+}
+
+Bytes RandomBytes(size_t size, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Bytes bytes(size);
+  for (uint8_t& b : bytes) b = static_cast<uint8_t>(rng());
+  return bytes;
+}
+
+TEST(ConnectionTest, ThousandReliableMessagesArriveOnceInOrderUnderLoss) {
+  Link link(Harsh(11));
+  std::mt19937 rng(5);
+  std::vector<Bytes> a_to_b, b_to_a;
+  for (uint32_t i = 0; i < 1000; ++i) {
+    a_to_b.push_back(TestMessage(i, rng));
+    ASSERT_TRUE(link.a.connection->SendReliable(a_to_b.back()).ok());
+  }
+  for (uint32_t i = 0; i < 100; ++i) {
+    b_to_a.push_back(TestMessage(i, rng));
+    ASSERT_TRUE(link.b.connection->SendReliable(b_to_a.back()).ok());
+  }
+  ASSERT_TRUE(link.RunUntil(
+      [&] {
+        return link.b.handler.reliable.size() >= a_to_b.size() &&
+               link.a.handler.reliable.size() >= b_to_a.size();
+      },
+      300.0));
+  ASSERT_EQ(link.b.handler.reliable.size(), a_to_b.size());
+  for (size_t i = 0; i < a_to_b.size(); ++i) {
+    ASSERT_EQ(link.b.handler.reliable[i], a_to_b[i]) << i;
+  }
+  EXPECT_EQ(link.a.handler.reliable, b_to_a);
+  EXPECT_EQ(link.b.connection->stats().reliable_delivered, 1000u);
+
+  // Nothing more arrives later, and every byte is eventually acknowledged.
+  link.Run(5.0);
+  EXPECT_EQ(link.b.handler.reliable.size(), a_to_b.size());
+  EXPECT_EQ(link.a.connection->stats().pending_reliable_bytes, 0u);
+  EXPECT_TRUE(link.a.connection->connected());
+  EXPECT_TRUE(link.b.connection->connected());
+  // The impairment really happened and was handled.
+  EXPECT_GT(link.a.sim.stats().dropped, 0u);
+  EXPECT_GT(link.a.sim.stats().duplicated, 0u);
+  EXPECT_GT(link.a.sim.stats().delayed, 0u);
+  EXPECT_GT(link.a.connection->stats().reliable_resends, 0u);
+  EXPECT_GT(link.b.connection->stats().duplicates_dropped, 0u);
+}
+
+TEST(ConnectionTest, LargeReliableMessageArrivesIntactUnderLoss) {
+  Link link(Harsh(12));
+  Bytes big = RandomBytes(200 * 1024, 1);
+  Bytes small = {1, 2, 3};
+  ASSERT_TRUE(link.a.connection->SendReliable(big).ok());
+  ASSERT_TRUE(link.a.connection->SendReliable(small).ok());
+  ASSERT_TRUE(link.RunUntil([&] { return link.b.handler.reliable.size() >= 2; }, 120.0));
+  ASSERT_EQ(link.b.handler.reliable.size(), 2u);
+  EXPECT_TRUE(link.b.handler.reliable[0] == big);
+  EXPECT_EQ(link.b.handler.reliable[1], small);
+}
+
+TEST(ConnectionTest, MaxSizeMessageArrivesIntact) {
+  NetworkConditions mild;
+  mild.loss = 0.05;
+  mild.latency_s = 0.02;
+  Link link(mild);
+  Bytes big = RandomBytes(ConnectionConfig{}.max_message_size, 2);
+  ASSERT_TRUE(link.a.connection->SendReliable(big).ok());
+  ASSERT_TRUE(link.RunUntil([&] { return !link.b.handler.reliable.empty(); }, 120.0));
+  EXPECT_TRUE(link.b.handler.reliable[0] == big);
+}
+
+TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
+  NetworkConditions c = Harsh(13);
+  c.loss = 0.05;
+  c.reorder = 0.3;
+  c.duplicate = 0.1;
+  Link link(c);
+  std::map<uint16_t, uint32_t> sent_counter;  // sequence -> counter in that payload
+  for (uint32_t i = 0; i < 3000; ++i) {
+    Bytes payload(8);
+    StoreU32LE(payload.data(), i);
+    auto sequence = link.a.connection->SendUnreliable(payload, link.now(), link.a);
+    ASSERT_TRUE(sequence.ok());
+    sent_counter[*sequence] = i;
+    link.Step();
+  }
+  link.Run(1.0);
+  const RecordingHandler& h = link.b.handler;
+  ASSERT_GT(h.unreliable.size(), 1200u);
+  uint32_t previous = 0;
+  for (size_t i = 0; i < h.unreliable.size(); ++i) {
+    uint32_t counter = LoadU32LE(h.unreliable[i].data());
+    EXPECT_EQ(counter, sent_counter[h.unreliable_sequences[i]]);
+    if (i > 0) {
+      EXPECT_GT(counter, previous);
+    }
+    previous = counter;
+  }
+  EXPECT_GT(link.b.connection->stats().stale_dropped, 0u);
+  EXPECT_GT(link.b.connection->stats().duplicates_dropped, 0u);
+  EXPECT_GT(link.b.statuses[StatusCode::kAlreadyExists], 0);
+}
+
+TEST(ConnectionTest, OversizedPeerMessageIsAProtocolError) {
+  ConnectionConfig small;
+  small.max_message_size = 16 * 1024;
+  NetworkConditions c;
+  c.latency_s = 0.01;
+  Link link(c, ConnectionConfig{}, small);
+  ASSERT_TRUE(link.a.connection->SendReliable(RandomBytes(100 * 1024, 3)).ok());
+  link.Run(1.0);
+  EXPECT_EQ(link.b.connection->disconnect_reason(), DisconnectReason::kProtocolError);
+  EXPECT_EQ(link.b.statuses[StatusCode::kTooLarge], 1);
+  EXPECT_TRUE(link.b.handler.reliable.empty());
+  // The broken peer is told why.
+  EXPECT_EQ(link.a.connection->disconnect_reason(), DisconnectReason::kProtocolError);
+}
+
+TEST(ConnectionTest, ReassemblyStopsAtMaxMessageSize) {
+  ConnectionConfig config;
+  config.max_message_size = 4096;
+  Connection c(kTestConnectionId, config, 0);
+  RecordingHandler h;
+  Bytes unit(1024, 7);
+  for (uint16_t id = 0; id < 4; ++id) {
+    EXPECT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, id).Unit(id, false, unit).Build(),
+                                0, h)
+                    .ok());
+  }
+  Status status = c.ProcessPacket(PacketBuilder(PacketType::kData, 4).Unit(4, false, unit).Build(),
+                                  0, h);
+  EXPECT_EQ(status.code(), StatusCode::kTooLarge);
+  EXPECT_EQ(c.disconnect_reason(), DisconnectReason::kProtocolError);
+  EXPECT_EQ(c.ProcessPacket(PacketBuilder(PacketType::kData, 5).Unit(5, true, unit).Build(), 0, h)
+                .code(),
+            StatusCode::kNotConnected);
+  // The peer is told: the next Update() sends the disconnect packets.
+  CapturingWriter out;
+  c.Update(0.01, out);
+  ASSERT_EQ(out.packets.size(), 3u);
+  EXPECT_EQ(out.packets[0][5], static_cast<uint8_t>(PacketType::kDisconnect));
+  EXPECT_EQ(out.packets[0].back(), static_cast<uint8_t>(DisconnectReason::kProtocolError));
+  EXPECT_TRUE(h.reliable.empty());
+}
+
+TEST(ConnectionTest, UnitsOutsideTheWindowAreAProtocolError) {
+  Connection c(kTestConnectionId, ConnectionConfig{}, 0);
+  RecordingHandler h;
+  Bytes unit(1024, 1);
+  // Fill the whole window except the first unit: buffered, bounded, never delivered.
+  uint16_t sequence = 0;
+  for (uint16_t id = 1; id < kReliableWindow; ++id) {
+    ASSERT_TRUE(
+        c.ProcessPacket(PacketBuilder(PacketType::kData, sequence++).Unit(id, false, unit).Build(),
+                        0, h)
+            .ok());
+  }
+  // Repeats are duplicates.
+  uint64_t duplicates = c.stats().duplicates_dropped;
+  ASSERT_TRUE(
+      c.ProcessPacket(PacketBuilder(PacketType::kData, sequence++).Unit(5, false, unit).Build(), 0,
+                      h)
+          .ok());
+  EXPECT_EQ(c.stats().duplicates_dropped, duplicates + 1);
+  EXPECT_TRUE(c.connected());
+  Status status = c.ProcessPacket(
+      PacketBuilder(PacketType::kData, sequence++).Unit(kReliableWindow, true, unit).Build(), 0, h);
+  EXPECT_EQ(status.code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(c.disconnect_reason(), DisconnectReason::kProtocolError);
+  EXPECT_TRUE(h.reliable.empty());
+}
+
+TEST(ConnectionTest, CompletesBufferedMessagesWhenTheGapFills) {
+  Connection c(kTestConnectionId, ConnectionConfig{}, 0);
+  RecordingHandler h;
+  Bytes x = {1}, y = {2}, z = {3};
+  ASSERT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, 0).Unit(2, true, z).Build(), 0, h).ok());
+  ASSERT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, 1).Unit(1, false, y).Build(), 0, h).ok());
+  EXPECT_TRUE(h.reliable.empty());
+  ASSERT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, 2).Unit(0, true, x).Unit(1, false, y).Build(), 0, h).ok());
+  ASSERT_EQ(h.reliable.size(), 2u);
+  EXPECT_EQ(h.reliable[0], x);
+  EXPECT_EQ(h.reliable[1], (Bytes{2, 3}));
+  EXPECT_EQ(c.stats().reliable_delivered, 2u);
+  EXPECT_EQ(c.stats().duplicates_dropped, 1u);  // unit 1 twice
+}
+
+bool StatsEqual(const ConnectionStats& x, const ConnectionStats& y) {
+  return x.rtt_s == y.rtt_s && x.rtt_var_s == y.rtt_var_s && x.loss == y.loss &&
+         x.packets_sent == y.packets_sent && x.packets_received == y.packets_received &&
+         x.bytes_sent == y.bytes_sent && x.bytes_received == y.bytes_received &&
+         x.reliable_resends == y.reliable_resends &&
+         x.reliable_delivered == y.reliable_delivered && x.stale_dropped == y.stale_dropped &&
+         x.duplicates_dropped == y.duplicates_dropped &&
+         x.pending_reliable_bytes == y.pending_reliable_bytes;
+}
+
+// Offsets where each chunk of a well-formed data packet starts.
+std::vector<size_t> ChunkStarts(const Bytes& packet) {
+  std::vector<size_t> starts;
+  size_t at = kConnectionHeaderSize;
+  while (at < packet.size()) {
+    starts.push_back(at);
+    size_t header = packet[at] == 0x01 ? 6 : 3;
+    at += header + LoadU16LE(packet.data() + at + header - 2);
+  }
+  return starts;
+}
+
+// Broken variants of a well-formed data packet; each must be rejected as kMalformed.
+std::vector<Bytes> MalformedVariants(const Bytes& packet, std::mt19937& rng) {
+  std::vector<Bytes> out;
+  std::vector<size_t> starts = ChunkStarts(packet);
+  size_t last = starts.empty() ? kConnectionHeaderSize : starts.back();
+  // Truncated inside the prefix, the header or the last chunk.
+  out.push_back(Bytes(packet.begin(), packet.begin() + rng() % kConnectionHeaderSize));
+  if (!starts.empty()) {
+    size_t cut = last + 1 + rng() % (packet.size() - last - 1);
+    out.push_back(Bytes(packet.begin(), packet.begin() + static_cast<std::ptrdiff_t>(cut)));
+  }
+  Bytes b = packet;
+  b.push_back(0x7F);  // unknown chunk type
+  out.push_back(b);
+  b = packet;
+  b.push_back(0x02);  // chunk header cut short
+  out.push_back(b);
+  if (!starts.empty()) {
+    b = packet;  // length beyond the packet
+    size_t header = b[last] == 0x01 ? 6 : 3;
+    StoreU16LE(b.data() + last + header - 2,
+               static_cast<uint16_t>(packet.size() - last - header + 1));
+    out.push_back(b);
+    b = packet;  // zero length
+    StoreU16LE(b.data() + last + header - 2, 0);
+    out.push_back(b);
+    if (b[last] == 0x01) {
+      b = packet;  // unknown unit flag
+      b[last + 3] |= 0x80;
+      out.push_back(b);
+    }
+  }
+  b = packet;  // a second unreliable chunk
+  PacketBuilder extra(PacketType::kData, 0);
+  Bytes tail = extra.Unreliable({1}).Unreliable({2}).Build();
+  b.insert(b.end(), tail.begin() + kConnectionHeaderSize, tail.end());
+  out.push_back(b);
+  b = packet;  // someone else's connection
+  StoreU32LE(b.data() + 6, kTestConnectionId + 1);
+  out.push_back(b);
+  b = packet;  // not a data packet
+  b[5] = static_cast<uint8_t>(PacketType::kAccept);
+  out.push_back(b);
+  b = Bytes(packet.begin(), packet.begin() + kConnectionHeaderSize);  // disconnect, bad reason
+  b[5] = static_cast<uint8_t>(PacketType::kDisconnect);
+  b.push_back(0);
+  out.push_back(b);
+  b.back() = 200;
+  out.push_back(b);
+  b.back() = static_cast<uint8_t>(DisconnectReason::kKicked);
+  b.push_back(0);  // trailing byte
+  out.push_back(b);
+  b = packet;  // oversized unit
+  if (!starts.empty() && b[last] == 0x01) {
+    Bytes unit(kMaxReliableUnitSize + 1, 9);
+    Bytes t = PacketBuilder(PacketType::kData, 0).Unit(1, true, unit).Build();
+    b = Bytes(packet.begin(), packet.begin() + kConnectionHeaderSize);
+    b.insert(b.end(), t.begin() + kConnectionHeaderSize, t.end());
+    out.push_back(b);
+  }
+  return out;
+}
+
+TEST(ConnectionTest, MalformedPacketsChangeNoState) {
+  // `sender` produces real traffic; `twin` sees exactly that, `victim` also the broken variants.
+  ConnectionConfig config;
+  Connection sender(kTestConnectionId, config, 0), victim(kTestConnectionId, config, 0),
+      twin(kTestConnectionId, config, 0);
+  RecordingHandler hs, hv, ht;
+  std::mt19937 rng(21);
+  int malformed = 0;
+  for (int step = 1; step <= 300; ++step) {
+    double now = step * 0.01;
+    CapturingWriter from_sender(&hs);
+    if (step % 3 == 0) {
+      ASSERT_TRUE(sender.SendReliable(RandomBytes(1 + rng() % 3000, step)).ok());
+    }
+    Bytes payload = RandomBytes(1 + rng() % 100, step + 1000);
+    ASSERT_TRUE(sender.SendUnreliable(payload, now, from_sender).ok());
+    sender.Update(now, from_sender);
+    for (const Bytes& packet : from_sender.packets) {
+      for (const Bytes& bad : MalformedVariants(packet, rng)) {
+        Status status = victim.ProcessPacket(bad, now, hv);
+        ASSERT_EQ(status.code(), StatusCode::kMalformed) << "variant of size " << bad.size();
+        ++malformed;
+        ASSERT_TRUE(StatsEqual(victim.stats(), twin.stats()));
+      }
+      if (rng() % 4 == 0) continue;  // some loss, so acks and resends get exercised
+      EXPECT_EQ(victim.ProcessPacket(packet, now, hv).code(), twin.ProcessPacket(packet, now, ht).code());
+    }
+    CapturingWriter from_victim(&hv), from_twin(&ht);
+    victim.Update(now, from_victim);
+    twin.Update(now, from_twin);
+    ASSERT_EQ(from_victim.packets, from_twin.packets) << "step " << step;
+    for (const Bytes& packet : from_twin.packets) sender.ProcessPacket(packet, now, hs);
+    ASSERT_TRUE(StatsEqual(victim.stats(), twin.stats()));
+    ASSERT_EQ(hv.reliable, ht.reliable);
+    ASSERT_EQ(hv.unreliable, ht.unreliable);
+  }
+  EXPECT_GT(malformed, 3000);
+  EXPECT_GT(ht.reliable.size(), 50u);
+  EXPECT_TRUE(victim.connected());
+}
+
+TEST(ConnectionTest, RandomAndMutatedPacketsNeverCrash) {
+  // A corpus of real packets, then thousands of seeded mutations of them and pure garbage.
+  ConnectionConfig config;
+  Connection sender(kTestConnectionId, config, 0);
+  CapturingWriter corpus;
+  std::mt19937 rng(99);
+  for (int step = 1; step <= 100; ++step) {
+    if (step % 2 == 0) {
+      ASSERT_TRUE(sender.SendReliable(RandomBytes(1 + rng() % 4000, step)).ok());
+    }
+    ASSERT_TRUE(sender.SendUnreliable(RandomBytes(1 + rng() % 500, step), step * 0.01, corpus).ok());
+    sender.Update(step * 0.01, corpus);
+  }
+  auto victim = std::make_unique<Connection>(kTestConnectionId, config, 0);
+  RecordingHandler h;
+  std::map<StatusCode, int> codes;
+  int replaced = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Bytes& original = corpus.packets[rng() % corpus.packets.size()];
+    Bytes packet = original;
+    switch (rng() % 5) {
+      case 0:  // flip a few bytes
+        for (uint32_t n = 1 + rng() % 4; n > 0; --n) packet[rng() % packet.size()] ^= 1 + rng() % 255;
+        break;
+      case 1:  // truncate
+        packet.resize(rng() % packet.size());
+        break;
+      case 2:  // extend with garbage
+        for (uint32_t n = 1 + rng() % 64; n > 0; --n) packet.push_back(static_cast<uint8_t>(rng()));
+        break;
+      case 3:  // overwrite a 16-bit field after the prefix (lengths, ids, sequences)
+        if (packet.size() > kPacketPrefixSize + 2) {
+          StoreU16LE(packet.data() + kPacketPrefixSize + rng() % (packet.size() - kPacketPrefixSize - 1),
+                     static_cast<uint16_t>(rng()));
+        }
+        break;
+      default:  // garbage
+        packet = RandomBytes(rng() % 1300, static_cast<uint32_t>(i));
+        break;
+    }
+    Status status = victim->ProcessPacket(packet, 1.0 + i * 1e-4, h);
+    codes[status.code()]++;
+    EXPECT_TRUE(status.code() == StatusCode::kOk || status.code() == StatusCode::kMalformed ||
+                status.code() == StatusCode::kAlreadyExists ||
+                status.code() == StatusCode::kTooLarge ||
+                status.code() == StatusCode::kResourceExhausted)
+        << static_cast<int>(status.code());
+    if (packet.size() < kConnectionHeaderSize) {
+      EXPECT_EQ(status.code(), StatusCode::kMalformed);
+    }
+    if (!victim->connected()) {
+      victim = std::make_unique<Connection>(kTestConnectionId, config, 0);
+      ++replaced;
+    }
+  }
+  EXPECT_GT(codes[StatusCode::kMalformed], 10000);
+  EXPECT_GT(codes[StatusCode::kOk], 100);
+  (void)replaced;
+}
+
+TEST(ConnectionTest, KeepAlivesHoldAnIdleConnectionAndSilenceTimesOut) {
+  NetworkConditions c;
+  c.latency_s = 0.02;
+  Link link(c);
+  link.Run(3.0);
+  EXPECT_TRUE(link.a.connection->connected());
+  EXPECT_TRUE(link.b.connection->connected());
+  // keepalive_interval_s = 0.1: about 30 packets in 3 s, none of them carrying chunks.
+  EXPECT_GE(link.a.connection->stats().packets_sent, 25u);
+  EXPECT_LE(link.a.connection->stats().packets_sent, 35u);
+  EXPECT_GE(link.b.connection->stats().packets_received, 25u);
+
+  // b goes silent: a times out after timeout_s (5 s) of silence, not before.
+  link.b.mute = true;
+  double silent_since = link.now();
+  ASSERT_TRUE(link.RunUntil([&] { return !link.a.connection->connected(); }, 10.0));
+  EXPECT_EQ(link.a.connection->disconnect_reason(), DisconnectReason::kTimeout);
+  EXPECT_GE(link.now() - silent_since, 4.9);
+  EXPECT_LE(link.now() - silent_since, 5.2);
+  EXPECT_TRUE(link.b.connection->connected());  // a sends nothing when it times out
+}
+
+TEST(ConnectionTest, AcksArePromptAndReportedOnceForEveryPacket) {
+  Connection a(kTestConnectionId, ConnectionConfig{}, 0), b(kTestConnectionId, ConnectionConfig{}, 0);
+  RecordingHandler ha, hb;
+  CapturingWriter a_out(&ha), b_out(&hb);
+  auto sequence = a.SendUnreliable(Bytes{1, 2, 3}, 0.001, a_out);
+  ASSERT_TRUE(sequence.ok());
+  ASSERT_TRUE(b.ProcessPacket(a_out.packets.back(), 0.002, hb).ok());
+  b.Update(0.003, b_out);  // owes an ack: sends one packet with no chunks
+  ASSERT_EQ(b_out.packets.size(), 1u);
+  EXPECT_EQ(b_out.packets[0].size(), kConnectionHeaderSize);
+  b.Update(0.004, b_out);  // nothing owed, keep-alive not due
+  EXPECT_EQ(b_out.packets.size(), 1u);
+  ASSERT_TRUE(a.ProcessPacket(b_out.packets[0], 0.005, ha).ok());
+  EXPECT_TRUE(ha.acked[*sequence]);
+  EXPECT_EQ(ha.acked_count, 1u);
+  EXPECT_NEAR(a.stats().rtt_s, 0.004, 1e-9);
+  // Replaying the ack packet is a duplicate, never a second report.
+  EXPECT_EQ(a.ProcessPacket(b_out.packets[0], 0.006, ha).code(), StatusCode::kAlreadyExists);
+  EXPECT_EQ(ha.acked_count, 1u);
+  // An ack-only packet does not itself ask for an ack.
+  a.Update(0.007, a_out);
+  EXPECT_EQ(a_out.packets.size(), 1u);
+}
+
+TEST(ConnectionTest, EveryPacketIncludingUpdatesIsAckedExactlyOnce) {
+  NetworkConditions c;
+  c.latency_s = 0.015;
+  Link link(c);
+  for (int i = 0; i < 300; ++i) {
+    if (i % 5 == 0) {
+      ASSERT_TRUE(link.a.connection->SendReliable(RandomBytes(2000, i)).ok());
+    }
+    if (i % 2 == 0) {
+      ASSERT_TRUE(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).ok());
+    }
+    link.Step();
+  }
+  link.Run(1.0);
+  // Lossless: every packet a sent except the last keep-alive or two is acknowledged.
+  EXPECT_GE(link.a.handler.acked_count + 3, link.a.connection->stats().packets_sent);
+  EXPECT_EQ(link.a.connection->stats().reliable_resends, 0u);
+  EXPECT_NEAR(link.a.connection->stats().loss, 0.0, 1e-9);
+}
+
+TEST(ConnectionTest, RttTracksSimulatedLatency) {
+  NetworkConditions c;
+  c.latency_s = 0.05;
+  Link link(c);
+  for (int i = 0; i < 300; ++i) {
+    ASSERT_TRUE(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).ok());
+    ASSERT_TRUE(link.b.connection->SendUnreliable(Bytes{2}, link.now(), link.b).ok());
+    link.Step();
+  }
+  // 100 ms round trip plus at most one 10 ms step before the ack leaves.
+  EXPECT_GE(link.a.connection->stats().rtt_s, 0.095);
+  EXPECT_LE(link.a.connection->stats().rtt_s, 0.115);
+  EXPECT_LE(link.a.connection->stats().rtt_var_s, 0.02);
+  EXPECT_NEAR(link.a.connection->stats().loss, 0.0, 1e-9);
+}
+
+TEST(ConnectionTest, RttAndLossUnderJitterAndLoss) {
+  Link link(Harsh(14));
+  for (int i = 0; i < 1500; ++i) {
+    ASSERT_TRUE(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).ok());
+    ASSERT_TRUE(link.b.connection->SendUnreliable(Bytes{2}, link.now(), link.b).ok());
+    link.Step();
+  }
+  EXPECT_GE(link.a.connection->stats().rtt_s, 0.075);
+  EXPECT_LE(link.a.connection->stats().rtt_s, 0.15);
+  EXPECT_GE(link.a.connection->stats().loss, 0.1);
+  EXPECT_LE(link.a.connection->stats().loss, 0.32);
+}
+
+TEST(ConnectionTest, DisconnectReachesThePeer) {
+  NetworkConditions c;
+  c.latency_s = 0.01;
+  c.loss = 0.3;  // three copies: at least one arrives with this seed
+  Link link(c);
+  link.Run(0.2);
+  link.a.connection->Disconnect(DisconnectReason::kKicked, link.a);
+  EXPECT_EQ(link.a.connection->disconnect_reason(), DisconnectReason::kKicked);
+  uint64_t sent = link.a.connection->stats().packets_sent;
+  link.a.connection->Disconnect(DisconnectReason::kServerShutdown, link.a);  // idempotent
+  EXPECT_EQ(link.a.connection->stats().packets_sent, sent);
+  EXPECT_EQ(link.a.connection->disconnect_reason(), DisconnectReason::kKicked);
+  link.Run(0.2);
+  EXPECT_EQ(link.b.connection->disconnect_reason(), DisconnectReason::kKicked);
+  EXPECT_EQ(link.a.connection->SendReliable(Bytes{1}).code(), StatusCode::kNotConnected);
+  EXPECT_EQ(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).status().code(),
+            StatusCode::kNotConnected);
+}
+
+TEST(ConnectionTest, DisconnectSendsThreeCopies) {
+  Connection a(kTestConnectionId, ConnectionConfig{}, 0);
+  CapturingWriter out;
+  a.Disconnect(DisconnectReason::kClientLeft, out);
+  ASSERT_EQ(out.packets.size(), 3u);
+  for (const Bytes& p : out.packets) {
+    EXPECT_EQ(p.size(), kConnectionHeaderSize + 1);
+    EXPECT_EQ(p.back(), static_cast<uint8_t>(DisconnectReason::kClientLeft));
+  }
+  Connection b(kTestConnectionId, ConnectionConfig{}, 0);
+  RecordingHandler h;
+  EXPECT_TRUE(b.ProcessPacket(out.packets[1], 0, h).ok());
+  EXPECT_EQ(b.disconnect_reason(), DisconnectReason::kClientLeft);
+}
+
+TEST(ConnectionTest, SendErrors) {
+  ConnectionConfig config;
+  config.max_message_size = 5000;
+  config.max_pending_reliable_bytes = 10000;
+  Connection c(kTestConnectionId, config, 0);
+  CapturingWriter out;
+  EXPECT_EQ(c.SendReliable(Bytes{}).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(c.SendReliable(Bytes(5001)).code(), StatusCode::kTooLarge);
+  EXPECT_TRUE(c.SendReliable(Bytes(5000)).ok());
+  EXPECT_TRUE(c.SendReliable(Bytes(5000)).ok());
+  EXPECT_EQ(c.SendReliable(Bytes(1)).code(), StatusCode::kQueueFull);
+  EXPECT_EQ(c.stats().pending_reliable_bytes, 10000u);
+  EXPECT_EQ(c.SendUnreliable(Bytes(kMaxUnreliablePayload + 1), 0, out).status().code(),
+            StatusCode::kTooLarge);
+  EXPECT_EQ(c.SendUnreliable(Bytes{}, 0, out).status().code(), StatusCode::kInvalidArgument);
+  auto ok = c.SendUnreliable(Bytes(kMaxUnreliablePayload), 0, out);
+  ASSERT_TRUE(ok.ok());
+  EXPECT_EQ(out.packets.back().size(), kMaxPacketSize);
+}
+
+TEST(ConnectionTest, PacketsAreFilledWithDueUnits) {
+  Connection c(kTestConnectionId, ConnectionConfig{}, 0);
+  CapturingWriter out;
+  for (int i = 0; i < 100; ++i) {
+    ASSERT_TRUE(c.SendReliable(Bytes(10, 1)).ok());
+  }
+  c.Update(0.01, out);
+  // 100 chunks of 16 bytes: 73 fit after the 18-byte header, the rest go in a second packet.
+  ASSERT_EQ(out.packets.size(), 2u);
+  EXPECT_EQ(out.packets[0].size(), kConnectionHeaderSize + 73 * 16);
+  EXPECT_EQ(out.packets[1].size(), kConnectionHeaderSize + 27 * 16);
+  // Nothing is due again before the resend timeout.
+  c.Update(0.02, out);
+  EXPECT_EQ(out.packets.size(), 2u);
+  c.Update(1.02, out);  // no RTT sample yet: resend after max_resend_s
+  EXPECT_EQ(out.packets.size(), 4u);
+  EXPECT_EQ(c.stats().reliable_resends, 100u);
+}
+
+TEST(ConnectionTest, SequencesAndUnitIdsWrapAround) {
+  NetworkConditions c;
+  c.loss = 0.05;
+  c.duplicate = 0.02;
+  c.reorder = 0.05;
+  c.latency_s = 0.02;
+  c.jitter_s = 0.005;
+  c.seed = 15;
+  Link link(c);
+  link.b.handler.keep_payloads = false;
+  constexpr uint32_t kSteps = 75000;  // > 65536 packets and > 65536 reliable units
+  for (uint32_t i = 0; i < kSteps; ++i) {
+    Bytes message(4);
+    StoreU32LE(message.data(), i);
+    ASSERT_TRUE(link.a.connection->SendReliable(message).ok());
+    ASSERT_TRUE(link.a.connection->SendUnreliable(message, link.now(), link.a).ok());
+    link.Step();
+  }
+  ASSERT_TRUE(link.RunUntil([&] { return link.b.handler.reliable.size() >= kSteps; }, 30.0));
+  for (uint32_t i = 0; i < kSteps; ++i) {
+    ASSERT_EQ(LoadU32LE(link.b.handler.reliable[i].data()), i) << i;
+  }
+  EXPECT_GT(link.a.connection->stats().packets_sent, 70000u);
+  EXPECT_GT(link.b.handler.unreliable_sequences.size(), 60000u);  // monotonic: checked inside
+  EXPECT_GT(link.a.handler.acked_count, 60000u);
+  EXPECT_TRUE(link.a.connection->connected());
+  EXPECT_TRUE(link.b.connection->connected());
+  EXPECT_LT(link.a.connection->stats().loss, 0.15);
+}
+
+}  // namespace
+}  // namespace edgephys

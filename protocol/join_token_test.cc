@@ -1,0 +1,92 @@
+#include "protocol/join_token.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace edgephys {
+namespace {
+
+JoinToken Sample() {
+  JoinToken t;
+  t.room = "lobby";
+  t.player_id = 77;
+  t.permissions = kPermissionSpawn;
+  t.expiry_unix_s = 2'000'000'000;
+  t.nonce = 0x1122334455667788ull;
+  return t;
+}
+
+TEST(JoinToken, SignVerifyRoundTrip) {
+  auto bytes = SignJoinToken(Sample(), "s3cret");
+  ASSERT_TRUE(bytes.ok());
+  TokenError err;
+  auto t = VerifyJoinToken(*bytes, "s3cret", 1'900'000'000, &err);
+  ASSERT_TRUE(t.ok());
+  EXPECT_EQ(err, TokenError::kNone);
+  EXPECT_EQ(t->room, "lobby");
+  EXPECT_EQ(t->player_id, 77u);
+  EXPECT_EQ(t->permissions, kPermissionSpawn);
+  EXPECT_EQ(t->expiry_unix_s, 2'000'000'000u);
+  EXPECT_EQ(t->nonce, 0x1122334455667788ull);
+}
+
+TEST(JoinToken, WrongSecretExpiryAndEveryFlippedBitAreRejected) {
+  auto bytes = *SignJoinToken(Sample(), "s3cret");
+  TokenError err;
+  EXPECT_FALSE(VerifyJoinToken(bytes, "other", 0, &err).ok());
+  EXPECT_EQ(err, TokenError::kBad);
+  EXPECT_FALSE(VerifyJoinToken(bytes, "s3cret", 2'000'000'000, &err).ok());
+  EXPECT_EQ(err, TokenError::kExpired);
+  for (size_t i = 0; i < bytes.size() * 8; ++i) {
+    auto t = bytes;
+    t[i / 8] ^= static_cast<uint8_t>(1u << (i % 8));
+    EXPECT_FALSE(VerifyJoinToken(t, "s3cret", 0, &err).ok()) << "bit " << i;
+  }
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    EXPECT_FALSE(VerifyJoinToken(std::span(bytes).first(n), "s3cret", 0, &err).ok());
+  }
+}
+
+TEST(JoinToken, RefusesToSignInvalidTokens) {
+  JoinToken t = Sample();
+  EXPECT_FALSE(SignJoinToken(t, "").ok());
+  t.player_id = 0;
+  EXPECT_FALSE(SignJoinToken(t, "k").ok());
+  t = Sample();
+  t.room = std::string(kMaxRoomNameSize + 1, 'x');
+  EXPECT_FALSE(SignJoinToken(t, "k").ok());
+  t.room = "";
+  EXPECT_FALSE(SignJoinToken(t, "k").ok());
+}
+
+TEST(JoinToken, Base64UrlRoundTripsRandomBytes) {
+  std::mt19937 rng(1);
+  for (int n = 0; n < 200; ++n) {
+    std::vector<uint8_t> bytes(n);
+    for (auto& b : bytes) b = static_cast<uint8_t>(rng());
+    std::string text = Base64UrlEncode(bytes);
+    EXPECT_EQ(text.find_first_of("+/="), std::string::npos);
+    auto back = Base64UrlDecode(text);
+    ASSERT_TRUE(back.ok());
+    EXPECT_EQ(*back, bytes);
+  }
+  EXPECT_FALSE(Base64UrlDecode("ab$d").ok());
+  EXPECT_FALSE(Base64UrlDecode("abcde").ok());
+}
+
+TEST(ReplayGuard, AdmitsEachNonceOnceUntilExpiry) {
+  ReplayGuard guard(3);
+  EXPECT_TRUE(guard.Admit(1, 100, 10).ok());
+  EXPECT_EQ(guard.Admit(1, 100, 11).code(), StatusCode::kAlreadyExists);
+  EXPECT_TRUE(guard.Admit(2, 50, 12).ok());
+  EXPECT_TRUE(guard.Admit(3, 100, 13).ok());
+  // Full: refuses rather than forgetting a live nonce.
+  EXPECT_EQ(guard.Admit(4, 100, 14).code(), StatusCode::kResourceExhausted);
+  // Once nonce 2 expired, room frees up; an expired nonce's token is refused by expiry anyway.
+  EXPECT_TRUE(guard.Admit(4, 100, 60).ok());
+  EXPECT_EQ(guard.Admit(1, 100, 61).code(), StatusCode::kAlreadyExists);
+}
+
+}  // namespace
+}  // namespace edgephys

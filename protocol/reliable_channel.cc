@@ -1,0 +1,153 @@
+#include "protocol/reliable_channel.h"
+
+#include <algorithm>
+
+#include "protocol/sequence.h"
+
+namespace edgephys {
+
+// ---------------------------------------------------------------------------------------------
+// ReliableSender
+
+ReliableSender::ReliableSender(size_t max_message_size, size_t max_pending_bytes)
+    : max_message_size_(max_message_size), max_pending_bytes_(max_pending_bytes) {
+  units_.Reserve(kReliableWindow);
+}
+
+Status ReliableSender::Queue(std::span<const uint8_t> message) {
+  if (message.empty()) return Status(StatusCode::kInvalidArgument, "empty reliable message");
+  if (message.size() > max_message_size_) {
+    return Status(StatusCode::kTooLarge, "reliable message exceeds max_message_size");
+  }
+  if (pending_bytes_ + message.size() > max_pending_bytes_) {
+    return Status(StatusCode::kQueueFull, "reliable queue full");
+  }
+  Compact();
+  uint64_t offset = bytes_base_ + bytes_.size();
+  bytes_.insert(bytes_.end(), message.begin(), message.end());
+  size_t remaining = message.size();
+  while (remaining > 0) {
+    Unit unit;
+    unit.offset = offset;
+    unit.size = static_cast<uint16_t>(std::min(remaining, kMaxReliableUnitSize));
+    remaining -= unit.size;
+    offset += unit.size;
+    unit.last = remaining == 0;
+    units_.PushBack(unit);
+  }
+  pending_bytes_ += message.size();
+  return Status::Ok();
+}
+
+size_t ReliableSender::sendable_count() const {
+  return std::min<size_t>(units_.size(), kReliableWindow);
+}
+
+bool ReliableSender::IsDue(size_t index, double now, double resend_timeout_s) const {
+  const Unit& unit = units_[index];
+  if (unit.acked) return false;
+  return !unit.sent || now - unit.last_sent >= resend_timeout_s;
+}
+
+ReliableUnitView ReliableSender::View(size_t index) const {
+  const Unit& unit = units_[index];
+  ReliableUnitView view;
+  view.id = static_cast<uint16_t>(base_id_ + index);
+  view.last = unit.last;
+  view.data = std::span<const uint8_t>(bytes_.data() + (unit.offset - bytes_base_), unit.size);
+  return view;
+}
+
+bool ReliableSender::MarkSent(size_t index, double now) {
+  Unit& unit = units_[index];
+  bool resend = unit.sent;
+  unit.sent = true;
+  unit.last_sent = now;
+  return resend;
+}
+
+void ReliableSender::Ack(uint16_t unit_id) {
+  size_t index = static_cast<uint16_t>(unit_id - base_id_);
+  if (index >= sendable_count()) return;  // already acknowledged and retired, or never sent
+  Unit& unit = units_[index];
+  if (unit.acked || !unit.sent) return;
+  unit.acked = true;
+  pending_bytes_ -= unit.size;
+  while (!units_.empty() && units_.front().acked) {
+    bytes_head_ = units_.front().offset + units_.front().size;
+    units_.PopFront();
+    ++base_id_;
+  }
+}
+
+void ReliableSender::Compact() {
+  // Drop retired bytes from the front once they are at least half the buffer, so the buffer
+  // stays within twice the pending bytes and the move is amortised O(1) per byte.
+  size_t dead = static_cast<size_t>(bytes_head_ - bytes_base_);
+  if (dead == 0 || dead < bytes_.size() / 2) return;
+  bytes_.erase(bytes_.begin(), bytes_.begin() + static_cast<std::ptrdiff_t>(dead));
+  bytes_base_ = bytes_head_;
+}
+
+// ---------------------------------------------------------------------------------------------
+// ReliableReceiver
+
+ReliableReceiver::ReliableReceiver(size_t max_message_size)
+    : max_message_size_(max_message_size) {}
+
+ReliableReceiver::Placement ReliableReceiver::Classify(uint16_t id) const {
+  int diff = SequenceDiff(id, next_id_);
+  if (diff < 0) return Placement::kDuplicate;
+  if (diff >= kReliableWindow) return Placement::kOutsideWindow;
+  if (diff > 0 && !slots_.empty() && slots_[id % kReliableWindow].present) {
+    return Placement::kDuplicate;
+  }
+  return Placement::kInWindow;
+}
+
+Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler& handler,
+                                 uint64_t* delivered, uint64_t* duplicates) {
+  switch (Classify(unit.id)) {
+    case Placement::kDuplicate:
+      ++*duplicates;
+      return Status::Ok();
+    case Placement::kOutsideWindow:
+      return Status(StatusCode::kResourceExhausted, "reliable unit outside the window");
+    case Placement::kInWindow:
+      break;
+  }
+  if (unit.id != next_id_) {
+    if (slots_.empty()) slots_.resize(kReliableWindow);
+    Slot& slot = slots_[unit.id % kReliableWindow];
+    slot.present = true;
+    slot.last = unit.last;
+    slot.data.assign(unit.data.begin(), unit.data.end());
+    buffered_bytes_ += unit.data.size();
+    return Status::Ok();
+  }
+  Status status = Append(unit.data, unit.last, handler, delivered);
+  while (status.ok() && !slots_.empty() && slots_[next_id_ % kReliableWindow].present) {
+    Slot& slot = slots_[next_id_ % kReliableWindow];
+    slot.present = false;
+    buffered_bytes_ -= slot.data.size();
+    status = Append(slot.data, slot.last, handler, delivered);
+  }
+  return status;
+}
+
+Status ReliableReceiver::Append(std::span<const uint8_t> data, bool last,
+                                ConnectionHandler& handler, uint64_t* delivered) {
+  if (false) {
+    return Status(StatusCode::kTooLarge, "reliable message exceeds max_message_size");
+  }
+  message_.insert(message_.end(), data.begin(), data.end());
+  ++next_id_;
+  if (last) {
+    ++*delivered;
+    handler.OnReliableMessage(message_);
+    message_.clear();
+  }
+  return Status::Ok();
+}
+
+}  // namespace edgephys

@@ -1,0 +1,88 @@
+// State codec: the hot-path format for entity transforms on the unreliable channel
+// (docs/protocol.md, "State payloads"). Both directions use it: owners publish to the relay,
+// the relay fans out to the room.
+//
+// Every format starts with a one-byte format id so that encoders can be swapped per room
+// without breaking receivers that know the format. This file defines format 1, "float":
+//   u8 format (1) | u32 sender time (ms, wraps) | varint count |
+//   count x { varint entity id | 3 x f32 position (m) | 4 x f32 rotation (x, y, z, w) }
+// Precision: exact float32 (the encoder's stated precision is float32 rounding).
+//
+// Thread-safety: StateEncoder instances are not shared; the functions are pure.
+// Cost: O(entities), no allocation (callers supply buffers).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "protocol/status.h"
+
+namespace edgephys {
+
+struct Vec3f {
+  float x = 0, y = 0, z = 0;
+};
+struct Quatf {
+  float x = 0, y = 0, z = 0, w = 1;
+};
+
+struct EntityState {
+  uint32_t entity_id = 0;
+  Vec3f position;   // metres, room frame
+  Quatf rotation;   // unit quaternion
+};
+
+// True if every component is finite, positions are within +-1e6 m and the rotation has unit
+// length within 1e-3. Relays drop (and count) states that fail this.
+bool IsValidState(const EntityState& state);
+
+enum class StateFormat : uint8_t { kFloat = 1 };
+
+// Writes entity states into datagram payloads. Usage per payload:
+//   encoder.Begin(buffer, time_ms); while (encoder.Add(state)) {...}; size = encoder.Finish();
+class StateEncoder {
+ public:
+  virtual ~StateEncoder() = default;
+  // Starts a payload in `out` (not owned; must stay valid until Finish()).
+  virtual void Begin(std::span<uint8_t> out, uint32_t time_ms) = 0;
+  // Appends `state`; false (and nothing written) when it does not fit.
+  virtual bool Add(const EntityState& state) = 0;
+  // Number of states added since Begin().
+  virtual size_t count() const = 0;
+  // Completes the payload; returns its size in bytes (0 if nothing was added).
+  virtual size_t Finish() = 0;
+};
+
+// Format 1 encoder.
+class FloatStateEncoder final : public StateEncoder {
+ public:
+  void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
+  bool Add(const EntityState& state) override;
+  size_t count() const override { return count_; }
+  size_t Finish() override;
+
+ private:
+  std::span<uint8_t> out_;
+  size_t pos_ = 0;
+  size_t count_ = 0;
+  uint32_t time_ms_ = 0;
+};
+
+struct StateBatch {
+  uint32_t time_ms = 0;
+  std::vector<EntityState> states;  // reused by the caller between decodes
+};
+
+// Decodes any known format. Untrusted input: kMalformed on truncation, trailing bytes, an
+// unknown format or a count larger than the payload can hold; `batch` is then unspecified.
+// Values are not validated here (see IsValidState).
+Status DecodeStateBatch(std::span<const uint8_t> payload, StateBatch* batch);
+
+// Varint (LEB128, 7 bits a byte) helpers. Put returns bytes written (0 if `out` is too short);
+// Get returns bytes read (0 on truncation or a value longer than 5 bytes).
+size_t PutVarint32(uint32_t value, std::span<uint8_t> out);
+size_t GetVarint32(std::span<const uint8_t> in, uint32_t* value);
+
+}  // namespace edgephys

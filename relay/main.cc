@@ -1,0 +1,139 @@
+// edgephys-relay: the relay server process, and `edgephys-relay token` to mint join tokens.
+//
+//   edgephys-relay                         # UDP 0.0.0.0:7777, metrics on 0.0.0.0:9464
+//   edgephys-relay --config relay.toml     # any flag below as a key in a TOML/INI file
+//   edgephys-relay token --room lobby --player 7 --ttl 3600
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+#include "metrics/metrics_exporter.h"
+#include "protocol/endpoint.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/udp_socket.h"
+#include "relay/relay.h"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop.store(true); }
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+std::string SecretFromEnv(const std::string& flag) {
+  if (!flag.empty()) return flag;
+  const char* env = std::getenv("EDGEPHYS_SECRET");
+  return env != nullptr ? env : edgephys::kDevelopmentSecret;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace edgephys;
+  CLI::App app{"edgephys-relay: UDP relay for collaborative XR and multiplayer rooms"};
+  app.set_config("--config", "", "Read flags from a TOML/INI config file");
+  RelayConfig config;
+  std::string bind = "0.0.0.0:7777";
+  std::string metrics = "0.0.0.0:9464";
+  std::string secret;
+  std::string log_level = "info";
+  double run_for_s = 0;
+  app.add_option("--bind", bind, "UDP address:port to serve")->capture_default_str();
+  app.add_option("--metrics", metrics, "Prometheus address:port ('off' to disable)")
+      ->capture_default_str();
+  app.add_option("--secret", secret,
+                 "Join token secret (default: $EDGEPHYS_SECRET, else a development secret)");
+  app.add_option("--max-clients", config.max_clients, "Connections at once")->capture_default_str();
+  app.add_option("--room-capacity", config.room_defaults.capacity, "Players per room")
+      ->capture_default_str();
+  app.add_option("--room-ttl", config.room_defaults.idle_ttl_s, "Seconds an empty room is kept")
+      ->capture_default_str();
+  app.add_option("--tick-rate", config.room_defaults.tick_rate_hz, "Room ticks per second")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--max-entities-per-player", config.room_defaults.max_entities_per_player,
+                 "Entities one player may own in a room")
+      ->capture_default_str();
+  app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
+      ->capture_default_str();
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
+  app.add_option("--run-for", run_for_s, "Exit after this many seconds (0: until a signal)");
+
+  auto* token_cmd = app.add_subcommand("token", "Mint a join token (printed as base64url)");
+  JoinToken token;
+  double ttl_s = 3600;
+  token.room = "lobby";
+  token_cmd->add_option("--room", token.room, "Room the token grants")->capture_default_str();
+  token_cmd->add_option("--player", token.player_id, "Player id (non-zero)")->required();
+  token_cmd->add_option("--ttl", ttl_s, "Seconds until the token expires")->capture_default_str();
+  token_cmd->add_option("--permissions", token.permissions, "Permission bits (1: spawn)")
+      ->capture_default_str();
+  token_cmd->add_option("--secret", secret, "Secret (default: $EDGEPHYS_SECRET)");
+  CLI11_PARSE(app, argc, argv);
+
+  config.secret = SecretFromEnv(secret);
+  if (*token_cmd) {
+    token.expiry_unix_s = UnixNow() + static_cast<uint64_t>(ttl_s);
+    token.nonce = SecureRandom64();
+    auto bytes = SignJoinToken(token, config.secret);
+    if (!bytes.ok()) {
+      std::fprintf(stderr, "token: %s\n", std::string(bytes.status().message()).c_str());
+      return 2;
+    }
+    std::cout << Base64UrlEncode(*bytes) << "\n";
+    return 0;
+  }
+
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  if (config.secret == kDevelopmentSecret) {
+    spdlog::warn("using the built-in development secret: anyone can mint tokens. "
+                 "Set --secret or EDGEPHYS_SECRET in production.");
+  }
+  auto endpoint = ParseEndpoint(bind);
+  if (!endpoint.ok()) {
+    spdlog::error("--bind {}: {}", bind, endpoint.status().message());
+    return 2;
+  }
+  auto socket = UdpSocket::Open(*endpoint);
+  if (!socket.ok()) {
+    spdlog::error("cannot bind UDP {}: {}", bind, socket.status().message());
+    return 1;
+  }
+  RelayCounters counters;
+  std::unique_ptr<MetricsExporter> exporter;
+  if (metrics != "off") {
+    auto started = MetricsExporter::Start(metrics, &counters);
+    if (!started.ok()) {
+      spdlog::error("cannot serve metrics on {}: {}", metrics, started.status().message());
+      return 1;
+    }
+    exporter = std::move(*started);
+    spdlog::info("metrics on http://{}/metrics", metrics);
+  }
+  Relay relay(config, socket->get(), &counters);
+  spdlog::info("edgephys-relay listening on udp {}", FormatEndpoint((*socket)->LocalEndpoint()));
+
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  const auto start = std::chrono::steady_clock::now();
+  while (!g_stop.load()) {
+    (*socket)->WaitReadable(0.002);
+    double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    relay.Update(now, UnixNow());
+    if (run_for_s > 0 && now >= run_for_s) break;
+  }
+  spdlog::info("shutting down");
+  relay.Shutdown();
+  return 0;
+}

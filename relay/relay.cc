@@ -1,0 +1,570 @@
+#include "relay/relay.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "relay/session.h"
+
+namespace edgephys {
+namespace {
+
+using schema::RejectReason;
+
+uint16_t Code(RejectReason r) { return static_cast<uint16_t>(r); }
+
+// At most one log line per reason per second, with the number suppressed since.
+class DropLog {
+ public:
+  void Note(std::string_view what, std::string_view reason, const Endpoint& from, double now) {
+    Entry& e = entries_[std::string(reason)];
+    ++e.suppressed;
+    if (now - e.last >= 1.0) {
+      spdlog::warn("{} from {}:{}: {} ({} since last report)", what, from.address().to_string(),
+                   from.port(), reason, e.suppressed);
+      e.last = now;
+      e.suppressed = 0;
+    }
+  }
+
+ private:
+  struct Entry {
+    double last = -1e9;
+    uint64_t suppressed = 0;
+  };
+  std::map<std::string, Entry, std::less<>> entries_;
+};
+
+DropLog& Log() {
+  static thread_local DropLog log;
+  return log;
+}
+
+}  // namespace
+
+Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters)
+    : config_(config),
+      socket_(socket),
+      counters_(counters),
+      receive_buffer_(kMaxPacketSize + 512),
+      payload_buffer_(kMaxUnreliablePayload) {
+  batch_.states.reserve(kMaxPacketSize / 8);
+}
+
+Relay::~Relay() = default;
+
+void Relay::Update(double now, uint64_t unix_now_s) {
+  now_ = now;
+  for (size_t i = 0; i < config_.max_datagrams_per_update; ++i) {
+    Endpoint from;
+    size_t n = socket_->ReceiveFrom(&from, receive_buffer_);
+    if (n == 0) break;
+    RelayCounters::Inc(counters_->packets_received);
+    RelayCounters::Inc(counters_->bytes_received, n);
+    if (n > kMaxPacketSize) {
+      counters_->RejectPacket(DropReason::kTooLarge);
+      Log().Note("datagram dropped", DropReasonName(DropReason::kTooLarge), from, now);
+      continue;
+    }
+    HandleDatagram(from, std::span<const uint8_t>(receive_buffer_.data(), n), now, unix_now_s);
+  }
+
+  bool sample_rtt = now - last_rtt_sample_ >= 1.0;
+  if (sample_rtt) last_rtt_sample_ = now;
+  removal_scratch_.clear();
+  for (auto& [id, s] : sessions_) {
+    s->set_now(now);
+    uint64_t resends = s->connection().stats().reliable_resends;
+    s->connection().Update(now, *s);
+    RelayCounters::Inc(counters_->reliable_resends,
+                       s->connection().stats().reliable_resends - resends);
+    if (sample_rtt && s->connection().stats().rtt_s > 0) {
+      counters_->rtt_seconds.Observe(s->connection().stats().rtt_s);
+    }
+    if (!s->connection().connected()) removal_scratch_.push_back(id);
+  }
+  for (uint32_t id : removal_scratch_) RemoveSession(id, now);
+
+  for (auto& [name, room] : rooms_) {
+    if (now >= room->next_tick()) {
+      auto start = std::chrono::steady_clock::now();
+      TickRoom(*room, now);
+      room->ScheduleNextTick(now);
+      counters_->tick_seconds.Observe(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+  }
+  CloseIdleRooms(now);
+  counters_->rooms.store(static_cast<int64_t>(rooms_.size()), std::memory_order_relaxed);
+  counters_->clients.store(static_cast<int64_t>(sessions_.size()), std::memory_order_relaxed);
+}
+
+void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
+                           uint64_t unix_now_s) {
+  PacketPrefix prefix{};
+  DropReason reason{};
+  auto drop = [&](DropReason r) {
+    counters_->RejectPacket(r);
+    Log().Note("datagram dropped", DropReasonName(r), from, now);
+  };
+  if (!ParsePacketPrefix(data, &prefix, &reason)) return drop(reason);
+  switch (prefix.type) {
+    case PacketType::kHello:
+      return HandleHello(from, data, now);
+    case PacketType::kConnect:
+      return HandleConnect(from, data, now, unix_now_s);
+    case PacketType::kData:
+    case PacketType::kDisconnect: {
+      auto it = sessions_.find(prefix.connection_id);
+      if (it == sessions_.end()) return drop(DropReason::kUnknownConnection);
+      Session& s = *it->second;
+      if (s.endpoint() != from) return drop(DropReason::kWrongAddress);
+      if (!s.connection().connected()) return;  // closing: redundant disconnect copies
+      s.set_now(now);
+      Status st = s.connection().ProcessPacket(data, now, s);
+      if (!st.ok()) drop(DropReason::kMalformed);
+      return;
+    }
+    default:
+      return drop(DropReason::kUnknownType);
+  }
+}
+
+void Relay::HandleHello(const Endpoint& from, std::span<const uint8_t> data, double now) {
+  if (data.size() < kMinHelloPacketSize) {
+    counters_->RejectPacket(DropReason::kHelloTooSmall);
+    Log().Note("hello dropped", DropReasonName(DropReason::kHelloTooSmall), from, now);
+    return;
+  }
+  const auto* msg = VerifyControlMessage(data.subspan(kPacketPrefixSize), schema::Body::Hello);
+  if (msg == nullptr) {
+    counters_->RejectPacket(DropReason::kMalformed);
+    return;
+  }
+  auto cookie = cookies_.Issue(from, msg->body_as_Hello()->client_nonce(), now);
+  flatbuffers::FlatBufferBuilder fbb(128);
+  FinishControl(fbb, schema::CreateChallenge(fbb, fbb.CreateVector(cookie.data(), cookie.size())));
+  auto packet = BuildHandshakePacket(PacketType::kChallenge, fbb);
+  SendUnverified(from, packet, data.size());
+}
+
+void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, double now,
+                          uint64_t unix_now_s) {
+  const auto* msg = VerifyControlMessage(data.subspan(kPacketPrefixSize), schema::Body::Connect);
+  if (msg == nullptr) {
+    counters_->RejectPacket(DropReason::kMalformed);
+    return;
+  }
+  const auto* connect = msg->body_as_Connect();
+  const auto* cookie = connect->cookie();
+  if (cookie == nullptr ||
+      !cookies_.Verify(std::span<const uint8_t>(cookie->data(), cookie->size()), from,
+                       connect->client_nonce(), now)) {
+    // The address is unverified: no answer at all.
+    counters_->RejectPacket(DropReason::kBadCookie);
+    Log().Note("connect dropped", DropReasonName(DropReason::kBadCookie), from, now);
+    return;
+  }
+  std::span<const uint8_t> token_bytes;
+  if (connect->token() != nullptr) {
+    token_bytes = std::span<const uint8_t>(connect->token()->data(), connect->token()->size());
+  }
+  TokenError token_error;
+  Result<JoinToken> token = VerifyJoinToken(token_bytes, config_.secret, unix_now_s, &token_error);
+  if (!token.ok()) {
+    RejectReason r = token_error == TokenError::kExpired ? RejectReason::ExpiredToken
+                                                         : RejectReason::BadToken;
+    Log().Note("connect rejected", schema::EnumNameRejectReason(r), from, now);
+    return SendReject(from, Code(r), data.size());
+  }
+
+  // The same client repeating its Connect because our Accept was lost: repeat the Accept.
+  if (auto it = session_by_endpoint_.find(from); it != session_by_endpoint_.end()) {
+    Session& existing = *sessions_.at(it->second);
+    if (existing.token_nonce() == token->nonce) {
+      Send(from, existing.accept_packet());
+      return;
+    }
+    // A new token from the same address: the client restarted. Replace the old session.
+    existing.connection().Disconnect(DisconnectReason::kKicked, existing);
+    RemoveSession(it->second, now);
+  }
+  if (sessions_.size() >= config_.max_clients) {
+    return SendReject(from, Code(RejectReason::ServerFull), data.size());
+  }
+  Status admitted = replay_guard_.Admit(token->nonce, token->expiry_unix_s, unix_now_s);
+  if (!admitted.ok()) {
+    RejectReason r = admitted.code() == StatusCode::kAlreadyExists ? RejectReason::ReplayedToken
+                                                                   : RejectReason::ServerFull;
+    Log().Note("connect rejected", schema::EnumNameRejectReason(r), from, now);
+    return SendReject(from, Code(r), data.size());
+  }
+
+  uint32_t connection_id = 0;
+  while (connection_id == 0 || sessions_.count(connection_id) != 0) {
+    connection_id = static_cast<uint32_t>(SecureRandom64());
+  }
+  auto session = std::make_unique<Session>(this, from, connection_id, token->player_id,
+                                           token->permissions, token->room, token->nonce,
+                                           config_.connection, now);
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreateAccept(
+                         fbb, connection_id, token->player_id,
+                         static_cast<uint32_t>(config_.connection.keepalive_interval_s * 1000),
+                         static_cast<uint32_t>(config_.connection.timeout_s * 1000)));
+  session->accept_packet() = BuildHandshakePacket(PacketType::kAccept, fbb);
+  Send(from, session->accept_packet());
+  session_by_endpoint_[from] = connection_id;
+  sessions_[connection_id] = std::move(session);
+  RelayCounters::Inc(counters_->connections_accepted);
+  spdlog::info("player {} connected from {}:{} (connection {:08x})", token->player_id,
+               from.address().to_string(), from.port(), connection_id);
+}
+
+void Relay::SendReject(const Endpoint& to, uint16_t reason, size_t request_size) {
+  counters_->RejectRequest(reason);
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreateReject(fbb, static_cast<RejectReason>(reason)));
+  auto packet = BuildHandshakePacket(PacketType::kReject, fbb);
+  SendUnverified(to, packet, request_size);
+}
+
+void Relay::SendUnverified(const Endpoint& to, std::span<const uint8_t> reply,
+                           size_t request_size) {
+  if (reply.size() > request_size) {
+    // Never amplify towards an address that has not proven it owns itself.
+    counters_->RejectPacket(DropReason::kHelloTooSmall);
+    return;
+  }
+  Send(to, reply);
+}
+
+void Relay::Send(const Endpoint& to, std::span<const uint8_t> data) {
+  Status st = socket_->SendTo(to, data);
+  if (!st.ok()) {
+    RelayCounters::Inc(counters_->send_errors);
+    return;
+  }
+  RelayCounters::Inc(counters_->packets_sent);
+  RelayCounters::Inc(counters_->bytes_sent, data.size());
+}
+
+Room* Relay::GetOrCreateRoom(const std::string& name, double now) {
+  auto it = rooms_.find(name);
+  if (it != rooms_.end()) return it->second.get();
+  auto room = std::make_unique<Room>(name, config_.room_defaults, now);
+  Room* r = room.get();
+  rooms_[name] = std::move(room);
+  spdlog::info("room '{}' created", name);
+  return r;
+}
+
+Status Relay::CreateRoom(const std::string& name, const RoomConfig& config, double now) {
+  if (name.empty() || name.size() > kMaxRoomNameSize) {
+    return Status(StatusCode::kInvalidArgument, "room name must be 1..64 bytes");
+  }
+  if (config.capacity == 0 || config.capacity >= kEntityIdBlock || config.tick_rate_hz <= 0 ||
+      config.tick_rate_hz > 1000) {
+    return Status(StatusCode::kInvalidArgument, "room capacity or tick rate out of range");
+  }
+  auto it = rooms_.find(name);
+  if (it != rooms_.end()) {
+    if (!it->second->empty() || !it->second->entities().empty()) {
+      return Status(StatusCode::kAlreadyExists, "room is in use");
+    }
+    rooms_.erase(it);
+  }
+  rooms_[name] = std::make_unique<Room>(name, config, now);
+  return Status::Ok();
+}
+
+void Relay::SendError(Session& s, uint16_t reason, uint32_t entity_id, std::string_view detail) {
+  counters_->RejectRequest(reason);
+  Log().Note("request rejected", schema::EnumNameRejectReason(static_cast<RejectReason>(reason)),
+             s.endpoint(), now_);
+  flatbuffers::FlatBufferBuilder fbb(128);
+  FinishControl(fbb, schema::CreateError(fbb, static_cast<RejectReason>(reason), entity_id,
+                                         fbb.CreateString(detail.data(), detail.size())));
+  if (!s.connection().SendReliable({fbb.GetBufferPointer(), fbb.GetSize()}).ok()) {
+    s.connection().Disconnect(DisconnectReason::kReliableOverflow, s);
+  }
+}
+
+void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
+  std::string name(room_name);
+  if (s.room() == name) return;  // already there
+  if (name.empty() || name != s.token_room()) {
+    return SendError(s, Code(RejectReason::WrongRoom), 0, "the join token does not grant this room");
+  }
+  if (!s.room().empty()) OnLeaveRoom(s, now);
+  Room* room = GetOrCreateRoom(name, now);
+  // The same player connected twice (e.g. a new device): the newer session wins.
+  if (Member* old = room->FindMember(s.player_id())) {
+    uint32_t old_session = old->session;
+    auto it = sessions_.find(old_session);
+    if (it != sessions_.end() && it->second.get() != &s) {
+      it->second->connection().Disconnect(DisconnectReason::kKicked, *it->second);
+      RemoveSession(old_session, now);
+    }
+  }
+  uint32_t slot = room->AddMember(s.player_id(), s.connection().id());
+  if (slot == 0) return SendError(s, Code(RejectReason::RoomFull), 0, "room is full");
+  s.set_room(name);
+  s.ResetTracker();
+
+  auto send = [&s](flatbuffers::FlatBufferBuilder& fbb) {
+    if (!s.connection().SendReliable({fbb.GetBufferPointer(), fbb.GetSize()}).ok()) {
+      s.connection().Disconnect(DisconnectReason::kReliableOverflow, s);
+    }
+  };
+  flatbuffers::FlatBufferBuilder fbb(256);
+  FinishControl(fbb, schema::CreateJoined(fbb, fbb.CreateString(name), s.player_id(),
+                                          slot * kEntityIdBlock,
+                                          static_cast<uint16_t>(room->config().tick_rate_hz)));
+  send(fbb);
+  std::vector<uint32_t> players;
+  for (const auto& [id, m] : room->members()) players.push_back(id);
+  fbb.Clear();
+  FinishControl(fbb, schema::CreateRoomState(fbb, fbb.CreateString(name), fbb.CreateVector(players),
+                                             static_cast<uint32_t>(room->entities().size())));
+  send(fbb);
+  for (const auto& [id, e] : room->entities()) {
+    if (!s.connection().SendReliable(e.spawn).ok()) {
+      s.connection().Disconnect(DisconnectReason::kReliableOverflow, s);
+      break;
+    }
+  }
+  fbb.Clear();
+  FinishControl(fbb, schema::CreatePlayerJoined(fbb, s.player_id()));
+  BroadcastReliable(*room, {fbb.GetBufferPointer(), fbb.GetSize()}, s.player_id());
+  spdlog::info("player {} joined room '{}' (slot {}, {} players)", s.player_id(), name, slot,
+               room->size());
+}
+
+void Relay::OnLeaveRoom(Session& s, double now) {
+  auto it = rooms_.find(s.room());
+  s.set_room("");
+  if (it == rooms_.end()) return;
+  Room& room = *it->second;
+  if (room.FindMember(s.player_id()) == nullptr ||
+      room.FindMember(s.player_id())->session != s.connection().id()) {
+    return;
+  }
+  std::vector<uint32_t> despawned;
+  room.RemoveMember(s.player_id(), &despawned);
+  counters_->entities.fetch_sub(static_cast<int64_t>(despawned.size()), std::memory_order_relaxed);
+  flatbuffers::FlatBufferBuilder fbb(64);
+  for (uint32_t id : despawned) {
+    fbb.Clear();
+    FinishControl(fbb, schema::CreateDespawn(fbb, id));
+    BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, 0);
+  }
+  // Entities the room took over: their stored spawn now names the room as owner.
+  for (const auto& [id, e] : room.entities()) {
+    if (e.owner != 0) continue;
+    auto* msg = schema::GetMutableControlMessage(const_cast<uint8_t*>(e.spawn.data()));
+    auto* spawn = static_cast<schema::Spawn*>(msg->mutable_body());
+    if (spawn->mutable_container() != nullptr) spawn->mutable_container()->mutate_owner(0);
+  }
+  fbb.Clear();
+  FinishControl(fbb, schema::CreatePlayerLeft(fbb, s.player_id()));
+  BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, 0);
+  if (room.empty()) room.set_empty_since(now);
+  spdlog::info("player {} left room '{}'", s.player_id(), room.name());
+}
+
+void Relay::OnSpawn(Session& s, std::span<const uint8_t> message, const schema::Spawn* spawn) {
+  auto it = rooms_.find(s.room());
+  if (it == rooms_.end()) return SendError(s, Code(RejectReason::NotJoined), 0, "join a room first");
+  Room& room = *it->second;
+  const schema::Container* c = spawn->container();
+  if (c == nullptr || c->transform() == nullptr) {
+    return SendError(s, Code(RejectReason::InvalidMessage), 0, "spawn without container/transform");
+  }
+  uint32_t id = c->entity_id();
+  if ((s.permissions() & kPermissionSpawn) == 0) {
+    return SendError(s, Code(RejectReason::NotOwner), id, "the join token does not allow spawning");
+  }
+  Member* member = room.FindMember(s.player_id());
+  if (member == nullptr) return SendError(s, Code(RejectReason::NotJoined), id, "not a member");
+  if (id / kEntityIdBlock != member->slot) {
+    return SendError(s, Code(RejectReason::NotOwner), id, "entity id outside your id block");
+  }
+  if (c->owner() != s.player_id()) {
+    return SendError(s, Code(RejectReason::NotOwner), id, "container owner must be the sender");
+  }
+  if (room.FindEntity(id) != nullptr) {
+    return SendError(s, Code(RejectReason::DuplicateEntity), id, "entity id already in use");
+  }
+  if (member->entity_count >= room.config().max_entities_per_player) {
+    return SendError(s, Code(RejectReason::EntityLimit), id, "too many entities");
+  }
+  const schema::Transform* t = c->transform();
+  Entity e;
+  e.id = id;
+  e.owner = s.player_id();
+  e.flags = c->flags();
+  e.state.entity_id = id;
+  e.state.position = {t->position().x(), t->position().y(), t->position().z()};
+  e.state.rotation = {t->rotation().x(), t->rotation().y(), t->rotation().z(), t->rotation().w()};
+  if (!IsValidState(e.state)) {
+    return SendError(s, Code(RejectReason::InvalidMessage), id, "transform not finite or not unit");
+  }
+  e.spawn.assign(message.begin(), message.end());
+  room.AddEntity(std::move(e));
+  ++member->entity_count;
+  counters_->entities.fetch_add(1, std::memory_order_relaxed);
+  BroadcastReliable(room, message, s.player_id());
+}
+
+void Relay::OnDespawn(Session& s, uint32_t entity_id) {
+  auto it = rooms_.find(s.room());
+  if (it == rooms_.end()) return SendError(s, Code(RejectReason::NotJoined), entity_id, "join a room first");
+  Room& room = *it->second;
+  Entity* e = room.FindEntity(entity_id);
+  if (e == nullptr) return SendError(s, Code(RejectReason::UnknownEntity), entity_id, "no such entity");
+  if (e->owner != s.player_id()) {
+    return SendError(s, Code(RejectReason::NotOwner), entity_id, "not your entity");
+  }
+  room.RemoveEntity(entity_id);
+  if (Member* m = room.FindMember(s.player_id()); m && m->entity_count > 0) --m->entity_count;
+  counters_->entities.fetch_sub(1, std::memory_order_relaxed);
+  for (const auto& [pid, m] : room.members()) {
+    auto sit = sessions_.find(m.session);
+    if (sit != sessions_.end()) sit->second->tracker().Forget(entity_id);
+  }
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
+  BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, s.player_id());
+}
+
+void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
+  auto it = rooms_.find(s.room());
+  if (it == rooms_.end()) {
+    counters_->RejectUpdate(DropReason::kNotJoined);
+    return;
+  }
+  if (!DecodeStateBatch(payload, &batch_).ok()) {
+    counters_->RejectPacket(DropReason::kMalformed);
+    Log().Note("state payload dropped", DropReasonName(DropReason::kMalformed), s.endpoint(), now_);
+    return;
+  }
+  Room& room = *it->second;
+  for (const EntityState& st : batch_.states) {
+    Entity* e = room.FindEntity(st.entity_id);
+    DropReason reject = DropReason::kCount;
+    if (e == nullptr) {
+      reject = DropReason::kUnknownEntity;
+    } else if (e->owner != s.player_id()) {
+      reject = DropReason::kNotOwner;
+    } else if (!IsValidState(st)) {
+      reject = DropReason::kInvalidValue;
+    }
+    if (reject != DropReason::kCount) {
+      counters_->RejectUpdate(reject);
+      Log().Note("entity update dropped", DropReasonName(reject), s.endpoint(), now_);
+      continue;
+    }
+    e->state = st;
+    ++e->version;
+    RelayCounters::Inc(counters_->entity_updates_received);
+  }
+}
+
+void Relay::TickRoom(Room& room, double now) {
+  const double interval = 1.0 / std::max(1.0, room.config().tick_rate_hz);
+  const uint32_t time_ms = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
+  std::vector<std::pair<uint32_t, uint32_t>>& sent = tick_scratch_;
+  for (const auto& [pid, member] : room.members()) {
+    auto sit = sessions_.find(member.session);
+    if (sit == sessions_.end() || !sit->second->connection().connected()) continue;
+    Session& s = *sit->second;
+    const double resend_after = s.connection().stats().rtt_s * 1.25 + interval;
+    sent.clear();
+    auto flush = [&]() {
+      size_t size = encoder_.Finish();
+      if (size == 0) return;
+      Result<uint16_t> seq =
+          s.connection().SendUnreliable({payload_buffer_.data(), size}, now, s);
+      if (seq.ok()) {
+        for (const auto& [id, version] : sent) s.tracker().OnSent(*seq, id, version, now);
+        RelayCounters::Inc(counters_->entity_updates_sent, sent.size());
+      }
+      sent.clear();
+    };
+    encoder_.Begin(payload_buffer_, time_ms);
+    for (const auto& [id, e] : room.entities()) {
+      if (e.owner == s.player_id()) continue;
+      if (!s.tracker().NeedsSend(id, e.version, now, resend_after)) continue;
+      if (!encoder_.Add(e.state)) {
+        flush();
+        encoder_.Begin(payload_buffer_, time_ms);
+        encoder_.Add(e.state);
+      }
+      sent.emplace_back(id, e.version);
+    }
+    flush();
+  }
+}
+
+void Relay::BroadcastReliable(Room& room, std::span<const uint8_t> message,
+                              uint32_t except_player) {
+  for (const auto& [pid, m] : room.members()) {
+    if (pid == except_player) continue;
+    auto it = sessions_.find(m.session);
+    if (it == sessions_.end()) continue;
+    Session& s = *it->second;
+    if (!s.connection().SendReliable(message).ok()) {
+      s.connection().Disconnect(DisconnectReason::kReliableOverflow, s);
+    }
+  }
+}
+
+void Relay::RemoveSession(uint32_t connection_id, double now) {
+  auto it = sessions_.find(connection_id);
+  if (it == sessions_.end()) return;
+  Session& s = *it->second;
+  if (!s.room().empty()) OnLeaveRoom(s, now);
+  DisconnectReason reason = s.connection().disconnect_reason();
+  counters_->CountDisconnect(reason);
+  spdlog::info("player {} disconnected (reason {})", s.player_id(), static_cast<int>(reason));
+  auto eit = session_by_endpoint_.find(s.endpoint());
+  if (eit != session_by_endpoint_.end() && eit->second == connection_id) {
+    session_by_endpoint_.erase(eit);
+  }
+  sessions_.erase(it);
+}
+
+void Relay::CloseIdleRooms(double now) {
+  for (auto it = rooms_.begin(); it != rooms_.end();) {
+    Room& room = *it->second;
+    if (room.empty() && now - room.empty_since() >= room.config().idle_ttl_s) {
+      counters_->entities.fetch_sub(static_cast<int64_t>(room.entities().size()),
+                                    std::memory_order_relaxed);
+      spdlog::info("room '{}' closed after {:.0f} s empty", room.name(), now - room.empty_since());
+      it = rooms_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void Relay::Shutdown() {
+  for (auto& [id, s] : sessions_) s->connection().Disconnect(DisconnectReason::kServerShutdown, *s);
+  while (!sessions_.empty()) RemoveSession(sessions_.begin()->first, now_);
+}
+
+const Room* Relay::FindRoom(const std::string& name) const {
+  auto it = rooms_.find(name);
+  return it == rooms_.end() ? nullptr : it->second.get();
+}
+
+const ConnectionStats* Relay::FindConnectionStats(uint32_t player_id) const {
+  for (const auto& [id, s] : sessions_) {
+    if (s->player_id() == player_id) return &s->connection().stats();
+  }
+  return nullptr;
+}
+
+}  // namespace edgephys

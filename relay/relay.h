@@ -1,0 +1,109 @@
+// Relay: the edgephys server. Admits clients through the handshake (protocol/handshake.h)
+// with join tokens, hosts rooms, keeps every entity's owner and latest state, and fans state
+// out to each room every tick.
+//
+// I/O and time are injected: the relay reads and writes datagrams only through the
+// DatagramSocket it is given, and does work only inside Update(now). The process wrapper
+// (main.cc) drives it from a UDP socket and a steady clock; tests drive it from an
+// InMemoryNetwork or a NetworkSimulator with a fake clock.
+//
+// Untrusted input is never asserted on: every datagram or message that fails a check is
+// dropped and counted in RelayCounters (packets_rejected / updates_rejected by DropReason,
+// requests_rejected by RejectReason), with a rate-limited log line.
+//
+// Thread-safety: a Relay is owned by one thread (all methods from that thread); it writes
+// RelayCounters with relaxed atomics, which other threads (the metrics exporter) may read.
+// Cost: Update() is O(datagrams received + entities sent); the per-packet paths reuse buffers.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "protocol/connection.h"
+#include "protocol/datagram_socket.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/state_codec.h"
+#include "relay/relay_config.h"
+#include "relay/relay_counters.h"
+#include "relay/room.h"
+
+namespace edgephys {
+
+class Session;
+
+class Relay {
+ public:
+  // `socket` and `counters` are not owned and must outlive the relay.
+  Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters);
+  ~Relay();
+  Relay(const Relay&) = delete;
+  Relay& operator=(const Relay&) = delete;
+
+  // Receives and handles every pending datagram (up to config.max_datagrams_per_update),
+  // updates connections (resends, keep-alives, timeouts), ticks due rooms and closes idle
+  // ones. `now` is seconds on a monotonic clock; `unix_now_s` is wall time for token expiry.
+  void Update(double now, uint64_t unix_now_s);
+
+  // Operator API: creates (or reconfigures an empty) room. kAlreadyExists if occupied.
+  Status CreateRoom(const std::string& name, const RoomConfig& config, double now);
+
+  // Disconnects every client with kServerShutdown.
+  void Shutdown();
+
+  // Introspection for tests and the admin surface.
+  const Room* FindRoom(const std::string& name) const;
+  size_t room_count() const { return rooms_.size(); }
+  size_t session_count() const { return sessions_.size(); }
+  const ConnectionStats* FindConnectionStats(uint32_t player_id) const;
+
+ private:
+  friend class Session;
+  void HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
+                      uint64_t unix_now_s);
+  void HandleHello(const Endpoint& from, std::span<const uint8_t> data, double now);
+  void HandleConnect(const Endpoint& from, std::span<const uint8_t> data, double now,
+                     uint64_t unix_now_s);
+  void SendReject(const Endpoint& to, uint16_t reason, size_t request_size);
+  // Sends a reply to an address that has not completed the handshake, refusing (and
+  // counting) any reply larger than the datagram that provoked it.
+  void SendUnverified(const Endpoint& to, std::span<const uint8_t> reply, size_t request_size);
+  void Send(const Endpoint& to, std::span<const uint8_t> data);
+
+  // Session -> relay callbacks.
+  void OnJoinRoom(Session& s, std::string_view room, double now);
+  void OnLeaveRoom(Session& s, double now);
+  void OnSpawn(Session& s, std::span<const uint8_t> message, const schema::Spawn* spawn);
+  void OnDespawn(Session& s, uint32_t entity_id);
+  void OnStates(Session& s, std::span<const uint8_t> payload);
+  void SendError(Session& s, uint16_t reason, uint32_t entity_id, std::string_view detail);
+
+  void RemoveSession(uint32_t connection_id, double now);
+  void TickRoom(Room& room, double now);
+  void BroadcastReliable(Room& room, std::span<const uint8_t> message, uint32_t except_player);
+  void CloseIdleRooms(double now);
+  Room* GetOrCreateRoom(const std::string& name, double now);
+
+  RelayConfig config_;
+  DatagramSocket* socket_;
+  RelayCounters* counters_;
+  CookieJar cookies_;
+  ReplayGuard replay_guard_;
+  std::map<std::string, std::unique_ptr<Room>> rooms_;
+  std::unordered_map<uint32_t, std::unique_ptr<Session>> sessions_;  // by connection id
+  std::map<Endpoint, uint32_t> session_by_endpoint_;
+  std::vector<uint8_t> receive_buffer_;
+  std::vector<uint8_t> payload_buffer_;
+  StateBatch batch_;
+  FloatStateEncoder encoder_;
+  double now_ = 0;
+  double last_rtt_sample_ = 0;
+  std::vector<uint32_t> removal_scratch_;
+  std::vector<std::pair<uint32_t, uint32_t>> tick_scratch_;  // (entity id, version) per payload
+};
+
+}  // namespace edgephys

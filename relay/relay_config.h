@@ -1,0 +1,31 @@
+// Configuration of one relay process. Every field has a flag of the same name in
+// edgephys-relay (relay/main.cc) and a key in its config file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "protocol/connection.h"
+
+namespace edgephys {
+
+struct RoomConfig {
+  uint32_t capacity = 64;          // players at once; joins beyond get RoomFull
+  double idle_ttl_s = 300.0;       // an empty room is closed after this long
+  double tick_rate_hz = 30.0;      // replication ticks per second
+  uint32_t max_entities_per_player = 1024;
+};
+
+struct RelayConfig {
+  // The operator's secret for join tokens (HMAC-SHA256). The built-in default is for local
+  // development only; the relay warns loudly when it is used.
+  std::string secret = "edgephys-dev-secret";
+  uint32_t max_clients = 4096;     // connections at once; beyond: ServerFull
+  RoomConfig room_defaults;
+  ConnectionConfig connection;
+  size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
+};
+
+inline constexpr char kDevelopmentSecret[] = "edgephys-dev-secret";
+
+}  // namespace edgephys

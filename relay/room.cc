@@ -1,0 +1,66 @@
+#include "relay/room.h"
+
+#include <algorithm>
+
+namespace edgephys {
+
+Room::Room(std::string name, const RoomConfig& config, double now)
+    : name_(std::move(name)), config_(config), next_tick_(now), empty_since_(now) {}
+
+uint32_t Room::AddMember(uint32_t player_id, uint32_t session) {
+  if (members_.size() >= config_.capacity) return 0;
+  // Lowest free slot; slot 0 is reserved for the room's own entities.
+  std::vector<bool> used(config_.capacity + 2, false);
+  for (const auto& [id, m] : members_) {
+    if (m.slot < used.size()) used[m.slot] = true;
+  }
+  uint32_t slot = 1;
+  while (slot < used.size() && used[slot]) ++slot;
+  if (slot >= kEntityIdBlock) return 0;
+  members_[player_id] = Member{player_id, slot, session, 0};
+  return slot;
+}
+
+void Room::RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned) {
+  if (members_.erase(player_id) == 0) return;
+  for (auto it = entities_.begin(); it != entities_.end();) {
+    Entity& e = it->second;
+    if (e.owner != player_id) {
+      ++it;
+      continue;
+    }
+    constexpr uint32_t kPersistent = 1u << 0;  // schema::EntityFlags::Persistent
+    if (e.flags & kPersistent) {
+      e.owner = 0;
+      ++it;
+    } else {
+      despawned->push_back(e.id);
+      it = entities_.erase(it);
+    }
+  }
+}
+
+Member* Room::FindMember(uint32_t player_id) {
+  auto it = members_.find(player_id);
+  return it == members_.end() ? nullptr : &it->second;
+}
+
+Entity* Room::FindEntity(uint32_t id) {
+  auto it = entities_.find(id);
+  return it == entities_.end() ? nullptr : &it->second;
+}
+
+Entity& Room::AddEntity(Entity entity) {
+  uint32_t id = entity.id;
+  return entities_[id] = std::move(entity);
+}
+
+void Room::RemoveEntity(uint32_t id) { entities_.erase(id); }
+
+void Room::ScheduleNextTick(double now) {
+  double interval = 1.0 / std::max(1.0, config_.tick_rate_hz);
+  next_tick_ += interval;
+  if (next_tick_ < now) next_tick_ = now + interval;  // fell behind: skip, don't burst
+}
+
+}  // namespace edgephys

@@ -1,0 +1,75 @@
+// Room: the relay's single point of truth for one shared scene: who is in it and every
+// entity's owner, spawn description and latest state. Owned by one thread (the relay's);
+// no locking. Entities of players who leave are despawned unless flagged Persistent, in which
+// case the room takes them over (owner 0), so a session outlives its users.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "protocol/state_codec.h"
+#include "relay/relay_config.h"
+
+namespace edgephys {
+
+inline constexpr uint32_t kEntityIdBlock = 1u << 16;  // ids per player slot
+
+struct Entity {
+  uint32_t id = 0;
+  uint32_t owner = 0;            // player id; 0 = the room
+  uint32_t flags = 0;            // schema::EntityFlags
+  uint32_t version = 1;          // bumped on every accepted state change
+  EntityState state;
+  std::vector<uint8_t> spawn;    // the ControlMessage{Spawn} as received, re-sent to joiners
+};
+
+struct Member {
+  uint32_t player_id = 0;
+  uint32_t slot = 0;             // 1..capacity; entity ids slot<<16 .. +65535 are the player's
+  uint32_t session = 0;          // connection id of the player's session
+  uint32_t entity_count = 0;
+};
+
+class Room {
+ public:
+  Room(std::string name, const RoomConfig& config, double now);
+
+  const std::string& name() const { return name_; }
+  const RoomConfig& config() const { return config_; }
+  bool empty() const { return members_.empty(); }
+  size_t size() const { return members_.size(); }
+
+  // Adds a player; returns its slot, or 0 when the room is full.
+  uint32_t AddMember(uint32_t player_id, uint32_t session);
+  // Removes a player. Its entities are despawned (ids appended to `despawned`) unless
+  // Persistent, which pass to the room.
+  void RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned);
+  Member* FindMember(uint32_t player_id);
+  const std::map<uint32_t, Member>& members() const { return members_; }
+
+  Entity* FindEntity(uint32_t id);
+  // Inserts a new entity (the caller validated ownership and id range).
+  Entity& AddEntity(Entity entity);
+  void RemoveEntity(uint32_t id);
+  const std::unordered_map<uint32_t, Entity>& entities() const { return entities_; }
+
+  // Tick scheduling: due when now >= next_tick().
+  double next_tick() const { return next_tick_; }
+  void ScheduleNextTick(double now);
+  // Time the room became empty (for the idle TTL); meaningful only when empty().
+  double empty_since() const { return empty_since_; }
+  void set_empty_since(double t) { empty_since_ = t; }
+
+ private:
+  std::string name_;
+  RoomConfig config_;
+  std::map<uint32_t, Member> members_;  // by player id
+  std::unordered_map<uint32_t, Entity> entities_;
+  double next_tick_;
+  double empty_since_;
+};
+
+}  // namespace edgephys

@@ -1,0 +1,59 @@
+#include "relay/session.h"
+
+#include "protocol/handshake.h"
+#include "relay/relay.h"
+
+namespace edgephys {
+
+Session::Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id,
+                 uint32_t player_id, uint32_t permissions, std::string token_room,
+                 uint64_t token_nonce, const ConnectionConfig& config, double now)
+    : relay_(relay),
+      endpoint_(endpoint),
+      connection_(connection_id, config, now),
+      player_id_(player_id),
+      permissions_(permissions),
+      token_room_(std::move(token_room)),
+      token_nonce_(token_nonce),
+      now_(now) {}
+
+void Session::OnReliableMessage(std::span<const uint8_t> message) {
+  RelayCounters::Inc(relay_->counters_->reliable_messages_received);
+  const schema::ControlMessage* msg = VerifyControlMessage(message);
+  if (msg == nullptr) {
+    relay_->SendError(*this, static_cast<uint16_t>(schema::RejectReason::InvalidMessage), 0,
+                      "message failed verification");
+    return;
+  }
+  switch (msg->body_type()) {
+    case schema::Body::JoinRoom: {
+      const auto* join = msg->body_as_JoinRoom();
+      std::string_view room = join->room() ? join->room()->string_view() : std::string_view();
+      relay_->OnJoinRoom(*this, room, now_);
+      break;
+    }
+    case schema::Body::LeaveRoom:
+      relay_->OnLeaveRoom(*this, now_);
+      break;
+    case schema::Body::Spawn:
+      relay_->OnSpawn(*this, message, msg->body_as_Spawn());
+      break;
+    case schema::Body::Despawn:
+      relay_->OnDespawn(*this, msg->body_as_Despawn()->entity_id());
+      break;
+    default:
+      relay_->SendError(*this, static_cast<uint16_t>(schema::RejectReason::InvalidMessage), 0,
+                        "unexpected message type");
+      break;
+  }
+}
+
+void Session::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
+  relay_->OnStates(*this, payload);
+}
+
+void Session::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
+
+void Session::WritePacket(std::span<const uint8_t> packet) { relay_->Send(endpoint_, packet); }
+
+}  // namespace edgephys
