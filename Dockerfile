@@ -12,14 +12,13 @@ COPY . .
 RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TESTS=OFF \
  && cmake --build build -j2 --target edgephys-relay
 
-# Run stage: only the shared libraries the relay loads.
-#   libssl3                    libcrypto.so.3 (OpenSSL::Crypto: join-token MACs, cookies)
-#   libspdlog1.10, libfmt9     logging (Debian's spdlog is built against the shared fmt)
-#   libprometheus-cpp-core1.0, libprometheus-cpp-pull1.0 (pulls libcivetweb1)  /metrics
-#   libflatbuffers2            flatbuffers::flatbuffers
-# libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. The relay does not link
-# Bullet yet (physics_backend/ is not built); add libbullet3.24 here when it does: the ldd check
-# below fails the build until then.
+# Run stage: only the shared libraries the relay loads (from `ldd edgephys-relay` + `dpkg -S`).
+#   libssl3                                      libcrypto.so.3 (tokens, cookies)
+#   libspdlog1.10, libfmt9                       logging (Debian's spdlog uses the shared fmt)
+#   libprometheus-cpp-core1.0, libprometheus-cpp-pull1.0, libcivetweb1   /metrics server
+# libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. FlatBuffers, Asio,
+# CLI11 and Eigen are header-only here. Bullet is not linked yet (physics_backend/ is not built);
+# add libbullet3.24 when it is: the ldd check below fails the image build until then.
 FROM debian:bookworm-slim
 ENV DEBIAN_FRONTEND=noninteractive
 RUN apt-get update \
@@ -30,7 +29,6 @@ RUN apt-get update \
       libprometheus-cpp-core1.0 \
       libprometheus-cpp-pull1.0 \
       libcivetweb1 \
-      libflatbuffers2 \
  && rm -rf /var/lib/apt/lists/*
 RUN groupadd --system edgephys \
  && useradd --system --gid edgephys --no-create-home --home-dir /nonexistent \

@@ -2,7 +2,8 @@
 function(edgephys_set_options target)
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
                                            -Wold-style-cast -Wcast-align -Woverloaded-virtual
- -Wimplicit-fallthrough)
+ -Wimplicit-fallthrough
+                                           -Wno-missing-field-initializers)
   if(EDGEPHYS_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
   endif()
@@ -26,5 +27,8 @@ function(edgephys_add_test name)
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
   edgephys_set_options(${name})
+  if(NOT T_LABELS)
+    set(T_LABELS unit)
+  endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${T_LABELS}" TIMEOUT 300)
 endfunction()

@@ -26,13 +26,35 @@ inline void StoreU32LE(uint8_t* out, uint32_t v) {
   out[3] = static_cast<uint8_t>(v >> 24);
 }
 
-inline uint16_t LoadU16LE(const uint8_t* in) {
-  return static_cast<uint16_t>(in[0] | (in[1] << 8));
-}
+inline uint16_t LoadU16LE(const uint8_t* in) { return static_cast<uint16_t>(in[0] | (in[1] << 8)); }
 
 inline uint32_t LoadU32LE(const uint8_t* in) {
   return static_cast<uint32_t>(in[0]) | (static_cast<uint32_t>(in[1]) << 8) |
          (static_cast<uint32_t>(in[2]) << 16) | (static_cast<uint32_t>(in[3]) << 24);
+}
+
+inline void StoreU64LE(uint8_t* out, uint64_t v) {
+  for (int i = 0; i < 8; ++i) out[i] = static_cast<uint8_t>(v >> (8 * i));
+}
+
+inline uint64_t LoadU64LE(const uint8_t* in) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= static_cast<uint64_t>(in[i]) << (8 * i);
+  return v;
+}
+
+// IEEE-754 binary32, by its bit pattern.
+inline void StoreF32LE(uint8_t* out, float f) {
+  uint32_t v;
+  std::memcpy(&v, &f, sizeof(v));
+  StoreU32LE(out, v);
+}
+
+inline float LoadF32LE(const uint8_t* in) {
+  uint32_t v = LoadU32LE(in);
+  float f;
+  std::memcpy(&f, &v, sizeof(f));
+  return f;
 }
 
 class ByteReader {

@@ -15,14 +15,14 @@ namespace {
 constexpr uint8_t kChunkReliable = 0x01;
 constexpr uint8_t kChunkUnreliable = 0x02;
 constexpr uint8_t kUnitFlagLast = 0x01;
-constexpr size_t kReliableChunkHeader = 6;  // type, id, flags, len
+constexpr size_t kReliableChunkHeader = 6;    // type, id, flags, len
 constexpr size_t kUnreliableChunkHeader = 3;  // type, len
 constexpr size_t kDisconnectPacketSize = kConnectionHeaderSize + 1;
 // A unit chunk holds at least one byte, so no packet can carry more units than this.
 constexpr size_t kMaxUnitsPerPacket =
     (kMaxPacketSize - kConnectionHeaderSize) / (kReliableChunkHeader + 1);
 constexpr int kDisconnectCopies = 3;
-constexpr int kAckRange = 33;          // ack + 32 ack bits
+constexpr int kAckRange = 33;            // ack + 32 ack bits
 constexpr double kLossSmoothing = 0.02;  // EWMA weight of one packet's fate (~50 packets)
 constexpr double kMinLossTimeout = 1.0;
 // Pacing: the peer acknowledges at most 33 of our packets per packet it sends (ack + 32 bits)
@@ -172,9 +172,7 @@ struct Connection::Impl {
     return std::clamp(rto, config.min_resend_s, config.max_resend_s);
   }
 
-  double LossTimeout() const {
-    return std::max(kMinLossTimeout, 4 * owner.stats_.rtt_s);
-  }
+  double LossTimeout() const { return std::max(kMinLossTimeout, 4 * owner.stats_.rtt_s); }
 
   void LossSample(double lost) { owner.stats_.loss += kLossSmoothing * (lost - owner.stats_.loss); }
 
@@ -255,11 +253,11 @@ struct Connection::Impl {
   uint16_t next_sequence = 0;
   uint16_t oldest_unresolved = 0;  // oldest of our packets not yet acked or deemed lost
   bool have_peer_ack = false;
-  uint16_t peer_ack = 0;           // newest of our sequences the peer reported
+  uint16_t peer_ack = 0;  // newest of our sequences the peer reported
   bool have_rtt = false;
   double last_receive_time;
   double last_send_time;
-  bool ack_pending = false;        // the peer sent chunks we have not acknowledged yet
+  bool ack_pending = false;  // the peer sent chunks we have not acknowledged yet
   bool have_unreliable = false;
   uint16_t newest_unreliable = 0;  // sequence of the newest unreliable payload delivered
   int pending_disconnect_sends = 0;
@@ -380,8 +378,7 @@ void Connection::Update(double now, PacketWriter& out) {
   }
   impl_->DetectLoss(now);
   impl_->SendDueUnits(now, out);
-  if (impl_->ack_pending ||
-      now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
+  if (impl_->ack_pending || now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
     impl_->SendAckOnly(now, out);
   }
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();

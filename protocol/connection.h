@@ -121,11 +121,19 @@ class Connection {
   // prefix's connection id and the sender's address). Reports deliveries to `handler`. A
   // malformed packet changes no state and returns kMalformed; a kDisconnect packet marks the
   // connection disconnected with the peer's reason.
+  // Other results: kAlreadyExists for a duplicate (or too old) packet sequence (counted in
+  // stats.duplicates_dropped, nothing else changes); kTooLarge (reassembly beyond
+  // max_message_size) or kResourceExhausted (reliable unit beyond the window): the peer broke
+  // the protocol, the connection is disconnected with kProtocolError and the next Update()
+  // sends the disconnect packets; kNotConnected once disconnected. A stale unreliable payload
+  // is dropped inside an otherwise accepted packet: Ok, counted in stats.stale_dropped.
   Status ProcessPacket(std::span<const uint8_t> packet, double now, ConnectionHandler& handler);
 
   // Sends due reliable units (new ones, then those whose resend timeout expired), acks the
   // peer is owed and keep-alives; detects the timeout. Call at least every few milliseconds
-  // to tens of milliseconds.
+  // to tens of milliseconds. Sends at most 16 data packets per call (the peer can acknowledge
+  // only 33 packets per packet it sends), so reliable throughput scales with the call rate.
+  // A packet with no chunks (ack-only or keep-alive) does not itself ask for an ack.
   void Update(double now, PacketWriter& out);
 
   // Sends `reason` to the peer (a few redundant copies, as it is not acknowledged) and marks

@@ -162,17 +162,17 @@ TEST(ConnectionTest, ReassemblyStopsAtMaxMessageSize) {
   RecordingHandler h;
   Bytes unit(1024, 7);
   for (uint16_t id = 0; id < 4; ++id) {
-    EXPECT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, id).Unit(id, false, unit).Build(),
-                                0, h)
-                    .ok());
+    EXPECT_TRUE(
+        c.ProcessPacket(PacketBuilder(PacketType::kData, id).Unit(id, false, unit).Build(), 0, h)
+            .ok());
   }
-  Status status = c.ProcessPacket(PacketBuilder(PacketType::kData, 4).Unit(4, false, unit).Build(),
-                                  0, h);
+  Status status =
+      c.ProcessPacket(PacketBuilder(PacketType::kData, 4).Unit(4, false, unit).Build(), 0, h);
   EXPECT_EQ(status.code(), StatusCode::kTooLarge);
   EXPECT_EQ(c.disconnect_reason(), DisconnectReason::kProtocolError);
-  EXPECT_EQ(c.ProcessPacket(PacketBuilder(PacketType::kData, 5).Unit(5, true, unit).Build(), 0, h)
-                .code(),
-            StatusCode::kNotConnected);
+  EXPECT_EQ(
+      c.ProcessPacket(PacketBuilder(PacketType::kData, 5).Unit(5, true, unit).Build(), 0, h).code(),
+      StatusCode::kNotConnected);
   // The peer is told: the next Update() sends the disconnect packets.
   CapturingWriter out;
   c.Update(0.01, out);
@@ -196,10 +196,9 @@ TEST(ConnectionTest, UnitsOutsideTheWindowAreAProtocolError) {
   }
   // Repeats are duplicates.
   uint64_t duplicates = c.stats().duplicates_dropped;
-  ASSERT_TRUE(
-      c.ProcessPacket(PacketBuilder(PacketType::kData, sequence++).Unit(5, false, unit).Build(), 0,
-                      h)
-          .ok());
+  ASSERT_TRUE(c.ProcessPacket(
+                   PacketBuilder(PacketType::kData, sequence++).Unit(5, false, unit).Build(), 0, h)
+                  .ok());
   EXPECT_EQ(c.stats().duplicates_dropped, duplicates + 1);
   EXPECT_TRUE(c.connected());
   Status status = c.ProcessPacket(
@@ -213,10 +212,15 @@ TEST(ConnectionTest, CompletesBufferedMessagesWhenTheGapFills) {
   Connection c(kTestConnectionId, ConnectionConfig{}, 0);
   RecordingHandler h;
   Bytes x = {1}, y = {2}, z = {3};
-  ASSERT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, 0).Unit(2, true, z).Build(), 0, h).ok());
-  ASSERT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, 1).Unit(1, false, y).Build(), 0, h).ok());
+  ASSERT_TRUE(
+      c.ProcessPacket(PacketBuilder(PacketType::kData, 0).Unit(2, true, z).Build(), 0, h).ok());
+  ASSERT_TRUE(
+      c.ProcessPacket(PacketBuilder(PacketType::kData, 1).Unit(1, false, y).Build(), 0, h).ok());
   EXPECT_TRUE(h.reliable.empty());
-  ASSERT_TRUE(c.ProcessPacket(PacketBuilder(PacketType::kData, 2).Unit(0, true, x).Unit(1, false, y).Build(), 0, h).ok());
+  ASSERT_TRUE(
+      c.ProcessPacket(
+           PacketBuilder(PacketType::kData, 2).Unit(0, true, x).Unit(1, false, y).Build(), 0, h)
+          .ok());
   ASSERT_EQ(h.reliable.size(), 2u);
   EXPECT_EQ(h.reliable[0], x);
   EXPECT_EQ(h.reliable[1], (Bytes{2, 3}));
@@ -228,9 +232,8 @@ bool StatsEqual(const ConnectionStats& x, const ConnectionStats& y) {
   return x.rtt_s == y.rtt_s && x.rtt_var_s == y.rtt_var_s && x.loss == y.loss &&
          x.packets_sent == y.packets_sent && x.packets_received == y.packets_received &&
          x.bytes_sent == y.bytes_sent && x.bytes_received == y.bytes_received &&
-         x.reliable_resends == y.reliable_resends &&
-         x.reliable_delivered == y.reliable_delivered && x.stale_dropped == y.stale_dropped &&
-         x.duplicates_dropped == y.duplicates_dropped &&
+         x.reliable_resends == y.reliable_resends && x.reliable_delivered == y.reliable_delivered &&
+         x.stale_dropped == y.stale_dropped && x.duplicates_dropped == y.duplicates_dropped &&
          x.pending_reliable_bytes == y.pending_reliable_bytes;
 }
 
@@ -334,7 +337,8 @@ TEST(ConnectionTest, MalformedPacketsChangeNoState) {
         ASSERT_TRUE(StatsEqual(victim.stats(), twin.stats()));
       }
       if (rng() % 4 == 0) continue;  // some loss, so acks and resends get exercised
-      EXPECT_EQ(victim.ProcessPacket(packet, now, hv).code(), twin.ProcessPacket(packet, now, ht).code());
+      EXPECT_EQ(victim.ProcessPacket(packet, now, hv).code(),
+                twin.ProcessPacket(packet, now, ht).code());
     }
     CapturingWriter from_victim(&hv), from_twin(&ht);
     victim.Update(now, from_victim);
@@ -360,7 +364,8 @@ TEST(ConnectionTest, RandomAndMutatedPacketsNeverCrash) {
     if (step % 2 == 0) {
       ASSERT_TRUE(sender.SendReliable(RandomBytes(1 + rng() % 4000, step)).ok());
     }
-    ASSERT_TRUE(sender.SendUnreliable(RandomBytes(1 + rng() % 500, step), step * 0.01, corpus).ok());
+    ASSERT_TRUE(
+        sender.SendUnreliable(RandomBytes(1 + rng() % 500, step), step * 0.01, corpus).ok());
     sender.Update(step * 0.01, corpus);
   }
   auto victim = std::make_unique<Connection>(kTestConnectionId, config, 0);
@@ -372,7 +377,8 @@ TEST(ConnectionTest, RandomAndMutatedPacketsNeverCrash) {
     Bytes packet = original;
     switch (rng() % 5) {
       case 0:  // flip a few bytes
-        for (uint32_t n = 1 + rng() % 4; n > 0; --n) packet[rng() % packet.size()] ^= 1 + rng() % 255;
+        for (uint32_t n = 1 + rng() % 4; n > 0; --n)
+          packet[rng() % packet.size()] ^= 1 + rng() % 255;
         break;
       case 1:  // truncate
         packet.resize(rng() % packet.size());
@@ -382,8 +388,9 @@ TEST(ConnectionTest, RandomAndMutatedPacketsNeverCrash) {
         break;
       case 3:  // overwrite a 16-bit field after the prefix (lengths, ids, sequences)
         if (packet.size() > kPacketPrefixSize + 2) {
-          StoreU16LE(packet.data() + kPacketPrefixSize + rng() % (packet.size() - kPacketPrefixSize - 1),
-                     static_cast<uint16_t>(rng()));
+          StoreU16LE(
+              packet.data() + kPacketPrefixSize + rng() % (packet.size() - kPacketPrefixSize - 1),
+              static_cast<uint16_t>(rng()));
         }
         break;
       default:  // garbage
@@ -433,7 +440,8 @@ TEST(ConnectionTest, KeepAlivesHoldAnIdleConnectionAndSilenceTimesOut) {
 }
 
 TEST(ConnectionTest, AcksArePromptAndReportedOnceForEveryPacket) {
-  Connection a(kTestConnectionId, ConnectionConfig{}, 0), b(kTestConnectionId, ConnectionConfig{}, 0);
+  Connection a(kTestConnectionId, ConnectionConfig{}, 0),
+      b(kTestConnectionId, ConnectionConfig{}, 0);
   RecordingHandler ha, hb;
   CapturingWriter a_out(&ha), b_out(&hb);
   auto sequence = a.SendUnreliable(Bytes{1, 2, 3}, 0.001, a_out);

@@ -138,8 +138,8 @@ class Peer : public PacketWriter {
     }
   }
 
-  bool mute = false;  // drop everything this end sends
-  bool deaf = false;  // ignore everything this end receives
+  bool mute = false;    // drop everything this end sends
+  bool deaf = false;    // ignore everything this end receives
   bool paused = false;  // Link does not call Update() on this end
   std::map<StatusCode, int> statuses;
   RecordingHandler handler;

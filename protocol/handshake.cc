@@ -8,7 +8,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "protocol/byte_order.h"
+#include "protocol/byte_io.h"
 
 namespace edgephys {
 
@@ -18,7 +18,7 @@ uint64_t SecureRandom64() {
     // The CSPRNG failing is not recoverable for a server handing out keys.
     std::abort();
   }
-  return wire::GetU64(bytes);
+  return LoadU64LE(bytes);
 }
 
 CookieJar::CookieJar() {
@@ -38,9 +38,9 @@ void CookieJar::Mac(const Endpoint& from, uint64_t nonce, uint64_t issued_ms,
     std::memcpy(msg, b.data(), b.size());
     n = b.size();
   }
-  wire::PutU16(msg + n, from.port());
-  wire::PutU64(msg + n + 2, nonce);
-  wire::PutU64(msg + n + 10, issued_ms);
+  StoreU16LE(msg + n, from.port());
+  StoreU64LE(msg + n + 2, nonce);
+  StoreU64LE(msg + n + 10, issued_ms);
   uint8_t full[32];
   unsigned int len = 0;
   HMAC(EVP_sha256(), key_.data(), static_cast<int>(key_.size()), msg, n + 18, full, &len);
@@ -51,7 +51,7 @@ CookieJar::Cookie CookieJar::Issue(const Endpoint& from, uint64_t client_nonce,
                                    double now) const {
   Cookie cookie{};
   uint64_t issued_ms = static_cast<uint64_t>(std::max(0.0, now) * 1000.0);
-  wire::PutU64(cookie.data(), issued_ms);
+  StoreU64LE(cookie.data(), issued_ms);
   Mac(from, client_nonce, issued_ms, cookie.data() + 8);
   return cookie;
 }
@@ -59,7 +59,7 @@ CookieJar::Cookie CookieJar::Issue(const Endpoint& from, uint64_t client_nonce,
 bool CookieJar::Verify(std::span<const uint8_t> cookie, const Endpoint& from,
                        uint64_t client_nonce, double now) const {
   if (cookie.size() != kCookieSize) return false;
-  uint64_t issued_ms = wire::GetU64(cookie.data());
+  uint64_t issued_ms = LoadU64LE(cookie.data());
   double age = now - static_cast<double>(issued_ms) / 1000.0;
   if (age < -1.0 || age > kCookieLifetimeS) return false;
   uint8_t expected[16];

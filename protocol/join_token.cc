@@ -6,7 +6,7 @@
 
 #include <array>
 
-#include "protocol/byte_order.h"
+#include "protocol/byte_io.h"
 
 namespace edgephys {
 namespace {
@@ -45,10 +45,10 @@ Result<std::vector<uint8_t>> SignJoinToken(const JoinToken& token, std::string_v
   std::vector<uint8_t> out(kFixedSize + token.room.size() + kJoinTokenMacSize);
   uint8_t* p = out.data();
   p[0] = kTokenVersion;
-  wire::PutU32(p + 1, token.player_id);
-  wire::PutU32(p + 5, token.permissions);
-  wire::PutU64(p + 9, token.expiry_unix_s);
-  wire::PutU64(p + 17, token.nonce);
+  StoreU32LE(p + 1, token.player_id);
+  StoreU32LE(p + 5, token.permissions);
+  StoreU64LE(p + 9, token.expiry_unix_s);
+  StoreU64LE(p + 17, token.nonce);
   p[25] = static_cast<uint8_t>(token.room.size());
   std::copy(token.room.begin(), token.room.end(), p + kFixedSize);
   size_t body = kFixedSize + token.room.size();
@@ -75,10 +75,10 @@ Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_vi
   if (CRYPTO_memcmp(mac.data(), bytes.data() + body, kJoinTokenMacSize) != 0) return bad;
 
   JoinToken token;
-  token.player_id = wire::GetU32(bytes.data() + 1);
-  token.permissions = wire::GetU32(bytes.data() + 5);
-  token.expiry_unix_s = wire::GetU64(bytes.data() + 9);
-  token.nonce = wire::GetU64(bytes.data() + 17);
+  token.player_id = LoadU32LE(bytes.data() + 1);
+  token.permissions = LoadU32LE(bytes.data() + 5);
+  token.expiry_unix_s = LoadU64LE(bytes.data() + 9);
+  token.nonce = LoadU64LE(bytes.data() + 17);
   token.room.assign(reinterpret_cast<const char*>(bytes.data() + kFixedSize), room_size);
   if (token.player_id == 0) return bad;
   if (token.expiry_unix_s <= now_unix_s) {

@@ -36,12 +36,12 @@ struct NetworkConditions {
 };
 
 struct NetworkSimulatorStats {
-  uint64_t sent = 0;        // datagrams handed to SendTo()
-  uint64_t dropped = 0;     // lost on purpose (NetworkConditions::loss)
-  uint64_t duplicated = 0;  // extra copies made
-  uint64_t delayed = 0;     // given a reordering delay
-  uint64_t queue_full = 0;  // copies dropped because max_queued datagrams were waiting
-  uint64_t forwarded = 0;   // copies handed to the inner socket
+  uint64_t sent = 0;          // datagrams handed to SendTo()
+  uint64_t dropped = 0;       // lost on purpose (NetworkConditions::loss)
+  uint64_t duplicated = 0;    // extra copies made
+  uint64_t delayed = 0;       // given a reordering delay
+  uint64_t queue_full = 0;    // copies dropped because max_queued datagrams were waiting
+  uint64_t forwarded = 0;     // copies handed to the inner socket
   uint64_t inner_errors = 0;  // inner SendTo() failures
 };
 

@@ -28,25 +28,44 @@ bool Fail(DropReason* reason, DropReason value) {
 
 std::string_view DropReasonName(DropReason reason) {
   switch (reason) {
-    case DropReason::kTooShort: return "too_short";
-    case DropReason::kTooLarge: return "too_large";
-    case DropReason::kBadProtocolId: return "bad_protocol_id";
-    case DropReason::kBadVersion: return "bad_version";
-    case DropReason::kUnknownType: return "unknown_type";
-    case DropReason::kUnknownConnection: return "unknown_connection";
-    case DropReason::kWrongAddress: return "wrong_address";
-    case DropReason::kMalformed: return "malformed";
-    case DropReason::kStale: return "stale";
-    case DropReason::kDuplicate: return "duplicate";
-    case DropReason::kHelloTooSmall: return "hello_too_small";
-    case DropReason::kBadCookie: return "bad_cookie";
-    case DropReason::kBadToken: return "bad_token";
-    case DropReason::kNotOwner: return "not_owner";
-    case DropReason::kInvalidValue: return "invalid_value";
-    case DropReason::kRateLimited: return "rate_limited";
-    case DropReason::kUnknownEntity: return "unknown_entity";
-    case DropReason::kNotJoined: return "not_joined";
-    case DropReason::kCount: break;
+    case DropReason::kTooShort:
+      return "too_short";
+    case DropReason::kTooLarge:
+      return "too_large";
+    case DropReason::kBadProtocolId:
+      return "bad_protocol_id";
+    case DropReason::kBadVersion:
+      return "bad_version";
+    case DropReason::kUnknownType:
+      return "unknown_type";
+    case DropReason::kUnknownConnection:
+      return "unknown_connection";
+    case DropReason::kWrongAddress:
+      return "wrong_address";
+    case DropReason::kMalformed:
+      return "malformed";
+    case DropReason::kStale:
+      return "stale";
+    case DropReason::kDuplicate:
+      return "duplicate";
+    case DropReason::kHelloTooSmall:
+      return "hello_too_small";
+    case DropReason::kBadCookie:
+      return "bad_cookie";
+    case DropReason::kBadToken:
+      return "bad_token";
+    case DropReason::kNotOwner:
+      return "not_owner";
+    case DropReason::kInvalidValue:
+      return "invalid_value";
+    case DropReason::kRateLimited:
+      return "rate_limited";
+    case DropReason::kUnknownEntity:
+      return "unknown_entity";
+    case DropReason::kNotJoined:
+      return "not_joined";
+    case DropReason::kCount:
+      break;
   }
   return "unknown";
 }

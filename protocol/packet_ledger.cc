@@ -20,7 +20,8 @@ void SentPacketLog::Add(uint16_t sequence, double now, bool ack_eliciting,
   if (offset + count > kUnitCapacity) unit_next_ += kUnitCapacity - offset;
   record.unit_begin = unit_next_;
   record.unit_count = static_cast<uint16_t>(count);
-  std::copy_n(units.begin(), count, units_.begin() + static_cast<std::ptrdiff_t>(unit_next_ % kUnitCapacity));
+  std::copy_n(units.begin(), count,
+              units_.begin() + static_cast<std::ptrdiff_t>(unit_next_ % kUnitCapacity));
   unit_next_ += count;
 }
 

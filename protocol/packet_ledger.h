@@ -32,7 +32,7 @@ class SentPacketLog {
     bool resolved = false;       // counted in the loss estimate (acked or deemed lost)
     bool ack_eliciting = false;  // carried chunks, so the peer acknowledges it promptly
     uint16_t unit_count = 0;
-    uint64_t unit_begin = 0;     // absolute position in the unit-id ring
+    uint64_t unit_begin = 0;  // absolute position in the unit-id ring
     double send_time = 0;
   };
 

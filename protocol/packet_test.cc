@@ -27,9 +27,9 @@ TEST(PacketPrefixTest, WritesLittleEndianLayout) {
 }
 
 TEST(PacketPrefixTest, RoundTripsEveryType) {
-  for (PacketType type : {PacketType::kHello, PacketType::kChallenge, PacketType::kConnect,
-                          PacketType::kAccept, PacketType::kReject, PacketType::kData,
-                          PacketType::kDisconnect}) {
+  for (PacketType type :
+       {PacketType::kHello, PacketType::kChallenge, PacketType::kConnect, PacketType::kAccept,
+        PacketType::kReject, PacketType::kData, PacketType::kDisconnect}) {
     std::vector<uint8_t> bytes = Prefix(type, 0xDEADBEEFu);
     bytes.push_back(0);  // body bytes do not matter to the prefix
     PacketPrefix prefix{};

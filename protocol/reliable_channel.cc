@@ -92,8 +92,7 @@ void ReliableSender::Compact() {
 // ---------------------------------------------------------------------------------------------
 // ReliableReceiver
 
-ReliableReceiver::ReliableReceiver(size_t max_message_size)
-    : max_message_size_(max_message_size) {}
+ReliableReceiver::ReliableReceiver(size_t max_message_size) : max_message_size_(max_message_size) {}
 
 ReliableReceiver::Placement ReliableReceiver::Classify(uint16_t id) const {
   int diff = SequenceDiff(id, next_id_);
@@ -121,6 +120,7 @@ Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler
     Slot& slot = slots_[unit.id % kReliableWindow];
     slot.present = true;
     slot.last = unit.last;
+    slot.data.reserve(kMaxReliableUnitSize);  // once per slot; reused from then on
     slot.data.assign(unit.data.begin(), unit.data.end());
     buffered_bytes_ += unit.data.size();
     return Status::Ok();
@@ -137,7 +137,7 @@ Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler
 
 Status ReliableReceiver::Append(std::span<const uint8_t> data, bool last,
                                 ConnectionHandler& handler, uint64_t* delivered) {
-  if (false) {
+  if (message_.size() + data.size() > max_message_size_) {
     return Status(StatusCode::kTooLarge, "reliable message exceeds max_message_size");
   }
   message_.insert(message_.end(), data.begin(), data.end());

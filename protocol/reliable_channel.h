@@ -74,11 +74,11 @@ class ReliableSender {
   size_t max_message_size_;
   size_t max_pending_bytes_;
   size_t pending_bytes_ = 0;
-  uint16_t base_id_ = 0;            // id of units_[0]
+  uint16_t base_id_ = 0;  // id of units_[0]
   RingQueue<Unit> units_;
-  std::vector<uint8_t> bytes_;      // stream bytes from absolute offset bytes_base_
-  uint64_t bytes_base_ = 0;         // absolute offset of bytes_[0]
-  uint64_t bytes_head_ = 0;         // absolute offset of the first byte still needed
+  std::vector<uint8_t> bytes_;  // stream bytes from absolute offset bytes_base_
+  uint64_t bytes_base_ = 0;     // absolute offset of bytes_[0]
+  uint64_t bytes_head_ = 0;     // absolute offset of the first byte still needed
 };
 
 class ReliableReceiver {
@@ -108,8 +108,8 @@ class ReliableReceiver {
                 uint64_t* delivered);
 
   size_t max_message_size_;
-  uint16_t next_id_ = 0;          // next unit to deliver
-  std::vector<Slot> slots_;       // kReliableWindow slots, allocated on first out-of-order unit
+  uint16_t next_id_ = 0;     // next unit to deliver
+  std::vector<Slot> slots_;  // kReliableWindow slots, allocated on first out-of-order unit
   size_t buffered_bytes_ = 0;
   std::vector<uint8_t> message_;  // the message being reassembled
 };

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "protocol/byte_order.h"
+#include "protocol/byte_io.h"
 
 namespace edgephys {
 namespace {
@@ -70,7 +70,7 @@ bool FloatStateEncoder::Add(const EntityState& s) {
   const float c[7] = {s.position.x, s.position.y, s.position.z, s.rotation.x,
                       s.rotation.y, s.rotation.z, s.rotation.w};
   for (float v : c) {
-    wire::PutF32(p, v);
+    StoreF32LE(p, v);
     p += 4;
   }
   pos_ += id_size + kFloatEntitySize;
@@ -83,7 +83,7 @@ size_t FloatStateEncoder::Finish() {
   // The header reserved 5 bytes for the count; write it compactly and close the gap.
   uint8_t* p = out_.data();
   p[0] = static_cast<uint8_t>(StateFormat::kFloat);
-  wire::PutU32(p + 1, time_ms_);
+  StoreU32LE(p + 1, time_ms_);
   uint8_t cnt[5];
   size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
   size_t body = pos_ - kHeaderSize;
@@ -99,7 +99,7 @@ Status DecodeStateBatch(std::span<const uint8_t> payload, StateBatch* batch) {
   if (payload.size() < 6 || payload[0] != static_cast<uint8_t>(StateFormat::kFloat)) {
     return malformed;
   }
-  batch->time_ms = wire::GetU32(payload.data() + 1);
+  batch->time_ms = LoadU32LE(payload.data() + 1);
   uint32_t count = 0;
   size_t n = GetVarint32(payload.subspan(5), &count);
   if (n == 0) return malformed;
@@ -110,9 +110,9 @@ Status DecodeStateBatch(std::span<const uint8_t> payload, StateBatch* batch) {
     n = GetVarint32(payload.subspan(pos), &s.entity_id);
     if (n == 0 || pos + n + kFloatEntitySize > payload.size()) return malformed;
     const uint8_t* p = payload.data() + pos + n;
-    s.position = {wire::GetF32(p), wire::GetF32(p + 4), wire::GetF32(p + 8)};
-    s.rotation = {wire::GetF32(p + 12), wire::GetF32(p + 16), wire::GetF32(p + 20),
-                  wire::GetF32(p + 24)};
+    s.position = {LoadF32LE(p), LoadF32LE(p + 4), LoadF32LE(p + 8)};
+    s.rotation = {LoadF32LE(p + 12), LoadF32LE(p + 16), LoadF32LE(p + 20),
+                  LoadF32LE(p + 24)};
     batch->states.push_back(s);
     pos += n + kFloatEntitySize;
   }

@@ -7,11 +7,10 @@
 #include <poll.h>
 #include <sys/socket.h>
 
+#include <asio/ip/v6_only.hpp>
 #include <cerrno>
 #include <cmath>
 #include <ctime>
-
-#include <asio/ip/v6_only.hpp>
 
 namespace edgephys {
 namespace {
@@ -61,11 +60,12 @@ Result<std::unique_ptr<UdpSocket>> UdpSocket::Open(const Endpoint& bind) {
 }
 
 Status UdpSocket::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
-  if (data.size() > kMaxUdpPayload) return Status(StatusCode::kInvalidArgument, "datagram too large");
+  if (data.size() > kMaxUdpPayload)
+    return Status(StatusCode::kInvalidArgument, "datagram too large");
   Endpoint destination = to;
   if (local_.address().is_v6() && to.address().is_v4()) {
-    destination = Endpoint(asio::ip::make_address_v6(asio::ip::v4_mapped, to.address().to_v4()),
-                           to.port());
+    destination =
+        Endpoint(asio::ip::make_address_v6(asio::ip::v4_mapped, to.address().to_v4()), to.port());
   } else if (local_.address().is_v4() && to.address().is_v6()) {
     destination = Normalize(to);
     if (destination.address().is_v6()) {
@@ -85,8 +85,8 @@ size_t UdpSocket::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) {
     Endpoint sender;
     asio::error_code ec;
     // MSG_TRUNC makes Linux return the datagram's full length even when it was truncated.
-    size_t size = socket_.receive_from(asio::buffer(buffer.data(), buffer.size()), sender,
-                                       MSG_TRUNC, ec);
+    size_t size =
+        socket_.receive_from(asio::buffer(buffer.data(), buffer.size()), sender, MSG_TRUNC, ec);
     if (!ec) {
       *from = Normalize(sender);
       return size;

@@ -93,9 +93,10 @@ TEST(UdpSocketTest, DualStackServesIPv4Peers) {
   if (!server.ok()) GTEST_SKIP() << "IPv6 unavailable";
   auto client = UdpSocket::Open(At("127.0.0.1", 0));
   ASSERT_TRUE(client.ok());
-  ASSERT_TRUE((*client)->SendTo(At("127.0.0.1", (*server)->LocalEndpoint().port()),
-                                std::vector<uint8_t>{1})
-                  .ok());
+  ASSERT_TRUE(
+      (*client)
+          ->SendTo(At("127.0.0.1", (*server)->LocalEndpoint().port()), std::vector<uint8_t>{1})
+          .ok());
   std::array<uint8_t, 16> buffer{};
   Endpoint from;
   if (ReceiveWithin(**server, &from, buffer) == 0) GTEST_SKIP() << "IPv6 socket is v6-only here";
