@@ -2,7 +2,7 @@
 function(edgephys_set_options target)
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
                                            -Wold-style-cast -Wcast-align -Woverloaded-virtual
- -Wimplicit-fallthrough
+                                           -Wimplicit-fallthrough
                                            -Wno-missing-field-initializers)
   if(EDGEPHYS_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
