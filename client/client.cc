@@ -2,6 +2,7 @@
 
 #include <cstring>
 
+#include "protocol/emulation_codec.h"
 #include "protocol/handshake.h"
 
 namespace edgephys {
@@ -74,11 +75,12 @@ void Client::Update(double now) {
     return;
   }
   if (state_ != ClientState::kConnected) return;
-  if (joined_ && now >= next_publish_) {
+  // Reliable traffic (spawns) first, so a new entity's spawn leaves before its first state.
+  connection_->Update(now, *this);
+  if (joined_ && connection_->connected() && now >= next_publish_) {
     Publish(now);
     next_publish_ = now + 1.0 / std::max(1.0, config_.publish_rate_hz);
   }
-  connection_->Update(now, *this);
   if (!connection_->connected()) {
     state_ = ClientState::kDisconnected;
     disconnect_reason_ = connection_->disconnect_reason();
@@ -328,8 +330,25 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
   }
 }
 
+Status Client::DecodeStates(std::span<const uint8_t> payload) {
+  if (payload.empty()) return Status(StatusCode::kMalformed, "empty state payload");
+  switch (payload[0]) {
+    case kFormatPhoton:
+    case kFormatPaper:
+      return DecodeEmulationBatch(payload, &batch_, [this](uint32_t id, EntityState* s) {
+        auto it = entities_.find(id);
+        if (it == entities_.end()) return false;
+        *s = it->second.state;
+        return true;
+      });
+    default:
+      return DecodeStateBatch(payload, &batch_);
+  }
+}
+
 void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
-  if (!joined_ || !DecodeStateBatch(payload, &batch_).ok()) return;
+  bytes_state_received_ += payload.size();
+  if (!joined_ || !DecodeStates(payload).ok()) return;
   for (const EntityState& st : batch_.states) {
     if (owned_.count(st.entity_id) != 0 || despawned_.count(st.entity_id) != 0) continue;
     if (!IsValidState(st)) continue;

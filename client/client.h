@@ -148,6 +148,8 @@ class Client final : private ConnectionHandler, private PacketWriter {
   const std::unordered_map<uint32_t, RemoteEntity>& entities() const { return entities_; }
   const RemoteEntity* FindEntity(uint32_t id) const;
   const std::vector<uint32_t>& players() const { return players_; }
+  // Bytes of state payload received (all formats), for bandwidth measurements.
+  uint64_t state_bytes_received() const { return bytes_state_received_; }
 
  private:
   struct OwnedEntity {
@@ -158,6 +160,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override;
   void OnPacketAcked(uint16_t sequence) override;
   void WritePacket(std::span<const uint8_t> packet) override;
+  Status DecodeStates(std::span<const uint8_t> payload);
   void HandleHandshakePacket(std::span<const uint8_t> packet, double now);
   void SendHandshake(double now);
   void Publish(double now);
@@ -196,6 +199,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   std::vector<std::pair<uint32_t, uint32_t>> sent_scratch_;
   StateBatch batch_;
   FloatStateEncoder encoder_;
+  uint64_t bytes_state_received_ = 0;
 };
 
 }  // namespace edgephys

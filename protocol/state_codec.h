@@ -38,7 +38,9 @@ struct EntityState {
 // length within 1e-3. Relays drop (and count) states that fail this.
 bool IsValidState(const EntityState& state);
 
-enum class StateFormat : uint8_t { kFloat = 1 };
+// kQuantizedDelta (format 2, protocol/delta_codec.h) is stateful: it is decoded only by a
+// DeltaDecoder owned by the stream's receiver, never by DecodeStateBatch.
+enum class StateFormat : uint8_t { kFloat = 1, kQuantizedDelta = 2 };
 
 // Writes entity states into datagram payloads. Usage per payload:
 //   encoder.Begin(buffer, time_ms); while (encoder.Add(state)) {...}; size = encoder.Finish();
@@ -75,8 +77,10 @@ struct StateBatch {
   std::vector<EntityState> states;  // reused by the caller between decodes
 };
 
-// Decodes any known format. Untrusted input: kMalformed on truncation, trailing bytes, an
-// unknown format or a count larger than the payload can hold; `batch` is then unspecified.
+// Decodes the stateless formats (format 1). Untrusted input: kMalformed on truncation,
+// trailing bytes, an unknown format or a count larger than the payload can hold; `batch` is
+// then unspecified. A format-2 payload returns kInvalidArgument ("needs a DeltaDecoder"):
+// dispatch on payload[0] == StateFormat::kQuantizedDelta to the stream's DeltaDecoder.
 // Values are not validated here (see IsValidState).
 Status DecodeStateBatch(std::span<const uint8_t> payload, StateBatch* batch);
 

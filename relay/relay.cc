@@ -14,6 +14,9 @@ using schema::RejectReason;
 
 uint16_t Code(RejectReason r) { return static_cast<uint16_t>(r); }
 
+// States held per session for entities whose spawn has not arrived yet.
+constexpr size_t kMaxEarlyStates = 1024;
+
 // At most one log line per reason per second, with the number suppressed since.
 class DropLog {
  public:
@@ -47,8 +50,7 @@ Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* c
     : config_(config),
       socket_(socket),
       counters_(counters),
-      receive_buffer_(kMaxPacketSize + 512),
-      payload_buffer_(kMaxUnreliablePayload) {
+      receive_buffer_(kMaxPacketSize + 512) {
   batch_.states.reserve(kMaxPacketSize / 8);
 }
 
@@ -311,7 +313,8 @@ void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
   uint32_t slot = room->AddMember(s.player_id(), s.connection().id());
   if (slot == 0) return SendError(s, Code(RejectReason::RoomFull), 0, "room is full");
   s.set_room(name);
-  s.ResetTracker();
+  s.ResetReplicator(room->config().replication);
+  s.early_states().clear();
 
   auto send = [&s](flatbuffers::FlatBufferBuilder& fbb) {
     if (!s.connection().SendReliable({fbb.GetBufferPointer(), fbb.GetSize()}).ok()) {
@@ -411,6 +414,12 @@ void Relay::OnSpawn(Session& s, std::span<const uint8_t> message, const schema::
   if (!IsValidState(e.state)) {
     return SendError(s, Code(RejectReason::InvalidMessage), id, "transform not finite or not unit");
   }
+  e.changed_at = now_;
+  if (auto early = s.early_states().find(id); early != s.early_states().end()) {
+    e.state = early->second;  // a state overtook the spawn
+    e.version = 2;
+    s.early_states().erase(early);
+  }
   e.spawn.assign(message.begin(), message.end());
   room.AddEntity(std::move(e));
   ++member->entity_count;
@@ -432,7 +441,7 @@ void Relay::OnDespawn(Session& s, uint32_t entity_id) {
   counters_->entities.fetch_sub(1, std::memory_order_relaxed);
   for (const auto& [pid, m] : room.members()) {
     auto sit = sessions_.find(m.session);
-    if (sit != sessions_.end()) sit->second->tracker().Forget(entity_id);
+    if (sit != sessions_.end()) sit->second->replicator().Forget(entity_id);
   }
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
@@ -455,6 +464,12 @@ void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
     Entity* e = room.FindEntity(st.entity_id);
     DropReason reject = DropReason::kCount;
     if (e == nullptr) {
+      const Member* m = room.FindMember(s.player_id());
+      if (m != nullptr && st.entity_id / kEntityIdBlock == m->slot && IsValidState(st) &&
+          (s.early_states().size() < kMaxEarlyStates || s.early_states().count(st.entity_id))) {
+        s.early_states()[st.entity_id] = st;  // its spawn is still on the way
+        continue;
+      }
       reject = DropReason::kUnknownEntity;
     } else if (e->owner != s.player_id()) {
       reject = DropReason::kNotOwner;
@@ -468,43 +483,17 @@ void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
     }
     e->state = st;
     ++e->version;
+    e->changed_at = now_;
     RelayCounters::Inc(counters_->entity_updates_received);
   }
 }
 
 void Relay::TickRoom(Room& room, double now) {
-  const double interval = 1.0 / std::max(1.0, room.config().tick_rate_hz);
-  const uint32_t time_ms = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
-  std::vector<std::pair<uint32_t, uint32_t>>& sent = tick_scratch_;
   for (const auto& [pid, member] : room.members()) {
     auto sit = sessions_.find(member.session);
     if (sit == sessions_.end() || !sit->second->connection().connected()) continue;
     Session& s = *sit->second;
-    const double resend_after = s.connection().stats().rtt_s * 1.25 + interval;
-    sent.clear();
-    auto flush = [&]() {
-      size_t size = encoder_.Finish();
-      if (size == 0) return;
-      Result<uint16_t> seq =
-          s.connection().SendUnreliable({payload_buffer_.data(), size}, now, s);
-      if (seq.ok()) {
-        for (const auto& [id, version] : sent) s.tracker().OnSent(*seq, id, version, now);
-        RelayCounters::Inc(counters_->entity_updates_sent, sent.size());
-      }
-      sent.clear();
-    };
-    encoder_.Begin(payload_buffer_, time_ms);
-    for (const auto& [id, e] : room.entities()) {
-      if (e.owner == s.player_id()) continue;
-      if (!s.tracker().NeedsSend(id, e.version, now, resend_after)) continue;
-      if (!encoder_.Add(e.state)) {
-        flush();
-        encoder_.Begin(payload_buffer_, time_ms);
-        encoder_.Add(e.state);
-      }
-      sent.emplace_back(id, e.version);
-    }
-    flush();
+    s.replicator().Tick(room.entities(), s.player_id(), now, s.connection(), s, *counters_);
   }
 }
 

@@ -97,13 +97,10 @@ class Relay {
   std::unordered_map<uint32_t, std::unique_ptr<Session>> sessions_;  // by connection id
   std::map<Endpoint, uint32_t> session_by_endpoint_;
   std::vector<uint8_t> receive_buffer_;
-  std::vector<uint8_t> payload_buffer_;
   StateBatch batch_;
-  FloatStateEncoder encoder_;
   double now_ = 0;
   double last_rtt_sample_ = 0;
   std::vector<uint32_t> removal_scratch_;
-  std::vector<std::pair<uint32_t, uint32_t>> tick_scratch_;  // (entity id, version) per payload
 };
 
 }  // namespace edgephys

@@ -6,14 +6,16 @@
 #include <string>
 
 #include "protocol/connection.h"
+#include "relay/replication.h"
 
 namespace edgephys {
 
 struct RoomConfig {
   uint32_t capacity = 64;          // players at once; joins beyond get RoomFull
   double idle_ttl_s = 300.0;       // an empty room is closed after this long
-  double tick_rate_hz = 30.0;      // replication ticks per second
+  double tick_rate_hz = 60.0;      // replication ticks per second
   uint32_t max_entities_per_player = 1024;
+  ReplicationConfig replication;   // encoder, send rates by priority class, thresholds, budget
 };
 
 struct RelayConfig {

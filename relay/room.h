@@ -22,6 +22,7 @@ struct Entity {
   uint32_t owner = 0;            // player id; 0 = the room
   uint32_t flags = 0;            // schema::EntityFlags
   uint32_t version = 1;          // bumped on every accepted state change
+  double changed_at = 0;         // relay time of the last accepted change (resting detection)
   EntityState state;
   std::vector<uint8_t> spawn;    // the ControlMessage{Spawn} as received, re-sent to joiners
 };

@@ -52,7 +52,9 @@ void Session::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t
   relay_->OnStates(*this, payload);
 }
 
-void Session::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
+void Session::OnPacketAcked(uint16_t sequence) {
+  if (replicator_) replicator_->OnPacketAcked(sequence);
+}
 
 void Session::WritePacket(std::span<const uint8_t> packet) { relay_->Send(endpoint_, packet); }
 

@@ -4,11 +4,15 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
+#include <unordered_map>
+#include <vector>
 
 #include "protocol/connection.h"
 #include "protocol/datagram_socket.h"
-#include "protocol/replication_tracker.h"
+#include "protocol/state_codec.h"
+#include "relay/replication.h"
 
 namespace edgephys {
 
@@ -36,10 +40,16 @@ class Session final : public ConnectionHandler, public PacketWriter {
   // The room joined, empty if none.
   const std::string& room() const { return room_; }
   void set_room(std::string room) { room_ = std::move(room); }
-  ReplicationTracker& tracker() { return tracker_; }
-  void ResetTracker() { tracker_ = ReplicationTracker(); }
+  // What this client has of the joined room's state; reset on every join.
+  ClientReplicator& replicator() { return *replicator_; }
+  void ResetReplicator(const ReplicationConfig& config) {
+    replicator_ = std::make_unique<ClientReplicator>(config);
+  }
   // Accept datagram re-sent when the client repeats its Connect (the first was lost).
   std::vector<uint8_t>& accept_packet() { return accept_packet_; }
+  // States that arrived for the player's own, not yet spawned entities (the spawn is on the
+  // reliable channel and may arrive later). Bounded; applied when the spawn arrives.
+  std::unordered_map<uint32_t, EntityState>& early_states() { return early_states_; }
   double now() const { return now_; }
   void set_now(double now) { now_ = now; }
 
@@ -52,8 +62,9 @@ class Session final : public ConnectionHandler, public PacketWriter {
   std::string token_room_;
   uint64_t token_nonce_;
   std::string room_;
-  ReplicationTracker tracker_;
+  std::unique_ptr<ClientReplicator> replicator_;
   std::vector<uint8_t> accept_packet_;
+  std::unordered_map<uint32_t, EntityState> early_states_;
   double now_;
 };
 

@@ -308,7 +308,9 @@ TEST(RelayHostileInput, NanAndUnknownEntityUpdatesAreCountedDrops) {
   world.RunFor(0.1);
   EntityState nan_state{*id, {std::nanf(""), 0, 0}, {0, 0, 0, 1}};
   EntityState bad_rotation{*id, {0, 0, 0}, {0, 0, 0, 3}};
-  EntityState unknown{*id + 999, {0, 0, 0}, {0, 0, 0, 1}};
+  // An id in another player's block: unknown to the room and not this sender's to spawn.
+  // (Unknown ids in the sender's own block are held briefly: the spawn may be in flight.)
+  EntityState unknown{*id + 5 * 65536, {0, 0, 0}, {0, 0, 0, 1}};
   ASSERT_TRUE(a.SendStateUnchecked(nan_state, world.Now()).ok());
   world.RunFor(0.02);
   ASSERT_TRUE(a.SendStateUnchecked(bad_rotation, world.Now()).ok());
@@ -320,6 +322,29 @@ TEST(RelayHostileInput, NanAndUnknownEntityUpdatesAreCountedDrops) {
   EXPECT_FALSE(a.PublishTransform(*id, {std::nanf(""), 0, 0}, {}).ok());
   const Entity& e = world.relay().FindRoom("n")->entities().at(*id);
   EXPECT_EQ(e.state.position.x, 0.0f);
+}
+
+TEST(RelayHostileInput, AStateThatOvertakesItsSpawnIsAppliedWhenTheSpawnArrives) {
+  LoopbackWorld world;
+  Client& a = world.AddClient(MintToken("early", 1));
+  Client& b = world.AddClient(MintToken("early", 2));
+  for (Client* c : {&a, &b}) {
+    ASSERT_TRUE(world.RunUntil([&] { return c->state() == ClientState::kConnected; }, 3.0));
+    ASSERT_TRUE(c->JoinRoom("early").ok());
+  }
+  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 3.0));
+  // The state for the next id A will spawn goes out before the spawn does.
+  uint32_t next_id = a.entity_id_base() + 1;
+  ASSERT_TRUE(a.SendStateUnchecked({next_id, {7, 8, 9}, {0, 0, 0, 1}}, world.Now()).ok());
+  world.RunFor(0.1);
+  auto id = a.Spawn({.position = {1, 1, 1}});
+  ASSERT_TRUE(id.ok());
+  ASSERT_EQ(*id, next_id);
+  ASSERT_TRUE(world.RunUntil([&] {
+    const RemoteEntity* e = b.FindEntity(next_id);
+    return e != nullptr && e->state.position.x == 7.0f;
+  }, 3.0));
+  EXPECT_EQ(UpdatesRejected(world.counters(), DropReason::kUnknownEntity), 0u);
 }
 
 }  // namespace

@@ -1,0 +1,186 @@
+#include "client/snapshot_buffer.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace edgephys {
+namespace {
+
+bool IsFinite(const Vec3f& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// Returns false if `q` is non-finite or too short to normalise.
+bool NormaliseQuat(Quatf* q) {
+  if (!std::isfinite(q->x) || !std::isfinite(q->y) || !std::isfinite(q->z) ||
+      !std::isfinite(q->w)) {
+    return false;
+  }
+  const double norm = std::sqrt(double{q->x} * q->x + double{q->y} * q->y + double{q->z} * q->z +
+                                double{q->w} * q->w);
+  if (norm < 1e-6) return false;
+  const float inv = static_cast<float>(1.0 / norm);
+  q->x *= inv;
+  q->y *= inv;
+  q->z *= inv;
+  q->w *= inv;
+  return true;
+}
+
+}  // namespace
+
+SnapshotBuffer::SnapshotBuffer(const SnapshotBufferConfig& config) : config_(config) {
+  config_.capacity = std::max<size_t>(config_.capacity, 2);
+  config_.max_slew = std::clamp(config_.max_slew, 0.0, 0.9);
+  config_.max_delay_s = std::max(config_.max_delay_s, config_.min_delay_s);
+  ring_.resize(config_.capacity);
+  Clear();
+}
+
+void SnapshotBuffer::Clear() {
+  head_ = 0;
+  count_ = 0;
+  has_offset_ = false;
+  bucket_start_s_ = bucket_min_s_ = previous_bucket_min_s_ = 0;
+  raw_offsets_count_ = raw_offsets_next_ = 0;
+  gaps_count_ = gaps_next_ = 0;
+  jitter_p95_s_ = 0;
+  playout_started_ = false;
+  last_local_now_s_ = render_time_s_ = current_delay_s_ = 0;
+  UpdateEstimates();
+}
+
+size_t SnapshotBuffer::UpperBound(double sender_time_s) const {
+  size_t lo = 0, hi = count_;
+  while (lo < hi) {
+    const size_t mid = lo + (hi - lo) / 2;
+    if ((*this)[mid].sender_time_s <= sender_time_s) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo;
+}
+
+InsertResult SnapshotBuffer::Insert(const Snapshot& snapshot, double receive_time_s) {
+  Snapshot s = snapshot;
+  if (!std::isfinite(s.sender_time_s) || !std::isfinite(receive_time_s) || !IsFinite(s.position) ||
+      !NormaliseQuat(&s.rotation) || (s.has_linear_velocity && !IsFinite(s.linear_velocity)) ||
+      (s.has_angular_velocity && !IsFinite(s.angular_velocity))) {
+    return InsertResult::kInvalid;
+  }
+
+  size_t pos = UpperBound(s.sender_time_s);
+  if ((pos > 0 && s.sender_time_s - (*this)[pos - 1].sender_time_s < config_.duplicate_epsilon_s) ||
+      (pos < count_ &&
+       (*this)[pos].sender_time_s - s.sender_time_s < config_.duplicate_epsilon_s)) {
+    return InsertResult::kDuplicate;
+  }
+
+  const double raw_offset = receive_time_s - s.sender_time_s;
+  UpdateOffset(raw_offset, receive_time_s);
+  raw_offsets_[raw_offsets_next_] = raw_offset;
+  raw_offsets_next_ = (raw_offsets_next_ + 1) % kJitterWindow;
+  raw_offsets_count_ = std::min(raw_offsets_count_ + 1, kJitterWindow);
+
+  const size_t cap = ring_.size();
+  if (count_ == cap) {
+    if (pos == 0) {
+      UpdateEstimates();
+      return InsertResult::kTooOld;
+    }
+    head_ = (head_ + 1) % cap;  // evict the oldest
+    --count_;
+    --pos;
+  }
+  // Shift [pos, count_) one slot towards the newest end, then place `s` at pos.
+  for (size_t i = count_; i > pos; --i) {
+    ring_[(head_ + i) % cap] = ring_[(head_ + i - 1) % cap];
+  }
+  ring_[(head_ + pos) % cap] = s;
+  ++count_;
+
+  if (pos == count_ - 1 && count_ >= 2) {
+    gaps_[gaps_next_] = s.sender_time_s - (*this)[pos - 1].sender_time_s;
+    gaps_next_ = (gaps_next_ + 1) % kIntervalWindow;
+    gaps_count_ = std::min(gaps_count_ + 1, kIntervalWindow);
+  }
+  UpdateEstimates();
+  return InsertResult::kInserted;
+}
+
+void SnapshotBuffer::UpdateOffset(double raw_offset_s, double receive_time_s) {
+  if (!has_offset_) {
+    has_offset_ = true;
+    bucket_start_s_ = receive_time_s;
+    bucket_min_s_ = previous_bucket_min_s_ = raw_offset_s;
+    return;
+  }
+  const double elapsed = receive_time_s - bucket_start_s_;
+  if (elapsed >= config_.offset_window_s) {
+    // A new bucket; the previous one only counts if it ended less than a window ago.
+    previous_bucket_min_s_ = elapsed >= 2 * config_.offset_window_s ? raw_offset_s : bucket_min_s_;
+    bucket_min_s_ = raw_offset_s;
+    bucket_start_s_ = receive_time_s;
+  } else {
+    bucket_min_s_ = std::min(bucket_min_s_, raw_offset_s);
+  }
+}
+
+double SnapshotBuffer::clock_offset_s() const {
+  return has_offset_ ? std::min(bucket_min_s_, previous_bucket_min_s_) : 0.0;
+}
+
+void SnapshotBuffer::UpdateEstimates() {
+  if (gaps_count_ > 0) {
+    std::array<double, kIntervalWindow> gaps = gaps_;
+    auto mid = gaps.begin() + static_cast<std::ptrdiff_t>(gaps_count_ / 2);
+    std::nth_element(gaps.begin(), mid, gaps.begin() + static_cast<std::ptrdiff_t>(gaps_count_));
+    send_interval_s_ = *mid;
+  } else {
+    send_interval_s_ = config_.initial_send_interval_s;
+  }
+
+  if (raw_offsets_count_ > 0) {
+    std::array<double, kJitterWindow> raw = raw_offsets_;
+    // Nearest-rank 95th percentile: ceil(0.95 n)-th smallest.
+    const size_t rank = (raw_offsets_count_ * 95 + 99) / 100;
+    auto it = raw.begin() + static_cast<std::ptrdiff_t>(rank - 1);
+    std::nth_element(raw.begin(), it,
+                     raw.begin() + static_cast<std::ptrdiff_t>(raw_offsets_count_));
+    jitter_p95_s_ = std::max(0.0, *it - clock_offset_s());
+  } else {
+    jitter_p95_s_ = 0;
+  }
+
+  target_delay_s_ = std::clamp(config_.interval_multiplier * send_interval_s_ + jitter_p95_s_,
+                               config_.min_delay_s, config_.max_delay_s);
+}
+
+double SnapshotBuffer::RenderTime(double local_now_s) {
+  if (!playout_started_) {
+    if (count_ == 0) return 0.0;
+    playout_started_ = true;
+    last_local_now_s_ = local_now_s;
+    render_time_s_ = EstimateSenderTime(local_now_s) - target_delay_s_;
+    current_delay_s_ = target_delay_s_;
+    return render_time_s_;
+  }
+  const double dt = std::max(0.0, local_now_s - last_local_now_s_);
+  last_local_now_s_ = std::max(last_local_now_s_, local_now_s);
+  const double sender_now = EstimateSenderTime(last_local_now_s_);
+  const double target = sender_now - target_delay_s_;
+  const double nominal = render_time_s_ + dt;
+  const double error = target - nominal;
+  if (error > config_.resync_threshold_s) {
+    render_time_s_ = target;  // far behind (stall, long loss): jump forward
+  } else {
+    const double max_adjust = config_.max_slew * dt;
+    render_time_s_ = nominal + std::clamp(error, -max_adjust, max_adjust);
+  }
+  current_delay_s_ = sender_now - render_time_s_;
+  return render_time_s_;
+}
+
+}  // namespace edgephys

@@ -1,0 +1,101 @@
+#include "physics_backend/container_builder.h"
+
+#include <flatbuffers/flatbuffers.h>
+
+namespace edgephys::physics {
+namespace {
+
+schema::Vec3 ToFb(const Vec3f& v) { return schema::Vec3(v.x, v.y, v.z); }
+schema::Quat ToFb(const Quatf& q) { return schema::Quat(q.x, q.y, q.z, q.w); }
+
+}  // namespace
+
+std::vector<uint8_t> BuildContainer(const EntitySpec& spec) {
+  flatbuffers::FlatBufferBuilder fbb(1024);
+
+  std::vector<flatbuffers::Offset<schema::Collider>> colliders;
+  colliders.reserve(spec.colliders.size());
+  for (const ColliderSpec& c : spec.colliders) {
+    const schema::Vec3 he = ToFb(c.half_extents);
+    const schema::Vec3 lp = ToFb(c.local_position);
+    const schema::Quat lr = ToFb(c.local_rotation);
+    colliders.push_back(schema::CreateColliderDirect(
+        fbb, c.shape, &he, c.radius, c.height, &lp, &lr,
+        c.vertices.empty() ? nullptr : &c.vertices, c.indices.empty() ? nullptr : &c.indices,
+        c.is_trigger));
+  }
+  std::vector<flatbuffers::Offset<schema::Joint>> joints;
+  for (const JointSpec& j : spec.joints) {
+    const schema::Vec3 anchor = ToFb(j.anchor);
+    const schema::Vec3 axis = ToFb(j.axis);
+    joints.push_back(schema::CreateJoint(fbb, j.kind, j.connected_entity, &anchor, &axis,
+                                         j.stiffness, j.damping));
+  }
+  flatbuffers::Offset<schema::RigidBody> rigid_body = 0;
+  if (spec.rigid_body) {
+    const RigidBodySpec& rb = *spec.rigid_body;
+    const schema::Vec3 lv = ToFb(rb.linear_velocity);
+    const schema::Vec3 av = ToFb(rb.angular_velocity);
+    rigid_body = schema::CreateRigidBody(fbb, rb.mass, rb.linear_damping, rb.angular_damping,
+                                         rb.friction, rb.restitution, rb.kinematic,
+                                         rb.use_gravity, &lv, &av);
+  }
+  flatbuffers::Offset<schema::SoftBody> soft_body = 0;
+  if (spec.soft_body) {
+    const SoftBodySpec& sb = *spec.soft_body;
+    soft_body = schema::CreateSoftBodyDirect(fbb, &sb.particles, &sb.masses, &sb.springs,
+                                             sb.stiffness, sb.damping);
+  }
+  const schema::Transform transform(ToFb(spec.position), ToFb(spec.rotation), ToFb(spec.scale));
+  auto root = schema::CreateContainerDirect(
+      fbb, spec.id, spec.parent_id, spec.owner, spec.flags, &transform,
+      spec.name.empty() ? nullptr : spec.name.c_str(), rigid_body,
+      colliders.empty() ? nullptr : &colliders, joints.empty() ? nullptr : &joints, soft_body);
+  schema::FinishContainerBuffer(fbb, root);
+  return {fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize()};
+}
+
+ColliderSpec BoxCollider(Vec3f half_extents) {
+  ColliderSpec c;
+  c.shape = schema::ColliderShape::Box;
+  c.half_extents = half_extents;
+  return c;
+}
+
+ColliderSpec SphereCollider(float radius) {
+  ColliderSpec c;
+  c.shape = schema::ColliderShape::Sphere;
+  c.radius = radius;
+  return c;
+}
+
+EntitySpec StaticBox(uint32_t id, Vec3f position, Vec3f half_extents, Quatf rotation) {
+  EntitySpec e;
+  e.id = id;
+  e.position = position;
+  e.rotation = rotation;
+  e.colliders.push_back(BoxCollider(half_extents));
+  return e;
+}
+
+EntitySpec DynamicBox(uint32_t id, Vec3f position, Vec3f half_extents, float mass) {
+  EntitySpec e;
+  e.id = id;
+  e.position = position;
+  e.rigid_body = RigidBodySpec{};
+  e.rigid_body->mass = mass;
+  e.colliders.push_back(BoxCollider(half_extents));
+  return e;
+}
+
+EntitySpec DynamicSphere(uint32_t id, Vec3f position, float radius, float mass) {
+  EntitySpec e;
+  e.id = id;
+  e.position = position;
+  e.rigid_body = RigidBodySpec{};
+  e.rigid_body->mass = mass;
+  e.colliders.push_back(SphereCollider(radius));
+  return e;
+}
+
+}  // namespace edgephys::physics

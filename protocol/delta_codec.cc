@@ -1,0 +1,667 @@
+#include "protocol/delta_codec.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "protocol/byte_io.h"
+
+namespace edgephys {
+namespace {
+
+using Sample = DeltaEncoder::Sample;
+using History = DeltaEncoder::History;
+
+constexpr size_t kCountReserve = 3;  // varint count reserved while encoding (< 2^21)
+constexpr size_t kStreamStart = kDeltaHeaderSize + kCountReserve;
+constexpr size_t kPacketRecords = 128;
+constexpr int64_t kMaxGapMs = 2048;
+constexpr int64_t kMaxStep = int64_t{1} << 24;
+constexpr int kMaxK = 7;
+
+// ---- Prediction (identical at both ends; integer arithmetic only) ----
+
+int64_t DivRound(int64_t n, int64_t d) {  // d > 0; halves away from zero
+  return n >= 0 ? (n + d / 2) / d : -((-n + d / 2) / d);
+}
+
+struct Timing {
+  int order = 0;  // effective order after the availability / gap checks
+  int64_t h = 0, h2 = 0, h1 = 0;
+};
+
+Timing MakeTiming(const History& hist, int order, uint32_t time_ms) {
+  Timing t;
+  t.order = std::min(order, hist.depth - 1);
+  t.h = static_cast<int32_t>(time_ms - hist.s[0].time_ms);
+  if (t.order >= 1) t.h2 = static_cast<int32_t>(hist.s[0].time_ms - hist.s[1].time_ms);
+  if (t.order >= 2) t.h1 = static_cast<int32_t>(hist.s[1].time_ms - hist.s[2].time_ms);
+  if (t.h < 0 || t.h > kMaxGapMs) t.order = 0;
+  if (t.order >= 1 && (t.h2 < 1 || t.h2 > kMaxGapMs)) t.order = 0;
+  if (t.order >= 2 && (t.h1 < 1 || t.h1 > kMaxGapMs)) t.order = 1;
+  return t;
+}
+
+// Newton-form polynomial extrapolation through (t2,p2), (t1,p1), (t0,p0) to t0 + h.
+int64_t Extrapolate(int64_t p0, int64_t p1, int64_t p2, const Timing& t) {
+  if (t.order == 0) return p0;
+  const int64_t d2 = p0 - p1;
+  if (d2 > kMaxStep || d2 < -kMaxStep) return p0;
+  if (t.order == 1) return p0 + DivRound(t.h * d2, t.h2);
+  const int64_t d1 = p1 - p2;
+  if (d1 > kMaxStep || d1 < -kMaxStep) return p0 + DivRound(t.h * d2, t.h2);
+  const int64_t num =
+      t.h * d2 * t.h1 * (t.h1 + t.h2) + t.h * (t.h + t.h2) * (d2 * t.h1 - d1 * t.h2);
+  const int64_t den = t.h1 * t.h2 * (t.h1 + t.h2);
+  return p0 + DivRound(num, den);
+}
+
+struct Prediction {
+  std::array<uint32_t, 3> pos{};
+  std::array<int64_t, 4> rot{};
+  int largest = 3;  // index of the largest |rot| component (lowest on ties)
+};
+
+void PredictPosition(const QuantizationParams& p, const History& hist, const Timing& t,
+                     Prediction* out) {
+  for (int a = 0; a < 3; ++a) {
+    int64_t v = Extrapolate(hist.s[0].pos[a], hist.s[1].pos[a], hist.s[2].pos[a], t);
+    v = std::clamp<int64_t>(v, 0, p.max_index[a]);
+    out->pos[a] = static_cast<uint32_t>(v);
+  }
+}
+
+void PredictRotation(const QuantizationParams& p, const History& hist, const Timing& t,
+                     Prediction* out) {
+  // Align the older samples' signs with the newest (q and -q are the same rotation).
+  std::array<int64_t, 4> r[3];
+  for (int i = 0; i < 3; ++i) {
+    for (int c = 0; c < 4; ++c) r[i][c] = hist.s[i].rot[c];
+  }
+  for (int i = 1; i < 3; ++i) {
+    int64_t dot = 0;
+    for (int c = 0; c < 4; ++c) dot += r[0][c] * r[i][c];
+    if (dot < 0) {
+      for (int c = 0; c < 4; ++c) r[i][c] = -r[i][c];
+    }
+  }
+  const int64_t lim = 4 * static_cast<int64_t>(p.rotation_max);
+  int largest = 0;
+  for (int c = 0; c < 4; ++c) {
+    out->rot[c] = std::clamp<int64_t>(Extrapolate(r[0][c], r[1][c], r[2][c], t), -lim, lim);
+    if (std::llabs(out->rot[c]) > std::llabs(out->rot[largest])) largest = c;
+  }
+  out->largest = largest;
+}
+
+// The predicted smallest-three components for dropped index `largest`.
+std::array<int32_t, 3> PredictedComponents(const QuantizationParams& p, const Prediction& pr,
+                                           int largest) {
+  const int64_t sign = pr.rot[largest] < 0 ? -1 : 1;
+  std::array<int32_t, 3> c{};
+  int k = 0;
+  for (int i = 0; i < 4; ++i) {
+    if (i == largest) continue;
+    c[k++] = static_cast<int32_t>(
+        std::clamp<int64_t>(sign * pr.rot[i], -p.rotation_max, p.rotation_max));
+  }
+  return c;
+}
+
+Sample MakeSample(const QuantizationParams& p, const QuantizedState& q, uint32_t time_ms) {
+  Sample s;
+  for (int a = 0; a < 3; ++a) s.pos[a] = static_cast<int32_t>(q.position[a]);
+  s.rot = RotationToInt4(p, q.rotation);
+  s.time_ms = time_ms;
+  return s;
+}
+
+History ExtendHistory(const History* base, const Sample& s) {
+  History h;
+  h.s[0] = s;
+  if (base == nullptr) {
+    h.s[1] = h.s[2] = s;
+    h.depth = 1;
+  } else {
+    h.s[1] = base->s[0];
+    h.s[2] = base->s[1];
+    h.depth = static_cast<uint8_t>(std::min(base->depth + 1, 3));
+  }
+  return h;
+}
+
+uint16_t PackParams(const int k[2], const bool mask[2], const int order[2]) {
+  return static_cast<uint16_t>(k[0] | (k[1] << 3) | (mask[0] << 6) | (mask[1] << 7) |
+                               (order[0] << 8) | (order[1] << 10));
+}
+
+bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
+  k[0] = v & 7;
+  k[1] = (v >> 3) & 7;
+  mask[0] = (v >> 6) & 1;
+  mask[1] = (v >> 7) & 1;
+  order[0] = (v >> 8) & 3;
+  order[1] = (v >> 10) & 3;
+  return order[0] <= 2 && order[1] <= 2 && (v >> 12) == 0;
+}
+
+double AngleBetweenDeg(const Quatf& a, const Quatf& b) {
+  const double dot = std::fabs(static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
+                               static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w);
+  return 2.0 * std::acos(std::min(1.0, dot)) * 180.0 / 3.14159265358979323846;
+}
+
+double DistanceM(const Vec3f& a, const Vec3f& b) {
+  const double dx = static_cast<double>(a.x) - b.x, dy = static_cast<double>(a.y) - b.y,
+               dz = static_cast<double>(a.z) - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+}  // namespace
+
+// ================================ Encoder ================================
+
+DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderOptions& options)
+    : params_(params), options_(options), records_(kPacketRecords) {}
+
+const DeltaEncoder::Entry* DeltaEncoder::NewestAcked(const Track& t) const {
+  const Entry* best = nullptr;
+  for (const Entry& e : t.ring) {
+    if (!e.valid || !e.acked) continue;
+    const uint32_t distance = counter_ - e.counter;
+    if (distance < 1 || distance > kMaxReferenceDistance) continue;
+    if (best == nullptr || static_cast<int32_t>(e.counter - best->counter) > 0) best = &e;
+  }
+  return best;
+}
+
+void DeltaEncoder::ChooseParams() {
+  for (int f = 0; f < 2; ++f) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int o = 0; o < 3; ++o) {
+      for (int k = 0; k <= kMaxK; ++k) {
+        const double full = costs_.full[f][o][k];
+        const double masked = costs_.masked[f][o][k];
+        if (full <= 0 && masked <= 0) continue;  // no statistics yet
+        if (full < best) {
+          best = full;
+          order_[f] = o;
+          k_[f] = k;
+          mask_[f] = false;
+        }
+        if (masked < best) {
+          best = masked;
+          order_[f] = o;
+          k_[f] = k;
+          mask_[f] = true;
+        }
+      }
+    }
+  }
+}
+
+void DeltaEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
+  if (payload_used_) ++counter_;
+  payload_used_ = false;
+  phase_ = Phase::kOpen;
+  out_ = out;
+  time_ms_ = time_ms;
+  count_ = 0;
+  last_id_ = 0;
+  prev_distance_ = 1;
+  pending_ids_.clear();
+  if (pending_ids_.capacity() < max_packet_ids_) pending_ids_.reserve(max_packet_ids_);
+  packet_costs_ = CostTable{};
+  packet_max_zigzag_[0] = packet_max_zigzag_[1] = 0;
+  packet_residuals_[0] = packet_residuals_[1] = 0;
+  ChooseParams();
+  writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
+}
+
+bool DeltaEncoder::Add(const EntityState& truth) {
+  if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
+  const uint32_t id = truth.entity_id;
+  if (count_ > 0 && id <= last_id_) return false;
+  if (count_ >= (size_t{1} << 21) - 1) return false;  // count varint reserve (3 bytes)
+
+  QuantizedState q;
+  const bool pos_exact = QuantizePosition(params_, truth.position, &q.position);
+  const bool rot_ok = QuantizeRotation(params_, truth.rotation, &q.rotation);
+
+  auto [track_it, created] = tracks_.try_emplace(id);
+  Track& track = track_it->second;
+  if (created && options_.keyframe_refresh_sends > 0) {
+    // Stagger refreshes by id so that entities created together do not refresh together.
+    track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
+  }
+  const Entry* base_entry = NewestAcked(track);
+  bool keyframe = base_entry == nullptr;
+  bool refresh = false;
+  if (!keyframe && options_.keyframe_refresh_sends > 0 &&
+      track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
+    keyframe = refresh = true;
+  }
+  History base_hist;
+  if (!keyframe) base_hist = base_entry->hist;  // copy: its slot may be overwritten below
+
+  const size_t mark = writer_.bit_position();
+  BitWriter& w = writer_;
+  bool ok = count_ == 0 ? w.WriteExpGolomb(id, 0) : w.WriteExpGolomb(id - last_id_ - 1, 0);
+  uint32_t distance = 0;
+  // Residual statistics of this record, committed only if it fits.
+  double add_full[2][3][8] = {};
+  double add_masked[2][3][8] = {};
+  uint32_t max_zz[2] = {0, 0};
+  uint64_t eg_bits = 0;
+  int n_residuals[2] = {0, 0};
+
+  if (keyframe) {
+    ok = ok && w.WriteExpGolomb(1, 0);
+    for (int a = 0; a < 3; ++a) ok = ok && w.WriteBits(q.position[a], params_.position_bits[a]);
+    ok = ok && w.WriteBits(q.rotation.largest, 2);
+    for (int c = 0; c < 3; ++c) {
+      ok = ok && w.WriteBits(static_cast<uint32_t>(q.rotation.c[c] + params_.rotation_max),
+                             params_.rotation_bits);
+    }
+  } else {
+    distance = counter_ - base_entry->counter;
+    const uint32_t sym =
+        distance == prev_distance_
+            ? 0
+            : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
+    ok = ok && w.WriteExpGolomb(sym, 0);
+
+    // Residuals for every order (statistics for the adaptive parameters); code the chosen one.
+    std::array<int32_t, 3> pos_res[3];
+    std::array<int32_t, 3> rot_res[3];
+    int rot_index_bits[3];
+    bool pos_zero[3], rot_zero[3];
+    for (int o = 0; o < 3; ++o) {
+      Prediction pp, pr;
+      PredictPosition(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pp);
+      PredictRotation(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pr);
+      pos_zero[o] = true;
+      for (int a = 0; a < 3; ++a) {
+        pos_res[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
+        pos_zero[o] = pos_zero[o] && pos_res[o][a] == 0;
+      }
+      const int li = q.rotation.largest;
+      const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
+      rot_index_bits[o] = li == pr.largest ? 1 : 3;
+      rot_zero[o] = li == pr.largest;
+      for (int c = 0; c < 3; ++c) {
+        rot_res[o][c] = q.rotation.c[c] - pc[c];
+        rot_zero[o] = rot_zero[o] && rot_res[o][c] == 0;
+      }
+      for (int k = 0; k <= kMaxK; ++k) {
+        double pos_bits = 0, rot_bits = rot_index_bits[o];
+        for (int a = 0; a < 3; ++a) {
+          pos_bits += ExpGolombBits(ZigZag(pos_res[o][a]), k);
+          rot_bits += ExpGolombBits(ZigZag(rot_res[o][a]), k);
+        }
+        add_full[0][o][k] = pos_bits;
+        add_full[1][o][k] = rot_bits;
+        add_masked[0][o][k] = 1 + (pos_zero[o] ? 0 : pos_bits);
+        add_masked[1][o][k] = 1 + (rot_zero[o] ? 0 : rot_bits);
+      }
+    }
+    const int po = order_[0], ro = order_[1];
+    // With a reduced history the effective order is lower, but the residual is the same.
+    const bool pos_coded = !mask_[0] || !pos_zero[po];
+    const bool rot_coded = !mask_[1] || !rot_zero[ro];
+    if (mask_[0]) ok = ok && w.WriteBit(pos_coded);
+    if (mask_[1]) ok = ok && w.WriteBit(rot_coded);
+    if (pos_coded) {
+      for (int a = 0; a < 3; ++a) {
+        ok = ok && w.WriteSigned(pos_res[po][a], k_[0]);
+        eg_bits += ExpGolombBits(ZigZag(pos_res[po][a]), k_[0]);
+        max_zz[0] = std::max(max_zz[0], ZigZag(pos_res[po][a]));
+      }
+      n_residuals[0] = 3;
+    }
+    if (rot_coded) {
+      Prediction pr;
+      PredictRotation(params_, base_hist, MakeTiming(base_hist, ro, time_ms_), &pr);
+      const bool same = q.rotation.largest == pr.largest;
+      ok = ok && w.WriteBit(same);
+      if (!same) ok = ok && w.WriteBits(q.rotation.largest, 2);
+      for (int c = 0; c < 3; ++c) {
+        ok = ok && w.WriteSigned(rot_res[ro][c], k_[1]);
+        eg_bits += ExpGolombBits(ZigZag(rot_res[ro][c]), k_[1]);
+        max_zz[1] = std::max(max_zz[1], ZigZag(rot_res[ro][c]));
+      }
+      n_residuals[1] = 3;
+    }
+  }
+  if (!ok) {
+    writer_.Rewind(mark);
+    return false;
+  }
+
+  // Committed: record the state as sent-in-this-payload.
+  if (!pos_exact) ++stats_.positions_clamped;
+  if (!rot_ok) ++stats_.rotations_invalid;
+  ++stats_.entities;
+  if (keyframe) {
+    ++stats_.keyframes;
+    if (refresh) ++stats_.refresh_keyframes;
+    if (refresh || track.next > 0) track.sends_since_keyframe = 0;
+  } else {
+    prev_distance_ = distance;
+    ++track.sends_since_keyframe;
+    for (int f = 0; f < 2; ++f) {
+      for (int o = 0; o < 3; ++o) {
+        for (int k = 0; k <= kMaxK; ++k) {
+          packet_costs_.full[f][o][k] += add_full[f][o][k];
+          packet_costs_.masked[f][o][k] += add_masked[f][o][k];
+        }
+      }
+      packet_max_zigzag_[f] = std::max(packet_max_zigzag_[f], max_zz[f]);
+      packet_residuals_[f] += static_cast<uint64_t>(n_residuals[f]);
+    }
+    stats_.residual_bits_exp_golomb += eg_bits;
+  }
+  Entry& e = track.ring[track.next % kDeltaBaselineWindow];
+  ++track.next;
+  e.valid = true;
+  e.acked = false;
+  e.sent = false;
+  e.counter = counter_;
+  e.q = q;
+  e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(params_, q, time_ms_));
+  pending_ids_.push_back(id);
+  payload_used_ = true;
+  last_id_ = id;
+  ++count_;
+  return true;
+}
+
+size_t DeltaEncoder::Finish() {
+  if (phase_ != Phase::kOpen || count_ == 0) return 0;
+  phase_ = Phase::kFinished;
+  uint8_t* p = out_.data();
+  p[0] = kDeltaStateFormat;
+  StoreU32LE(p + 1, time_ms_);
+  StoreU16LE(p + 5, static_cast<uint16_t>(counter_));
+  StoreU16LE(p + 7, PackParams(k_, mask_, order_));
+  uint8_t cnt[5];
+  const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
+  std::memcpy(p + kDeltaHeaderSize, cnt, cnt_size);
+  const size_t body = writer_.byte_size();
+  const size_t dst = kDeltaHeaderSize + cnt_size;
+  std::memmove(p + dst, p + kStreamStart, body);
+
+  // Adaptive statistics (decayed) and the fixed-width comparison.
+  for (int f = 0; f < 2; ++f) {
+    for (int o = 0; o < 3; ++o) {
+      for (int k = 0; k <= kMaxK; ++k) {
+        costs_.full[f][o][k] = 0.5 * costs_.full[f][o][k] + packet_costs_.full[f][o][k];
+        costs_.masked[f][o][k] = 0.5 * costs_.masked[f][o][k] + packet_costs_.masked[f][o][k];
+      }
+    }
+    if (packet_residuals_[f] > 0) {
+      stats_.residual_bits_fixed_width +=
+          5 + packet_residuals_[f] * static_cast<uint64_t>(std::bit_width(packet_max_zigzag_[f]));
+    }
+  }
+  ++stats_.payloads;
+  return dst + body;
+}
+
+void DeltaEncoder::OnSent(uint16_t packet_sequence, double now) {
+  if (phase_ != Phase::kFinished) return;
+  phase_ = Phase::kSent;  // a second OnSent for the same payload is ignored
+  PacketRecord& r = records_[packet_sequence % kPacketRecords];
+  r.valid = true;
+  r.sequence = packet_sequence;
+  r.counter = counter_;
+  max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
+  if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);  // grows rarely
+  r.ids.assign(pending_ids_.begin(), pending_ids_.end());
+  for (uint32_t id : r.ids) {
+    auto it = tracks_.find(id);
+    if (it == tracks_.end()) continue;
+    for (Entry& e : it->second.ring) {
+      if (e.valid && e.counter == counter_) {
+        e.sent = true;
+        e.sent_at = now;
+      }
+    }
+  }
+}
+
+void DeltaEncoder::OnPacketAcked(uint16_t packet_sequence) {
+  PacketRecord& r = records_[packet_sequence % kPacketRecords];
+  if (!r.valid || r.sequence != packet_sequence) {
+    ++stats_.acks_unmatched;
+    return;
+  }
+  r.valid = false;
+  for (uint32_t id : r.ids) {
+    auto it = tracks_.find(id);
+    if (it == tracks_.end()) {
+      ++stats_.acks_unmatched;
+      continue;
+    }
+    for (Entry& e : it->second.ring) {
+      if (e.valid && e.counter == r.counter) e.acked = true;
+    }
+  }
+}
+
+void DeltaEncoder::Forget(uint32_t id) { tracks_.erase(id); }
+
+bool DeltaEncoder::NeedsUpdate(uint32_t id, const EntityState& truth, float pos_threshold_m,
+                               float rot_threshold_deg, double now, double resend_after_s) const {
+  auto it = tracks_.find(id);
+  if (it == tracks_.end()) return true;
+  const Entry* acked = nullptr;
+  const Entry* newest = nullptr;
+  for (const Entry& e : it->second.ring) {
+    if (!e.valid) continue;
+    if (e.acked && (acked == nullptr || static_cast<int32_t>(e.counter - acked->counter) > 0)) {
+      acked = &e;
+    }
+    if (e.sent && (newest == nullptr || static_cast<int32_t>(e.counter - newest->counter) > 0)) {
+      newest = &e;
+    }
+  }
+  auto within = [&](const Entry& e) {
+    return DistanceM(DequantizePosition(params_, e.q.position), truth.position) <=
+               pos_threshold_m &&
+           AngleBetweenDeg(DequantizeRotation(params_, e.q.rotation), truth.rotation) <=
+               rot_threshold_deg;
+  };
+  if (acked != nullptr && within(*acked)) return false;
+  if (newest != nullptr && !newest->acked && now - newest->sent_at < resend_after_s &&
+      within(*newest)) {
+    return false;
+  }
+  return true;
+}
+
+// ================================ Decoder ================================
+
+DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities)
+    : params_(params), max_entities_(max_entities) {}
+
+void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
+
+Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
+  const Status malformed(StatusCode::kMalformed, "malformed format-2 state payload");
+  auto fail = [&]() {
+    ++stats_.malformed;
+    return malformed;
+  };
+  if (payload.size() < kDeltaHeaderSize + 1 || payload[0] != kDeltaStateFormat) return fail();
+  const uint32_t time_ms = LoadU32LE(payload.data() + 1);
+  const uint16_t counter16 = LoadU16LE(payload.data() + 5);
+  int k[2];
+  bool mask[2];
+  int order[2];
+  if (!UnpackParams(LoadU16LE(payload.data() + 7), k, mask, order)) return fail();
+  uint32_t count = 0;
+  const size_t n = GetVarint32(payload.subspan(kDeltaHeaderSize), &count);
+  if (n == 0 || count == 0) return fail();
+  const std::span<const uint8_t> stream = payload.subspan(kDeltaHeaderSize + n);
+  if (count > stream.size() * 8 / 2) return fail();  // every record takes >= 2 bits
+
+  const int64_t counter =
+      have_counter_ ? highest_counter_ +
+                          static_cast<int16_t>(counter16 - static_cast<uint16_t>(highest_counter_))
+                    : (int64_t{1} << 20) + counter16;
+
+  BitReader r(stream);
+  staged_.clear();
+  uint32_t prev_id = 0;
+  uint32_t prev_distance = 1;
+  const int32_t m = params_.rotation_max;
+  for (uint32_t i = 0; i < count; ++i) {
+    Staged s;
+    uint32_t v;
+    if (!r.ReadExpGolomb(0, &v)) return fail();
+    if (i == 0) {
+      s.id = v;
+    } else {
+      if (v >= UINT32_MAX - prev_id) return fail();
+      s.id = prev_id + 1 + v;
+    }
+    prev_id = s.id;
+    uint32_t sym;
+    if (!r.ReadExpGolomb(0, &sym)) return fail();
+    if (sym == 1) {  // keyframe
+      s.keyframe = true;
+      for (int a = 0; a < 3; ++a) {
+        uint64_t x;
+        if (!r.ReadBits(params_.position_bits[a], &x) || x > params_.max_index[a]) return fail();
+        s.q.position[a] = static_cast<uint32_t>(x);
+      }
+      uint64_t li;
+      if (!r.ReadBits(2, &li)) return fail();
+      s.q.rotation.largest = static_cast<uint8_t>(li);
+      for (int c = 0; c < 3; ++c) {
+        uint64_t x;
+        if (!r.ReadBits(params_.rotation_bits, &x) || x > 2 * static_cast<uint64_t>(m)) {
+          return fail();
+        }
+        s.q.rotation.c[c] = static_cast<int32_t>(x) - m;
+      }
+      s.resolved = true;
+      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
+    } else {
+      const int64_t distance =
+          sym == 0 ? prev_distance : static_cast<int64_t>(prev_distance) + UnZigZag(sym - 1);
+      if (distance < 1 || distance > kMaxReferenceDistance) return fail();
+      prev_distance = static_cast<uint32_t>(distance);
+      s.reference = counter - distance;
+      bool pos_coded = true, rot_coded = true;
+      if (mask[0] && !r.ReadBit(&pos_coded)) return fail();
+      if (mask[1] && !r.ReadBit(&rot_coded)) return fail();
+      int32_t pos_res[3] = {0, 0, 0}, rot_res[3] = {0, 0, 0};
+      bool same_index = true;
+      uint64_t index = 0;
+      if (pos_coded) {
+        for (int32_t& x : pos_res) {
+          if (!r.ReadSigned(k[0], &x)) return fail();
+        }
+      }
+      if (rot_coded) {
+        if (!r.ReadBit(&same_index)) return fail();
+        if (!same_index && !r.ReadBits(2, &index)) return fail();
+        for (int32_t& x : rot_res) {
+          if (!r.ReadSigned(k[1], &x)) return fail();
+        }
+      }
+      // Resolve the reference: exact payload counter match, or the record is skipped.
+      const Entry* base = nullptr;
+      auto it = tracks_.find(s.id);
+      if (it != tracks_.end()) {
+        for (const Entry& e : it->second.ring) {
+          if (e.valid && e.counter == s.reference) base = &e;
+        }
+      }
+      if (base != nullptr) {
+        const History& h = base->hist;
+        Prediction pp, pr;
+        PredictPosition(params_, h, MakeTiming(h, order[0], time_ms), &pp);
+        PredictRotation(params_, h, MakeTiming(h, order[1], time_ms), &pr);
+        for (int a = 0; a < 3; ++a) {
+          const int64_t x = static_cast<int64_t>(pp.pos[a]) + pos_res[a];
+          if (x < 0 || x > params_.max_index[a]) return fail();
+          s.q.position[a] = static_cast<uint32_t>(x);
+        }
+        const int li = same_index ? pr.largest : static_cast<int>(index);
+        const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
+        s.q.rotation.largest = static_cast<uint8_t>(li);
+        for (int c = 0; c < 3; ++c) {
+          const int64_t x = static_cast<int64_t>(pc[c]) + rot_res[c];
+          if (x < -m || x > m) return fail();
+          s.q.rotation.c[c] = static_cast<int32_t>(x);
+        }
+        s.resolved = true;
+        s.hist = ExtendHistory(&h, MakeSample(params_, s.q, time_ms));
+      }
+    }
+    staged_.push_back(s);
+  }
+  // The stream must end here: only zero padding up to the byte boundary.
+  const size_t rest = r.remaining_bits();
+  uint64_t pad = 0;
+  if (rest >= 8 || !r.ReadBits(static_cast<int>(rest), &pad) || pad != 0) return fail();
+
+  // Commit.
+  if (!have_counter_ || counter > highest_counter_) highest_counter_ = counter;
+  have_counter_ = true;
+  ++stats_.payloads;
+  out->time_ms = time_ms;
+  last_references_.clear();
+  for (const Staged& s : staged_) {
+    if (!s.resolved) {
+      ++stats_.unresolved_references;
+      continue;
+    }
+    auto it = tracks_.find(s.id);
+    if (it == tracks_.end()) {
+      if (tracks_.size() >= max_entities_) {
+        ++stats_.capacity_dropped;
+        continue;
+      }
+      it = tracks_.try_emplace(s.id).first;
+    }
+    Track& t = it->second;
+    if (s.keyframe) ++stats_.keyframes;
+    last_references_.push_back({s.id, counter, s.keyframe ? -1 : s.reference});
+    // Keep the kDeltaBaselineWindow highest counters.
+    Entry* slot = nullptr;
+    bool duplicate = false;
+    for (Entry& e : t.ring) {
+      if (e.valid && e.counter == counter) duplicate = true;
+      if (!e.valid) {
+        if (slot == nullptr || slot->valid) slot = &e;
+      } else if (slot == nullptr || (slot->valid && e.counter < slot->counter)) {
+        slot = &e;
+      }
+    }
+    if (!duplicate && (!slot->valid || slot->counter < counter)) {
+      slot->valid = true;
+      slot->counter = counter;
+      slot->hist = s.hist;
+    }
+    if (counter > t.newest_output) {
+      t.newest_output = counter;
+      EntityState st;
+      st.entity_id = s.id;
+      st.position = DequantizePosition(params_, s.q.position);
+      st.rotation = DequantizeRotation(params_, s.q.rotation);
+      out->states.push_back(st);
+      ++stats_.entities;
+    } else {
+      ++stats_.stale_skipped;
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace edgephys

@@ -1,0 +1,810 @@
+#include "protocol/delta_codec.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <deque>
+#include <map>
+#include <new>
+#include <random>
+#include <vector>
+
+#include "protocol/codec_test_util.h"
+#include "protocol/connection.h"
+
+// Allocation counting for the steady-state test (malloc-based replacement; see
+// connection_alloc_test.cc).
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+void* operator new(std::size_t size) {
+  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace edgephys {
+namespace {
+
+using testing_util::FloatSlack;
+using testing_util::PositionError;
+using testing_util::RandomRotation;
+using testing_util::RotationErrorDeg;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr size_t kPacketOverhead = 18 + 3;  // connection header + unreliable chunk header
+
+// ---------------------------------------------------------------------------------------------
+// Test motion: smooth paths at a given speed, spinning about a slowly varying axis. Two
+// families (integrated wandering heading; Lissajous), parameters drawn from the seed.
+class TestMotion {
+ public:
+  TestMotion(uint64_t seed, uint32_t index, double speed, double spin_dps, int family)
+      : family_(family), speed_(speed) {
+    std::mt19937_64 rng(seed * 7919 + index);
+    std::uniform_real_distribution<double> u(0, 1);
+    pos_[0] = (index % 16) * 4.0 - 30;
+    pos_[1] = 1.0 + u(rng);
+    pos_[2] = (index / 16) * 4.0 - 30;
+    heading_ = 2 * kPi * u(rng);
+    turn_amp_ = 0.3 + 0.9 * u(rng);  // rad/s: radius of curvature down to ~1.25 m at 1.5 m/s
+    turn_freq_ = 0.2 + 0.6 * u(rng);
+    turn_phase_ = 2 * kPi * u(rng);
+    climb_phase_ = 2 * kPi * u(rng);
+    for (int i = 0; i < 3; ++i) lis_w_[i] = 0.6 + 0.8 * u(rng), lis_p_[i] = 2 * kPi * u(rng);
+    const double n = std::sqrt(
+        (lis_w_[0] * lis_w_[0] + 0.25 * lis_w_[1] * lis_w_[1] + lis_w_[2] * lis_w_[2]) / 2.0);
+    lis_a_ = speed / n;
+    spin_ = spin_dps * kPi / 180.0;
+    axis_tilt_ = 0.3 + 1.0 * u(rng);
+    axis_rate_ = 0.1 + 0.4 * u(rng);
+    axis_phase_ = 2 * kPi * u(rng);
+    std::normal_distribution<double> nd;
+    double q[4] = {nd(rng), nd(rng), nd(rng), nd(rng)};
+    const double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (int i = 0; i < 4; ++i) q_[i] = q[i] / qn;
+    origin_[0] = pos_[0], origin_[1] = pos_[1], origin_[2] = pos_[2];
+  }
+
+  // Advances (1 ms integration steps) to `t` seconds and returns the truth.
+  EntityState AdvanceTo(double t) {
+    while (t_ + 1e-9 < t) {
+      const double dt = std::min(0.001, t - t_);
+      Step(dt);
+    }
+    EntityState s;
+    if (family_ == 1) {
+      s.position = {
+          static_cast<float>(origin_[0] + lis_a_ * std::sin(lis_w_[0] * t + lis_p_[0])),
+          static_cast<float>(origin_[1] + 0.5 * lis_a_ * std::sin(lis_w_[1] * t + lis_p_[1])),
+          static_cast<float>(origin_[2] + lis_a_ * std::sin(lis_w_[2] * t + lis_p_[2]))};
+    } else {
+      s.position = {static_cast<float>(pos_[0]), static_cast<float>(pos_[1]),
+                    static_cast<float>(pos_[2])};
+    }
+    s.rotation = {static_cast<float>(q_[0]), static_cast<float>(q_[1]), static_cast<float>(q_[2]),
+                  static_cast<float>(q_[3])};
+    return s;
+  }
+
+  void Teleport(double dx) { pos_[0] += dx, origin_[0] += dx; }
+
+ private:
+  void Step(double dt) {
+    const double tm = t_ + dt / 2;
+    // Wandering heading at constant speed, gentle climb.
+    const double turn = turn_amp_ * std::sin(turn_freq_ * tm + turn_phase_);
+    const double climb = 0.15 * std::sin(0.5 * tm + climb_phase_);
+    const double dir[3] = {std::cos(heading_ + turn * dt / 2) * std::cos(climb), std::sin(climb),
+                           std::sin(heading_ + turn * dt / 2) * std::cos(climb)};
+    for (int i = 0; i < 3; ++i) pos_[i] += speed_ * dt * dir[i];
+    heading_ += turn * dt;
+    // Spin about an axis precessing slowly around +y.
+    const double th = axis_phase_ + axis_rate_ * tm;
+    const double ax[3] = {std::sin(axis_tilt_) * std::cos(th), std::cos(axis_tilt_),
+                          std::sin(axis_tilt_) * std::sin(th)};
+    const double half = spin_ * dt / 2, s = std::sin(half), c = std::cos(half);
+    const double d[4] = {ax[0] * s, ax[1] * s, ax[2] * s, c};
+    // q = d * q (world-frame angular velocity)
+    const double x = d[3] * q_[0] + d[0] * q_[3] + d[1] * q_[2] - d[2] * q_[1];
+    const double y = d[3] * q_[1] - d[0] * q_[2] + d[1] * q_[3] + d[2] * q_[0];
+    const double z = d[3] * q_[2] + d[0] * q_[1] - d[1] * q_[0] + d[2] * q_[3];
+    const double w = d[3] * q_[3] - d[0] * q_[0] - d[1] * q_[1] - d[2] * q_[2];
+    const double n = std::sqrt(x * x + y * y + z * z + w * w);
+    q_[0] = x / n, q_[1] = y / n, q_[2] = z / n, q_[3] = w / n;
+    t_ += dt;
+  }
+
+  int family_;
+  double speed_;
+  double t_ = 0;
+  double pos_[3], origin_[3];
+  double heading_, turn_amp_, turn_freq_, turn_phase_, climb_phase_;
+  double lis_w_[3], lis_p_[3], lis_a_;
+  double spin_, axis_tilt_, axis_rate_, axis_phase_;
+  double q_[4];
+};
+
+// ---------------------------------------------------------------------------------------------
+// Stream simulator: encoder -> (loss, delay/reordering) -> decoder, acks back with delay.
+struct SimConfig {
+  int entities = 64;
+  int ticks = 240;
+  double tick_hz = 12;
+  double loss = 0;
+  int max_extra_delay_ticks = 0;  // each packet arrives 0..this many ticks late (reordering)
+  int ack_delay_ticks = 1;        // acks reach the encoder this many ticks after arrival
+  double ack_loss = 0;            // an arrived packet's ack is never reported
+  bool drop_stale = false;        // emulate Connection's sequenced channel (drops old payloads)
+  uint64_t seed = 1;
+  int family = 0;  // motion family; -1 alternates per entity
+  double speed = 1.5, spin_dps = 90;
+  QuantizationConfig quant;
+  DeltaEncoderOptions options;
+  int freeze_after_tick = -1;         // truth stops changing from this tick on
+  int lossless_after_tick = 1 << 30;  // network becomes perfect and in order from this tick on
+  bool check_references = true;
+};
+
+struct SimResult {
+  uint64_t bytes = 0, updates = 0, packets = 0, outputs = 0;
+  double max_pos_err = 0, max_rot_err = 0;
+  uint64_t bad_references = 0;
+  DeltaEncoderStats enc;
+  DeltaDecoderStats dec;
+  bool converged = false;
+  double BytesPerUpdate() const { return static_cast<double>(bytes) / updates; }
+};
+
+SimResult RunStream(const SimConfig& c) {
+  SimResult res;
+  auto params = MakeQuantizationParams(c.quant);
+  EXPECT_TRUE(params.ok());
+  DeltaEncoder enc(*params, c.options);
+  DeltaDecoder dec(*params);
+  std::mt19937_64 rng(c.seed * 31 + 5);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<TestMotion> motions;
+  for (int i = 0; i < c.entities; ++i) {
+    motions.emplace_back(c.seed, i, c.speed, c.spin_dps, c.family < 0 ? i % 2 : c.family);
+  }
+  struct Sent {
+    std::vector<uint8_t> payload;
+    std::vector<EntityState> truth;  // sorted by id
+    uint16_t seq;
+    int64_t encode_event;
+    int64_t ack_event = -1;
+  };
+  std::map<int64_t, Sent> sent;  // by encoder counter (= payload index)
+  struct InFlight {
+    int arrive_tick;
+    double order;
+    int64_t counter;
+  };
+  std::vector<InFlight> network;
+  struct PendingAck {
+    int tick;
+    uint16_t seq;
+    int64_t counter;
+  };
+  std::deque<PendingAck> acks;
+  int64_t event = 0;
+  int64_t next_counter = 0;
+  uint16_t next_seq = 100;
+  int64_t highest_delivered = -1;
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  std::vector<EntityState> truth(c.entities);
+  std::vector<EntityState> last_output(c.entities);
+  std::vector<bool> have_output(c.entities, false);
+  StateBatch batch;
+  int64_t counter_base = -1;
+
+  for (int tick = 0; tick < c.ticks; ++tick) {
+    const uint32_t time_ms = static_cast<uint32_t>(std::lround(tick * 1000.0 / c.tick_hz));
+    const double now = time_ms / 1000.0;
+    const bool lossless = tick >= c.lossless_after_tick;
+    // Acks due now.
+    while (!acks.empty() && acks.front().tick <= tick) {
+      enc.OnPacketAcked(acks.front().seq);
+      sent[acks.front().counter].ack_event = event++;
+      acks.pop_front();
+    }
+    if (c.freeze_after_tick < 0 || tick < c.freeze_after_tick) {
+      for (int i = 0; i < c.entities; ++i) {
+        truth[i] = motions[i].AdvanceTo(now);
+        truth[i].entity_id = static_cast<uint32_t>(i * 3 + 1);  // sparse ids
+      }
+    }
+    // Encode all entities, as many payloads as needed.
+    auto send = [&](size_t size) {
+      if (size == 0) return;
+      const int64_t counter = next_counter++;
+      Sent& s = sent[counter];
+      s.payload.assign(buf.begin(), buf.begin() + static_cast<long>(size));
+      s.seq = next_seq++;
+      s.encode_event = event++;
+      enc.OnSent(s.seq, now);
+      res.bytes += size + kPacketOverhead;
+      ++res.packets;
+      if (!lossless && u(rng) < c.loss) return;
+      const int delay = lossless ? 0 : static_cast<int>(rng() % (c.max_extra_delay_ticks + 1));
+      network.push_back({tick + delay, u(rng), counter});
+    };
+    size_t first_in_payload = 0;
+    enc.Begin(buf, time_ms);
+    for (int i = 0; i < c.entities; ++i) {
+      if (!enc.Add(truth[i])) {
+        EXPECT_GT(enc.count(), 0u);
+        const size_t size = enc.Finish();
+        EXPECT_LE(size, kMaxUnreliablePayload);
+        send(size);
+        sent[next_counter - 1].truth.assign(truth.begin() + static_cast<long>(first_in_payload),
+                                            truth.begin() + i);
+        first_in_payload = static_cast<size_t>(i);
+        enc.Begin(buf, time_ms);
+        EXPECT_TRUE(enc.Add(truth[i]));
+      }
+      ++res.updates;
+    }
+    send(enc.Finish());
+    sent[next_counter - 1].truth.assign(truth.begin() + static_cast<long>(first_in_payload),
+                                        truth.end());
+
+    // Deliver what arrives this tick, in a random order among them (reordering).
+    std::vector<InFlight> arriving;
+    for (auto it = network.begin(); it != network.end();) {
+      if (it->arrive_tick <= tick) {
+        arriving.push_back(*it);
+        it = network.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    std::sort(arriving.begin(), arriving.end(), [&](const InFlight& a, const InFlight& b) {
+      return lossless ? a.counter < b.counter : a.order < b.order;
+    });
+    for (const InFlight& a : arriving) {
+      Sent& s = sent[a.counter];
+      if (lossless || u(rng) >= c.ack_loss) {
+        acks.push_back({tick + c.ack_delay_ticks, s.seq, a.counter});
+      }
+      if (c.drop_stale && a.counter <= highest_delivered) continue;  // acked but dropped
+      highest_delivered = std::max(highest_delivered, a.counter);
+      batch.states.clear();
+      Status st = dec.Decode(s.payload, &batch);
+      EXPECT_TRUE(st.ok());
+      if (counter_base < 0) counter_base = (int64_t{1} << 20) + (a.counter & 0xffff) - a.counter;
+      for (const auto& ref : dec.last_references()) {
+        if (ref.reference < 0 || !c.check_references) continue;
+        const Sent& base = sent[ref.reference - counter_base];
+        const Sent& cur = sent[ref.counter - counter_base];
+        if (base.ack_event < 0 || base.ack_event > cur.encode_event) ++res.bad_references;
+      }
+      for (const EntityState& out : batch.states) {
+        auto t =
+            std::lower_bound(s.truth.begin(), s.truth.end(), out.entity_id,
+                             [](const EntityState& e, uint32_t id) { return e.entity_id < id; });
+        EXPECT_TRUE(t != s.truth.end() && t->entity_id == out.entity_id);
+        if (t == s.truth.end()) continue;
+        res.max_pos_err = std::max(res.max_pos_err, PositionError(out.position, t->position));
+        res.max_rot_err = std::max(res.max_rot_err, RotationErrorDeg(out.rotation, t->rotation));
+        const size_t idx = (out.entity_id - 1) / 3;
+        last_output[idx] = out;
+        have_output[idx] = true;
+        ++res.outputs;
+      }
+    }
+    // Keep memory bounded: forget payloads far in the past.
+    while (!sent.empty() && sent.begin()->first + 20000 < next_counter) sent.erase(sent.begin());
+  }
+  // Converged: the last output of every entity equals the quantised final truth.
+  res.converged = true;
+  for (int i = 0; i < c.entities; ++i) {
+    QuantizedState q;
+    QuantizeState(*params, truth[i], &q);
+    const Vec3f p = DequantizePosition(*params, q.position);
+    const Quatf r = DequantizeRotation(*params, q.rotation);
+    if (!have_output[i] || last_output[i].position.x != p.x || last_output[i].position.y != p.y ||
+        last_output[i].position.z != p.z || last_output[i].rotation.x != r.x ||
+        last_output[i].rotation.w != r.w) {
+      res.converged = false;
+    }
+  }
+  res.enc = enc.stats();
+  res.dec = dec.stats();
+  return res;
+}
+
+void ExpectWithinBounds(const SimResult& r, const QuantizationConfig& q) {
+  EXPECT_LE(r.max_pos_err, q.position_step_m * std::sqrt(3.0) / 2 + FloatSlack(100));
+  EXPECT_LE(r.max_rot_err, q.rotation_error_deg);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+TEST(DeltaCodec, RandomTransformsRoundTripWithinBoundsForSeveralConfigs) {
+  std::mt19937_64 rng(17);
+  const float steps[] = {0.001f, 0.0002f, 0.005f};
+  const float bounds[] = {0.1f, 0.02f, 1.0f};
+  for (int ci = 0; ci < 3; ++ci) {
+    QuantizationConfig qc;
+    qc.bounds_min = {-50, -5, -50};
+    qc.bounds_max = {50, 20, 50};
+    qc.position_step_m = steps[ci];
+    qc.rotation_error_deg = bounds[ci];
+    auto params = MakeQuantizationParams(qc);
+    ASSERT_TRUE(params.ok());
+    DeltaEncoder enc(*params);
+    DeltaDecoder dec(*params);
+    std::vector<uint8_t> buf(kMaxUnreliablePayload);
+    std::uniform_real_distribution<float> ux(-50, 50), uy(-5, 20), small(-0.3f, 0.3f);
+    std::vector<EntityState> state(40);
+    for (size_t i = 0; i < state.size(); ++i) {
+      state[i].entity_id = static_cast<uint32_t>(i * 7);
+      state[i].position = {ux(rng), uy(rng), ux(rng)};
+      state[i].rotation = RandomRotation(rng);
+    }
+    StateBatch batch;
+    uint16_t seq = 0;
+    for (int round = 0; round < 400; ++round) {
+      for (auto& s : state) {
+        // Mix of random jumps and small moves.
+        if (rng() % 4 == 0) {
+          s.position = {ux(rng), uy(rng), ux(rng)};
+          s.rotation = RandomRotation(rng);
+        } else {
+          s.position.x = std::clamp(s.position.x + small(rng), -50.f, 50.f);
+          s.position.y = std::clamp(s.position.y + small(rng), -5.f, 20.f);
+        }
+      }
+      enc.Begin(buf, static_cast<uint32_t>(round * 20));
+      size_t added = 0;
+      for (const auto& s : state) added += enc.Add(s) ? 1 : 0;
+      ASSERT_EQ(added, state.size());
+      const size_t size = enc.Finish();
+      enc.OnSent(seq, round * 0.02);
+      batch.states.clear();
+      ASSERT_TRUE(dec.Decode({buf.data(), size}, &batch).ok());
+      ASSERT_EQ(batch.states.size(), state.size());
+      for (size_t i = 0; i < state.size(); ++i) {
+        ASSERT_EQ(batch.states[i].entity_id, state[i].entity_id);
+        ASSERT_LE(PositionError(batch.states[i].position, state[i].position),
+                  qc.position_step_m * std::sqrt(3.0) / 2 + FloatSlack(60));
+        ASSERT_LE(RotationErrorDeg(batch.states[i].rotation, state[i].rotation),
+                  qc.rotation_error_deg);
+      }
+      if (rng() % 5 != 0) enc.OnPacketAcked(seq);  // some acks never come
+      ++seq;
+    }
+    EXPECT_EQ(dec.stats().unresolved_references, 0u);
+    EXPECT_GT(enc.stats().keyframes, state.size());
+    EXPECT_LT(enc.stats().keyframes, enc.stats().entities);
+  }
+}
+
+TEST(DeltaCodec, LossyReorderedStreamConvergesWithinBoundsAndOnlyReferencesAckedStates) {
+  for (uint64_t seed : {1, 2, 3}) {
+    SimConfig c;
+    c.seed = seed;
+    c.entities = 150;
+    c.ticks = 400;
+    c.tick_hz = 48;
+    c.loss = 0.2;
+    c.max_extra_delay_ticks = 3;
+    c.ack_delay_ticks = 2;
+    c.ack_loss = 0.1;
+    c.family = -1;
+    c.freeze_after_tick = 300;
+    c.lossless_after_tick = 340;
+    c.quant.position_step_m = seed == 2 ? 0.0005f : 0.001f;
+    c.quant.rotation_error_deg = seed == 3 ? 0.05f : 0.1f;
+    SimResult r = RunStream(c);
+    std::printf("seed %llu: %.2f bytes/update, max err %.3f mm %.4f deg, keyframes %llu\n",
+                static_cast<unsigned long long>(seed), r.BytesPerUpdate(), r.max_pos_err * 1e3,
+                r.max_rot_err, static_cast<unsigned long long>(r.enc.keyframes));
+    ExpectWithinBounds(r, c.quant);
+    EXPECT_EQ(r.bad_references, 0u);
+    EXPECT_EQ(r.dec.unresolved_references, 0u);
+    EXPECT_EQ(r.dec.malformed, 0u);
+    EXPECT_GT(r.dec.stale_skipped, 0u);  // reordering did happen
+    EXPECT_TRUE(r.converged);
+  }
+}
+
+TEST(DeltaCodec, StaleDroppingTransportNeverYieldsGarbageAndRefreshRecovers) {
+  // Connection's sequenced channel acks payloads it then drops as stale: the worst case for
+  // delta coding. Entities may be skipped, never decoded wrongly, and keyframe refresh heals.
+  SimConfig c;
+  c.entities = 400;  // several payloads per tick: entities differ between payloads
+  c.ticks = 500;
+  c.tick_hz = 48;
+  c.loss = 0.1;
+  c.max_extra_delay_ticks = 2;
+  c.ack_delay_ticks = 1;
+  c.drop_stale = true;
+  c.check_references = false;
+  c.options.keyframe_refresh_sends = 48;
+  c.freeze_after_tick = 380;
+  c.lossless_after_tick = 380;
+  SimResult r = RunStream(c);
+  std::printf("stale-dropping transport: unresolved %llu of %llu records, %.2f bytes/update\n",
+              static_cast<unsigned long long>(r.dec.unresolved_references),
+              static_cast<unsigned long long>(r.updates), r.BytesPerUpdate());
+  ExpectWithinBounds(r, c.quant);
+  EXPECT_GT(r.dec.unresolved_references, 0u);
+  EXPECT_TRUE(r.converged);
+}
+
+TEST(DeltaCodec, UnknownBaselineIsRejectedCleanly) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  ASSERT_TRUE(params.ok());
+  DeltaEncoder enc(*params);
+  DeltaDecoder dec(*params);
+  std::vector<uint8_t> a(kMaxUnreliablePayload), b(kMaxUnreliablePayload);
+  EntityState s;
+  s.entity_id = 5;
+  enc.Begin(a, 0);
+  ASSERT_TRUE(enc.Add(s));
+  const size_t sa = enc.Finish();
+  enc.OnSent(1, 0);
+  enc.OnPacketAcked(1);  // acked, but the decoder never sees it
+  s.position.x = 0.5f;
+  enc.Begin(b, 100);
+  ASSERT_TRUE(enc.Add(s));
+  const size_t sb = enc.Finish();
+  enc.OnSent(2, 0.1);
+  StateBatch batch;
+  ASSERT_TRUE(dec.Decode({b.data(), sb}, &batch).ok());
+  EXPECT_TRUE(batch.states.empty());
+  EXPECT_EQ(dec.stats().unresolved_references, 1u);
+  // Delivering the baseline late makes later deltas decodable again; the late one is not lost.
+  ASSERT_TRUE(dec.Decode({a.data(), sa}, &batch).ok());
+  ASSERT_EQ(batch.states.size(), 1u);
+  EXPECT_NEAR(batch.states[0].position.x, 0.f, 1e-3);
+  // A fresh decoder that sees a delta first skips it too.
+  DeltaDecoder fresh(*params);
+  batch.states.clear();
+  ASSERT_TRUE(fresh.Decode({b.data(), sb}, &batch).ok());
+  EXPECT_TRUE(batch.states.empty());
+  EXPECT_EQ(fresh.stats().unresolved_references, 1u);
+}
+
+TEST(DeltaCodec, EncoderNeverReferencesUnackedStates) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  DeltaDecoder dec(*params);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  EntityState s;
+  s.entity_id = 9;
+  StateBatch batch;
+  // Nothing acked: every send is a keyframe.
+  for (int i = 0; i < 5; ++i) {
+    s.position.x = 0.01f * i;
+    enc.Begin(buf, static_cast<uint32_t>(i * 10));
+    ASSERT_TRUE(enc.Add(s));
+    const size_t n = enc.Finish();
+    enc.OnSent(static_cast<uint16_t>(i), i * 0.01);
+    ASSERT_TRUE(dec.Decode({buf.data(), n}, &batch).ok());
+    ASSERT_EQ(dec.last_references().size(), 1u);
+    EXPECT_EQ(dec.last_references()[0].reference, -1);
+  }
+  EXPECT_EQ(enc.stats().keyframes, 5u);
+  enc.OnPacketAcked(2);
+  enc.Begin(buf, 60);
+  ASSERT_TRUE(enc.Add(s));
+  const size_t n = enc.Finish();
+  ASSERT_TRUE(dec.Decode({buf.data(), n}, &batch).ok());
+  ASSERT_EQ(dec.last_references().size(), 1u);
+  EXPECT_EQ(dec.last_references()[0].counter - dec.last_references()[0].reference, 3);
+  EXPECT_EQ(enc.stats().acks_unmatched, 0u);
+  enc.OnPacketAcked(77);  // never sent
+  EXPECT_EQ(enc.stats().acks_unmatched, 1u);
+}
+
+TEST(DeltaCodec, FillsPayloadsAndRefusesNonIncreasingIds) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  std::vector<uint8_t> storage(kMaxUnreliablePayload + 8, 0xCC);
+  std::span<uint8_t> buf(storage.data(), kMaxUnreliablePayload);
+  std::mt19937_64 rng(4);
+  enc.Begin(buf, 0);
+  EntityState s;
+  uint32_t id = 10;
+  size_t added = 0;
+  for (;; ++added) {
+    s.entity_id = id;
+    id += 1 + static_cast<uint32_t>(rng() % 3);
+    s.rotation = RandomRotation(rng);
+    if (!enc.Add(s)) break;
+  }
+  EXPECT_GT(added, 50u);  // keyframes: ~13 bytes each
+  EXPECT_EQ(enc.count(), added);
+  s.entity_id = 3;
+  EXPECT_FALSE(enc.Add(s));
+  const size_t size = enc.Finish();
+  EXPECT_LE(size, kMaxUnreliablePayload);
+  EXPECT_GT(size, kMaxUnreliablePayload - 20);
+  for (size_t i = kMaxUnreliablePayload; i < storage.size(); ++i) EXPECT_EQ(storage[i], 0xCC);
+  EXPECT_FALSE(enc.Add(s));  // finished
+  // Tiny buffers never overflow.
+  for (size_t cap = 0; cap < 32; ++cap) {
+    std::vector<uint8_t> tiny(cap + 4, 0xCC);
+    enc.Begin(std::span<uint8_t>(tiny.data(), cap), 0);
+    s.entity_id = 1;
+    const bool ok = enc.Add(s);
+    const size_t n = enc.Finish();
+    EXPECT_EQ(ok, n > 0);
+    EXPECT_LE(n, cap);
+    for (size_t i = cap; i < tiny.size(); ++i) EXPECT_EQ(tiny[i], 0xCC);
+  }
+  // Same id twice in one payload.
+  enc.Begin(buf, 0);
+  s.entity_id = 4;
+  EXPECT_TRUE(enc.Add(s));
+  EXPECT_FALSE(enc.Add(s));
+}
+
+TEST(DeltaCodec, MalformedInputIsRejectedWithoutCrashing) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  std::vector<std::vector<uint8_t>> good;
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  std::mt19937_64 rng(8);
+  EntityState s;
+  for (int p = 0; p < 30; ++p) {
+    enc.Begin(buf, static_cast<uint32_t>(p * 83));
+    for (uint32_t i = 0; i < 40; ++i) {
+      s.entity_id = i;
+      s.position = {0.1f * p + i, 0.05f * p, 1.f};
+      s.rotation = RandomRotation(rng);
+      enc.Add(s);
+    }
+    const size_t n = enc.Finish();
+    enc.OnSent(static_cast<uint16_t>(p), p * 0.083);
+    enc.OnPacketAcked(static_cast<uint16_t>(p));
+    good.emplace_back(buf.begin(), buf.begin() + static_cast<long>(n));
+  }
+  // Truncations and trailing bytes of valid payloads are malformed; the decoder is unchanged.
+  DeltaDecoder dec(*params);
+  StateBatch batch;
+  for (const auto& g : good) {
+    for (size_t n = 0; n < g.size(); ++n) {
+      batch.states.clear();
+      ASSERT_FALSE(dec.Decode({g.data(), n}, &batch).ok()) << n;
+      ASSERT_TRUE(batch.states.empty());
+    }
+    std::vector<uint8_t> longer = g;
+    longer.push_back(0);
+    ASSERT_FALSE(dec.Decode(longer, &batch).ok());
+    ASSERT_TRUE(dec.Decode(g, &batch).ok());  // the real one still decodes fully
+  }
+  EXPECT_EQ(dec.stats().unresolved_references, 0u);
+  EXPECT_EQ(dec.stats().entities, 30u * 40u);
+  std::vector<uint8_t> bad_format = good[0];
+  bad_format[0] = 1;
+  EXPECT_FALSE(dec.Decode(bad_format, &batch).ok());
+  // Random and mutated payloads: never crash, never output out-of-range garbage.
+  DeltaDecoder fuzz(*params, 4096);
+  for (int i = 0; i < 60000; ++i) {
+    std::vector<uint8_t> p;
+    if (i % 3 == 0) {
+      p.resize(rng() % 200);
+      for (auto& b : p) b = static_cast<uint8_t>(rng());
+      if (!p.empty()) p[0] = 2;
+    } else {
+      p = good[rng() % good.size()];
+      const int flips = 1 + static_cast<int>(rng() % 4);
+      for (int f = 0; f < flips; ++f)
+        p[rng() % p.size()] ^= static_cast<uint8_t>(1u << (rng() % 8));
+      if (rng() % 4 == 0) p.resize(rng() % (p.size() + 1));
+    }
+    batch.states.clear();
+    if (fuzz.Decode(p, &batch).ok()) {
+      for (const EntityState& st : batch.states) ASSERT_TRUE(IsValidState(st));
+    } else {
+      ASSERT_TRUE(batch.states.empty());
+    }
+  }
+  // The stateless dispatcher refuses format 2 explicitly.
+  Status st = DecodeStateBatch(good[0], &batch);
+  EXPECT_EQ(st.code(), StatusCode::kInvalidArgument);
+}
+
+TEST(DeltaCodec, NeedsUpdateFollowsAcknowledgedState) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  EntityState s;
+  s.entity_id = 1;
+  EXPECT_TRUE(enc.NeedsUpdate(1, s, 0.01f, 1.f, 0, 0.2));  // never sent
+  enc.Begin(buf, 0);
+  enc.Add(s);
+  enc.Finish();
+  enc.OnSent(10, 0.0);
+  // In flight and equal: wait for it, until the resend time.
+  EXPECT_FALSE(enc.NeedsUpdate(1, s, 0.01f, 1.f, 0.1, 0.2));
+  EXPECT_TRUE(enc.NeedsUpdate(1, s, 0.01f, 1.f, 0.25, 0.2));
+  EntityState moved = s;
+  moved.position.x = 0.05f;
+  EXPECT_TRUE(enc.NeedsUpdate(1, moved, 0.01f, 1.f, 0.1, 0.2));  // in flight, but differs
+  enc.OnPacketAcked(10);
+  EXPECT_FALSE(enc.NeedsUpdate(1, s, 0.01f, 1.f, 5.0, 0.2));
+  EntityState nudged = s;
+  nudged.position.x = 0.005f;
+  EXPECT_FALSE(enc.NeedsUpdate(1, nudged, 0.01f, 1.f, 5.0, 0.2));  // under the threshold
+  EXPECT_TRUE(enc.NeedsUpdate(1, moved, 0.01f, 1.f, 5.0, 0.2));
+  EntityState turned = s;
+  turned.rotation = {0.f, std::sin(0.02f), 0.f, std::cos(0.02f)};  // ~2.3 degrees
+  EXPECT_TRUE(enc.NeedsUpdate(1, turned, 0.01f, 1.f, 5.0, 0.2));
+  EXPECT_FALSE(enc.NeedsUpdate(1, turned, 0.01f, 3.f, 5.0, 0.2));
+  enc.Forget(1);
+  EXPECT_TRUE(enc.NeedsUpdate(1, s, 0.01f, 1.f, 5.0, 0.2));
+}
+
+TEST(DeltaCodec, UnchangedFieldsCostAboutOneBit) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoderOptions no_refresh;
+  no_refresh.keyframe_refresh_sends = 0;
+  DeltaEncoder enc(*params, no_refresh);
+  DeltaDecoder dec(*params);
+  std::vector<uint8_t> buf(4096);
+  std::mt19937_64 rng(12);
+  std::vector<EntityState> st(200);
+  for (size_t i = 0; i < st.size(); ++i) {
+    st[i].entity_id = static_cast<uint32_t>(i);
+    st[i].rotation = RandomRotation(rng);
+    st[i].position = {static_cast<float>(i), 1.f, 2.f};
+  }
+  StateBatch batch;
+  size_t last = 0;
+  for (int t = 0; t < 20; ++t) {
+    enc.Begin(buf, static_cast<uint32_t>(t * 83));
+    for (const auto& s : st) ASSERT_TRUE(enc.Add(s));
+    last = enc.Finish();
+    enc.OnSent(static_cast<uint16_t>(t), t);
+    enc.OnPacketAcked(static_cast<uint16_t>(t));
+    ASSERT_TRUE(dec.Decode({buf.data(), last}, &batch).ok());
+  }
+  // Resting entities: id gap, reference and two mask bits = 4 bits each (+ header).
+  std::printf("200 resting entities: %zu bytes (params 0x%02x%02x)\n", last, buf[8], buf[7]);
+  EXPECT_LE(last, 200 * 4 / 8 + 16u);
+}
+
+TEST(DeltaCodec, ForgetStartsOverWithAKeyframe) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  DeltaDecoder dec(*params);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  EntityState s;
+  s.entity_id = 42;
+  StateBatch batch;
+  for (int t = 0; t < 6; ++t) {
+    if (t == 3) {
+      enc.Forget(42);
+      dec.Forget(42);
+    }
+    s.position.x = 0.1f * t;
+    enc.Begin(buf, static_cast<uint32_t>(t * 83));
+    ASSERT_TRUE(enc.Add(s));
+    const size_t n = enc.Finish();
+    enc.OnSent(static_cast<uint16_t>(t), t);
+    enc.OnPacketAcked(static_cast<uint16_t>(t));
+    batch.states.clear();
+    ASSERT_TRUE(dec.Decode({buf.data(), n}, &batch).ok());
+    ASSERT_EQ(batch.states.size(), 1u);
+    EXPECT_NEAR(batch.states[0].position.x, s.position.x, 1e-3);
+  }
+  EXPECT_EQ(enc.stats().keyframes, 2u);
+}
+
+TEST(DeltaCodec, SteadyStateAllocatesNothing) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  DeltaDecoder dec(*params);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  std::vector<TestMotion> motions;
+  for (uint32_t i = 0; i < 300; ++i) motions.emplace_back(5, i, 1.5, 90, 0);
+  std::vector<EntityState> truth(motions.size());
+  StateBatch batch;
+  batch.states.reserve(1024);
+  uint16_t seq = 0;
+  std::vector<uint16_t> to_ack;
+  to_ack.reserve(64);
+  long counted = 0;
+  for (int tick = 0; tick < 600; ++tick) {
+    const uint32_t time_ms = static_cast<uint32_t>(tick * 1000 / 12);
+    for (size_t i = 0; i < motions.size(); ++i) {
+      truth[i] = motions[i].AdvanceTo(time_ms / 1000.0);
+      truth[i].entity_id = static_cast<uint32_t>(i);
+    }
+    const bool count = tick >= 300;  // after ring buffers and records reached steady size
+    if (count) g_counting = true;
+    for (uint16_t a : to_ack) enc.OnPacketAcked(a);
+    to_ack.clear();
+    size_t i = 0;
+    while (i < truth.size()) {
+      enc.Begin(buf, time_ms);
+      while (i < truth.size() && enc.Add(truth[i])) ++i;
+      const size_t n = enc.Finish();
+      enc.OnSent(seq, tick / 12.0);
+      batch.states.clear();
+      EXPECT_TRUE(dec.Decode({buf.data(), n}, &batch).ok());
+      to_ack.push_back(seq++);
+    }
+    if (count) {
+      g_counting = false;
+      counted = g_allocations.load();
+    }
+  }
+  EXPECT_EQ(counted, 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Acceptance motion (docs: issue #3): smooth paths at 1.5 m/s, 90 deg/s about a slowly varying
+// axis, every entity sent at 12 Hz, N = 32..512 per tick, 1179-byte payloads, 21 bytes of
+// packet overhead counted per packet.
+TEST(DeltaCodec, AcceptanceMotionBytesPerUpdateAndErrors) {
+  struct Case {
+    int n;
+    double loss;
+  };
+  const Case cases[] = {{32, 0}, {128, 0}, {512, 0}, {32, 0.05}, {128, 0.05}, {512, 0.05}};
+  for (const Case& cs : cases) {
+    for (int family : {0, 1}) {
+      for (uint64_t seed : {11, 12}) {
+        SimConfig c;
+        c.entities = cs.n;
+        c.ticks = 12 * 20;
+        c.tick_hz = 12;
+        c.loss = cs.loss;
+        c.ack_delay_ticks = 1;
+        c.family = family;
+        c.seed = seed;
+        SimResult r = RunStream(c);
+        std::printf(
+            "ACCEPTANCE N=%3d loss=%.2f motion=%s seed=%llu: %.3f bytes/update (%llu packets), "
+            "max err %.3f mm %.4f deg, keyframes %llu, residual bits EG %llu vs fixed-width "
+            "%llu\n",
+            cs.n, cs.loss, family == 0 ? "wander" : "lissajous",
+            static_cast<unsigned long long>(seed), r.BytesPerUpdate(),
+            static_cast<unsigned long long>(r.packets), r.max_pos_err * 1e3, r.max_rot_err,
+            static_cast<unsigned long long>(r.enc.keyframes),
+            static_cast<unsigned long long>(r.enc.residual_bits_exp_golomb),
+            static_cast<unsigned long long>(r.enc.residual_bits_fixed_width));
+        EXPECT_LE(r.BytesPerUpdate(), 7.0);
+        ExpectWithinBounds(r, c.quant);
+        EXPECT_EQ(r.bad_references, 0u);
+        EXPECT_EQ(r.dec.unresolved_references, 0u);
+      }
+    }
+  }
+}
+
+TEST(DeltaCodec, OtherSpeedsAndSpinsStayWithinBounds) {
+  for (double speed : {0.0, 0.3, 4.0}) {
+    for (double spin : {0.0, 30.0, 360.0}) {
+      SimConfig c;
+      c.entities = 64;
+      c.ticks = 120;
+      c.loss = 0.05;
+      c.speed = speed;
+      c.spin_dps = spin;
+      c.family = -1;
+      SimResult r = RunStream(c);
+      std::printf("speed %.1f m/s spin %3.0f deg/s: %.3f bytes/update, %.3f mm %.4f deg\n", speed,
+                  spin, r.BytesPerUpdate(), r.max_pos_err * 1e3, r.max_rot_err);
+      ExpectWithinBounds(r, c.quant);
+      EXPECT_EQ(r.dec.unresolved_references, 0u);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace edgephys

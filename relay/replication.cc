@@ -1,0 +1,206 @@
+#include "relay/replication.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "relay/room.h"
+
+namespace edgephys {
+namespace {
+
+constexpr uint32_t kFlagAvatar = 1u << 3;  // schema::EntityFlags::Avatar
+constexpr uint32_t kFlagHand = 1u << 4;    // schema::EntityFlags::Hand
+constexpr double kEpsilon = 1e-6;
+// Bytes a datagram costs beyond its state payload (connection header + chunk header).
+constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
+
+double Weight(PriorityClass c) {
+  switch (c) {
+    case PriorityClass::kCritical: return 4.0;
+    case PriorityClass::kNormal: return 1.0;
+    case PriorityClass::kResting: return 0.5;
+  }
+  return 1.0;
+}
+
+float Distance(const Vec3f& a, const Vec3f& b) {
+  float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+float AngleDeg(const Quatf& a, const Quatf& b) {
+  float dot = std::fabs(a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w);
+  return 2.0f * std::acos(std::min(1.0f, dot)) * 57.29578f;
+}
+
+}  // namespace
+
+std::string_view ReplicationModeName(ReplicationMode mode) {
+  switch (mode) {
+    case ReplicationMode::kFloat: return "float";
+    case ReplicationMode::kEdgephys: return "edgephys";
+    case ReplicationMode::kPhoton: return "photon";
+    case ReplicationMode::kPaper: return "paper";
+  }
+  return "unknown";
+}
+
+bool ParseReplicationMode(std::string_view text, ReplicationMode* mode) {
+  for (ReplicationMode m : {ReplicationMode::kFloat, ReplicationMode::kEdgephys,
+                            ReplicationMode::kPhoton, ReplicationMode::kPaper}) {
+    if (text == ReplicationModeName(m)) {
+      *mode = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+ClientReplicator::ClientReplicator(const ReplicationConfig& config)
+    : config_(config), payload_(kMaxUnreliablePayload) {
+  switch (config_.mode) {
+    case ReplicationMode::kPhoton:
+      encoder_ = std::make_unique<PhotonEmulationEncoder>();
+      break;
+    case ReplicationMode::kPaper: {
+      auto paper = std::make_unique<PaperEmulationEncoder>();
+      paper_ = paper.get();
+      encoder_ = std::move(paper);
+      break;
+    }
+    case ReplicationMode::kEdgephys:  // format 2 lands with the delta codec
+    case ReplicationMode::kFloat:
+      encoder_ = std::make_unique<FloatStateEncoder>();
+      break;
+  }
+  candidates_.reserve(256);
+  in_payload_.reserve(kMaxUnreliablePayload / 8);
+}
+
+ClientReplicator::~ClientReplicator() = default;
+
+PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
+  if (e.flags & (kFlagAvatar | kFlagHand)) return PriorityClass::kCritical;
+  if (now - e.changed_at > config_.resting_after_s) return PriorityClass::kResting;
+  return PriorityClass::kNormal;
+}
+
+double ClientReplicator::IntervalOf(PriorityClass c) const {
+  if (config_.fixed_rate_hz > 0) return 1.0 / config_.fixed_rate_hz;
+  return c == PriorityClass::kCritical ? 1.0 / config_.critical_hz : 1.0 / config_.normal_hz;
+}
+
+void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
+                            double now, Connection& connection, PacketWriter& out,
+                            RelayCounters& counters) {
+  double dt = last_tick_ < 0 ? 0 : now - last_tick_;
+  last_tick_ = now;
+  time_ms_ = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
+  const bool budgeted = config_.bandwidth_budget_bytes_per_s > 0;
+  if (budgeted) {
+    // Unused budget carries over for at most a quarter second (bounded bursts).
+    budget_bytes_ = std::min(budget_bytes_ + config_.bandwidth_budget_bytes_per_s * dt,
+                             config_.bandwidth_budget_bytes_per_s * 0.25 + kMaxPacketSize);
+  }
+  const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
+
+  candidates_.clear();
+  for (const auto& [id, e] : entities) {
+    if (e.owner == self) continue;
+    View& v = views_[id];
+    PriorityClass cls = ClassOf(e, now);
+    if (now + kEpsilon < v.next_due) continue;
+    uint8_t fields = kFieldPosition | kFieldRotation;
+    bool want = false;
+    switch (config_.mode) {
+      case ReplicationMode::kPhoton:
+        want = true;  // fixed rate, changed or not
+        break;
+      case ReplicationMode::kPaper:
+        if (v.ever_sent) {
+          fields = 0;
+          if (Distance(e.state.position, v.last_sent_state.position) > config_.position_threshold_m) {
+            fields |= kFieldPosition;
+          }
+          if (AngleDeg(e.state.rotation, v.last_sent_state.rotation) > config_.rotation_threshold_deg) {
+            fields |= kFieldRotation;
+          }
+        }
+        want = fields != 0;
+        break;
+      case ReplicationMode::kFloat:
+      case ReplicationMode::kEdgephys:
+        want = tracker_.NeedsSend(id, e.version, now, resend_after);
+        break;
+    }
+    if (!want) continue;
+    double waiting = std::max(now - v.last_sent, IntervalOf(cls));
+    candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
+  }
+  if (candidates_.empty()) return;
+  std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+    return a.priority != b.priority ? a.priority > b.priority : a.id < b.id;
+  });
+
+  encoder_->Begin(payload_, time_ms_);
+  in_payload_.clear();
+  size_t in_packet = 0;
+  for (const Candidate& c : candidates_) {
+    // Stop before the estimated size of what is queued would overdraw the budget.
+    if (budgeted && budget_bytes_ < kPacketOverhead + (in_packet + 1) * bytes_per_entity_) break;
+    auto add = [&]() {
+      return paper_ ? paper_->AddFields(c.entity->state, c.fields) : encoder_->Add(c.entity->state);
+    };
+    if (!add()) {
+      Flush(now, connection, out, counters);
+      in_packet = 0;
+      if (budgeted && budget_bytes_ < kPacketOverhead + bytes_per_entity_) break;
+      encoder_->Begin(payload_, time_ms_);
+      if (!add()) continue;
+    }
+    ++in_packet;
+    in_payload_.emplace_back(c.id, c.entity->version);
+    View& v = views_[c.id];
+    v.last_sent = now;
+    PriorityClass cls = ClassOf(*c.entity, now);
+    double interval = IntervalOf(cls);
+    // Due times advance by exactly the interval, so the long-run rate is exact whatever the
+    // tick rate; after a pause (or the first send) the schedule restarts from now.
+    v.next_due += interval;
+    if (v.next_due < now - interval) v.next_due = now + interval;
+    if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
+    if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
+    v.ever_sent = true;
+  }
+  Flush(now, connection, out, counters);
+}
+
+void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& out,
+                             RelayCounters& counters) {
+  size_t size = encoder_->Finish();
+  if (size == 0) {
+    in_payload_.clear();
+    return;
+  }
+  Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
+  if (seq.ok()) {
+    for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
+    RelayCounters::Inc(counters.entity_updates_sent, in_payload_.size());
+  }
+  budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
+  if (!in_payload_.empty()) {
+    // Running estimate of one entity's encoded size, for budget decisions before encoding.
+    double per_entity = static_cast<double>(size) / static_cast<double>(in_payload_.size());
+    bytes_per_entity_ = 0.8 * bytes_per_entity_ + 0.2 * per_entity;
+  }
+  in_payload_.clear();
+}
+
+void ClientReplicator::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
+
+void ClientReplicator::Forget(uint32_t entity_id) {
+  tracker_.Forget(entity_id);
+  views_.erase(entity_id);
+}
+
+}  // namespace edgephys

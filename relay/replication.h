@@ -1,0 +1,105 @@
+// Replication: what the relay sends one client each tick, and how (DESIGN.md "Replication").
+//
+// Per client, per tick, ClientReplicator
+//  1. picks candidates: entities the client does not own that are due by their priority
+//     class's send interval (critical: avatars, hands, grabbed — default 48 Hz; normal —
+//     default 12 Hz; resting — nothing changed for `resting_after_s`: only on change) and whose
+//     state differs from what the client has (selective synchronisation: in `edgephys` mode,
+//     against what it ACKNOWLEDGED, by more than the thresholds; in `paper` mode against what
+//     was last sent, by more than the thresholds; in `photon` mode always);
+//  2. orders them by a priority accumulator (class weight x time waiting) and takes them in
+//     that order while the per-client bandwidth budget allows, so nothing starves;
+//  3. encodes them into as few datagrams as fit the MTU with the room's encoder.
+//
+// Modes (ReplicationMode): `float` (format 1, exact floats; the foundation format),
+// `edgephys` (format 2, quantized delta against acknowledged baselines), and the baselines
+// `photon` (format 3) and `paper` (format 4) for side-by-side comparison.
+//
+// Thread-safety: none; owned by the session, used on the room's thread.
+// Cost: O(entities in room) per tick plus O(k log k) for the k candidates; no allocation per
+// packet once the per-entity views exist.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+#include "protocol/connection.h"
+#include "protocol/emulation_codec.h"
+#include "protocol/replication_tracker.h"
+#include "protocol/state_codec.h"
+#include "relay/relay_counters.h"
+
+namespace edgephys {
+
+struct Entity;
+
+enum class ReplicationMode : uint8_t { kFloat = 0, kEdgephys, kPhoton, kPaper };
+std::string_view ReplicationModeName(ReplicationMode mode);
+// Parses "float", "edgephys", "photon" or "paper"; false if unknown.
+bool ParseReplicationMode(std::string_view text, ReplicationMode* mode);
+
+enum class PriorityClass : uint8_t { kCritical = 0, kNormal, kResting };
+
+struct ReplicationConfig {
+  ReplicationMode mode = ReplicationMode::kFloat;
+  double critical_hz = 48;            // avatars, hands, grabbed objects
+  double normal_hz = 12;              // everything else that moves
+  double resting_after_s = 1.0;       // unchanged this long: resting (sent only on change)
+  double fixed_rate_hz = 0;           // > 0: every class at this rate (benchmarks, photon)
+  float position_threshold_m = 0.0005f;   // selective sync thresholds
+  float rotation_threshold_deg = 0.05f;
+  double bandwidth_budget_bytes_per_s = 0;  // per client; 0 = unlimited
+  // Quantisation of the edgephys format (see protocol/quantize.h).
+  float position_step_m = 0.001f;
+  float rotation_bound_deg = 0.1f;
+};
+
+class ClientReplicator {
+ public:
+  explicit ClientReplicator(const ReplicationConfig& config);
+  ~ClientReplicator();
+
+  // Sends this tick's updates for the client `self` (player id) through `connection`.
+  // `entities` is the room's entity table.
+  void Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self, double now,
+            Connection& connection, PacketWriter& out, RelayCounters& counters);
+
+  void OnPacketAcked(uint16_t sequence);
+  void Forget(uint32_t entity_id);
+
+ private:
+  struct View {
+    double last_sent = -1e9;
+    double next_due = -1e9;
+    double accumulator = 0;
+    EntityState last_sent_state;  // paper mode's significance test
+    bool ever_sent = false;
+  };
+  struct Candidate {
+    double priority;
+    uint32_t id;
+    const Entity* entity;
+    uint8_t fields;
+  };
+  PriorityClass ClassOf(const Entity& e, double now) const;
+  double IntervalOf(PriorityClass c) const;
+  void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
+
+  ReplicationConfig config_;
+  std::unique_ptr<StateEncoder> encoder_;
+  PaperEmulationEncoder* paper_ = nullptr;  // encoder_ when mode is kPaper
+  ReplicationTracker tracker_;              // acks for float / emulation modes
+  std::unordered_map<uint32_t, View> views_;
+  std::vector<Candidate> candidates_;
+  std::vector<std::pair<uint32_t, uint32_t>> in_payload_;  // (id, version)
+  std::vector<uint8_t> payload_;
+  double budget_bytes_ = 0;
+  double bytes_per_entity_ = 16;  // running estimate of one encoded entity
+  double last_tick_ = -1;
+  uint32_t time_ms_ = 0;
+};
+
+}  // namespace edgephys

@@ -1,0 +1,142 @@
+// The replication scheduler: send rates by priority class, selective synchronisation, the
+// bandwidth budget's fairness, and the emulation modes, through the real relay and SDK.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "tests/integration/sim_world.h"
+
+namespace edgephys::testing {
+namespace {
+
+struct Counter : ClientListener {
+  std::map<uint32_t, int> updates;
+  void OnEntityUpdated(const RemoteEntity& e) override { ++updates[e.id]; }
+};
+
+struct Room2 {
+  SimWorld world;
+  Counter counter;
+  Client* a;
+  Client* b;
+  explicit Room2(const ReplicationConfig& replication, NetworkConditions net = {})
+      : world(net, Config(replication)) {
+    a = &world.AddClient(MintToken("rep", 1));
+    b = &world.AddClient(MintToken("rep", 2), &counter);
+    EXPECT_TRUE(world.RunUntil([&] {
+      return a->state() == ClientState::kConnected && b->state() == ClientState::kConnected;
+    }, 5.0));
+    EXPECT_TRUE(a->JoinRoom("rep").ok());
+    EXPECT_TRUE(b->JoinRoom("rep").ok());
+    EXPECT_TRUE(world.RunUntil([&] { return a->joined() && b->joined(); }, 5.0));
+  }
+  static RelayConfig Config(const ReplicationConfig& replication) {
+    RelayConfig c = LoopbackWorld::DefaultConfig();
+    c.room_defaults.tick_rate_hz = 60;
+    c.room_defaults.replication = replication;
+    return c;
+  }
+  // A moves every entity in `ids` at `hz` for `seconds`.
+  void Move(const std::vector<uint32_t>& ids, double hz, double seconds) {
+    double next = world.now();
+    world.RunFor(seconds, [&](double now) {
+      if (now < next) return;
+      next += 1.0 / hz;
+      for (uint32_t id : ids) {
+        float t = static_cast<float>(now);
+        ASSERT_TRUE(a->PublishTransform(id, {t, std::sin(t), float(id % 7)},
+                                        {0, std::sin(t / 2), 0, std::cos(t / 2)}).ok());
+      }
+    });
+  }
+};
+
+TEST(Replication, CriticalEntitiesGoAt48HzNormalAt12HzRestingOnlyOnChange) {
+  ReplicationConfig r;
+  r.mode = ReplicationMode::kFloat;
+  Room2 room(r);
+  auto hand = *room.a->Spawn({.flags = 1u << 4 /* Hand */});
+  auto cube = *room.a->Spawn({});
+  auto still = *room.a->Spawn({});
+  room.world.RunFor(0.5);
+  room.counter.updates.clear();
+  room.Move({hand, cube}, 120, 3.0);  // the owner publishes faster than either class rate
+  // The SDK publishes at 30 Hz, so a hand cannot exceed 30 updates/s end to end; the relay
+  // forwards it at min(48, 30) and the cube at 12.
+  EXPECT_NEAR(room.counter.updates[cube] / 3.0, 12.0, 12.0 * 0.15);
+  EXPECT_NEAR(room.counter.updates[hand] / 3.0, 30.0, 30.0 * 0.15);
+  EXPECT_EQ(room.counter.updates[still], 0);  // resting: unchanged, never re-sent
+}
+
+TEST(Replication, PriorityAccumulatorSendsEveryEntityUnderATooSmallBudget) {
+  ReplicationConfig r;
+  r.mode = ReplicationMode::kFloat;
+  r.bandwidth_budget_bytes_per_s = 3000;  // ~90 updates/s of 33 bytes; 40 entities want 480/s
+  Room2 room(r);
+  std::vector<uint32_t> ids;
+  for (int i = 0; i < 40; ++i) ids.push_back(*room.a->Spawn({}));
+  room.world.RunFor(0.5);
+  room.counter.updates.clear();
+  uint64_t bytes_before = room.b->stats()->bytes_received;
+  room.Move(ids, 12, 6.0);
+  uint64_t bytes = room.b->stats()->bytes_received - bytes_before;
+  // The budget holds (with the keep-alive/ack packets on top).
+  EXPECT_LT(static_cast<double>(bytes) / 6.0, 3000 * 1.25);
+  // Nothing starves: every entity was updated, and fairly.
+  int min_updates = 1 << 30, max_updates = 0;
+  for (uint32_t id : ids) {
+    min_updates = std::min(min_updates, room.counter.updates[id]);
+    max_updates = std::max(max_updates, room.counter.updates[id]);
+  }
+  double mean = 0;
+  for (uint32_t id : ids) mean += room.counter.updates[id];
+  mean /= static_cast<double>(ids.size());
+  EXPECT_GT(mean, 8.0);  // the budget is used: ~3000 B/s / ~40 B per update over 6 s / 40
+  EXPECT_GE(min_updates, 5);
+  EXPECT_LE(max_updates, 3 * min_updates) << "min " << min_updates << " mean " << mean;
+}
+
+TEST(Replication, EmulationModesDeliverExactStates) {
+  for (ReplicationMode mode : {ReplicationMode::kPhoton, ReplicationMode::kPaper}) {
+    ReplicationConfig r;
+    r.mode = mode;
+    r.fixed_rate_hz = 12;
+    Room2 room(r);
+    std::vector<uint32_t> ids;
+    for (int i = 0; i < 70; ++i) ids.push_back(*room.a->Spawn({}));  // > 1 datagram per tick
+    room.Move(ids, 12, 1.5);
+    room.world.RunFor(0.5);
+    const Room* relay_room = room.world.relay().FindRoom("rep");
+    for (uint32_t id : ids) {
+      const RemoteEntity* e = room.b->FindEntity(id);
+      ASSERT_NE(e, nullptr);
+      const EntityState& truth = relay_room->entities().at(id).state;
+      EXPECT_EQ(e->state.position.x, truth.position.x) << ReplicationModeName(mode);
+      EXPECT_EQ(e->state.rotation.y, truth.rotation.y) << ReplicationModeName(mode);
+    }
+    EXPECT_NEAR(room.counter.updates[ids[0]] / 2.0, 12.0, 3.0) << ReplicationModeName(mode);
+  }
+}
+
+TEST(Replication, PaperModeSendsOnlySignificantFields) {
+  ReplicationConfig r;
+  r.mode = ReplicationMode::kPaper;
+  r.fixed_rate_hz = 12;
+  r.position_threshold_m = 0.01f;
+  Room2 room(r);
+  auto id = *room.a->Spawn({});
+  room.world.RunFor(0.5);
+  room.counter.updates.clear();
+  // Moves below the threshold are not sent; one above it is.
+  ASSERT_TRUE(room.a->PublishTransform(id, {0.004f, 0, 0}, {}).ok());
+  room.world.RunFor(0.5);
+  EXPECT_EQ(room.counter.updates[id], 0);
+  ASSERT_TRUE(room.a->PublishTransform(id, {0.02f, 0, 0}, {}).ok());
+  room.world.RunFor(0.5);
+  EXPECT_EQ(room.counter.updates[id], 1);
+  EXPECT_EQ(room.b->FindEntity(id)->state.position.x, 0.02f);
+}
+
+}  // namespace
+}  // namespace edgephys::testing
