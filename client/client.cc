@@ -272,6 +272,18 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       room_ = j->room() ? j->room()->str() : std::string();
       entity_id_base_ = j->entity_id_base();
       next_local_id_ = 1;
+      delta_decoder_.reset();
+      if (j->state_format() == kDeltaStateFormat) {
+        QuantizationConfig q;
+        q.position_step_m = j->position_step_m();
+        q.rotation_error_deg = j->rotation_bound_deg();
+        if (j->bounds_min() && j->bounds_max()) {
+          q.bounds_min = {j->bounds_min()->x(), j->bounds_min()->y(), j->bounds_min()->z()};
+          q.bounds_max = {j->bounds_max()->x(), j->bounds_max()->y(), j->bounds_max()->z()};
+        }
+        auto params = MakeQuantizationParams(q);
+        if (params.ok()) delta_decoder_ = std::make_unique<DeltaDecoder>(*params);
+      }
       listener_->OnJoined(room_, entity_id_base_);
       break;
     }
@@ -303,6 +315,7 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
     case schema::Body::Despawn: {
       uint32_t id = msg->body_as_Despawn()->entity_id();
       entities_.erase(id);
+      if (delta_decoder_) delta_decoder_->Forget(id);
       despawned_.insert(id);
       listener_->OnEntityDespawned(id);
       break;
@@ -341,6 +354,10 @@ Status Client::DecodeStates(std::span<const uint8_t> payload) {
         *s = it->second.state;
         return true;
       });
+    case kDeltaStateFormat:
+      batch_.states.clear();
+      if (!delta_decoder_) return Status(StatusCode::kMalformed, "format 2 without quantisation");
+      return delta_decoder_->Decode(payload, &batch_);
     default:
       return DecodeStateBatch(payload, &batch_);
   }

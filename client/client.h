@@ -25,6 +25,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -33,6 +34,7 @@
 #include <vector>
 
 #include "protocol/connection.h"
+#include "protocol/delta_codec.h"
 #include "protocol/datagram_socket.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/state_codec.h"
@@ -199,6 +201,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   std::vector<std::pair<uint32_t, uint32_t>> sent_scratch_;
   StateBatch batch_;
   FloatStateEncoder encoder_;
+  std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
   uint64_t bytes_state_received_ = 0;
 };
 

@@ -2,6 +2,8 @@
 // baselines. Every scenario writes --json FILE, prints a table and writes gnuplot charts.
 //
 //   edgephys-loadgen relay-compare --objects 32,64,128,256,512 --modes photon,paper,edgephys
+//   edgephys-loadgen interp-sweep --rates 6,12,24,30,48,60 --interpolators lerp-slerp,hermite
+//   edgephys-loadgen codec-sweep --steps 0.0005,0.001,0.002,0.005 --thresholds 0,0.0005
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -9,6 +11,8 @@
 #include <iostream>
 #include <sstream>
 
+#include "loadgen/codec_sweep.h"
+#include "loadgen/interp_sweep.h"
 #include "loadgen/relay_compare.h"
 #include "loadgen/report.h"
 
@@ -58,7 +62,134 @@ int main(int argc, char** argv) {
   rc->add_option("--charts", chart_prefix, "Chart file prefix ('' for none)")->capture_default_str();
   rc->add_flag("!--no-progress", o.progress, "Hide the progress line");
 
+  // interp-sweep: client smoothing error vs send rate (offline).
+  auto* is = app.add_subcommand("interp-sweep", "Interpolation error vs send rate (offline)");
+  InterpSweepOptions io;
+  std::string interp_rates = "6,12,24,30,48,60";
+  std::string interp_methods = "lerp-slerp,dq-dlb,dq-sclerp,hermite,none";
+  std::string interp_json, interp_charts = "interp_sweep";
+  double impaired_latency_s = 0.030, impaired_jitter_s = 0.020, impaired_loss = 0.05;
+  is->add_option("--rates", interp_rates, "Send rates in Hz (comma separated)")->capture_default_str();
+  is->add_option("--interpolators", interp_methods,
+                 "lerp-slerp,dq-dlb,dq-sclerp,hermite,none")->capture_default_str();
+  is->add_option("--duration", io.duration_s, "Measured seconds per rate and network")->capture_default_str();
+  is->add_option("--warmup", io.warmup_s, "Rendered but unmeasured seconds first")->capture_default_str();
+  is->add_option("--objects", io.objects, "Objects (independent streams)")->capture_default_str();
+  is->add_option("--render-hz", io.render_hz, "Receiver frame rate")->capture_default_str();
+  is->add_option("--speed", io.motion.speed_mps, "Object speed (m/s)")->capture_default_str();
+  is->add_option("--spin", io.motion.spin_dps, "Object spin (deg/s)")->capture_default_str();
+  is->add_option("--seed", io.motion.seed, "Motion and network seed")->capture_default_str();
+  is->add_option("--latency", impaired_latency_s, "Base one-way latency (s), both conditions")->capture_default_str();
+  is->add_option("--jitter", impaired_jitter_s, "Impaired condition: uniform +- jitter (s)")->capture_default_str();
+  is->add_option("--loss", impaired_loss, "Impaired condition: loss probability")->capture_default_str();
+  is->add_flag("--quantize,!--no-quantize", io.quantize,
+               "Quantise snapshots like state format 2")->capture_default_str();
+  is->add_option("--position-step", io.position_step_m, "Quantisation step (m)")->capture_default_str();
+  is->add_option("--rotation-bound", io.rotation_bound_deg, "Quantisation rotation bound (deg)")->capture_default_str();
+  is->add_option("--json", interp_json, "Write results as JSON to this file");
+  is->add_option("--charts", interp_charts, "Chart file prefix ('' for none)")->capture_default_str();
+
+  // codec-sweep: format-2 bandwidth vs accuracy (offline).
+  auto* cs = app.add_subcommand("codec-sweep", "Quantized delta codec: bandwidth vs accuracy (offline)");
+  CodecSweepOptions co;
+  std::string codec_steps = "0.0005,0.001,0.002,0.005", codec_bounds = "0.05,0.1,0.2,0.5";
+  std::string codec_thresholds = "0,0.0005,0.001,0.005";
+  std::string codec_json, codec_charts = "codec_sweep";
+  cs->add_option("--steps", codec_steps, "Position steps (m) to sweep")->capture_default_str();
+  cs->add_option("--rotation-bounds", codec_bounds, "Rotation bounds (deg) to sweep")->capture_default_str();
+  cs->add_option("--thresholds", codec_thresholds,
+                 "Selective-sync position thresholds (m) to sweep")->capture_default_str();
+  cs->add_option("--position-step", co.default_position_step_m, "Default step (m)")->capture_default_str();
+  cs->add_option("--rotation-bound", co.default_rotation_bound_deg, "Default rotation bound (deg)")->capture_default_str();
+  cs->add_option("--threshold", co.default_threshold_m, "Default position threshold (m)")->capture_default_str();
+  cs->add_option("--rotation-threshold-per-m", co.rotation_threshold_deg_per_m,
+                 "Rotation threshold (deg) per metre of position threshold")->capture_default_str();
+  cs->add_option("--objects", co.objects, "Objects")->capture_default_str();
+  cs->add_option("--rate", co.rate_hz, "Sends per second per object")->capture_default_str();
+  cs->add_option("--duration", co.duration_s, "Seconds per configuration")->capture_default_str();
+  cs->add_option("--slow-fraction", co.slow_fraction,
+                 "Fraction of objects that only creep (where thresholds matter)")->capture_default_str();
+  cs->add_option("--slow-speed", co.slow_motion.speed_mps, "Creeping objects' speed (m/s)")->capture_default_str();
+  cs->add_option("--slow-spin", co.slow_motion.spin_dps, "Creeping objects' spin (deg/s)")->capture_default_str();
+  cs->add_option("--speed", co.motion.speed_mps, "Object speed (m/s)")->capture_default_str();
+  cs->add_option("--spin", co.motion.spin_dps, "Object spin (deg/s)")->capture_default_str();
+  cs->add_option("--seed", co.motion.seed, "Motion and loss seed")->capture_default_str();
+  cs->add_option("--loss", co.loss, "Packet loss probability")->capture_default_str();
+  cs->add_option("--json", codec_json, "Write results as JSON to this file");
+  cs->add_option("--charts", codec_charts, "Chart file prefix ('' for none)")->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*is) {
+    if (!ParseList(interp_rates, &io.rates_hz)) {
+      std::cerr << "--rates: expected a comma-separated list of rates\n";
+      return 2;
+    }
+    io.interpolators.clear();
+    std::stringstream ss(interp_methods);
+    std::string name;
+    while (std::getline(ss, name, ',')) {
+      Interpolator method;
+      if (!ParseInterpolator(name, &method)) {
+        std::cerr << "--interpolators: unknown interpolator '" << name << "'\n";
+        return 2;
+      }
+      io.interpolators.push_back(method);
+    }
+    for (double r : io.rates_hz) {
+      if (r <= 0) {
+        std::cerr << "--rates must be positive\n";
+        return 2;
+      }
+    }
+    if (io.interpolators.empty() || io.duration_s <= 0 || io.warmup_s < 0 || io.objects == 0 ||
+        io.render_hz <= 0 || impaired_latency_s < 0 || impaired_jitter_s < 0 ||
+        impaired_loss < 0 || impaired_loss >= 1) {
+      std::cerr << "invalid --interpolators, --duration, --warmup, --objects, --render-hz, "
+                   "--latency, --jitter or --loss\n";
+      return 2;
+    }
+    char impaired[64];
+    std::snprintf(impaired, sizeof(impaired), "loss%g_jitter%g", impaired_loss * 100,
+                  impaired_jitter_s * 1000);
+    io.networks = {{"clean", impaired_latency_s, 0, 0},
+                   {impaired, impaired_latency_s, impaired_jitter_s, impaired_loss}};
+    auto results = RunInterpSweep(io);
+    if (results.empty()) return 1;
+    std::cout << InterpSweepTable(results);
+    if (!interp_json.empty()) {
+      std::ofstream(interp_json) << InterpSweepJson(io, results) << "\n";
+    }
+    if (!interp_charts.empty() && !WriteInterpSweepCharts(io, results, interp_charts)) {
+      std::cerr << "could not write charts with prefix " << interp_charts << "\n";
+      return 1;
+    }
+    return 0;
+  }
+
+  if (*cs) {
+    if (!ParseList(codec_steps, &co.steps_m) || !ParseList(codec_bounds, &co.rotation_bounds_deg) ||
+        !ParseList(codec_thresholds, &co.thresholds_m)) {
+      std::cerr << "--steps, --rotation-bounds, --thresholds: expected comma-separated numbers\n";
+      return 2;
+    }
+    if (co.objects == 0 || co.rate_hz <= 0 || co.duration_s <= 0 || co.loss < 0 || co.loss >= 1 ||
+        co.slow_fraction < 0 || co.slow_fraction > 1) {
+      std::cerr << "invalid --objects, --rate, --duration, --loss or --slow-fraction\n";
+      return 2;
+    }
+    auto results = RunCodecSweep(co);
+    if (results.empty()) return 1;
+    std::cout << CodecSweepTable(results);
+    if (!codec_json.empty()) {
+      std::ofstream(codec_json) << CodecSweepJson(co, results) << "\n";
+    }
+    if (!codec_charts.empty() && !WriteCodecSweepCharts(co, results, codec_charts)) {
+      std::cerr << "could not write charts with prefix " << codec_charts << "\n";
+      return 1;
+    }
+    return 0;
+  }
 
   if (*rc) {
     if (!ParseList(objects, &o.objects)) {

@@ -338,6 +338,20 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
     }
   }
 
+  // A stale unreliable payload is dropped; if that is all the packet carries, the packet is
+  // not acknowledged either, so the sender never counts a dropped payload as delivered (the
+  // delta codec references only acknowledged states). Its acks still apply.
+  const bool stale = parsed.has_unreliable && impl_->have_unreliable &&
+                     !SequenceGreater(parsed.sequence, impl_->newest_unreliable);
+  if (stale && parsed.unit_count == 0) {
+    impl_->last_receive_time = now;
+    stats_.packets_received++;
+    stats_.bytes_received += packet.size();
+    stats_.stale_dropped++;
+    impl_->ProcessAcks(parsed.ack, parsed.ack_bits, now, handler);
+    return Status::Ok();
+  }
+
   // Apply.
   impl_->received.Record(parsed.sequence);
   impl_->last_receive_time = now;

@@ -19,7 +19,8 @@
 //    and by ConnectionConfig::max_message_size for the message being reassembled.
 //  * Unreliable-sequenced: SendUnreliable() sends one packet now. The receiver delivers its
 //    payload only if the packet is newer than every unreliable payload it has delivered
-//    (older ones are dropped as stale and counted).
+//    (older ones are dropped as stale and counted). A packet whose only content was a stale
+//    payload is not acknowledged, so OnPacketAcked() on the sender means "delivered".
 //
 // Thread-safety: none. One thread owns a Connection (the room's thread on the relay).
 // Cost: ProcessPacket and SendUnreliable are O(packet size) and allocate nothing once the
@@ -126,7 +127,8 @@ class Connection {
   // max_message_size) or kResourceExhausted (reliable unit beyond the window): the peer broke
   // the protocol, the connection is disconnected with kProtocolError and the next Update()
   // sends the disconnect packets; kNotConnected once disconnected. A stale unreliable payload
-  // is dropped inside an otherwise accepted packet: Ok, counted in stats.stale_dropped.
+  // is dropped (Ok, counted in stats.stale_dropped); a packet carrying nothing else is then
+  // not acknowledged.
   Status ProcessPacket(std::span<const uint8_t> packet, double now, ConnectionHandler& handler);
 
   // Sends due reliable units (new ones, then those whose resend timeout expired), acks the

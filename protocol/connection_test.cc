@@ -509,8 +509,11 @@ TEST(ConnectionTest, RttAndLossUnderJitterAndLoss) {
   }
   EXPECT_GE(link.a.connection->stats().rtt_s, 0.075);
   EXPECT_LE(link.a.connection->stats().rtt_s, 0.15);
+  // "Loss" is the share of our packets the peer did not take: lost ones, and reordered ones
+  // whose unreliable payload arrived stale (dropped, so deliberately not acknowledged).
   EXPECT_GE(link.a.connection->stats().loss, 0.1);
-  EXPECT_LE(link.a.connection->stats().loss, 0.32);
+  EXPECT_LE(link.a.connection->stats().loss, 0.5);
+  EXPECT_GT(link.b.connection->stats().stale_dropped, 0u);
 }
 
 TEST(ConnectionTest, DisconnectReachesThePeer) {

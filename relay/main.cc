@@ -65,6 +65,22 @@ int main(int argc, char** argv) {
   app.add_option("--max-entities-per-player", config.room_defaults.max_entities_per_player,
                  "Entities one player may own in a room")
       ->capture_default_str();
+  std::string replication_mode = "edgephys";
+  app.add_option("--replication-mode", replication_mode,
+                 "State encoding: edgephys (quantized delta), float, photon or paper (emulations)")
+      ->capture_default_str();
+  ReplicationConfig& rep = config.room_defaults.replication;
+  app.add_option("--position-step", rep.position_step_m, "Position quantisation step (m)")
+      ->capture_default_str()->check(CLI::Range(1e-5, 1.0));
+  app.add_option("--rotation-bound", rep.rotation_bound_deg, "Rotation error bound (deg)")
+      ->capture_default_str()->check(CLI::Range(0.001, 10.0));
+  app.add_option("--critical-hz", rep.critical_hz, "Send rate of avatars, hands, grabbed objects")
+      ->capture_default_str()->check(CLI::Range(1.0, 240.0));
+  app.add_option("--normal-hz", rep.normal_hz, "Send rate of other moving entities")
+      ->capture_default_str()->check(CLI::Range(1.0, 240.0));
+  app.add_option("--client-budget", rep.bandwidth_budget_bytes_per_s,
+                 "Per-client bandwidth budget in bytes/s (0: unlimited)")
+      ->capture_default_str();
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
@@ -96,6 +112,10 @@ int main(int argc, char** argv) {
   }
 
   spdlog::set_level(spdlog::level::from_str(log_level));
+  if (!ParseReplicationMode(replication_mode, &rep.mode)) {
+    spdlog::error("--replication-mode: unknown mode '{}'", replication_mode);
+    return 2;
+  }
   if (config.secret == kDevelopmentSecret) {
     spdlog::warn("using the built-in development secret: anyone can mint tokens. "
                  "Set --secret or EDGEPHYS_SECRET in production.");

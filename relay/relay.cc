@@ -322,9 +322,31 @@ void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
     }
   };
   flatbuffers::FlatBufferBuilder fbb(256);
-  FinishControl(fbb, schema::CreateJoined(fbb, fbb.CreateString(name), s.player_id(),
-                                          slot * kEntityIdBlock,
-                                          static_cast<uint16_t>(room->config().tick_rate_hz)));
+  {
+    const ReplicationConfig& rc = room->config().replication;
+    const QuantizationConfig q = QuantizationOf(rc);
+    uint8_t format = 1;
+    switch (rc.mode) {
+      case ReplicationMode::kEdgephys: format = kDeltaStateFormat; break;
+      case ReplicationMode::kPhoton: format = kFormatPhoton; break;
+      case ReplicationMode::kPaper: format = kFormatPaper; break;
+      case ReplicationMode::kFloat: format = 1; break;
+    }
+    schema::Vec3 bmin(q.bounds_min.x, q.bounds_min.y, q.bounds_min.z);
+    schema::Vec3 bmax(q.bounds_max.x, q.bounds_max.y, q.bounds_max.z);
+    auto room_name = fbb.CreateString(name);
+    schema::JoinedBuilder jb(fbb);
+    jb.add_room(room_name);
+    jb.add_player_id(s.player_id());
+    jb.add_entity_id_base(slot * kEntityIdBlock);
+    jb.add_tick_rate_hz(static_cast<uint16_t>(room->config().tick_rate_hz));
+    jb.add_state_format(format);
+    jb.add_position_step_m(q.position_step_m);
+    jb.add_rotation_bound_deg(q.rotation_error_deg);
+    jb.add_bounds_min(&bmin);
+    jb.add_bounds_max(&bmax);
+    FinishControl(fbb, jb.Finish());
+  }
   send(fbb);
   std::vector<uint32_t> players;
   for (const auto& [id, m] : room->members()) players.push_back(id);

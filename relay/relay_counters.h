@@ -14,8 +14,8 @@
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. BadCookie).
-inline constexpr size_t kRejectReasonCount = 14;
+// Number of RejectReason values in schema/control.fbs (None .. GrabRefused).
+inline constexpr size_t kRejectReasonCount = 16;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.

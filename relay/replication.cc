@@ -13,6 +13,8 @@ constexpr uint32_t kFlagHand = 1u << 4;    // schema::EntityFlags::Hand
 constexpr double kEpsilon = 1e-6;
 // Bytes a datagram costs beyond its state payload (connection header + chunk header).
 constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
+// Entities assumed per datagram when estimating a selection's size.
+constexpr size_t kEntitiesPerPacketEstimate = 64;
 
 double Weight(PriorityClass c) {
   switch (c) {
@@ -34,6 +36,16 @@ float AngleDeg(const Quatf& a, const Quatf& b) {
 }
 
 }  // namespace
+
+QuantizationConfig QuantizationOf(const ReplicationConfig& config) {
+  QuantizationConfig q;
+  float h = config.bounds_half_extent_m;
+  q.bounds_min = {-h, -h, -h};
+  q.bounds_max = {h, h, h};
+  q.position_step_m = config.position_step_m;
+  q.rotation_error_deg = config.rotation_bound_deg;
+  return q;
+}
 
 std::string_view ReplicationModeName(ReplicationMode mode) {
   switch (mode) {
@@ -68,7 +80,17 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
       encoder_ = std::move(paper);
       break;
     }
-    case ReplicationMode::kEdgephys:  // format 2 lands with the delta codec
+    case ReplicationMode::kEdgephys: {
+      auto params = MakeQuantizationParams(QuantizationOf(config_));
+      if (params.ok()) {
+        auto delta = std::make_unique<DeltaEncoder>(*params);
+        delta_ = delta.get();
+        encoder_ = std::move(delta);
+        break;
+      }
+      config_.mode = ReplicationMode::kFloat;  // invalid quantisation: fall back to exact floats
+      [[fallthrough]];
+    }
     case ReplicationMode::kFloat:
       encoder_ = std::make_unique<FloatStateEncoder>();
       break;
@@ -129,8 +151,11 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
         want = fields != 0;
         break;
       case ReplicationMode::kFloat:
-      case ReplicationMode::kEdgephys:
         want = tracker_.NeedsSend(id, e.version, now, resend_after);
+        break;
+      case ReplicationMode::kEdgephys:
+        want = delta_->NeedsUpdate(id, e.state, config_.position_threshold_m,
+                                   config_.rotation_threshold_deg, now, resend_after);
         break;
     }
     if (!want) continue;
@@ -141,29 +166,35 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
   std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
     return a.priority != b.priority ? a.priority > b.priority : a.id < b.id;
   });
+  // Take the most urgent while the budget allows (by the running size estimate), then encode
+  // them in id order (the delta format codes ids as increasing gaps).
+  selected_.clear();
+  double estimate = 0;
+  for (const Candidate& c : candidates_) {
+    double cost = bytes_per_entity_ + (selected_.size() % kEntitiesPerPacketEstimate == 0
+                                           ? kPacketOverhead + 8 : 0.0);
+    if (budgeted && estimate + cost > budget_bytes_) break;
+    estimate += cost;
+    selected_.push_back(c);
+  }
+  std::sort(selected_.begin(), selected_.end(),
+            [](const Candidate& a, const Candidate& b) { return a.id < b.id; });
 
   encoder_->Begin(payload_, time_ms_);
   in_payload_.clear();
-  size_t in_packet = 0;
-  for (const Candidate& c : candidates_) {
-    // Stop before the estimated size of what is queued would overdraw the budget.
-    if (budgeted && budget_bytes_ < kPacketOverhead + (in_packet + 1) * bytes_per_entity_) break;
+  for (const Candidate& c : selected_) {
     auto add = [&]() {
       return paper_ ? paper_->AddFields(c.entity->state, c.fields) : encoder_->Add(c.entity->state);
     };
     if (!add()) {
       Flush(now, connection, out, counters);
-      in_packet = 0;
-      if (budgeted && budget_bytes_ < kPacketOverhead + bytes_per_entity_) break;
       encoder_->Begin(payload_, time_ms_);
       if (!add()) continue;
     }
-    ++in_packet;
     in_payload_.emplace_back(c.id, c.entity->version);
     View& v = views_[c.id];
     v.last_sent = now;
-    PriorityClass cls = ClassOf(*c.entity, now);
-    double interval = IntervalOf(cls);
+    double interval = IntervalOf(ClassOf(*c.entity, now));
     // Due times advance by exactly the interval, so the long-run rate is exact whatever the
     // tick rate; after a pause (or the first send) the schedule restarts from now.
     v.next_due += interval;
@@ -184,7 +215,11 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
   }
   Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
   if (seq.ok()) {
-    for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
+    if (delta_ != nullptr) {
+      delta_->OnSent(*seq, now);
+    } else {
+      for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
+    }
     RelayCounters::Inc(counters.entity_updates_sent, in_payload_.size());
   }
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
@@ -196,10 +231,17 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
   in_payload_.clear();
 }
 
-void ClientReplicator::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
+void ClientReplicator::OnPacketAcked(uint16_t sequence) {
+  if (delta_ != nullptr) {
+    delta_->OnPacketAcked(sequence);
+  } else {
+    tracker_.OnAcked(sequence);
+  }
+}
 
 void ClientReplicator::Forget(uint32_t entity_id) {
   tracker_.Forget(entity_id);
+  if (delta_ != nullptr) delta_->Forget(entity_id);
   views_.erase(entity_id);
 }
 

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "protocol/connection.h"
+#include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/state_codec.h"
@@ -44,7 +45,7 @@ bool ParseReplicationMode(std::string_view text, ReplicationMode* mode);
 enum class PriorityClass : uint8_t { kCritical = 0, kNormal, kResting };
 
 struct ReplicationConfig {
-  ReplicationMode mode = ReplicationMode::kFloat;
+  ReplicationMode mode = ReplicationMode::kEdgephys;
   double critical_hz = 48;            // avatars, hands, grabbed objects
   double normal_hz = 12;              // everything else that moves
   double resting_after_s = 1.0;       // unchanged this long: resting (sent only on change)
@@ -52,13 +53,18 @@ struct ReplicationConfig {
   float position_threshold_m = 0.0005f;   // selective sync thresholds
   float rotation_threshold_deg = 0.05f;
   double bandwidth_budget_bytes_per_s = 0;  // per client; 0 = unlimited
-  // Quantisation of the edgephys format (see protocol/quantize.h).
+  // Quantisation of the edgephys format (see protocol/quantize.h); sent to clients in Joined.
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
+  float bounds_half_extent_m = 1000.0f;  // room bounds: a cube centred on the origin
 };
+
+// The quantisation a room with `config` uses (format 2).
+QuantizationConfig QuantizationOf(const ReplicationConfig& config);
 
 class ClientReplicator {
  public:
+  // `config` must be valid (see ValidateReplicationConfig).
   explicit ClientReplicator(const ReplicationConfig& config);
   ~ClientReplicator();
 
@@ -91,9 +97,11 @@ class ClientReplicator {
   ReplicationConfig config_;
   std::unique_ptr<StateEncoder> encoder_;
   PaperEmulationEncoder* paper_ = nullptr;  // encoder_ when mode is kPaper
+  DeltaEncoder* delta_ = nullptr;           // encoder_ when mode is kEdgephys
   ReplicationTracker tracker_;              // acks for float / emulation modes
   std::unordered_map<uint32_t, View> views_;
   std::vector<Candidate> candidates_;
+  std::vector<Candidate> selected_;
   std::vector<std::pair<uint32_t, uint32_t>> in_payload_;  // (id, version)
   std::vector<uint8_t> payload_;
   double budget_bytes_ = 0;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <string>
@@ -105,6 +106,17 @@ class LoopbackWorld {
   std::vector<std::unique_ptr<Client>> clients_;
   std::chrono::steady_clock::time_point start_;
 };
+
+// True if `a` is within the default edgephys encoder's stated precision of `b`: position
+// step 1 mm (Euclidean error <= sqrt(3)/2 mm) and rotation error <= 0.1 degree.
+inline bool WithinPrecision(const EntityState& a, const EntityState& b) {
+  double dx = a.position.x - b.position.x, dy = a.position.y - b.position.y,
+         dz = a.position.z - b.position.z;
+  if (std::sqrt(dx * dx + dy * dy + dz * dz) > 0.000867) return false;
+  double dot = std::fabs(double(a.rotation.x) * b.rotation.x + double(a.rotation.y) * b.rotation.y +
+                         double(a.rotation.z) * b.rotation.z + double(a.rotation.w) * b.rotation.w);
+  return dot >= std::cos(0.1 * 3.14159265358979 / 180.0 / 2.0) - 1e-7;
+}
 
 inline uint64_t Rejected(const RelayCounters& c, DropReason r) {
   return c.packets_rejected[static_cast<size_t>(r)].load();

@@ -19,13 +19,8 @@ EntityState PathState(uint32_t id, int k, double t) {
   return s;
 }
 
-bool SameState(const EntityState& a, const EntityState& b) {
-  // The float codec's stated precision is exact float32.
-  return a.position.x == b.position.x && a.position.y == b.position.y &&
-         a.position.z == b.position.z && a.rotation.x == b.rotation.x &&
-         a.rotation.y == b.rotation.y && a.rotation.z == b.rotation.z &&
-         a.rotation.w == b.rotation.w;
-}
+// The default (edgephys) encoder's stated precision: 1 mm lattice, 0.1 degree.
+bool SameState(const EntityState& a, const EntityState& b) { return WithinPrecision(a, b); }
 
 bool Connected(Client& c) { return c.state() == ClientState::kConnected; }
 
@@ -109,7 +104,7 @@ TEST(RelayLoopback, FanOutLateJoinAndOwnership) {
   EXPECT_TRUE(SameState(b.FindEntity(ids[0])->state, last[0]));
   const Room* room = world.relay().FindRoom("arena");
   ASSERT_NE(room, nullptr);
-  EXPECT_EQ(room->entities().at(ids[0]).state.position.x, last[0].position.x);
+  EXPECT_EQ(room->entities().at(ids[0]).state.position.x, last[0].position.x);  // relay: exact
 }
 
 TEST(RelayLoopback, DespawnAndLeavePropagate) {
@@ -149,7 +144,7 @@ TEST(RelayLoopback, WorksOverIpv6Loopback) {
   ASSERT_TRUE(id.ok());
   ASSERT_TRUE(a.PublishTransform(*id, {4, 5, 6}, {}).ok());
   ASSERT_TRUE(world->RunUntil(
-      [&] { auto* e = b.FindEntity(*id); return e && e->state.position.z == 6.0f; }, 3.0));
+      [&] { auto* e = b.FindEntity(*id); return e && std::fabs(e->state.position.z - 6.0f) < 0.001f; }, 3.0));
 }
 
 }  // namespace

@@ -51,8 +51,7 @@ TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   ASSERT_TRUE(world.RunUntil([&] {
     for (size_t k = 0; k < ids.size(); ++k) {
       const RemoteEntity* e = b.FindEntity(ids[k]);
-      if (!e || !e->spawned || e->state.position.z != last[k].position.z ||
-          e->state.rotation.y != last[k].rotation.y) {
+      if (!e || !e->spawned || !WithinPrecision(e->state, last[k])) {
         return false;
       }
     }
