@@ -22,7 +22,7 @@ namespace {
 constexpr int kWarmupSteps = 60;    // 1 s: boxes have landed, the stirrer is moving
 constexpr int kMeasuredSteps = 90;  // benchmark iterations per repetition
 
-MultiObjectParams Params(int n, int iterations = 10, int substeps = 4) {
+MultiObjectParams Params(int n, int iterations = 10, int substeps = 1) {
   MultiObjectParams p;
   p.num_objects = n;
   p.config.solver_iterations = iterations;

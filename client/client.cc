@@ -4,6 +4,7 @@
 
 #include "protocol/emulation_codec.h"
 #include "protocol/handshake.h"
+#include "protocol/soft_body_codec.h"
 
 namespace edgephys {
 
@@ -160,23 +161,33 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   if (id == 0) return Status(StatusCode::kResourceExhausted, "entity id block used up");
   st.entity_id = id;
 
-  flatbuffers::FlatBufferBuilder fbb(256);
-  schema::Transform transform(
-      schema::Vec3(desc.position.x, desc.position.y, desc.position.z),
-      schema::Quat(desc.rotation.x, desc.rotation.y, desc.rotation.z, desc.rotation.w),
-      schema::Vec3(desc.scale.x, desc.scale.y, desc.scale.z));
-  auto name = fbb.CreateString(desc.name);
-  schema::ContainerBuilder cb(fbb);
-  cb.add_entity_id(id);
-  cb.add_parent_id(desc.parent);
-  cb.add_owner(player_id_);
-  cb.add_flags(desc.flags);
-  cb.add_transform(&transform);
-  cb.add_name(name);
-  auto container = cb.Finish();
+  EntitySpec spec;
+  spec.id = id;
+  spec.parent_id = desc.parent;
+  spec.owner = player_id_;
+  spec.flags = desc.flags;
+  spec.position = desc.position;
+  spec.rotation = desc.rotation;
+  spec.scale = desc.scale;
+  spec.name = desc.name;
+  spec.rigid_body = desc.rigid_body;
+  spec.colliders = desc.colliders;
+  spec.joints = desc.joints;
+  spec.soft_body = desc.soft_body;
+  flatbuffers::FlatBufferBuilder fbb(512);
+  auto container = AddContainer(fbb, spec);
   FinishControl(fbb, schema::CreateSpawn(fbb, container));
+  if (fbb.GetSize() > config_.connection.max_message_size) {
+    return Status(StatusCode::kTooLarge, "container larger than the reliable message limit");
+  }
   Status sent = connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
   if (!sent.ok()) return sent;
+  const bool offloaded = (desc.flags & static_cast<uint32_t>(schema::EntityFlags::Offloaded)) != 0;
+  const bool dynamic = desc.rigid_body && !desc.rigid_body->kinematic && desc.rigid_body->mass > 0;
+  if (offloaded && (dynamic || desc.soft_body)) {
+    // PhyS will own it: its state comes back from the relay like any other entity's.
+    return id;
+  }
   // The spawn carries the initial transform: version 1 needs no state packet.
   owned_[id] = OwnedEntity{st, 1};
   return id;
@@ -187,6 +198,20 @@ Status Client::Despawn(uint32_t entity_id) {
   tracker_.Forget(entity_id);
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
+  return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+}
+
+Status Client::Grab(uint32_t entity_id, uint32_t hand_id) {
+  if (state_ != ClientState::kConnected || !joined_) return Status(StatusCode::kNotConnected, "not joined");
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreateGrab(fbb, entity_id, hand_id));
+  return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+}
+
+Status Client::Release(uint32_t entity_id) {
+  if (state_ != ClientState::kConnected || !joined_) return Status(StatusCode::kNotConnected, "not joined");
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreateRelease(fbb, entity_id));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
@@ -273,6 +298,7 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       entity_id_base_ = j->entity_id_base();
       next_local_id_ = 1;
       delta_decoder_.reset();
+      position_step_m_ = j->position_step_m() > 0 ? j->position_step_m() : 0.001f;
       if (j->state_format() == kDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
@@ -332,6 +358,11 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       listener_->OnPlayerLeft(p);
       break;
     }
+    case schema::Body::PhysicsEvent: {
+      const auto* ev = msg->body_as_PhysicsEvent();
+      listener_->OnPhysicsEvent(static_cast<uint8_t>(ev->kind()), ev->entity_a(), ev->entity_b());
+      break;
+    }
     case schema::Body::Error: {
       const auto* e = msg->body_as_Error();
       listener_->OnError(static_cast<uint16_t>(e->reason()), e->entity_id(),
@@ -365,6 +396,19 @@ Status Client::DecodeStates(std::span<const uint8_t> payload) {
 
 void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
   bytes_state_received_ += payload.size();
+  if (!payload.empty() && payload[0] == kSoftBodyFormat) {
+    if (!joined_ || !DecodeSoftBodyChunk(payload, position_step_m_, kMaxSoftBodyNodes, &soft_chunk_).ok()) {
+      return;
+    }
+    auto it = entities_.find(soft_chunk_.entity_id);
+    if (it == entities_.end()) return;  // particles of an entity not spawned (yet): skip
+    RemoteEntity& e = it->second;
+    e.nodes.resize(soft_chunk_.total);
+    std::copy(soft_chunk_.positions.begin(), soft_chunk_.positions.end(),
+              e.nodes.begin() + soft_chunk_.first);
+    listener_->OnSoftBodyUpdated(e);
+    return;
+  }
   if (!joined_ || !DecodeStates(payload).ok()) return;
   for (const EntityState& st : batch_.states) {
     if (owned_.count(st.entity_id) != 0 || despawned_.count(st.entity_id) != 0) continue;

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -34,13 +35,18 @@
 #include <vector>
 
 #include "protocol/connection.h"
+#include "protocol/container_builder.h"
 #include "protocol/delta_codec.h"
 #include "protocol/datagram_socket.h"
 #include "protocol/replication_tracker.h"
+#include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
 
 namespace edgephys {
+
+// Largest soft body (particles) a client accepts from the relay.
+inline constexpr uint32_t kMaxSoftBodyNodes = 1 << 16;
 
 struct ClientConfig {
   ConnectionConfig connection;      // keep-alive and timeout are taken from the relay's Accept
@@ -68,6 +74,7 @@ struct RemoteEntity {
   bool has_state = false;      // at least one state received after the spawn transform
   EntityState state;           // latest received transform
   uint32_t state_time_ms = 0;  // relay time of that state
+  std::vector<Vec3f> nodes;    // soft body particles (PhyS-simulated soft bodies)
 };
 
 // Callbacks, all optional. Called from Update() (or the call that caused them).
@@ -85,19 +92,36 @@ class ClientListener {
   virtual void OnEntitySpawned(const RemoteEntity& entity) { (void)entity; }
   virtual void OnEntityUpdated(const RemoteEntity& entity) { (void)entity; }
   virtual void OnEntityDespawned(uint32_t entity_id) { (void)entity_id; }
+  // PhyS reported a collision, trigger, guard reset, grab or release (schema PhysicsEventKind;
+  // see schema/control.fbs for what a and b are). Reliable, in step order, once each.
+  virtual void OnPhysicsEvent(uint8_t kind, uint32_t entity_a, uint32_t entity_b) {
+    (void)kind, (void)entity_a, (void)entity_b;
+  }
+  // A soft body's particles changed (entity.nodes).
+  virtual void OnSoftBodyUpdated(const RemoteEntity& entity) { (void)entity; }
   // The relay refused a request (RejectReason code, schema/control.fbs).
   virtual void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
     (void)reason, (void)entity_id, (void)detail;
   }
 };
 
+// What Spawn() sends: the entity's transform, hierarchy and flags and — the paper's
+// dissection — its physics components. With the Offloaded flag, a dynamic rigid body or a
+// soft body is handed to PhyS: the relay simulates it and it becomes PhyS-owned (this client
+// receives its state like everyone else and may still despawn, grab and release it). Without
+// Offloaded, colliders and bodies are mirrored into PhyS as kinematic bodies that follow this
+// client's PublishTransform(), so local physics pushes PhyS-owned objects.
 struct SpawnDesc {
   Vec3f position;
   Quatf rotation;
   Vec3f scale{1, 1, 1};
   uint32_t parent = 0;
-  uint32_t flags = 0;          // schema::EntityFlags bits (Persistent, Kinematic, ...)
+  uint32_t flags = 0;          // schema::EntityFlags bits (Persistent, Offloaded, Hand, ...)
   std::string name;
+  std::optional<RigidBodySpec> rigid_body;
+  std::vector<ColliderSpec> colliders;
+  std::vector<JointSpec> joints;
+  std::optional<SoftBodySpec> soft_body;
 };
 
 class Client final : private ConnectionHandler, private PacketWriter {
@@ -125,6 +149,10 @@ class Client final : private ConnectionHandler, private PacketWriter {
   Result<uint32_t> Spawn(const SpawnDesc& desc);
   // kNotFound if this client does not own `entity_id`.
   Status Despawn(uint32_t entity_id);
+  // Asks PhyS to attach entity `entity_id` to this client's hand `hand_id` (the hand's trigger
+  // must hover it); OnPhysicsEvent(Grabbed) or OnError(GrabRefused) follows.
+  Status Grab(uint32_t entity_id, uint32_t hand_id);
+  Status Release(uint32_t entity_id);
   // Records the latest transform of an owned entity; it goes out at the publish rate.
   // kNotFound if not owned, kInvalidArgument if not finite / not unit.
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
@@ -202,6 +230,8 @@ class Client final : private ConnectionHandler, private PacketWriter {
   StateBatch batch_;
   FloatStateEncoder encoder_;
   std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
+  float position_step_m_ = 0.001f;               // the room's quantisation step
+  SoftBodyChunk soft_chunk_;
   uint64_t bytes_state_received_ = 0;
 };
 

@@ -166,6 +166,7 @@ struct PhysicsWorld::Entity {
   int soft_consecutive_resets = 0;
 
   btTransform target = btTransform::getIdentity();
+  btTransform move_from = btTransform::getIdentity();  // kinematic: pose before this step
   bool has_target = false;
   bool pending_move = false;
   bool in_dirty = false;
@@ -516,7 +517,8 @@ Status PhysicsWorld::AddEntity(const schema::Container& c, InvalidReason* reason
     btSoftBody* s = e->soft.get();
     btSoftBody::Material* mat = s->m_materials[0];
     const btScalar mean_mass = mass_count > 0 ? mass_sum / mass_count : btScalar(1);
-    const btScalar dt = config_.fixed_dt;
+    // Bullet's position-based links act once per internal step (fixed_dt / substeps).
+    const btScalar dt = config_.fixed_dt / static_cast<btScalar>(std::max(1, config_.substeps));
     btScalar klst = sb->stiffness() * dt * dt * btScalar(2) / mean_mass;
     klst = std::clamp(klst, btScalar(1e-4), btScalar(config_.soft_max_link_stiffness));
     mat->m_kLST = klst;
@@ -530,6 +532,11 @@ Status PhysicsWorld::AddEntity(const schema::Container& c, InvalidReason* reason
     s->m_cfg.kDP = sb->damping();
     s->m_cfg.piterations = config_.soft_iterations;
     s->m_cfg.kDF = 0.5;
+    // Contact hardness: the fraction of a node's penetration removed per solver iteration.
+    // Bullet's default for static/kinematic partners (kKHR 0.1) lets a ~500-node lattice sink
+    // ~11 cm into the ground; 1 removes it fully (rigid partners already use kCHR = 1).
+    s->m_cfg.kKHR = 1;
+    s->m_cfg.kCHR = 1;
     s->getCollisionShape()->setMargin(config_.soft_margin);
     s->setUserPointer(e);
     s->setUserIndex(kRoleBody);
@@ -818,6 +825,7 @@ Status PhysicsWorld::RemoveEntity(uint32_t id) {
   std::erase(dirty_, e);
   std::erase(stepped_, e);
   std::erase(pending_moves_, e);
+  std::erase(moving_, e);
   std::erase(trigger_followers_, e);
   std::erase(soft_entities_, e);
   for (Entity* child : e->children) {
@@ -998,8 +1006,11 @@ Status PhysicsWorld::GetSoftBodyNodes(uint32_t id, std::vector<Vec3f>* out) cons
 // Stepping
 
 void PhysicsWorld::ApplyCommands() {
+  moving_.clear();
   for (Entity* e : pending_moves_) {
     e->pending_move = false;
+    e->move_from = e->motion->transform();
+    moving_.push_back(e);
     e->motion->transform() = e->target;  // Bullet reads it in saveKinematicState
     e->last_good = e->target;
     MarkDirty(e);
@@ -1039,8 +1050,28 @@ void PhysicsWorld::ApplyCommands() {
 void PhysicsWorld::Step() {
   ApplyCommands();
   stepped_.clear();
-  // maxSubSteps = 0: exactly one internal step of fixed_dt, no interpolation of motion states.
-  world_->stepSimulation(config_.fixed_dt, 0, config_.fixed_dt);
+  // maxSubSteps = 0: exactly one internal step of h per call, no interpolation of motion states
+  // (Bullet's own accumulator could run 3 or 5 steps through float rounding of dt / h).
+  const int n = std::max(1, config_.substeps);
+  const btScalar h = config_.fixed_dt / static_cast<btScalar>(n);
+  for (int k = 1; k <= n; ++k) {
+    if (n > 1) {
+      // Kinematic bodies move along the straight line to their target, so their velocity (Bullet
+      // derives it from the displacement per internal step) is the same in every substep.
+      const btScalar f = static_cast<btScalar>(k) / static_cast<btScalar>(n);
+      for (Entity* e : moving_) {
+        btTransform& t = e->motion->transform();
+        if (k == n) {
+          t = e->target;
+        } else {
+          t.setOrigin(e->move_from.getOrigin().lerp(e->target.getOrigin(), f));
+          t.setRotation(e->move_from.getRotation().slerp(e->target.getRotation(), f));
+        }
+      }
+    }
+    world_->stepSimulation(h, 0, h);
+  }
+  moving_.clear();
   ++stats_.steps;
   RunGuard();
   DiffContacts();

@@ -81,7 +81,14 @@ namespace edgephys::physics {
 
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
-  int solver_iterations = 10;         // sequential impulse iterations
+  // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
+  // across them). 4 (240 Hz internally) is what keeps a 10-box stack standing (< 1 cm over 60 s)
+  // with 10 solver iterations: at 1 the sequential-impulse solver cannot carry the load up the
+  // stack within a step, the stack compresses ~2 cm, rocks and drifts 0.11 m (see
+  // physics_accuracy_test.cc). Cost grows with substeps (MultiObject, 2,000 boxes, 2-core VM:
+  // ~32 ms at 1, ~54 ms at 4 per step), so the default stays 1; rooms with tall stacks set 4.
+  int substeps = 1;
+  int solver_iterations = 10;         // sequential impulse iterations (per substep)
   int max_substeps = 4;               // Advance(): most fixed steps per call (backlog dropped)
   Vec3f gravity{0.0f, -9.81f, 0.0f};  // m/s^2
   bool soft_body_world = true;        // btSoftRigidDynamicsWorld; false: btDiscreteDynamicsWorld
@@ -93,7 +100,11 @@ struct PhysicsConfig {
   float ccd_motion_fraction = 0.5f;
   float ccd_swept_radius_fraction = 0.9f;
   bool sleeping = true;               // false: bodies never deactivate
-  float sleep_linear_threshold = 0.1f;   // m/s, below for Bullet's 2 s deactivation time
+  // Below both for Bullet's 2 s deactivation time, the body (its island) sleeps. Bullet's own
+  // defaults (0.8 m/s, 1.0 rad/s) let a settled stack sleep before solver noise makes it creep
+  // (physics_accuracy_test), but also freeze slow damped oscillations early (a spring bob
+  // sleeps 6% off its equilibrium, physics_world_test); 0.1 keeps those accurate.
+  float sleep_linear_threshold = 0.1f;   // m/s
   float sleep_angular_threshold = 0.1f;  // rad/s
   float world_half_extent = 1000.0f;  // world bounds: axis-aligned cube, metres from the origin
   float contact_distance = 0.005f;    // a manifold point closer than this counts as touching (m)
@@ -289,6 +300,7 @@ class PhysicsWorld {
   std::vector<Entity*> stepped_;          // dynamic bodies Bullet synchronised this step
   std::vector<Entity*> dirty_;            // moved since the last CollectStates
   std::vector<Entity*> pending_moves_;    // kinematic targets to apply before the next step
+  std::vector<Entity*> moving_;           // kinematic entities moving during this step
   std::vector<Entity*> grabbed_;
   std::vector<Entity*> trigger_followers_;  // trigger objects following a moving body
   std::vector<Entity*> soft_entities_;

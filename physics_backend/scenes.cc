@@ -206,9 +206,26 @@ void RawBulletMultiObjectScene::Step() {
   ++m.steps;
   Vec3f pos;
   Quatf rot;
-  StirrerPose(m.params, static_cast<double>(m.steps) * m.params.config.fixed_dt, &pos, &rot);
-  m.stirrer->getMotionState()->setWorldTransform(btTransform(Bt(rot), Bt(pos)));
-  m.world->stepSimulation(m.params.config.fixed_dt, 0, m.params.config.fixed_dt);
+  // Same stepping as PhysicsWorld::Step(): `substeps` Bullet steps, the kinematic stirrer
+  // moving along the straight line towards its end-of-step pose.
+  const PhysicsConfig& cfg = m.params.config;
+  StirrerPose(m.params, static_cast<double>(m.steps) * cfg.fixed_dt, &pos, &rot);
+  const btTransform target(Bt(rot), Bt(pos));
+  const int n = std::max(1, cfg.substeps);
+  const btScalar h = cfg.fixed_dt / static_cast<btScalar>(n);
+  btTransform from;
+  m.stirrer->getMotionState()->getWorldTransform(from);
+  for (int k = 1; k <= n; ++k) {
+    if (k == n) {
+      m.stirrer->getMotionState()->setWorldTransform(target);
+    } else {
+      const btScalar f = static_cast<btScalar>(k) / static_cast<btScalar>(n);
+      m.stirrer->getMotionState()->setWorldTransform(
+          btTransform(from.getRotation().slerp(target.getRotation(), f),
+                      from.getOrigin().lerp(target.getOrigin(), f)));
+    }
+    m.world->stepSimulation(h, 0, h);
+  }
 }
 
 size_t RawBulletMultiObjectScene::MovingBoxes(float min_speed) const {

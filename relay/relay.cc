@@ -89,6 +89,7 @@ void Relay::Update(double now, uint64_t unix_now_s) {
   for (uint32_t id : removal_scratch_) RemoveSession(id, now);
 
   for (auto& [name, room] : rooms_) {
+    StepPhysics(*room, now);
     if (now >= room->next_tick()) {
       auto start = std::chrono::steady_clock::now();
       TickRoom(*room, now);
@@ -98,6 +99,17 @@ void Relay::Update(double now, uint64_t unix_now_s) {
     }
   }
   CloseIdleRooms(now);
+  if (sample_rtt) {  // once a second: PhyS gauges
+    int64_t bodies = 0, sleeping = 0;
+    for (auto& [name, room] : rooms_) {
+      if (room->physics() == nullptr) continue;
+      physics::PhysicsCounters pc = room->physics()->counters();
+      bodies += static_cast<int64_t>(pc.bodies);
+      sleeping += static_cast<int64_t>(pc.sleeping_bodies);
+    }
+    counters_->physics_bodies.store(bodies, std::memory_order_relaxed);
+    counters_->physics_sleeping_bodies.store(sleeping, std::memory_order_relaxed);
+  }
   counters_->rooms.store(static_cast<int64_t>(rooms_.size()), std::memory_order_relaxed);
   counters_->clients.store(static_cast<int64_t>(sessions_.size()), std::memory_order_relaxed);
 }
@@ -334,9 +346,9 @@ void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
     }
     schema::Vec3 bmin(q.bounds_min.x, q.bounds_min.y, q.bounds_min.z);
     schema::Vec3 bmax(q.bounds_max.x, q.bounds_max.y, q.bounds_max.z);
-    auto room_name = fbb.CreateString(name);
+    auto name_offset = fbb.CreateString(name);
     schema::JoinedBuilder jb(fbb);
-    jb.add_room(room_name);
+    jb.add_room(name_offset);
     jb.add_player_id(s.player_id());
     jb.add_entity_id_base(slot * kEntityIdBlock);
     jb.add_tick_rate_hz(static_cast<uint16_t>(room->config().tick_rate_hz));
@@ -437,16 +449,33 @@ void Relay::OnSpawn(Session& s, std::span<const uint8_t> message, const schema::
     return SendError(s, Code(RejectReason::InvalidMessage), id, "transform not finite or not unit");
   }
   e.changed_at = now_;
+  e.creator = s.player_id();
+  e.physics = RoomPhysics::RoleOf(*c);
+  if (e.physics != PhysicsRole::kNone) {
+    std::string detail;
+    RoomPhysics& phys = room.EnsurePhysics(config_.physics, now_);
+    if (!phys.Add(*c, e.physics, &detail).ok()) {
+      return SendError(s, Code(RejectReason::InvalidContainer), id, detail);
+    }
+    if (e.physics == PhysicsRole::kSimulated) e.owner = 0;  // PhyS is the authority now
+  }
   if (auto early = s.early_states().find(id); early != s.early_states().end()) {
     e.state = early->second;  // a state overtook the spawn
     e.version = 2;
     s.early_states().erase(early);
   }
   e.spawn.assign(message.begin(), message.end());
-  room.AddEntity(std::move(e));
+  const bool simulated = e.physics == PhysicsRole::kSimulated;
+  if (simulated) {
+    // The stored spawn tells every client (the creator included) that PhyS owns it.
+    auto* stored = schema::GetMutableControlMessage(e.spawn.data());
+    auto* container = static_cast<schema::Spawn*>(stored->mutable_body())->mutable_container();
+    container->mutate_owner(0);
+  }
+  Entity& added = room.AddEntity(std::move(e));
   ++member->entity_count;
   counters_->entities.fetch_add(1, std::memory_order_relaxed);
-  BroadcastReliable(room, message, s.player_id());
+  BroadcastReliable(room, added.spawn, simulated ? 0 : s.player_id());
 }
 
 void Relay::OnDespawn(Session& s, uint32_t entity_id) {
@@ -455,9 +484,10 @@ void Relay::OnDespawn(Session& s, uint32_t entity_id) {
   Room& room = *it->second;
   Entity* e = room.FindEntity(entity_id);
   if (e == nullptr) return SendError(s, Code(RejectReason::UnknownEntity), entity_id, "no such entity");
-  if (e->owner != s.player_id()) {
+  if (e->owner != s.player_id() && !(e->owner == 0 && e->creator == s.player_id())) {
     return SendError(s, Code(RejectReason::NotOwner), entity_id, "not your entity");
   }
+  const bool simulated = e->physics == PhysicsRole::kSimulated;
   room.RemoveEntity(entity_id);
   if (Member* m = room.FindMember(s.player_id()); m && m->entity_count > 0) --m->entity_count;
   counters_->entities.fetch_sub(1, std::memory_order_relaxed);
@@ -467,7 +497,86 @@ void Relay::OnDespawn(Session& s, uint32_t entity_id) {
   }
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
-  BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, s.player_id());
+  BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, simulated ? 0 : s.player_id());
+}
+
+void Relay::OnGrab(Session& s, uint32_t entity_id, uint32_t hand_id) {
+  auto it = rooms_.find(s.room());
+  if (it == rooms_.end()) return SendError(s, Code(RejectReason::NotJoined), entity_id, "join a room first");
+  Room& room = *it->second;
+  Entity* hand = room.FindEntity(hand_id);
+  Entity* e = room.FindEntity(entity_id);
+  if (hand == nullptr || e == nullptr) {
+    return SendError(s, Code(RejectReason::UnknownEntity), e ? hand_id : entity_id, "no such entity");
+  }
+  if (hand->owner != s.player_id()) {
+    return SendError(s, Code(RejectReason::NotOwner), hand_id, "not your hand");
+  }
+  std::string detail = "no physics in this room";
+  if (room.physics() == nullptr || !room.physics()->Grab(entity_id, hand_id, &detail).ok()) {
+    return SendError(s, Code(RejectReason::GrabRefused), entity_id, detail);
+  }
+  e->held_by = hand_id;
+  BroadcastPhysicsEvent(room, schema::PhysicsEventKind::Grabbed, entity_id, hand_id);
+}
+
+void Relay::OnRelease(Session& s, uint32_t entity_id) {
+  auto it = rooms_.find(s.room());
+  if (it == rooms_.end()) return SendError(s, Code(RejectReason::NotJoined), entity_id, "join a room first");
+  Room& room = *it->second;
+  Entity* e = room.FindEntity(entity_id);
+  if (e == nullptr) return SendError(s, Code(RejectReason::UnknownEntity), entity_id, "no such entity");
+  Entity* hand = e->held_by != 0 ? room.FindEntity(e->held_by) : nullptr;
+  if (hand == nullptr || hand->owner != s.player_id()) {
+    return SendError(s, Code(RejectReason::NotOwner), entity_id, "not held by your hand");
+  }
+  uint32_t hand_id = e->held_by;
+  if (room.physics() != nullptr) (void)room.physics()->Release(entity_id);
+  e->held_by = 0;
+  BroadcastPhysicsEvent(room, schema::PhysicsEventKind::Released, entity_id, hand_id);
+}
+
+void Relay::BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a,
+                                  uint32_t b) {
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreatePhysicsEvent(fbb, kind, a, b));
+  BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, 0);
+}
+
+void Relay::StepPhysics(Room& room, double now) {
+  RoomPhysics* phys = room.physics();
+  if (phys == nullptr) return;
+  phys->Advance(now, &step_output_);
+  if (step_output_.steps == 0) return;
+  counters_->physics_step_seconds.Observe(step_output_.step_seconds / step_output_.steps);
+  RelayCounters::Inc(counters_->physics_steps, static_cast<uint64_t>(step_output_.steps));
+  for (const EntityState& st : step_output_.moved) {
+    Entity* e = room.FindEntity(st.entity_id);
+    if (e == nullptr || e->physics != PhysicsRole::kSimulated) continue;
+    e->state = st;
+    ++e->version;
+    e->changed_at = now;
+  }
+  for (uint32_t id : step_output_.soft_moved) {
+    Entity* e = room.FindEntity(id);
+    if (e == nullptr || !phys->GetSoftBodyNodes(id, &e->nodes).ok()) continue;
+    ++e->nodes_version;
+  }
+  for (const physics::PhysicsEvent& ev : step_output_.events) {
+    using T = physics::PhysicsEventType;
+    schema::PhysicsEventKind kind = schema::PhysicsEventKind::CollisionEnter;
+    switch (ev.type) {
+      case T::kCollisionEnter: kind = schema::PhysicsEventKind::CollisionEnter; break;
+      case T::kCollisionExit: kind = schema::PhysicsEventKind::CollisionExit; break;
+      case T::kTriggerEnter: kind = schema::PhysicsEventKind::TriggerEnter; break;
+      case T::kTriggerExit: kind = schema::PhysicsEventKind::TriggerExit; break;
+      case T::kGuardReset:
+        kind = schema::PhysicsEventKind::GuardReset;
+        RelayCounters::Inc(counters_->guard_resets);
+        break;
+    }
+    BroadcastPhysicsEvent(room, kind, ev.entity_a, ev.entity_b);
+  }
 }
 
 void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
@@ -506,6 +615,9 @@ void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
     e->state = st;
     ++e->version;
     e->changed_at = now_;
+    if (e->physics == PhysicsRole::kMirrored && room.physics() != nullptr) {
+      room.physics()->Drive(st.entity_id, st);
+    }
     RelayCounters::Inc(counters_->entity_updates_received);
   }
 }

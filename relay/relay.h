@@ -79,6 +79,11 @@ class Relay {
   void OnLeaveRoom(Session& s, double now);
   void OnSpawn(Session& s, std::span<const uint8_t> message, const schema::Spawn* spawn);
   void OnDespawn(Session& s, uint32_t entity_id);
+  void OnGrab(Session& s, uint32_t entity_id, uint32_t hand_id);
+  void OnRelease(Session& s, uint32_t entity_id);
+  void BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a, uint32_t b);
+  // Runs the room's due PhyS steps and folds their results into the room's entities.
+  void StepPhysics(Room& room, double now);
   void OnStates(Session& s, std::span<const uint8_t> payload);
   void SendError(Session& s, uint16_t reason, uint32_t entity_id, std::string_view detail);
 
@@ -98,6 +103,7 @@ class Relay {
   std::map<Endpoint, uint32_t> session_by_endpoint_;
   std::vector<uint8_t> receive_buffer_;
   StateBatch batch_;
+  RoomPhysics::StepOutput step_output_;
   double now_ = 0;
   double last_rtt_sample_ = 0;
   std::vector<uint32_t> removal_scratch_;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "protocol/connection.h"
+#include "physics_backend/physics_world.h"
 #include "relay/replication.h"
 
 namespace edgephys {
@@ -25,6 +26,7 @@ struct RelayConfig {
   uint32_t max_clients = 4096;     // connections at once; beyond: ServerFull
   RoomConfig room_defaults;
   ConnectionConfig connection;
+  physics::PhysicsConfig physics;  // each room's embedded PhyS world
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
 };
 

@@ -75,6 +75,16 @@ struct RelayCounters {
   // Connections ended, by DisconnectReason.
   std::array<Counter, kDisconnectReasonCount> disconnects{};
 
+  // PhyS (embedded worlds, all rooms).
+  Counter physics_steps{0};
+  Counter guard_resets{0};         // stability-guard restores
+  Gauge physics_bodies{0};
+  Gauge physics_sleeping_bodies{0};
+  Gauge physics_workers{0};        // remote edgephys-phys workers attached
+  Counter physics_failovers{0};    // rooms restored after a worker died
+  AtomicHistogram<10> physics_step_seconds{
+      {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.016, 0.025, 0.05}};
+
   // Round-trip time samples (seconds), one per connection per second.
   AtomicHistogram<10> rtt_seconds{{0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5}};
   // Wall time of one room tick (seconds).

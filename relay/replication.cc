@@ -70,6 +70,7 @@ bool ParseReplicationMode(std::string_view text, ReplicationMode* mode) {
 
 ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     : config_(config), payload_(kMaxUnreliablePayload) {
+  soft_records_.resize(ReplicationTracker::kPacketRecords);
   switch (config_.mode) {
     case ReplicationMode::kPhoton:
       encoder_ = std::make_unique<PhotonEmulationEncoder>();
@@ -102,7 +103,7 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
 ClientReplicator::~ClientReplicator() = default;
 
 PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
-  if (e.flags & (kFlagAvatar | kFlagHand)) return PriorityClass::kCritical;
+  if ((e.flags & (kFlagAvatar | kFlagHand)) || e.held_by != 0) return PriorityClass::kCritical;
   if (now - e.changed_at > config_.resting_after_s) return PriorityClass::kResting;
   return PriorityClass::kNormal;
 }
@@ -125,6 +126,7 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
                              config_.bandwidth_budget_bytes_per_s * 0.25 + kMaxPacketSize);
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
+  TickSoftBodies(entities, self, now, resend_after, connection, out, counters);
 
   candidates_.clear();
   for (const auto& [id, e] : entities) {
@@ -231,7 +233,56 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
   in_payload_.clear();
 }
 
+void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities,
+                                      uint32_t self, double now, double resend_after,
+                                      Connection& connection, PacketWriter& out,
+                                      RelayCounters& counters) {
+  for (const auto& [id, e] : entities) {
+    if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
+    SoftView& v = soft_views_[id];
+    if (now + kEpsilon < v.next_due || e.nodes_version <= v.acked_version) continue;
+    if (e.nodes_version == v.sent_version && now - v.sent_at < resend_after) continue;
+    if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) return;
+    uint32_t first = 0, chunk = 0;
+    while (first < e.nodes.size() && chunk < 64) {
+      uint32_t n = 0;
+      size_t size = EncodeSoftBodyChunk(time_ms_, id, e.nodes, first, config_.position_step_m,
+                                        payload_, &n);
+      if (size == 0) break;
+      Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
+      if (seq.ok()) {
+        soft_records_[*seq % soft_records_.size()] = {true, *seq, id, e.nodes_version, chunk};
+        RelayCounters::Inc(counters.entity_updates_sent);
+      }
+      budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
+      first += n;
+      ++chunk;
+    }
+    if (v.sent_version != e.nodes_version) v.acked_chunks = 0;
+    v.sent_version = e.nodes_version;
+    v.chunk_count = chunk;
+    v.sent_at = now;
+    double interval = 1.0 / (config_.fixed_rate_hz > 0 ? config_.fixed_rate_hz : config_.normal_hz);
+    v.next_due += interval;
+    if (v.next_due < now - interval) v.next_due = now + interval;
+  }
+}
+
 void ClientReplicator::OnPacketAcked(uint16_t sequence) {
+  SoftRecord& r = soft_records_[sequence % soft_records_.size()];
+  if (r.valid && r.sequence == sequence) {
+    r.valid = false;
+    auto it = soft_views_.find(r.id);
+    if (it != soft_views_.end() && it->second.sent_version == r.version) {
+      SoftView& v = it->second;
+      v.acked_chunks |= uint64_t{1} << r.chunk;
+      if (v.chunk_count > 0 && v.acked_chunks == (v.chunk_count >= 64 ? ~uint64_t{0}
+                                                                        : (uint64_t{1} << v.chunk_count) - 1)) {
+        v.acked_version = r.version;
+      }
+    }
+    return;
+  }
   if (delta_ != nullptr) {
     delta_->OnPacketAcked(sequence);
   } else {
@@ -241,6 +292,7 @@ void ClientReplicator::OnPacketAcked(uint16_t sequence) {
 
 void ClientReplicator::Forget(uint32_t entity_id) {
   tracker_.Forget(entity_id);
+  soft_views_.erase(entity_id);
   if (delta_ != nullptr) delta_->Forget(entity_id);
   views_.erase(entity_id);
 }

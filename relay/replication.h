@@ -30,6 +30,7 @@
 #include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/replication_tracker.h"
+#include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
 #include "relay/relay_counters.h"
 
@@ -93,6 +94,28 @@ class ClientReplicator {
   PriorityClass ClassOf(const Entity& e, double now) const;
   double IntervalOf(PriorityClass c) const;
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
+  // Soft bodies (format 5): the latest particle set of each changed soft body, in chunks,
+  // resent until every chunk of that version is acknowledged.
+  void TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
+                      double now, double resend_after, Connection& connection, PacketWriter& out,
+                      RelayCounters& counters);
+  struct SoftView {
+    uint32_t sent_version = 0;
+    uint32_t acked_version = 0;
+    uint32_t chunk_count = 0;
+    uint64_t acked_chunks = 0;  // bit i: chunk i of sent_version acknowledged
+    double sent_at = -1e9;
+    double next_due = -1e9;
+  };
+  struct SoftRecord {
+    bool valid = false;
+    uint16_t sequence = 0;
+    uint32_t id = 0;
+    uint32_t version = 0;
+    uint32_t chunk = 0;
+  };
+  std::unordered_map<uint32_t, SoftView> soft_views_;
+  std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence
 
   ReplicationConfig config_;
   std::unique_ptr<StateEncoder> encoder_;

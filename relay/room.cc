@@ -25,7 +25,7 @@ void Room::RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned) {
   if (members_.erase(player_id) == 0) return;
   for (auto it = entities_.begin(); it != entities_.end();) {
     Entity& e = it->second;
-    if (e.owner != player_id) {
+    if (e.owner != player_id && !(e.owner == 0 && e.creator == player_id)) {
       ++it;
       continue;
     }
@@ -35,6 +35,7 @@ void Room::RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned) {
       ++it;
     } else {
       despawned->push_back(e.id);
+      if (physics_) physics_->Remove(e.id);
       it = entities_.erase(it);
     }
   }
@@ -55,7 +56,10 @@ Entity& Room::AddEntity(Entity entity) {
   return entities_[id] = std::move(entity);
 }
 
-void Room::RemoveEntity(uint32_t id) { entities_.erase(id); }
+void Room::RemoveEntity(uint32_t id) {
+  entities_.erase(id);
+  if (physics_) physics_->Remove(id);
+}
 
 void Room::ScheduleNextTick(double now) {
   double interval = 1.0 / std::max(1.0, config_.tick_rate_hz);

@@ -12,6 +12,8 @@
 
 #include "protocol/state_codec.h"
 #include "relay/relay_config.h"
+#include "relay/room_physics.h"
+#include <memory>
 
 namespace edgephys {
 
@@ -19,7 +21,12 @@ inline constexpr uint32_t kEntityIdBlock = 1u << 16;  // ids per player slot
 
 struct Entity {
   uint32_t id = 0;
-  uint32_t owner = 0;            // player id; 0 = the room
+  uint32_t owner = 0;            // player id; 0 = the room or PhyS (see physics)
+  uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones)
+  PhysicsRole physics = PhysicsRole::kNone;
+  uint32_t held_by = 0;          // hand entity holding it (grabbed), 0 if none
+  std::vector<Vec3f> nodes;      // soft body particles (PhyS-simulated soft bodies)
+  uint32_t nodes_version = 0;    // bumped when `nodes` change
   uint32_t flags = 0;            // schema::EntityFlags
   uint32_t version = 1;          // bumped on every accepted state change
   double changed_at = 0;         // relay time of the last accepted change (resting detection)
@@ -45,8 +52,8 @@ class Room {
 
   // Adds a player; returns its slot, or 0 when the room is full.
   uint32_t AddMember(uint32_t player_id, uint32_t session);
-  // Removes a player. Its entities are despawned (ids appended to `despawned`) unless
-  // Persistent, which pass to the room.
+  // Removes a player. Its entities (those it owns, and PhyS-owned ones it created) are
+  // despawned (ids appended to `despawned`) unless Persistent, which pass to the room.
   void RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned);
   Member* FindMember(uint32_t player_id);
   const std::map<uint32_t, Member>& members() const { return members_; }
@@ -56,6 +63,13 @@ class Room {
   Entity& AddEntity(Entity entity);
   void RemoveEntity(uint32_t id);
   const std::unordered_map<uint32_t, Entity>& entities() const { return entities_; }
+
+  // PhyS for this room; null until the first entity with physics arrives.
+  RoomPhysics* physics() { return physics_.get(); }
+  RoomPhysics& EnsurePhysics(const physics::PhysicsConfig& config, double now) {
+    if (!physics_) physics_ = std::make_unique<RoomPhysics>(config, now);
+    return *physics_;
+  }
 
   // Tick scheduling: due when now >= next_tick().
   double next_tick() const { return next_tick_; }
@@ -69,6 +83,7 @@ class Room {
   RoomConfig config_;
   std::map<uint32_t, Member> members_;  // by player id
   std::unordered_map<uint32_t, Entity> entities_;
+  std::unique_ptr<RoomPhysics> physics_;
   double next_tick_;
   double empty_since_;
 };

@@ -41,6 +41,12 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case schema::Body::Despawn:
       relay_->OnDespawn(*this, msg->body_as_Despawn()->entity_id());
       break;
+    case schema::Body::Grab:
+      relay_->OnGrab(*this, msg->body_as_Grab()->entity_id(), msg->body_as_Grab()->hand_id());
+      break;
+    case schema::Body::Release:
+      relay_->OnRelease(*this, msg->body_as_Release()->entity_id());
+      break;
     default:
       relay_->SendError(*this, static_cast<uint16_t>(schema::RejectReason::InvalidMessage), 0,
                         "unexpected message type");

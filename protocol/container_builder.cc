@@ -1,8 +1,8 @@
-#include "physics_backend/container_builder.h"
+#include "protocol/container_builder.h"
 
 #include <flatbuffers/flatbuffers.h>
 
-namespace edgephys::physics {
+namespace edgephys {
 namespace {
 
 schema::Vec3 ToFb(const Vec3f& v) { return schema::Vec3(v.x, v.y, v.z); }
@@ -12,6 +12,12 @@ schema::Quat ToFb(const Quatf& q) { return schema::Quat(q.x, q.y, q.z, q.w); }
 
 std::vector<uint8_t> BuildContainer(const EntitySpec& spec) {
   flatbuffers::FlatBufferBuilder fbb(1024);
+  schema::FinishContainerBuffer(fbb, AddContainer(fbb, spec));
+  return {fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize()};
+}
+
+flatbuffers::Offset<schema::Container> AddContainer(flatbuffers::FlatBufferBuilder& fbb,
+                                                    const EntitySpec& spec) {
 
   std::vector<flatbuffers::Offset<schema::Collider>> colliders;
   colliders.reserve(spec.colliders.size());
@@ -47,12 +53,10 @@ std::vector<uint8_t> BuildContainer(const EntitySpec& spec) {
                                              sb.stiffness, sb.damping);
   }
   const schema::Transform transform(ToFb(spec.position), ToFb(spec.rotation), ToFb(spec.scale));
-  auto root = schema::CreateContainerDirect(
+  return schema::CreateContainerDirect(
       fbb, spec.id, spec.parent_id, spec.owner, spec.flags, &transform,
       spec.name.empty() ? nullptr : spec.name.c_str(), rigid_body,
       colliders.empty() ? nullptr : &colliders, joints.empty() ? nullptr : &joints, soft_body);
-  schema::FinishContainerBuffer(fbb, root);
-  return {fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize()};
 }
 
 ColliderSpec BoxCollider(Vec3f half_extents) {
@@ -98,4 +102,4 @@ EntitySpec DynamicSphere(uint32_t id, Vec3f position, float radius, float mass) 
   return e;
 }
 
-}  // namespace edgephys::physics
+}  // namespace edgephys

@@ -1,0 +1,169 @@
+#include "relay/room_physics.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+
+namespace edgephys {
+namespace {
+
+Eigen::Quaternionf ToEigen(const Quatf& q) { return Eigen::Quaternionf(q.w, q.x, q.y, q.z); }
+Eigen::Vector3f ToEigen(const Vec3f& v) { return Eigen::Vector3f(v.x, v.y, v.z); }
+Quatf FromEigen(const Eigen::Quaternionf& q) { return {q.x(), q.y(), q.z(), q.w()}; }
+Vec3f FromEigen(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
+
+bool IsDynamic(const schema::Container& c) {
+  const schema::RigidBody* rb = c.rigid_body();
+  return rb != nullptr && !rb->kinematic() && rb->mass() > 0;
+}
+
+}  // namespace
+
+RoomPhysics::RoomPhysics(const physics::PhysicsConfig& config, double now)
+    : world_(config), time_(now) {}
+
+PhysicsRole RoomPhysics::RoleOf(const schema::Container& c) {
+  const bool offloaded = (c.flags() & static_cast<uint32_t>(schema::EntityFlags::Offloaded)) != 0;
+  if (offloaded && (IsDynamic(c) || c.soft_body() != nullptr)) return PhysicsRole::kSimulated;
+  const bool has_colliders = c.colliders() != nullptr && c.colliders()->size() > 0;
+  if (has_colliders || c.rigid_body() != nullptr || c.soft_body() != nullptr) {
+    return PhysicsRole::kMirrored;
+  }
+  // An offloaded entity without physics (a parent): kept as a transform-only node so the
+  // hierarchy under it is replicated by PhyS.
+  if (offloaded) return PhysicsRole::kMirrored;
+  return PhysicsRole::kNone;
+}
+
+Status RoomPhysics::Add(const schema::Container& c, PhysicsRole role, std::string* detail) {
+  physics::InvalidReason reason = physics::InvalidReason::kNone;
+  Status st;
+  if (role == PhysicsRole::kMirrored && IsDynamic(c)) {
+    // Mirror a locally simulated body as kinematic: its owner is the authority.
+    schema::ContainerT copy;
+    c.UnPackTo(&copy);
+    copy.rigid_body->kinematic = true;
+    copy.soft_body.reset();
+    flatbuffers::FlatBufferBuilder fbb(512);
+    fbb.Finish(schema::Container::Pack(fbb, &copy));
+    st = world_.AddEntity(*flatbuffers::GetRoot<schema::Container>(fbb.GetBufferPointer()), &reason);
+  } else if (role == PhysicsRole::kMirrored && c.soft_body() != nullptr) {
+    *detail = "a soft body must be offloaded (Offloaded flag) to be simulated";
+    return Status(StatusCode::kInvalidArgument, "soft body not offloaded");
+  } else {
+    st = world_.AddEntity(c, &reason);
+  }
+  if (!st.ok()) {
+    *detail = "physics: " + std::string(st.message()) + " (reason " +
+              std::to_string(static_cast<int>(reason)) + ")";
+    return Status(StatusCode::kInvalidArgument, "invalid physics components");
+  }
+  roles_[c.entity_id()] = role;
+  if (c.soft_body() != nullptr) soft_.insert(c.entity_id());
+  return Status::Ok();
+}
+
+void RoomPhysics::Remove(uint32_t id) {
+  if (roles_.erase(id) == 0) return;
+  soft_.erase(id);
+  (void)world_.RemoveEntity(id);
+  holds_.erase(id);
+  for (auto it = holds_.begin(); it != holds_.end();) {
+    it = it->second.hand == id ? holds_.erase(it) : std::next(it);
+  }
+  for (auto it = hovering_.begin(); it != hovering_.end();) {
+    it = (it->first == id || it->second == id) ? hovering_.erase(it) : std::next(it);
+  }
+}
+
+void RoomPhysics::Drive(uint32_t id, const EntityState& s) {
+  auto role = roles_.find(id);
+  if (role == roles_.end() || role->second != PhysicsRole::kMirrored) return;
+  (void)world_.MoveToTransform(id, s.position, s.rotation);
+  const Eigen::Quaternionf hand_rot = ToEigen(s.rotation).normalized();
+  const Eigen::Vector3f hand_pos = ToEigen(s.position);
+  for (const auto& [entity, hold] : holds_) {
+    if (hold.hand != id) continue;
+    Eigen::Vector3f pos = hand_pos + hand_rot * ToEigen(hold.offset_position);
+    Eigen::Quaternionf rot = hand_rot * ToEigen(hold.offset_rotation);
+    (void)world_.MoveToTransform(entity, FromEigen(pos), FromEigen(rot.normalized()));
+  }
+}
+
+Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, std::string* detail) {
+  auto role = roles_.find(entity);
+  if (role == roles_.end() || role->second != PhysicsRole::kSimulated) {
+    *detail = "only PhyS-simulated entities can be grabbed";
+    return Status(StatusCode::kPermissionDenied, "not simulated");
+  }
+  if (auto held = holds_.find(entity); held != holds_.end() && held->second.hand != hand) {
+    *detail = "already held by another hand";
+    return Status(StatusCode::kPermissionDenied, "held");
+  }
+  if (hovering_.count({hand, entity}) == 0) {
+    *detail = "the hand's trigger does not hover the entity";
+    return Status(StatusCode::kPermissionDenied, "not hovering");
+  }
+  Status st = world_.Grab(entity, hand);
+  if (!st.ok()) {
+    *detail = std::string(st.message());
+    return Status(StatusCode::kPermissionDenied, "refused by PhyS");
+  }
+  EntityState hand_state, entity_state;
+  (void)world_.GetState(hand, &hand_state);
+  (void)world_.GetState(entity, &entity_state);
+  const Eigen::Quaternionf inv = ToEigen(hand_state.rotation).normalized().conjugate();
+  Hold hold;
+  hold.hand = hand;
+  hold.offset_position =
+      FromEigen(inv * (ToEigen(entity_state.position) - ToEigen(hand_state.position)));
+  hold.offset_rotation = FromEigen((inv * ToEigen(entity_state.rotation)).normalized());
+  holds_[entity] = hold;
+  return Status::Ok();
+}
+
+Status RoomPhysics::Release(uint32_t entity) {
+  if (holds_.erase(entity) == 0) return Status(StatusCode::kNotFound, "not held");
+  return world_.Release(entity);
+}
+
+uint32_t RoomPhysics::HolderOf(uint32_t entity) const {
+  auto it = holds_.find(entity);
+  return it == holds_.end() ? 0 : it->second.hand;
+}
+
+void RoomPhysics::Restore(uint32_t id, const EntityState& state, const Vec3f& linear,
+                          const Vec3f& angular) {
+  (void)world_.SetTransform(id, state.position, state.rotation);
+  (void)world_.SetVelocity(id, linear, angular);
+}
+
+void RoomPhysics::Advance(double now, StepOutput* out) {
+  out->moved.clear();
+  out->soft_moved.clear();
+  out->events.clear();
+  out->steps = 0;
+  out->step_seconds = 0;
+  auto start = std::chrono::steady_clock::now();
+  // The world accumulates elapsed time and runs whole fixed steps (dropping a backlog beyond
+  // max_substeps rather than replaying it).
+  out->steps = world_.Advance(std::max(0.0, now - time_));
+  time_ = now;
+  if (out->steps == 0) return;
+  out->step_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  world_.DrainEvents(&out->events);
+  for (const physics::PhysicsEvent& ev : out->events) {
+    if (ev.type == physics::PhysicsEventType::kTriggerEnter) hovering_.insert({ev.entity_a, ev.entity_b});
+    if (ev.type == physics::PhysicsEventType::kTriggerExit) hovering_.erase({ev.entity_a, ev.entity_b});
+  }
+  world_.CollectStates(&scratch_states_);
+  for (const EntityState& s : scratch_states_) {
+    auto role = roles_.find(s.entity_id);
+    if (role == roles_.end() || role->second != PhysicsRole::kSimulated) continue;
+    out->moved.push_back(s);
+    if (soft_.count(s.entity_id) != 0) out->soft_moved.push_back(s.entity_id);
+  }
+}
+
+}  // namespace edgephys

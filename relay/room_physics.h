@@ -1,0 +1,93 @@
+// RoomPhysics: PhyS for one room, embedded in the relay — the room's Bullet world
+// (physics_backend/physics_world.h) plus what the relay needs around it: which entities PhyS
+// simulates and which it mirrors, trigger hovering for grabs, holding grabbed objects in the
+// hand, and stepping at the fixed rate.
+//
+// Roles (RoleOf):
+//  * kSimulated: the entity carries the Offloaded flag and a dynamic rigid body or a soft
+//    body. PhyS owns its state; the relay replicates what PhyS produces.
+//  * kMirrored: any other entity with colliders or a rigid body (a local-physics user's
+//    hands, head, held objects; an offloaded client's kinematic hands). Added as a kinematic
+//    body and driven by its owner's state updates (Drive), so it pushes simulated objects.
+//  * kNone: no physics; PhyS never sees it.
+//
+// Thread-safety: none; owned by the room's thread. Cost: Advance() is the physics step
+// (Bullet's cost) plus O(moved entities + events); other calls are O(1) amortised.
+#pragma once
+
+#include <cstdint>
+#include <set>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "edgephys/schema/container_generated.h"
+#include "physics_backend/physics_world.h"
+#include "protocol/state_codec.h"
+
+namespace edgephys {
+
+enum class PhysicsRole : uint8_t { kNone = 0, kMirrored, kSimulated };
+
+class RoomPhysics {
+ public:
+  RoomPhysics(const physics::PhysicsConfig& config, double now);
+
+  static PhysicsRole RoleOf(const schema::Container& c);
+
+  // Adds an entity in its role (kMirrored entities are rebuilt as kinematic bodies). On
+  // failure (invalid components) returns kInvalidArgument and explains in `*detail`.
+  Status Add(const schema::Container& c, PhysicsRole role, std::string* detail);
+  void Remove(uint32_t id);
+  bool Has(uint32_t id) const { return roles_.count(id) != 0; }
+
+  // An owner moved a mirrored entity: the kinematic body follows, and so does whatever that
+  // entity holds.
+  void Drive(uint32_t id, const EntityState& state);
+
+  // Attaches simulated, Interactable `entity` to `hand` at their current relative pose.
+  // kFailedPrecondition-like errors (kPermissionDenied) with `*detail` unless the hand's
+  // trigger hovers the entity and nobody else holds it.
+  Status Grab(uint32_t entity, uint32_t hand, std::string* detail);
+  Status Release(uint32_t entity);
+  // The hand holding `entity`, 0 if none.
+  uint32_t HolderOf(uint32_t entity) const;
+
+  // Restores a simulated entity's pose and velocities (failover onto a fresh world).
+  void Restore(uint32_t id, const EntityState& state, const Vec3f& linear, const Vec3f& angular);
+
+  struct StepOutput {
+    std::vector<EntityState> moved;               // simulated entities that moved
+    std::vector<uint32_t> soft_moved;             // simulated soft bodies that moved
+    std::vector<physics::PhysicsEvent> events;    // in step order
+    int steps = 0;
+    double step_seconds = 0;                      // wall time of those steps
+  };
+  // Runs the fixed steps due by `now`. `out` is cleared first.
+  void Advance(double now, StepOutput* out);
+
+  Status GetSoftBodyNodes(uint32_t id, std::vector<Vec3f>* nodes) const {
+    return world_.GetSoftBodyNodes(id, nodes);
+  }
+  Status GetVelocity(uint32_t id, Vec3f* linear, Vec3f* angular) const {
+    return world_.GetVelocity(id, linear, angular);
+  }
+  physics::PhysicsCounters counters() const { return world_.counters(); }
+
+ private:
+  struct Hold {
+    uint32_t hand = 0;
+    Vec3f offset_position;  // the entity's pose in the hand's frame
+    Quatf offset_rotation;
+  };
+  physics::PhysicsWorld world_;
+  double time_;
+  std::unordered_map<uint32_t, PhysicsRole> roles_;
+  std::set<uint32_t> soft_;  // entities with a soft body
+  std::set<std::pair<uint32_t, uint32_t>> hovering_;  // (trigger entity, entity inside)
+  std::unordered_map<uint32_t, Hold> holds_;          // by held entity
+  std::vector<EntityState> scratch_states_;
+};
+
+}  // namespace edgephys
