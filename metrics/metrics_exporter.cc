@@ -238,6 +238,24 @@ class RelayCollectable : public prometheus::Collectable {
     families.push_back(HistogramFamily("edgephys_tick_duration_seconds",
                                        "Wall time of one room tick, in seconds.",
                                        c.tick_seconds));
+
+    families.push_back(GaugeFamily("edgephys_physics_bodies",
+                                   "Rigid bodies in PhyS worlds (all rooms).", c.physics_bodies));
+    families.push_back(GaugeFamily("edgephys_physics_sleeping_bodies",
+                                   "Dynamic bodies asleep in PhyS worlds (all rooms).",
+                                   c.physics_sleeping_bodies));
+    families.push_back(GaugeFamily("edgephys_physics_workers",
+                                   "Remote edgephys-phys workers attached.", c.physics_workers));
+    families.push_back(CounterFamily("edgephys_physics_steps_total",
+                                     "Fixed PhyS steps run (all rooms).", c.physics_steps));
+    families.push_back(CounterFamily("edgephys_physics_guard_resets_total",
+                                     "Bodies restored by the stability guard.", c.guard_resets));
+    families.push_back(CounterFamily("edgephys_physics_failovers_total",
+                                     "Rooms restored on another worker or embedded.",
+                                     c.physics_failovers));
+    families.push_back(HistogramFamily("edgephys_physics_step_seconds",
+                                       "Wall time of one PhyS step, in seconds.",
+                                       c.physics_step_seconds));
     return families;
   }
 

@@ -1,0 +1,98 @@
+// multiobject: the paper's MultiObject scenario (PhyS throughput "Obj_N").
+//
+// For every object count N, in one run:
+//  1. Step time, PhyS vs raw Bullet: the scene of physics_backend/scenes.h (N boxes dropped into
+//     a walled container, a kinematic paddle stirring them) built twice from the same
+//     parameters and seed — PhysSMultiObjectScene (PhysicsWorld from containers, what the relay
+//     runs, including CollectStates/DrainEvents) and RawBulletMultiObjectScene (the baseline) —
+//     stepped interleaved (which one goes first alternates), each step timed on its own.
+//     After `bench_warmup_steps` of settling, median and p99 of the per-step wall time of each,
+//     their ratio, and the share of boxes moving faster than `moving_speed_mps`.
+//  2. Replication: an in-process Relay on loopback UDP (embedded PhyS, 60 Hz ticks, edgephys
+//     mode, 1 mm / 0.1 deg) and a host client that spawns the same scene as offloaded entities
+//     (walls and floor static, boxes Offloaded dynamic bodies) plus the stirrer as an
+//     Offloaded|Kinematic body it drives with PublishTransform — mirrored into PhyS, it pushes
+//     the boxes. Receivers join the room. Measured over `duration_s` after the pile has had
+//     `relay_settle_steps` PhyS steps: relay egress per receiver (its per-connection
+//     bytes_sent, Mb/s with 1 Mb = 10^6 bits) beside the paper's Obj_N column, entity updates
+//     per second, the relay's own mean step time (RelayCounters), PhyS simulated seconds per
+//     wall second, the moving share from the states the receiver holds, and the receivers'
+//     position error: against the relay's entity state at the same moment (sampled every
+//     0.1 s), and against the state the relay had when it sent (best match among the relay's
+//     recent states of that entity: quantisation only).
+//
+// The stirrer's clock is PhyS's simulated time (relay physics steps x dt, read in-process), so
+// when PhyS runs slower than real time the paddle slows with it instead of jumping through the
+// pile; the same pose function drives the standalone scenes.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace edgephys::loadgen {
+
+struct MultiObjectOptions {
+  std::vector<uint32_t> objects = {500, 1000, 2000, 5000, 10000};
+  uint32_t seed = 1;
+  double moving_speed_mps = 0.01;  // "moving": linear speed above this
+  // Standalone PhyS vs raw Bullet.
+  bool bench = true;
+  int bench_warmup_steps = 120;    // settling (2 s simulated), not measured
+  int bench_steps = 300;           // measured steps per scene, at most...
+  double bench_max_s = 25;         // ...and at most this wall time for both scenes together
+  int bench_min_steps = 30;        // ...but at least this many
+  // Relay.
+  bool relay = true;
+  uint32_t receivers = 2;
+  double duration_s = 5;           // measured wall seconds
+  int relay_settle_steps = 120;    // PhyS steps after the spawns before measuring
+  double relay_settle_max_s = 45;  // wall cap for settling
+  int relay_max_substeps = 1;      // PhysicsConfig::max_substeps of the relay's PhyS
+  float position_step_m = 0.001f;
+  float rotation_bound_deg = 0.1f;
+  bool progress = true;
+};
+
+struct MultiObjectResult {
+  uint32_t objects = 0;
+  // Standalone, same run, interleaved.
+  double step_ms_median = 0, step_ms_p99 = 0;                        // PhyS (PhysicsWorld)
+  double raw_bullet_step_ms_median = 0, raw_bullet_step_ms_p99 = 0;  // raw Bullet
+  double step_ratio = 0;             // PhyS median / raw Bullet median
+  int bench_steps = 0;               // measured steps per scene
+  double moving_fraction = 0, moving_fraction_min = 0;          // PhyS scene, sampled
+  double raw_moving_fraction = 0, raw_moving_fraction_min = 0;  // raw Bullet scene
+  // Relay run.
+  bool relay_ok = false;
+  double egress_mbit_per_s_per_client = 0;  // relay's counters, mean over receivers
+  double socket_mbit_per_s_per_client = 0;  // receiving sockets
+  double paper_mbit_per_s = 0;              // paper's Obj_N (0: not in the paper)
+  double updates_per_s_per_client = 0;
+  double bytes_per_update = 0;
+  double relay_step_ms_mean = 0;            // RelayCounters::physics_step_seconds
+  double sim_speed = 0;                     // PhyS simulated seconds per wall second
+  double relay_moving_fraction = 0, relay_moving_fraction_min = 0;  // from received states
+  double pos_err_max_m = 0, pos_err_p99_m = 0;            // vs relay state, same moment
+  double pos_err_sent_max_m = 0, pos_err_sent_p99_m = 0;  // vs the relay state it was sent from
+  uint64_t error_samples = 0;
+  double spawn_s = 0;                       // wall time to spawn the scene everywhere
+};
+
+std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& options);
+
+// The paper's PhyS throughput for Obj_N, Mb/s (0 where the paper has none).
+double PaperObjMbitPerS(uint32_t objects);
+
+std::string MultiObjectJson(const MultiObjectOptions& options,
+                            const std::vector<MultiObjectResult>& results);
+std::string MultiObjectTable(const std::vector<MultiObjectResult>& results);
+// <prefix>.dat, <prefix>_steptime / _egress / _error (.gp, .png, .svg; images only if gnuplot
+// is on PATH). False if a file could not be written.
+bool WriteMultiObjectCharts(const std::vector<MultiObjectResult>& results, const std::string& prefix);
+
+// Shared with softbody: writes <prefix>_<name>.{png,svg} (and their .gp scripts) from a gnuplot
+// body (everything after `set output`). False if a script could not be written.
+bool WriteGnuplotChart(const std::string& prefix, const std::string& name, const std::string& body);
+
+}  // namespace edgephys::loadgen
