@@ -380,6 +380,10 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   return Status::Ok();
 }
 
+void Connection::SetTimeout(double timeout_s) {
+  if (timeout_s > 0) impl_->config.timeout_s = timeout_s;
+}
+
 void Connection::Update(double now, PacketWriter& out) {
   if (impl_->pending_disconnect_sends > 0) {
     impl_->SendDisconnects(out);

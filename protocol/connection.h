@@ -142,6 +142,9 @@ class Connection {
   // the connection disconnected. Idempotent.
   void Disconnect(DisconnectReason reason, PacketWriter& out);
 
+  // Changes the silence timeout (e.g. shorter for relay <-> worker links). Seconds, > 0.
+  void SetTimeout(double timeout_s);
+
   bool connected() const { return disconnect_reason_ == DisconnectReason::kNone; }
   DisconnectReason disconnect_reason() const { return disconnect_reason_; }
   const ConnectionStats& stats() const { return stats_; }

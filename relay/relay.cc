@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "protocol/byte_io.h"
 #include "relay/session.h"
 
 namespace edgephys {
@@ -16,6 +17,8 @@ uint16_t Code(RejectReason r) { return static_cast<uint16_t>(r); }
 
 // States held per session for entities whose spawn has not arrived yet.
 constexpr size_t kMaxEarlyStates = 1024;
+// Silence after which a PhyS worker counts as dead (its rooms fail over).
+constexpr double kWorkerTimeoutS = 0.5;
 
 // At most one log line per reason per second, with the number suppressed since.
 class DropLog {
@@ -451,10 +454,11 @@ void Relay::OnSpawn(Session& s, std::span<const uint8_t> message, const schema::
   e.changed_at = now_;
   e.creator = s.player_id();
   e.physics = RoomPhysics::RoleOf(*c);
+  e.spawn_seq = room.NextSpawnSeq();
   if (e.physics != PhysicsRole::kNone) {
     std::string detail;
-    RoomPhysics& phys = room.EnsurePhysics(config_.physics, now_);
-    if (!phys.Add(*c, e.physics, &detail).ok()) {
+    if (room.physics() == nullptr) room.set_physics(MakePhysicsLink(0, now_));
+    if (!room.physics()->Add(*c, e.physics, &detail).ok()) {
       return SendError(s, Code(RejectReason::InvalidContainer), id, detail);
     }
     if (e.physics == PhysicsRole::kSimulated) e.owner = 0;  // PhyS is the authority now
@@ -512,12 +516,11 @@ void Relay::OnGrab(Session& s, uint32_t entity_id, uint32_t hand_id) {
   if (hand->owner != s.player_id()) {
     return SendError(s, Code(RejectReason::NotOwner), hand_id, "not your hand");
   }
-  std::string detail = "no physics in this room";
-  if (room.physics() == nullptr || !room.physics()->Grab(entity_id, hand_id, &detail).ok()) {
-    return SendError(s, Code(RejectReason::GrabRefused), entity_id, detail);
+  if (room.physics() == nullptr || e->physics != PhysicsRole::kSimulated) {
+    return SendError(s, Code(RejectReason::GrabRefused), entity_id, "not simulated by PhyS");
   }
-  e->held_by = hand_id;
-  BroadcastPhysicsEvent(room, schema::PhysicsEventKind::Grabbed, entity_id, hand_id);
+  e->grab_requester = s.player_id();
+  room.physics()->RequestGrab(entity_id, hand_id);  // answered in StepPhysics
 }
 
 void Relay::OnRelease(Session& s, uint32_t entity_id) {
@@ -544,23 +547,47 @@ void Relay::BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uin
 }
 
 void Relay::StepPhysics(Room& room, double now) {
-  RoomPhysics* phys = room.physics();
+  PhysicsLink* phys = room.physics();
   if (phys == nullptr) return;
+  if (!phys->Healthy(now)) {
+    FailOver(room, now);
+    phys = room.physics();
+  }
   phys->Advance(now, &step_output_);
-  if (step_output_.steps == 0) return;
-  counters_->physics_step_seconds.Observe(step_output_.step_seconds / step_output_.steps);
-  RelayCounters::Inc(counters_->physics_steps, static_cast<uint64_t>(step_output_.steps));
-  for (const EntityState& st : step_output_.moved) {
-    Entity* e = room.FindEntity(st.entity_id);
-    if (e == nullptr || e->physics != PhysicsRole::kSimulated) continue;
-    e->state = st;
+  if (step_output_.steps > 0 && phys->worker() == 0) {
+    counters_->physics_step_seconds.Observe(step_output_.step_seconds / step_output_.steps);
+    RelayCounters::Inc(counters_->physics_steps, static_cast<uint64_t>(step_output_.steps));
+  }
+  for (const RoomPhysics::MovedBody& m : step_output_.moved) {
+    Entity* e = room.FindEntity(m.state.entity_id);
+    if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
+    e->state = m.state;
+    e->linear_velocity = m.linear;
+    e->angular_velocity = m.angular;
     ++e->version;
     e->changed_at = now;
   }
-  for (uint32_t id : step_output_.soft_moved) {
-    Entity* e = room.FindEntity(id);
-    if (e == nullptr || !phys->GetSoftBodyNodes(id, &e->nodes).ok()) continue;
+  for (const RoomPhysics::SoftNodes& part : step_output_.soft) {
+    Entity* e = room.FindEntity(part.id);
+    if (e == nullptr || part.total == 0 || part.first + part.nodes.size() > part.total) continue;
+    e->nodes.resize(part.total);
+    std::copy(part.nodes.begin(), part.nodes.end(), e->nodes.begin() + part.first);
     ++e->nodes_version;
+  }
+  for (const RoomPhysics::GrabResult& g : step_output_.grabs) {
+    Entity* e = room.FindEntity(g.entity);
+    if (e == nullptr) continue;
+    uint32_t requester = e->grab_requester;
+    e->grab_requester = 0;
+    if (g.ok) {
+      e->held_by = g.hand;
+      BroadcastPhysicsEvent(room, schema::PhysicsEventKind::Grabbed, g.entity, g.hand);
+    } else if (Member* m = room.FindMember(requester)) {
+      auto sit = sessions_.find(m->session);
+      if (sit != sessions_.end()) {
+        SendError(*sit->second, Code(RejectReason::GrabRefused), g.entity, g.detail);
+      }
+    }
   }
   for (const physics::PhysicsEvent& ev : step_output_.events) {
     using T = physics::PhysicsEventType;
@@ -579,7 +606,102 @@ void Relay::StepPhysics(Room& room, double now) {
   }
 }
 
+std::unique_ptr<PhysicsLink> Relay::MakePhysicsLink(uint32_t exclude_worker, double now) {
+  // The least loaded healthy worker, else embedded.
+  Session* best = nullptr;
+  size_t best_rooms = 0;
+  for (auto& [id, s] : sessions_) {
+    if (!s->is_worker() || id == exclude_worker || !s->connection().connected()) continue;
+    size_t rooms = 0;
+    for (auto& [name, r] : rooms_) {
+      if (r->physics() != nullptr && r->physics()->worker() == id) ++rooms;
+    }
+    if (best == nullptr || rooms < best_rooms) {
+      best = s.get();
+      best_rooms = rooms;
+    }
+  }
+  if (best == nullptr) return std::make_unique<EmbeddedPhysicsLink>(config_.physics, now);
+  uint32_t handle = ++next_room_handle_;
+  spdlog::info("PhyS: room handle {} on worker {:08x}", handle, best->connection().id());
+  return std::make_unique<RemotePhysicsLink>(best, best->connection().id(), handle, config_.physics,
+                                             now);
+}
+
+void Relay::FailOver(Room& room, double now) {
+  std::unique_ptr<PhysicsLink> old = room.TakePhysics();
+  uint32_t dead_worker = old ? old->worker() : 0;
+  if (auto* remote = dynamic_cast<RemotePhysicsLink*>(old.get())) remote->Detach();
+  old.reset();
+  room.set_physics(MakePhysicsLink(dead_worker, now));
+  PhysicsLink& link = *room.physics();
+  std::vector<Entity*> order;
+  for (const auto& [id, e] : room.entities()) {
+    if (e.physics != PhysicsRole::kNone) order.push_back(room.FindEntity(id));
+  }
+  std::sort(order.begin(), order.end(),
+            [](const Entity* a, const Entity* b) { return a->spawn_seq < b->spawn_seq; });
+  for (Entity* e : order) {
+    const auto* msg = schema::GetControlMessage(e->spawn.data());
+    const schema::Container* c = msg->body_as_Spawn()->container();
+    std::string detail;
+    if (!link.Add(*c, e->physics, &detail).ok()) {
+      spdlog::error("failover of room '{}': entity {} not restored: {}", room.name(), e->id, detail);
+      continue;
+    }
+    if (e->physics == PhysicsRole::kSimulated) {
+      link.Restore(e->id, e->state, e->linear_velocity, e->angular_velocity);
+    } else {
+      link.Drive(e->id, e->state);
+    }
+  }
+  for (Entity* e : order) {
+    if (e->held_by != 0) link.RequestGrab(e->id, e->held_by, /*force=*/true);
+  }
+  RelayCounters::Inc(counters_->physics_failovers);
+  spdlog::warn("PhyS for room '{}' failed over from {} to {} ({} entities)", room.name(),
+               dead_worker ? "a worker" : "embedded", link.worker() ? "another worker" : "embedded",
+               order.size());
+}
+
+void Relay::OnWorkerHello(Session& s) {
+  if ((s.permissions() & kPermissionWorker) == 0) {
+    return SendError(s, Code(RejectReason::NotOwner), 0, "the token is not a worker token");
+  }
+  if (s.is_worker()) return;
+  s.set_worker(true);
+  s.connection().SetTimeout(kWorkerTimeoutS);
+  counters_->physics_workers.fetch_add(1, std::memory_order_relaxed);
+  spdlog::info("PhyS worker {:08x} attached from {}:{}", s.connection().id(),
+               s.endpoint().address().to_string(), s.endpoint().port());
+}
+
+void Relay::OnWorkerResult(Session& s, const schema::WorkerResult& result) {
+  if (!s.is_worker()) return;
+  for (auto& [name, room] : rooms_) {
+    auto* remote = dynamic_cast<RemotePhysicsLink*>(room->physics());
+    if (remote != nullptr && remote->worker() == s.connection().id() &&
+        remote->handle() == result.room()) {
+      remote->ReceiveResult(result, now_);
+      return;
+    }
+  }
+}
+
+void Relay::OnWorkerStates(Session& s, std::span<const uint8_t> payload) {
+  if (payload.size() < 5) return;
+  uint32_t handle = LoadU32LE(payload.data() + 1);
+  for (auto& [name, room] : rooms_) {
+    auto* remote = dynamic_cast<RemotePhysicsLink*>(room->physics());
+    if (remote != nullptr && remote->worker() == s.connection().id() && remote->handle() == handle) {
+      remote->ReceiveStates(payload, now_);
+      return;
+    }
+  }
+}
+
 void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
+  if (s.is_worker()) return OnWorkerStates(s, payload);
   auto it = rooms_.find(s.room());
   if (it == rooms_.end()) {
     counters_->RejectUpdate(DropReason::kNotJoined);
@@ -649,6 +771,16 @@ void Relay::RemoveSession(uint32_t connection_id, double now) {
   if (it == sessions_.end()) return;
   Session& s = *it->second;
   if (!s.room().empty()) OnLeaveRoom(s, now);
+  if (s.is_worker()) {
+    counters_->physics_workers.fetch_sub(1, std::memory_order_relaxed);
+    spdlog::warn("PhyS worker {:08x} lost ({})", connection_id,
+                 static_cast<int>(s.connection().disconnect_reason()));
+    for (auto& [name, room] : rooms_) {
+      if (room->physics() != nullptr && room->physics()->worker() == connection_id) {
+        FailOver(*room, now);
+      }
+    }
+  }
   DisconnectReason reason = s.connection().disconnect_reason();
   counters_->CountDisconnect(reason);
   spdlog::info("player {} disconnected (reason {})", s.player_id(), static_cast<int>(reason));

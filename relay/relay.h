@@ -84,6 +84,13 @@ class Relay {
   void BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a, uint32_t b);
   // Runs the room's due PhyS steps and folds their results into the room's entities.
   void StepPhysics(Room& room, double now);
+  // A PhyS link on the least loaded worker (not `exclude_worker`), else embedded.
+  std::unique_ptr<PhysicsLink> MakePhysicsLink(uint32_t exclude_worker, double now);
+  // Rebuilds the room's PhyS on a new link from the containers, states and velocities held.
+  void FailOver(Room& room, double now);
+  void OnWorkerHello(Session& s);
+  void OnWorkerResult(Session& s, const schema::WorkerResult& result);
+  void OnWorkerStates(Session& s, std::span<const uint8_t> payload);
   void OnStates(Session& s, std::span<const uint8_t> payload);
   void SendError(Session& s, uint16_t reason, uint32_t entity_id, std::string_view detail);
 
@@ -104,6 +111,7 @@ class Relay {
   std::vector<uint8_t> receive_buffer_;
   StateBatch batch_;
   RoomPhysics::StepOutput step_output_;
+  uint32_t next_room_handle_ = 0;
   double now_ = 0;
   double last_rtt_sample_ = 0;
   std::vector<uint32_t> removal_scratch_;

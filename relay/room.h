@@ -12,7 +12,7 @@
 
 #include "protocol/state_codec.h"
 #include "relay/relay_config.h"
-#include "relay/room_physics.h"
+#include "relay/physics_link.h"
 #include <memory>
 
 namespace edgephys {
@@ -27,6 +27,10 @@ struct Entity {
   uint32_t held_by = 0;          // hand entity holding it (grabbed), 0 if none
   std::vector<Vec3f> nodes;      // soft body particles (PhyS-simulated soft bodies)
   uint32_t nodes_version = 0;    // bumped when `nodes` change
+  Vec3f linear_velocity;         // last reported by PhyS (restored on failover)
+  Vec3f angular_velocity;
+  uint64_t spawn_seq = 0;        // order of arrival in the room (parents before children)
+  uint32_t grab_requester = 0;   // player whose grab request is pending
   uint32_t flags = 0;            // schema::EntityFlags
   uint32_t version = 1;          // bumped on every accepted state change
   double changed_at = 0;         // relay time of the last accepted change (resting detection)
@@ -64,12 +68,11 @@ class Room {
   void RemoveEntity(uint32_t id);
   const std::unordered_map<uint32_t, Entity>& entities() const { return entities_; }
 
-  // PhyS for this room; null until the first entity with physics arrives.
-  RoomPhysics* physics() { return physics_.get(); }
-  RoomPhysics& EnsurePhysics(const physics::PhysicsConfig& config, double now) {
-    if (!physics_) physics_ = std::make_unique<RoomPhysics>(config, now);
-    return *physics_;
-  }
+  // PhyS for this room (embedded or on a worker); null until the first physics entity.
+  PhysicsLink* physics() { return physics_.get(); }
+  void set_physics(std::unique_ptr<PhysicsLink> link) { physics_ = std::move(link); }
+  std::unique_ptr<PhysicsLink> TakePhysics() { return std::move(physics_); }
+  uint64_t NextSpawnSeq() { return ++spawn_seq_; }
 
   // Tick scheduling: due when now >= next_tick().
   double next_tick() const { return next_tick_; }
@@ -83,7 +86,8 @@ class Room {
   RoomConfig config_;
   std::map<uint32_t, Member> members_;  // by player id
   std::unordered_map<uint32_t, Entity> entities_;
-  std::unique_ptr<RoomPhysics> physics_;
+  std::unique_ptr<PhysicsLink> physics_;
+  uint64_t spawn_seq_ = 0;
   double next_tick_;
   double empty_since_;
 };

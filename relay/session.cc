@@ -47,6 +47,12 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case schema::Body::Release:
       relay_->OnRelease(*this, msg->body_as_Release()->entity_id());
       break;
+    case schema::Body::WorkerHello:
+      relay_->OnWorkerHello(*this);
+      break;
+    case schema::Body::WorkerResult:
+      relay_->OnWorkerResult(*this, *msg->body_as_WorkerResult());
+      break;
     default:
       relay_->SendError(*this, static_cast<uint16_t>(schema::RejectReason::InvalidMessage), 0,
                         "unexpected message type");

@@ -12,13 +12,14 @@
 #include "protocol/connection.h"
 #include "protocol/datagram_socket.h"
 #include "protocol/state_codec.h"
+#include "relay/physics_link.h"
 #include "relay/replication.h"
 
 namespace edgephys {
 
 class Relay;
 
-class Session final : public ConnectionHandler, public PacketWriter {
+class Session final : public ConnectionHandler, public PacketWriter, public WorkerChannel {
  public:
   Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id, uint32_t player_id,
           uint32_t permissions, std::string token_room, uint64_t token_nonce,
@@ -30,6 +31,13 @@ class Session final : public ConnectionHandler, public PacketWriter {
   void OnPacketAcked(uint16_t sequence) override;
   // PacketWriter: packets to the client.
   void WritePacket(std::span<const uint8_t> packet) override;
+  // WorkerChannel: when this session is a PhyS worker.
+  bool SendToWorker(std::span<const uint8_t> message) override {
+    return connection_.SendReliable(message).ok();
+  }
+  bool WorkerConnected() const override { return connection_.connected(); }
+  bool is_worker() const { return is_worker_; }
+  void set_worker(bool worker) { is_worker_ = worker; }
 
   Connection& connection() { return connection_; }
   const Endpoint& endpoint() const { return endpoint_; }
@@ -65,6 +73,7 @@ class Session final : public ConnectionHandler, public PacketWriter {
   std::unique_ptr<ClientReplicator> replicator_;
   std::vector<uint8_t> accept_packet_;
   std::unordered_map<uint32_t, EntityState> early_states_;
+  bool is_worker_ = false;
   double now_;
 };
 

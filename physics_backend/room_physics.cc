@@ -1,4 +1,4 @@
-#include "relay/room_physics.h"
+#include "physics_backend/room_physics.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -90,7 +90,7 @@ void RoomPhysics::Drive(uint32_t id, const EntityState& s) {
   }
 }
 
-Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, std::string* detail) {
+Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, std::string* detail, bool require_hover) {
   auto role = roles_.find(entity);
   if (role == roles_.end() || role->second != PhysicsRole::kSimulated) {
     *detail = "only PhyS-simulated entities can be grabbed";
@@ -100,7 +100,7 @@ Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, std::string* detail) {
     *detail = "already held by another hand";
     return Status(StatusCode::kPermissionDenied, "held");
   }
-  if (hovering_.count({hand, entity}) == 0) {
+  if (require_hover && hovering_.count({hand, entity}) == 0) {
     *detail = "the hand's trigger does not hover the entity";
     return Status(StatusCode::kPermissionDenied, "not hovering");
   }
@@ -138,12 +138,17 @@ void RoomPhysics::Restore(uint32_t id, const EntityState& state, const Vec3f& li
   (void)world_.SetVelocity(id, linear, angular);
 }
 
+void RoomPhysics::RequestGrab(uint32_t entity, uint32_t hand, bool require_hover) {
+  GrabResult r;
+  r.entity = entity;
+  r.hand = hand;
+  r.ok = Grab(entity, hand, &r.detail, require_hover).ok();
+  pending_grabs_.push_back(std::move(r));
+}
+
 void RoomPhysics::Advance(double now, StepOutput* out) {
-  out->moved.clear();
-  out->soft_moved.clear();
-  out->events.clear();
-  out->steps = 0;
-  out->step_seconds = 0;
+  out->Clear();
+  out->grabs.swap(pending_grabs_);
   auto start = std::chrono::steady_clock::now();
   // The world accumulates elapsed time and runs whole fixed steps (dropping a backlog beyond
   // max_substeps rather than replaying it).
@@ -161,8 +166,16 @@ void RoomPhysics::Advance(double now, StepOutput* out) {
   for (const EntityState& s : scratch_states_) {
     auto role = roles_.find(s.entity_id);
     if (role == roles_.end() || role->second != PhysicsRole::kSimulated) continue;
-    out->moved.push_back(s);
-    if (soft_.count(s.entity_id) != 0) out->soft_moved.push_back(s.entity_id);
+    MovedBody m;
+    m.state = s;
+    (void)world_.GetVelocity(s.entity_id, &m.linear, &m.angular);
+    out->moved.push_back(m);
+    if (soft_.count(s.entity_id) != 0) {
+      out->soft.emplace_back();
+      out->soft.back().id = s.entity_id;
+      (void)world_.GetSoftBodyNodes(s.entity_id, &out->soft.back().nodes);
+      out->soft.back().total = static_cast<uint32_t>(out->soft.back().nodes.size());
+    }
   }
 }
 

@@ -49,7 +49,8 @@ class RoomPhysics {
   // Attaches simulated, Interactable `entity` to `hand` at their current relative pose.
   // kFailedPrecondition-like errors (kPermissionDenied) with `*detail` unless the hand's
   // trigger hovers the entity and nobody else holds it.
-  Status Grab(uint32_t entity, uint32_t hand, std::string* detail);
+  // `require_hover` false re-attaches without the trigger check (failover of a held object).
+  Status Grab(uint32_t entity, uint32_t hand, std::string* detail, bool require_hover = true);
   Status Release(uint32_t entity);
   // The hand holding `entity`, 0 if none.
   uint32_t HolderOf(uint32_t entity) const;
@@ -57,15 +58,44 @@ class RoomPhysics {
   // Restores a simulated entity's pose and velocities (failover onto a fresh world).
   void Restore(uint32_t id, const EntityState& state, const Vec3f& linear, const Vec3f& angular);
 
+  struct MovedBody {
+    EntityState state;
+    Vec3f linear;   // m/s
+    Vec3f angular;  // rad/s
+  };
+  struct SoftNodes {           // particles [first, first + nodes.size()) of `total`
+    uint32_t id = 0;
+    uint32_t total = 0;
+    uint32_t first = 0;
+    std::vector<Vec3f> nodes;
+  };
+  struct GrabResult {
+    uint32_t entity = 0;
+    uint32_t hand = 0;
+    bool ok = false;
+    std::string detail;
+  };
   struct StepOutput {
-    std::vector<EntityState> moved;               // simulated entities that moved
-    std::vector<uint32_t> soft_moved;             // simulated soft bodies that moved
+    std::vector<MovedBody> moved;                 // simulated entities that moved
+    std::vector<SoftNodes> soft;                  // simulated soft bodies that moved
     std::vector<physics::PhysicsEvent> events;    // in step order
+    std::vector<GrabResult> grabs;                // answers to RequestGrab, in request order
     int steps = 0;
     double step_seconds = 0;                      // wall time of those steps
+    void Clear() {
+      moved.clear();
+      soft.clear();
+      events.clear();
+      grabs.clear();
+      steps = 0;
+      step_seconds = 0;
+    }
   };
   // Runs the fixed steps due by `now`. `out` is cleared first.
   void Advance(double now, StepOutput* out);
+  // Grab() whose answer is delivered in the next Advance() output (the interface the relay
+  // uses for embedded and remote PhyS alike).
+  void RequestGrab(uint32_t entity, uint32_t hand, bool require_hover = true);
 
   Status GetSoftBodyNodes(uint32_t id, std::vector<Vec3f>* nodes) const {
     return world_.GetSoftBodyNodes(id, nodes);
@@ -88,6 +118,7 @@ class RoomPhysics {
   std::set<std::pair<uint32_t, uint32_t>> hovering_;  // (trigger entity, entity inside)
   std::unordered_map<uint32_t, Hold> holds_;          // by held entity
   std::vector<EntityState> scratch_states_;
+  std::vector<GrabResult> pending_grabs_;
 };
 
 }  // namespace edgephys

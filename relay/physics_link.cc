@@ -1,0 +1,176 @@
+#include "relay/physics_link.h"
+
+#include "protocol/handshake.h"
+
+namespace edgephys {
+namespace {
+
+schema::Pose ToPose(uint32_t id, const EntityState& s) {
+  return schema::Pose(id, schema::Vec3(s.position.x, s.position.y, s.position.z),
+                      schema::Quat(s.rotation.x, s.rotation.y, s.rotation.z, s.rotation.w));
+}
+
+}  // namespace
+
+RemotePhysicsLink::RemotePhysicsLink(WorkerChannel* channel, uint32_t worker_id,
+                                     uint32_t room_handle, const physics::PhysicsConfig& config,
+                                     double now)
+    : channel_(channel), worker_id_(worker_id), handle_(room_handle), validator_(config),
+      last_heard_(now) {
+  flatbuffers::FlatBufferBuilder fbb(64);
+  FinishControl(fbb, schema::CreateWorkerAssign(fbb, handle_, config.fixed_dt));
+  Send(fbb);
+}
+
+RemotePhysicsLink::~RemotePhysicsLink() {
+  if (channel_ != nullptr && !broken_) {
+    flatbuffers::FlatBufferBuilder fbb(32);
+    FinishControl(fbb, schema::CreateWorkerUnassign(fbb, handle_));
+    Send(fbb);
+  }
+}
+
+void RemotePhysicsLink::Send(flatbuffers::FlatBufferBuilder& fbb) {
+  if (channel_ == nullptr || broken_) return;
+  if (!channel_->SendToWorker({fbb.GetBufferPointer(), fbb.GetSize()})) broken_ = true;
+}
+
+Status RemotePhysicsLink::Add(const schema::Container& c, PhysicsRole role, std::string* detail) {
+  // The same component checks as an embedded world; the structural ones against our ids.
+  physics::InvalidReason reason = validator_.Validate(c);
+  using R = physics::InvalidReason;
+  if (reason == R::kDuplicateId || reason == R::kUnknownParent || reason == R::kUnknownJointTarget) {
+    reason = R::kNone;
+  }
+  if (reason == R::kNone && ids_.count(c.entity_id()) != 0) reason = R::kDuplicateId;
+  if (reason == R::kNone && c.parent_id() != 0 && ids_.count(c.parent_id()) == 0) {
+    reason = R::kUnknownParent;
+  }
+  if (reason != R::kNone) {
+    *detail = "physics: invalid components (reason " + std::to_string(static_cast<int>(reason)) + ")";
+    return Status(StatusCode::kInvalidArgument, "invalid physics components");
+  }
+  schema::ContainerT copy;
+  c.UnPackTo(&copy);
+  flatbuffers::FlatBufferBuilder fbb(1024);
+  auto container = schema::Container::Pack(fbb, &copy);
+  FinishControl(fbb, schema::CreateWorkerAdd(fbb, handle_, static_cast<uint8_t>(role), container));
+  Send(fbb);
+  ids_.insert(c.entity_id());
+  return Status::Ok();
+}
+
+void RemotePhysicsLink::Remove(uint32_t id) {
+  if (ids_.erase(id) == 0) return;
+  flatbuffers::FlatBufferBuilder fbb(32);
+  FinishControl(fbb, schema::CreateWorkerRemove(fbb, handle_, id));
+  Send(fbb);
+}
+
+void RemotePhysicsLink::Drive(uint32_t id, const EntityState& s) {
+  if (ids_.count(id) == 0) return;
+  for (schema::Pose& p : drives_) {
+    if (p.entity_id() == id) {
+      p = ToPose(id, s);
+      return;
+    }
+  }
+  drives_.push_back(ToPose(id, s));
+}
+
+void RemotePhysicsLink::RequestGrab(uint32_t entity, uint32_t hand, bool force) {
+  flatbuffers::FlatBufferBuilder fbb(32);
+  FinishControl(fbb, schema::CreateWorkerGrab(fbb, handle_, entity, hand, force));
+  Send(fbb);
+}
+
+void RemotePhysicsLink::Release(uint32_t entity) {
+  flatbuffers::FlatBufferBuilder fbb(32);
+  FinishControl(fbb, schema::CreateWorkerRelease(fbb, handle_, entity));
+  Send(fbb);
+}
+
+void RemotePhysicsLink::Restore(uint32_t id, const EntityState& s, const Vec3f& l,
+                                const Vec3f& a) {
+  flatbuffers::FlatBufferBuilder fbb(96);
+  schema::Pose pose = ToPose(id, s);
+  schema::Vec3 lin(l.x, l.y, l.z), ang(a.x, a.y, a.z);
+  FinishControl(fbb, schema::CreateWorkerRestore(fbb, handle_, id, &pose, &lin, &ang));
+  Send(fbb);
+}
+
+void RemotePhysicsLink::Advance(double now, StepOutput* out) {
+  (void)now;
+  if (!drives_.empty()) {
+    flatbuffers::FlatBufferBuilder fbb(64 + drives_.size() * sizeof(schema::Pose));
+    FinishControl(fbb, schema::CreateWorkerDrive(fbb, handle_, fbb.CreateVectorOfStructs(drives_)));
+    Send(fbb);
+    drives_.clear();
+  }
+  out->Clear();
+  std::swap(*out, pending_);
+  pending_.Clear();
+}
+
+bool RemotePhysicsLink::Healthy(double now) const {
+  if (broken_ || channel_ == nullptr || !channel_->WorkerConnected()) return false;
+  // A worker steps every room at least 60 times a second and reports at least once a second
+  // (see edgephys-phys); silence beyond the stall timeout means it stopped.
+  return now - last_heard_ <= stall_timeout_s_ + 1.0;
+}
+
+void RemotePhysicsLink::ReceiveResult(const schema::WorkerResult& result, double now) {
+  last_heard_ = now;
+  if (result.events() != nullptr) {
+    for (const schema::PhysicsEvent* ev : *result.events()) {
+      physics::PhysicsEvent e{};
+      switch (ev->kind()) {
+        case schema::PhysicsEventKind::CollisionEnter: e.type = physics::PhysicsEventType::kCollisionEnter; break;
+        case schema::PhysicsEventKind::CollisionExit: e.type = physics::PhysicsEventType::kCollisionExit; break;
+        case schema::PhysicsEventKind::TriggerEnter: e.type = physics::PhysicsEventType::kTriggerEnter; break;
+        case schema::PhysicsEventKind::TriggerExit: e.type = physics::PhysicsEventType::kTriggerExit; break;
+        case schema::PhysicsEventKind::GuardReset: e.type = physics::PhysicsEventType::kGuardReset; break;
+        default: continue;
+      }
+      e.entity_a = ev->entity_a();
+      e.entity_b = ev->entity_b();
+      pending_.events.push_back(e);
+    }
+  }
+  if (result.grabs() != nullptr) {
+    for (const schema::WorkerGrabResult* g : *result.grabs()) {
+      RoomPhysics::GrabResult r;
+      r.entity = g->entity_id();
+      r.hand = g->hand_id();
+      r.ok = g->ok();
+      r.detail = g->detail() ? g->detail()->str() : std::string();
+      pending_.grabs.push_back(std::move(r));
+    }
+  }
+}
+
+void RemotePhysicsLink::ReceiveStates(std::span<const uint8_t> payload, double now) {
+  uint32_t room = 0;
+  if (payload.empty()) return;
+  if (payload[0] == kWorkerStateFormat) {
+    size_t before = pending_.moved.size();
+    if (!DecodeWorkerStates(payload, &room, &pending_.moved).ok() || room != handle_) {
+      pending_.moved.resize(before);
+      return;
+    }
+    last_heard_ = now;
+    pending_.steps = std::max(pending_.steps, 1);
+  } else if (payload[0] == kWorkerSoftFormat) {
+    SoftBodyChunk chunk;
+    if (!DecodeWorkerSoftChunk(payload, &room, &chunk).ok() || room != handle_) return;
+    last_heard_ = now;
+    RoomPhysics::SoftNodes part;
+    part.id = chunk.entity_id;
+    part.total = chunk.total;
+    part.first = chunk.first;
+    part.nodes = std::move(chunk.positions);
+    pending_.soft.push_back(std::move(part));
+  }
+}
+
+}  // namespace edgephys
