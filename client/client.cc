@@ -261,6 +261,11 @@ Status Client::SendStateUnchecked(const EntityState& state, double now) {
   return connection_->SendUnreliable({payload_buffer_.data(), size}, now, *this).status();
 }
 
+Status Client::SendUnreliableRaw(std::span<const uint8_t> payload, double now) {
+  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  return connection_->SendUnreliable(payload, now, *this).status();
+}
+
 Status Client::SendReliableUnchecked(std::span<const uint8_t> message) {
   if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
   return connection_->SendReliable(message);
@@ -370,6 +375,7 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       break;
     }
     default:
+      listener_->OnOtherMessage(*msg);
       break;
   }
 }

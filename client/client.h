@@ -36,6 +36,7 @@
 
 #include "protocol/connection.h"
 #include "protocol/container_builder.h"
+#include "edgephys/schema/control_generated.h"
 #include "protocol/delta_codec.h"
 #include "protocol/datagram_socket.h"
 #include "protocol/replication_tracker.h"
@@ -99,6 +100,9 @@ class ClientListener {
   }
   // A soft body's particles changed (entity.nodes).
   virtual void OnSoftBodyUpdated(const RemoteEntity& entity) { (void)entity; }
+  // A verified control message the SDK does not handle itself (tools and the PhyS worker
+  // build on this).
+  virtual void OnOtherMessage(const schema::ControlMessage& message) { (void)message; }
   // The relay refused a request (RejectReason code, schema/control.fbs).
   virtual void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
     (void)reason, (void)entity_id, (void)detail;
@@ -161,6 +165,8 @@ class Client final : private ConnectionHandler, private PacketWriter {
   Status SendStateUnchecked(const EntityState& state, double now);
   // Sends raw bytes on the reliable channel. For tests and tools.
   Status SendReliableUnchecked(std::span<const uint8_t> message);
+  // Sends one unreliable payload now, as is. For tools (the PhyS worker's state stream).
+  Status SendUnreliableRaw(std::span<const uint8_t> payload, double now);
 
   // Sends a disconnect (kClientLeft) to the relay.
   void Disconnect();

@@ -138,6 +138,18 @@ void RoomPhysics::Restore(uint32_t id, const EntityState& state, const Vec3f& li
   (void)world_.SetVelocity(id, linear, angular);
 }
 
+void RoomPhysics::SnapshotSimulated(std::vector<MovedBody>* out) const {
+  out->clear();
+  for (const auto& [id, role] : roles_) {
+    if (role != PhysicsRole::kSimulated || soft_.count(id) != 0) continue;
+    MovedBody m;
+    if (!world_.GetState(id, &m.state).ok()) continue;
+    m.state.entity_id = id;
+    (void)world_.GetVelocity(id, &m.linear, &m.angular);
+    out->push_back(m);
+  }
+}
+
 void RoomPhysics::RequestGrab(uint32_t entity, uint32_t hand, bool require_hover) {
   GrabResult r;
   r.entity = entity;

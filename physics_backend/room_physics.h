@@ -97,6 +97,9 @@ class RoomPhysics {
   // uses for embedded and remote PhyS alike).
   void RequestGrab(uint32_t entity, uint32_t hand, bool require_hover = true);
 
+  // Poses and velocities of every simulated rigid entity (periodic full refreshes).
+  void SnapshotSimulated(std::vector<MovedBody>* out) const;
+
   Status GetSoftBodyNodes(uint32_t id, std::vector<Vec3f>* nodes) const {
     return world_.GetSoftBodyNodes(id, nodes);
   }

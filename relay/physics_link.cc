@@ -114,9 +114,9 @@ void RemotePhysicsLink::Advance(double now, StepOutput* out) {
 
 bool RemotePhysicsLink::Healthy(double now) const {
   if (broken_ || channel_ == nullptr || !channel_->WorkerConnected()) return false;
-  // A worker steps every room at least 60 times a second and reports at least once a second
-  // (see edgephys-phys); silence beyond the stall timeout means it stopped.
-  return now - last_heard_ <= stall_timeout_s_ + 1.0;
+  // A worker reports every room at least every 0.2 s (edgephys-phys sends a heartbeat
+  // WorkerResult); silence beyond the stall timeout means it stopped stepping.
+  return now - last_heard_ <= stall_timeout_s_;
 }
 
 void RemotePhysicsLink::ReceiveResult(const schema::WorkerResult& result, double now) {

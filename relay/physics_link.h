@@ -112,7 +112,7 @@ class RemotePhysicsLink final : public PhysicsLink {
   StepOutput pending_;
   std::vector<schema::Pose> drives_;  // batched per Advance
   double last_heard_;
-  double stall_timeout_s_ = 0.75;
+  double stall_timeout_s_ = 0.75;  // a worker reports every 0.2 s; silence beyond: stalled
   physics::PhysicsCounters counters_{};
   bool broken_ = false;
 };

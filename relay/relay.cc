@@ -815,6 +815,12 @@ const Room* Relay::FindRoom(const std::string& name) const {
   return it == rooms_.end() ? nullptr : it->second.get();
 }
 
+uint32_t Relay::PhysicsWorkerOf(const std::string& room) const {
+  auto it = rooms_.find(room);
+  if (it == rooms_.end() || it->second->physics() == nullptr) return 0;
+  return it->second->physics()->worker();
+}
+
 const ConnectionStats* Relay::FindConnectionStats(uint32_t player_id) const {
   for (const auto& [id, s] : sessions_) {
     if (s->player_id() == player_id) return &s->connection().stats();

@@ -60,6 +60,8 @@ class Relay {
   size_t room_count() const { return rooms_.size(); }
   size_t session_count() const { return sessions_.size(); }
   const ConnectionStats* FindConnectionStats(uint32_t player_id) const;
+  // Connection id of the worker simulating `room`'s PhyS; 0 if embedded or none.
+  uint32_t PhysicsWorkerOf(const std::string& room) const;
 
  private:
   friend class Session;

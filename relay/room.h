@@ -69,7 +69,7 @@ class Room {
   const std::unordered_map<uint32_t, Entity>& entities() const { return entities_; }
 
   // PhyS for this room (embedded or on a worker); null until the first physics entity.
-  PhysicsLink* physics() { return physics_.get(); }
+  PhysicsLink* physics() const { return physics_.get(); }
   void set_physics(std::unique_ptr<PhysicsLink> link) { physics_ = std::move(link); }
   std::unique_ptr<PhysicsLink> TakePhysics() { return std::move(physics_); }
   uint64_t NextSpawnSeq() { return ++spawn_seq_; }
