@@ -51,6 +51,7 @@ DropLog& Log() {
 
 Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters)
     : config_(config),
+      physics_pool_(std::max<size_t>(1, config.physics_threads)),
       socket_(socket),
       counters_(counters),
       receive_buffer_(kMaxPacketSize + 512) {
@@ -91,8 +92,8 @@ void Relay::Update(double now, uint64_t unix_now_s) {
   }
   for (uint32_t id : removal_scratch_) RemoveSession(id, now);
 
+  StepAllPhysics(now);
   for (auto& [name, room] : rooms_) {
-    StepPhysics(*room, now);
     if (now >= room->next_tick()) {
       auto start = std::chrono::steady_clock::now();
       TickRoom(*room, now);
@@ -546,19 +547,30 @@ void Relay::BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uin
   BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, 0);
 }
 
-void Relay::StepPhysics(Room& room, double now) {
-  PhysicsLink* phys = room.physics();
-  if (phys == nullptr) return;
-  if (!phys->Healthy(now)) {
-    FailOver(room, now);
-    phys = room.physics();
+void Relay::StepAllPhysics(double now) {
+  physics_rooms_.clear();
+  for (auto& [name, room] : rooms_) {
+    if (room->physics() == nullptr) continue;
+    if (!room->physics()->Healthy(now)) FailOver(*room, now);
+    physics_rooms_.push_back(room.get());
   }
-  phys->Advance(now, &step_output_);
-  if (step_output_.steps > 0 && phys->worker() == 0) {
-    counters_->physics_step_seconds.Observe(step_output_.step_seconds / step_output_.steps);
-    RelayCounters::Inc(counters_->physics_steps, static_cast<uint64_t>(step_output_.steps));
+  if (physics_rooms_.empty()) return;
+  if (step_outputs_.size() < physics_rooms_.size()) step_outputs_.resize(physics_rooms_.size());
+  // Worlds step in parallel (each on one thread); results are applied on this thread.
+  physics_pool_.Run(physics_rooms_.size(), [this, now](size_t i) {
+    physics_rooms_[i]->physics()->Advance(now, &step_outputs_[i]);
+  });
+  for (size_t i = 0; i < physics_rooms_.size(); ++i) {
+    ApplyPhysics(*physics_rooms_[i], step_outputs_[i], now);
   }
-  for (const RoomPhysics::MovedBody& m : step_output_.moved) {
+}
+
+void Relay::ApplyPhysics(Room& room, const RoomPhysics::StepOutput& out, double now) {
+  if (out.steps > 0 && room.physics()->worker() == 0) {
+    counters_->physics_step_seconds.Observe(out.step_seconds / out.steps);
+    RelayCounters::Inc(counters_->physics_steps, static_cast<uint64_t>(out.steps));
+  }
+  for (const RoomPhysics::MovedBody& m : out.moved) {
     Entity* e = room.FindEntity(m.state.entity_id);
     if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
     e->state = m.state;
@@ -567,14 +579,14 @@ void Relay::StepPhysics(Room& room, double now) {
     ++e->version;
     e->changed_at = now;
   }
-  for (const RoomPhysics::SoftNodes& part : step_output_.soft) {
+  for (const RoomPhysics::SoftNodes& part : out.soft) {
     Entity* e = room.FindEntity(part.id);
     if (e == nullptr || part.total == 0 || part.first + part.nodes.size() > part.total) continue;
     e->nodes.resize(part.total);
     std::copy(part.nodes.begin(), part.nodes.end(), e->nodes.begin() + part.first);
     ++e->nodes_version;
   }
-  for (const RoomPhysics::GrabResult& g : step_output_.grabs) {
+  for (const RoomPhysics::GrabResult& g : out.grabs) {
     Entity* e = room.FindEntity(g.entity);
     if (e == nullptr) continue;
     uint32_t requester = e->grab_requester;
@@ -589,7 +601,7 @@ void Relay::StepPhysics(Room& room, double now) {
       }
     }
   }
-  for (const physics::PhysicsEvent& ev : step_output_.events) {
+  for (const physics::PhysicsEvent& ev : out.events) {
     using T = physics::PhysicsEventType;
     schema::PhysicsEventKind kind = schema::PhysicsEventKind::CollisionEnter;
     switch (ev.type) {

@@ -28,6 +28,7 @@
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/state_codec.h"
+#include "relay/physics_pool.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
 #include "relay/room.h"
@@ -84,8 +85,11 @@ class Relay {
   void OnGrab(Session& s, uint32_t entity_id, uint32_t hand_id);
   void OnRelease(Session& s, uint32_t entity_id);
   void BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a, uint32_t b);
-  // Runs the room's due PhyS steps and folds their results into the room's entities.
-  void StepPhysics(Room& room, double now);
+  // Steps every room's PhyS (embedded worlds in parallel on the pool; remote links collect
+  // what their worker sent), failing over unhealthy links first, then applies the results.
+  void StepAllPhysics(double now);
+  // Folds one room's PhyS output into its entities and broadcasts its events.
+  void ApplyPhysics(Room& room, const RoomPhysics::StepOutput& output, double now);
   // A PhyS link on the least loaded worker (not `exclude_worker`), else embedded.
   std::unique_ptr<PhysicsLink> MakePhysicsLink(uint32_t exclude_worker, double now);
   // Rebuilds the room's PhyS on a new link from the containers, states and velocities held.
@@ -103,6 +107,7 @@ class Relay {
   Room* GetOrCreateRoom(const std::string& name, double now);
 
   RelayConfig config_;
+  PhysicsPool physics_pool_;
   DatagramSocket* socket_;
   RelayCounters* counters_;
   CookieJar cookies_;
@@ -112,7 +117,8 @@ class Relay {
   std::map<Endpoint, uint32_t> session_by_endpoint_;
   std::vector<uint8_t> receive_buffer_;
   StateBatch batch_;
-  RoomPhysics::StepOutput step_output_;
+  std::vector<RoomPhysics::StepOutput> step_outputs_;  // one per room with physics
+  std::vector<Room*> physics_rooms_;
   uint32_t next_room_handle_ = 0;
   double now_ = 0;
   double last_rtt_sample_ = 0;

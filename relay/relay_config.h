@@ -3,7 +3,9 @@
 #pragma once
 
 #include <cstdint>
+#include <algorithm>
 #include <string>
+#include <thread>
 
 #include "protocol/connection.h"
 #include "physics_backend/physics_world.h"
@@ -27,6 +29,9 @@ struct RelayConfig {
   RoomConfig room_defaults;
   ConnectionConfig connection;
   physics::PhysicsConfig physics;  // each room's embedded PhyS world
+  // Threads stepping embedded PhyS worlds in parallel (rooms spread over them), the relay's
+  // own thread included.
+  size_t physics_threads = std::max(1u, std::thread::hardware_concurrency());
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
 };
 
