@@ -10,15 +10,15 @@ COPY scripts/setup.sh scripts/setup.sh
 RUN bash scripts/setup.sh && rm -rf /var/lib/apt/lists/*
 COPY . .
 RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TESTS=OFF \
- && cmake --build build -j2 --target edgephys-relay
+ && cmake --build build -j2 --target edgephys-relay edgephys-phys
 
 # Run stage: only the shared libraries the relay loads (from `ldd edgephys-relay` + `dpkg -S`).
 #   libssl3                                      libcrypto.so.3 (tokens, cookies)
 #   libspdlog1.10, libfmt9                       logging (Debian's spdlog uses the shared fmt)
 #   libprometheus-cpp-core1.0, libprometheus-cpp-pull1.0, libcivetweb1   /metrics server
+#   libbullet3.24                                PhyS (embedded in the relay, and edgephys-phys)
 # libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. FlatBuffers, Asio,
-# CLI11 and Eigen are header-only here. Bullet is not linked yet (physics_backend/ is not built);
-# add libbullet3.24 when it is: the ldd check below fails the image build until then.
+# CLI11 and Eigen are header-only here.
 FROM debian:bookworm-slim
 ENV DEBIAN_FRONTEND=noninteractive
 RUN apt-get update \
@@ -29,15 +29,18 @@ RUN apt-get update \
       libprometheus-cpp-core1.0 \
       libprometheus-cpp-pull1.0 \
       libcivetweb1 \
+      libbullet3.24 \
  && rm -rf /var/lib/apt/lists/*
 RUN groupadd --system edgephys \
  && useradd --system --gid edgephys --no-create-home --home-dir /nonexistent \
       --shell /usr/sbin/nologin edgephys
 COPY --from=build /src/build/relay/edgephys-relay /usr/local/bin/edgephys-relay
+# The remote PhyS worker ships in the same image: `--entrypoint edgephys-phys`.
+COPY --from=build /src/build/physics_backend/edgephys-phys /usr/local/bin/edgephys-phys
 # Fail the image build, not the first container start, if a runtime library is missing.
-RUN if ldd /usr/local/bin/edgephys-relay | grep -q 'not found'; then \
-      ldd /usr/local/bin/edgephys-relay; exit 1; \
-    fi
+RUN for b in edgephys-relay edgephys-phys; do \
+      if ldd /usr/local/bin/$b | grep -q 'not found'; then ldd /usr/local/bin/$b; exit 1; fi; \
+    done
 EXPOSE 7777/udp 9464/tcp
 USER edgephys
 ENTRYPOINT ["/usr/local/bin/edgephys-relay"]
