@@ -81,6 +81,25 @@ int main(int argc, char** argv) {
   app.add_option("--client-budget", rep.bandwidth_budget_bytes_per_s,
                  "Per-client bandwidth budget in bytes/s (0: unlimited)")
       ->capture_default_str();
+  AbuseLimits& lim = config.limits;
+  app.add_option("--max-packets-per-s", lim.packets_per_s, "Per-connection packet rate limit (0: off)")
+      ->capture_default_str();
+  app.add_option("--max-bytes-per-s", lim.bytes_per_s, "Per-connection byte rate limit (0: off)")
+      ->capture_default_str();
+  app.add_option("--max-spawns-per-s", lim.spawns_per_s, "Per-connection spawn rate limit")
+      ->capture_default_str();
+  app.add_option("--max-spawn-bytes", lim.max_spawn_bytes, "Largest accepted container (bytes)")
+      ->capture_default_str();
+  app.add_option("--max-handshakes-per-s", lim.handshakes_per_s, "Hello/Connect per source address")
+      ->capture_default_str();
+  app.add_option("--max-connections-per-address", lim.max_sessions_per_address,
+                 "Live connections from one IP address")
+      ->capture_default_str();
+  app.add_option("--join-timeout", lim.join_timeout_s, "Seconds a connection may stay without a room")
+      ->capture_default_str();
+  app.add_option("--physics-threads", config.physics_threads,
+                 "Threads stepping embedded PhyS worlds (rooms spread over them)")
+      ->capture_default_str();
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();

@@ -52,6 +52,7 @@ DropLog& Log() {
 Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters)
     : config_(config),
       physics_pool_(std::max<size_t>(1, config.physics_threads)),
+      handshake_limiter_(config.limits.handshakes_per_s, config.limits.handshakes_per_s * 2),
       socket_(socket),
       counters_(counters),
       receive_buffer_(kMaxPacketSize + 512) {
@@ -88,7 +89,15 @@ void Relay::Update(double now, uint64_t unix_now_s) {
     if (sample_rtt && s->connection().stats().rtt_s > 0) {
       counters_->rtt_seconds.Observe(s->connection().stats().rtt_s);
     }
-    if (!s->connection().connected()) removal_scratch_.push_back(id);
+    if (!s->connection().connected()) {
+      removal_scratch_.push_back(id);
+    } else if (!s->is_worker() && s->room().empty() && config_.limits.join_timeout_s > 0 &&
+               now - s->connected_at() > config_.limits.join_timeout_s) {
+      // A connection that holds a slot without ever joining a room (slow or idle handshake).
+      Log().Note("connection dropped", "no room joined in time", s->endpoint(), now);
+      s->connection().Disconnect(DisconnectReason::kKicked, *s);
+      removal_scratch_.push_back(id);
+    }
   }
   for (uint32_t id : removal_scratch_) RemoveSession(id, now);
 
@@ -129,8 +138,9 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
   if (!ParsePacketPrefix(data, &prefix, &reason)) return drop(reason);
   switch (prefix.type) {
     case PacketType::kHello:
-      return HandleHello(from, data, now);
     case PacketType::kConnect:
+      if (!handshake_limiter_.Allow(from, now)) return drop(DropReason::kRateLimited);
+      if (prefix.type == PacketType::kHello) return HandleHello(from, data, now);
       return HandleConnect(from, data, now, unix_now_s);
     case PacketType::kData:
     case PacketType::kDisconnect: {
@@ -139,6 +149,7 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
       Session& s = *it->second;
       if (s.endpoint() != from) return drop(DropReason::kWrongAddress);
       if (!s.connection().connected()) return;  // closing: redundant disconnect copies
+      if (!s.AllowPacket(now, data.size())) return drop(DropReason::kRateLimited);
       s.set_now(now);
       Status st = s.connection().ProcessPacket(data, now, s);
       if (!st.ok()) drop(DropReason::kMalformed);
@@ -211,6 +222,14 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
   if (sessions_.size() >= config_.max_clients) {
     return SendReject(from, Code(RejectReason::ServerFull), data.size());
   }
+  if (config_.limits.max_sessions_per_address > 0) {
+    size_t same_address = 0;
+    for (const auto& [id, other] : sessions_) same_address += other->endpoint().address() == from.address();
+    if (same_address >= config_.limits.max_sessions_per_address) {
+      Log().Note("connect rejected", "too many connections from one address", from, now);
+      return SendReject(from, Code(RejectReason::RateLimited), data.size());
+    }
+  }
   Status admitted = replay_guard_.Admit(token->nonce, token->expiry_unix_s, unix_now_s);
   if (!admitted.ok()) {
     RejectReason r = admitted.code() == StatusCode::kAlreadyExists ? RejectReason::ReplayedToken
@@ -225,7 +244,7 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
   }
   auto session = std::make_unique<Session>(this, from, connection_id, token->player_id,
                                            token->permissions, token->room, token->nonce,
-                                           config_.connection, now);
+                                           config_.connection, config_.limits, now);
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateAccept(
                          fbb, connection_id, token->player_id,
@@ -424,6 +443,12 @@ void Relay::OnSpawn(Session& s, std::span<const uint8_t> message, const schema::
     return SendError(s, Code(RejectReason::InvalidMessage), 0, "spawn without container/transform");
   }
   uint32_t id = c->entity_id();
+  if (message.size() > config_.limits.max_spawn_bytes) {
+    return SendError(s, Code(RejectReason::InvalidContainer), id, "container larger than the relay allows");
+  }
+  if (!s.AllowSpawn(now_)) {
+    return SendError(s, Code(RejectReason::RateLimited), id, "too many spawns; slow down");
+  }
   if ((s.permissions() & kPermissionSpawn) == 0) {
     return SendError(s, Code(RejectReason::NotOwner), id, "the join token does not allow spawning");
   }

@@ -29,6 +29,7 @@
 #include "protocol/join_token.h"
 #include "protocol/state_codec.h"
 #include "relay/physics_pool.h"
+#include "relay/rate_limit.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
 #include "relay/room.h"
@@ -108,6 +109,7 @@ class Relay {
 
   RelayConfig config_;
   PhysicsPool physics_pool_;
+  AddressRateLimiter handshake_limiter_;
   DatagramSocket* socket_;
   RelayCounters* counters_;
   CookieJar cookies_;

@@ -21,6 +21,19 @@ struct RoomConfig {
   ReplicationConfig replication;   // encoder, send rates by priority class, thresholds, budget
 };
 
+// Limits on what one peer may cost the relay. A packet over a session's limits is dropped
+// before it is parsed (and so not acknowledged: reliable data is resent later); a spawn over
+// its limits is refused with Error{RateLimited}. 0 disables a rate.
+struct AbuseLimits {
+  double packets_per_s = 1500;           // per session (bursts of 2 s allowed)
+  double bytes_per_s = 512 * 1024;       // per session
+  double spawns_per_s = 100;             // per session, burst 1000
+  size_t max_spawn_bytes = 512 * 1024;   // one container
+  double handshakes_per_s = 20;          // Hello/Connect per source address, burst 40
+  size_t max_sessions_per_address = 64;  // live connections from one IP address
+  double join_timeout_s = 10;            // a connection that joins no room by then is dropped
+};
+
 struct RelayConfig {
   // The operator's secret for join tokens (HMAC-SHA256). The built-in default is for local
   // development only; the relay warns loudly when it is used.
@@ -33,6 +46,7 @@ struct RelayConfig {
   // own thread included.
   size_t physics_threads = std::max(1u, std::thread::hardware_concurrency());
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
+  AbuseLimits limits;
 };
 
 inline constexpr char kDevelopmentSecret[] = "edgephys-dev-secret";

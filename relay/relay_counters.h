@@ -14,8 +14,8 @@
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. GrabRefused).
-inline constexpr size_t kRejectReasonCount = 16;
+// Number of RejectReason values in schema/control.fbs (None .. RateLimited).
+inline constexpr size_t kRejectReasonCount = 17;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.

@@ -7,7 +7,8 @@ namespace edgephys {
 
 Session::Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id,
                  uint32_t player_id, uint32_t permissions, std::string token_room,
-                 uint64_t token_nonce, const ConnectionConfig& config, double now)
+                 uint64_t token_nonce, const ConnectionConfig& config,
+                 const AbuseLimits& limits, double now)
     : relay_(relay),
       endpoint_(endpoint),
       connection_(connection_id, config, now),
@@ -15,7 +16,11 @@ Session::Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id,
       permissions_(permissions),
       token_room_(std::move(token_room)),
       token_nonce_(token_nonce),
-      now_(now) {}
+      now_(now),
+      packets_(limits.packets_per_s, limits.packets_per_s * 2),
+      bytes_(limits.bytes_per_s, limits.bytes_per_s * 2),
+      spawns_(limits.spawns_per_s, limits.spawns_per_s * 10),
+      connected_at_(now) {}
 
 void Session::OnReliableMessage(std::span<const uint8_t> message) {
   RelayCounters::Inc(relay_->counters_->reliable_messages_received);

@@ -13,6 +13,8 @@
 #include "protocol/datagram_socket.h"
 #include "protocol/state_codec.h"
 #include "relay/physics_link.h"
+#include "relay/rate_limit.h"
+#include "relay/relay_config.h"
 #include "relay/replication.h"
 
 namespace edgephys {
@@ -23,7 +25,7 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
  public:
   Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id, uint32_t player_id,
           uint32_t permissions, std::string token_room, uint64_t token_nonce,
-          const ConnectionConfig& config, double now);
+          const ConnectionConfig& config, const AbuseLimits& limits, double now);
 
   // ConnectionHandler: messages from the client.
   void OnReliableMessage(std::span<const uint8_t> message) override;
@@ -37,6 +39,12 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
   }
   bool WorkerConnected() const override { return connection_.connected(); }
   bool is_worker() const { return is_worker_; }
+  // Rate limits (AbuseLimits); workers are exempt from the packet limits.
+  bool AllowPacket(double now, size_t bytes) {
+    return is_worker_ || (packets_.Take(now) && bytes_.Take(now, static_cast<double>(bytes)));
+  }
+  bool AllowSpawn(double now) { return spawns_.Take(now); }
+  double connected_at() const { return connected_at_; }
   void set_worker(bool worker) { is_worker_ = worker; }
 
   Connection& connection() { return connection_; }
@@ -75,6 +83,8 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
   std::unordered_map<uint32_t, EntityState> early_states_;
   bool is_worker_ = false;
   double now_;
+  TokenBucket packets_, bytes_, spawns_;
+  double connected_at_;
 };
 
 }  // namespace edgephys

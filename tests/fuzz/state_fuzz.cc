@@ -1,0 +1,179 @@
+// state_fuzz: every state payload decoder and the join token parser.
+//
+// Input: u8 mode | records (u8 tag | u16 length | bytes), at most kMaxRecords. By tag % 7 a
+// record goes to (for 1..5 its first byte is replaced by that decoder's format byte):
+//   0: DecodeStateBatch (format 1; any first byte)
+//   1: DeltaDecoder::Decode (format 2). One decoder per input sees every format-2 record in
+//      order, so later payloads resolve references to earlier ones. mode bit 0: the decoder's
+//      quantisation comes from the first 32 bytes of the input after the mode byte (as a
+//      client builds it from the relay's Joined message), when MakeQuantizationParams accepts.
+//   2: DecodeEmulationBatch (tag bit 3: format 4 "paper", else 3 "photon"), looking up the
+//      states decoded so far by this input
+//   3: DecodeSoftBodyChunk (format 5)
+//   4: DecodeWorkerStates (format 6)
+//   5: DecodeWorkerSoftChunk (format 8)
+//   6: VerifyJoinToken on the bytes; Base64UrlDecode of the bytes as text (and the token in
+//      it); SignJoinToken -> VerifyJoinToken round trip of a token built from the bytes
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <unordered_map>
+
+#include "physics_backend/worker_protocol.h"
+#include "protocol/delta_codec.h"
+#include "protocol/emulation_codec.h"
+#include "protocol/join_token.h"
+#include "protocol/quantize.h"
+#include "protocol/soft_body_codec.h"
+#include "protocol/state_codec.h"
+#include "tests/fuzz/fuzz_world.h"
+
+namespace edgephys::fuzz {
+namespace {
+
+constexpr size_t kMaxRecords = 64;
+
+float F32(Reader& in) {
+  uint32_t bits = in.U16();
+  bits |= static_cast<uint32_t>(in.U16()) << 16;
+  float f;
+  std::memcpy(&f, &bits, sizeof f);
+  return f;
+}
+
+std::vector<uint8_t> WithFormat(std::span<const uint8_t> bytes, uint8_t format) {
+  std::vector<uint8_t> out(bytes.begin(), bytes.end());
+  if (out.empty()) out.push_back(format);
+  out[0] = format;
+  return out;
+}
+
+void CheckTokens(std::span<const uint8_t> bytes) {
+  TokenError error = TokenError::kNone;
+  auto direct = VerifyJoinToken(bytes, kFuzzSecret, kUnixNow, &error);
+  if (!direct.ok()) EDGEPHYS_FUZZ_CHECK(error != TokenError::kNone);
+
+  std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  auto decoded = Base64UrlDecode(text);
+  if (decoded.ok()) {
+    (void)VerifyJoinToken(*decoded, kFuzzSecret, kUnixNow, &error);
+    auto again = Base64UrlDecode(Base64UrlEncode(*decoded));
+    EDGEPHYS_FUZZ_CHECK(again.ok() && *again == *decoded);
+  }
+
+  // A token signed with the secret verifies and round-trips.
+  Reader in(bytes.data(), bytes.size());
+  JoinToken t;
+  t.player_id = in.U16() | (static_cast<uint32_t>(in.U16()) << 16);
+  t.permissions = in.U16();
+  t.expiry_unix_s = kUnixNow + 1 + in.U16();
+  t.nonce = in.U16();
+  auto room = in.Bytes(in.U8() % 80);
+  t.room.assign(room.begin(), room.end());
+  auto signed_token = SignJoinToken(t, kFuzzSecret);
+  if (!signed_token.ok()) return;
+  EDGEPHYS_FUZZ_CHECK(signed_token->size() <= kMaxJoinTokenSize);
+  auto verified = VerifyJoinToken(*signed_token, kFuzzSecret, kUnixNow, &error);
+  EDGEPHYS_FUZZ_CHECK(verified.ok());
+  EDGEPHYS_FUZZ_CHECK(verified->room == t.room && verified->player_id == t.player_id &&
+                      verified->permissions == t.permissions &&
+                      verified->expiry_unix_s == t.expiry_unix_s && verified->nonce == t.nonce);
+  EDGEPHYS_FUZZ_CHECK(!VerifyJoinToken(*signed_token, "another-secret", kUnixNow, &error).ok());
+}
+
+}  // namespace
+}  // namespace edgephys::fuzz
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  using namespace edgephys;
+  using namespace edgephys::fuzz;
+  Reader in(data, size);
+  const uint8_t mode = in.U8();
+
+  QuantizationConfig q;
+  if (mode & 1) {
+    QuantizationConfig custom;
+    custom.bounds_min = {F32(in), F32(in), F32(in)};
+    custom.bounds_max = {F32(in), F32(in), F32(in)};
+    custom.position_step_m = F32(in);
+    custom.rotation_error_deg = F32(in);
+    if (MakeQuantizationParams(custom).ok()) q = custom;
+  }
+  auto params = MakeQuantizationParams(q);
+  EDGEPHYS_FUZZ_CHECK(params.ok());
+  DeltaDecoder delta(*params, /*max_entities=*/4096);
+
+  StateBatch batch;
+  std::unordered_map<uint32_t, EntityState> known;  // for format 4 lookups
+  SoftBodyChunk chunk;
+  std::vector<RoomPhysics::MovedBody> bodies;
+  for (size_t i = 0; i < kMaxRecords && !in.empty(); ++i) {
+    const uint8_t tag = in.U8();
+    auto bytes = in.Bytes(in.U16());
+    switch (tag % 7) {
+      case 0:
+        if (DecodeStateBatch(bytes, &batch).ok()) {
+          EDGEPHYS_FUZZ_CHECK(batch.states.size() <= bytes.size());
+          for (const EntityState& s : batch.states) known[s.entity_id] = s;
+        }
+        break;
+      case 1: {
+        auto payload = WithFormat(bytes, kDeltaStateFormat);
+        const size_t before = batch.states.size();
+        if (delta.Decode(payload, &batch).ok()) {
+          for (size_t k = before; k < batch.states.size(); ++k) {
+            const EntityState& s = batch.states[k];
+            // Decoded states lie on the lattice inside the bounds and are finite.
+            EDGEPHYS_FUZZ_CHECK(std::isfinite(s.position.x) && std::isfinite(s.position.y) &&
+                                std::isfinite(s.position.z) && std::isfinite(s.rotation.w));
+          }
+        }
+        batch.states.clear();
+        break;
+      }
+      case 2: {
+        auto payload = WithFormat(bytes, (tag & 8) ? kFormatPaper : kFormatPhoton);
+        auto lookup = [&known](uint32_t id, EntityState* s) {
+          auto it = known.find(id);
+          if (it == known.end()) return false;
+          *s = it->second;
+          return true;
+        };
+        if (DecodeEmulationBatch(payload, &batch, lookup).ok()) {
+          for (const EntityState& s : batch.states) known[s.entity_id] = s;
+        }
+        break;
+      }
+      case 3: {
+        auto payload = WithFormat(bytes, kSoftBodyFormat);
+        const float step = (tag & 8) ? 0.001f : 0.0001f;
+        if (DecodeSoftBodyChunk(payload, step, 1 << 16, &chunk).ok()) {
+          EDGEPHYS_FUZZ_CHECK(chunk.total <= (1u << 16) && chunk.first < chunk.total &&
+                              chunk.positions.size() <= chunk.total - chunk.first);
+        }
+        break;
+      }
+      case 4: {
+        auto payload = WithFormat(bytes, kWorkerStateFormat);
+        uint32_t room = 0;
+        bodies.clear();
+        if (DecodeWorkerStates(payload, &room, &bodies).ok()) {
+          EDGEPHYS_FUZZ_CHECK(bodies.size() <= payload.size());
+        }
+        break;
+      }
+      case 5: {
+        auto payload = WithFormat(bytes, kWorkerSoftFormat);
+        uint32_t room = 0;
+        (void)DecodeWorkerSoftChunk(payload, &room, &chunk);
+        break;
+      }
+      case 6:
+        CheckTokens(bytes);
+        break;
+    }
+    if (known.size() > 65536) known.clear();
+  }
+  return 0;
+}
