@@ -190,6 +190,7 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   }
   // The spawn carries the initial transform: version 1 needs no state packet.
   owned_[id] = OwnedEntity{st, 1};
+  tracker_.MarkAcked(id, 1);
   return id;
 }
 

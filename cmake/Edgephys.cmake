@@ -32,3 +32,9 @@ function(edgephys_add_test name)
   endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${T_LABELS}" TIMEOUT 300)
 endfunction()
+
+option(EDGEPHYS_BUILD_FUZZ "Build libFuzzer targets (requires clang)" OFF)
+
+# Container tests (tests/container_test.sh: podman build + run of the Dockerfile) are slow and
+# need root; they are registered but DISABLED unless this is ON.
+option(EDGEPHYS_CONTAINER_TESTS "Enable the podman image build-and-run test (label container)" OFF)

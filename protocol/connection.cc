@@ -17,7 +17,7 @@ constexpr uint8_t kChunkUnreliable = 0x02;
 constexpr uint8_t kUnitFlagLast = 0x01;
 constexpr size_t kReliableChunkHeader = 6;    // type, id, flags, len
 constexpr size_t kUnreliableChunkHeader = 3;  // type, len
-constexpr size_t kDisconnectPacketSize = kConnectionHeaderSize + 1;
+
 // A unit chunk holds at least one byte, so no packet can carry more units than this.
 constexpr size_t kMaxUnitsPerPacket =
     (kMaxPacketSize - kConnectionHeaderSize) / (kReliableChunkHeader + 1);

@@ -80,6 +80,15 @@ std::vector<uint8_t> BuildHandshakePacket(PacketType type,
 const schema::ControlMessage* VerifyControlMessage(std::span<const uint8_t> payload,
                                                    schema::Body expected) {
   if (payload.size() < 8 || payload.size() > (64u << 20)) return nullptr;
+  // FlatBuffers reads scalars in place: a buffer must start 8-byte aligned. Messages inside
+  // datagrams rarely do, so misaligned ones are verified and read from an aligned copy.
+  if (reinterpret_cast<uintptr_t>(payload.data()) % 8 != 0) {
+    thread_local std::vector<uint64_t> aligned;
+    aligned.resize((payload.size() + 7) / 8);
+    std::memcpy(aligned.data(), payload.data(), payload.size());
+    payload = std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(aligned.data()),
+                                       payload.size());
+  }
   flatbuffers::Verifier::Options options;
   options.max_depth = 16;
   options.max_tables = 1 << 20;

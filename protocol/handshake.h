@@ -51,6 +51,9 @@ std::vector<uint8_t> BuildHandshakePacket(PacketType type, const flatbuffers::Fl
 
 // Verifies that `payload` holds a ControlMessage (identifier "EPCM") with a body of type
 // `expected` (NONE: any). Returns nullptr when it does not. Trailing padding is allowed.
+// The result points into `payload` when it is 8-byte aligned, else into a thread-local
+// aligned copy that the next call on this thread overwrites: use it before verifying another.
+// Cost: O(size) verification (plus a copy when misaligned).
 const schema::ControlMessage* VerifyControlMessage(std::span<const uint8_t> payload,
                                                    schema::Body expected = schema::Body::NONE);
 

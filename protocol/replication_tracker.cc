@@ -1,5 +1,7 @@
 #include "protocol/replication_tracker.h"
 
+#include <algorithm>
+
 namespace edgephys {
 
 ReplicationTracker::ReplicationTracker() : records_(kPacketRecords) {}
@@ -36,6 +38,12 @@ void ReplicationTracker::OnAcked(uint16_t sequence) {
   }
   r.valid = false;
   r.entries.clear();
+}
+
+void ReplicationTracker::MarkAcked(uint32_t id, uint32_t version) {
+  EntityView& v = views_[id];
+  v.acked = std::max(v.acked, version);
+  v.sent = std::max(v.sent, version);
 }
 
 void ReplicationTracker::Forget(uint32_t id) { views_.erase(id); }

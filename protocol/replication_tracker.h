@@ -32,6 +32,10 @@ class ReplicationTracker {
   // The peer acknowledged packet `sequence`: every version it carried counts as received.
   void OnAcked(uint16_t sequence);
 
+  // Records that the peer already has `version` of `id` by other means (e.g. the spawn message
+  // carried it), so it is not sent.
+  void MarkAcked(uint32_t id, uint32_t version);
+
   // Forget an entity (despawned); its next version starts from scratch.
   void Forget(uint32_t id);
 

@@ -25,6 +25,14 @@ TEST(ReplicationTracker, SendsUntilAckedAndResendsPresumedLost) {
   EXPECT_EQ(t.AckedVersion(5), 0u);
 }
 
+TEST(ReplicationTracker, MarkAckedSuppressesVersionsThePeerHasAlready) {
+  ReplicationTracker t;
+  t.MarkAcked(9, 1);
+  EXPECT_FALSE(t.NeedsSend(9, 1, 0.0, 0.1));
+  EXPECT_TRUE(t.NeedsSend(9, 2, 0.0, 0.1));
+  EXPECT_EQ(t.AckedVersion(9), 1u);
+}
+
 TEST(ReplicationTracker, RecordsOfOverwrittenSlotsDoNotAckTheWrongEntity) {
   ReplicationTracker t;
   t.OnSent(1, 7, 1, 0);

@@ -15,6 +15,14 @@ using schema::RejectReason;
 
 uint16_t Code(RejectReason r) { return static_cast<uint16_t>(r); }
 
+// Whether clients want collision events of `e` (ReportContacts, Interactable or Hand).
+bool ReportsContacts(const Entity* e) {
+  constexpr uint32_t kMask = static_cast<uint32_t>(schema::EntityFlags::ReportContacts) |
+                             static_cast<uint32_t>(schema::EntityFlags::Interactable) |
+                             static_cast<uint32_t>(schema::EntityFlags::Hand);
+  return e != nullptr && (e->flags & kMask) != 0;
+}
+
 // States held per session for entities whose spawn has not arrived yet.
 constexpr size_t kMaxEarlyStates = 1024;
 // Silence after which a PhyS worker counts as dead (its rooms fail over).
@@ -59,7 +67,11 @@ Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* c
   batch_.states.reserve(kMaxPacketSize / 8);
 }
 
-Relay::~Relay() = default;
+Relay::~Relay() {
+  // Rooms before sessions (members are destroyed in reverse order, sessions_ first): a room's
+  // remote PhyS link holds its worker Session and sends it WorkerUnassign when destroyed.
+  rooms_.clear();
+}
 
 void Relay::Update(double now, uint64_t unix_now_s) {
   now_ = now;
@@ -628,6 +640,11 @@ void Relay::ApplyPhysics(Room& room, const RoomPhysics::StepOutput& out, double 
   }
   for (const physics::PhysicsEvent& ev : out.events) {
     using T = physics::PhysicsEventType;
+    if ((ev.type == T::kCollisionEnter || ev.type == T::kCollisionExit) &&
+        !ReportsContacts(room.FindEntity(ev.entity_a)) &&
+        !ReportsContacts(room.FindEntity(ev.entity_b))) {
+      continue;  // a contact nobody asked about (a pile of boxes) stays inside PhyS
+    }
     schema::PhysicsEventKind kind = schema::PhysicsEventKind::CollisionEnter;
     switch (ev.type) {
       case T::kCollisionEnter: kind = schema::PhysicsEventKind::CollisionEnter; break;

@@ -27,7 +27,7 @@ struct RoomConfig {
 struct AbuseLimits {
   double packets_per_s = 1500;           // per session (bursts of 2 s allowed)
   double bytes_per_s = 512 * 1024;       // per session
-  double spawns_per_s = 100;             // per session, burst 1000
+  double spawns_per_s = 500;             // per session, burst 20x (a scene's dissection)
   size_t max_spawn_bytes = 512 * 1024;   // one container
   double handshakes_per_s = 20;          // Hello/Connect per source address, burst 40
   size_t max_sessions_per_address = 64;  // live connections from one IP address

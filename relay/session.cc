@@ -19,7 +19,7 @@ Session::Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id,
       now_(now),
       packets_(limits.packets_per_s, limits.packets_per_s * 2),
       bytes_(limits.bytes_per_s, limits.bytes_per_s * 2),
-      spawns_(limits.spawns_per_s, limits.spawns_per_s * 10),
+      spawns_(limits.spawns_per_s, limits.spawns_per_s * 20),
       connected_at_(now) {}
 
 void Session::OnReliableMessage(std::span<const uint8_t> message) {

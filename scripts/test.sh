@@ -1,10 +1,15 @@
 #!/usr/bin/env bash
-# Sets up a fresh Debian 12 machine (packages), builds everything with tests and runs the
-# whole suite (unit, integration on loopback, the relay binary's metrics smoke test).
+# Sets up a fresh Debian 12 machine (packages), builds everything with tests, runs the whole
+# suite (unit, integration on loopback, real processes, the relay binary's metrics, a real
+# Prometheus scrape), then every libFuzzer target for a bounded time under ASan and UBSan.
 # Uses at most 2 parallel jobs. Exit status is the suite's.
+#   EDGEPHYS_SKIP_FUZZ=1 bash scripts/test.sh   # skip the fuzzing step (local iterations)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 cmake --preset default >/dev/null
 cmake --build --preset default
 ctest --preset default
+if [ "${EDGEPHYS_SKIP_FUZZ:-0}" != "1" ]; then
+  bash scripts/fuzz.sh
+fi

@@ -140,10 +140,12 @@ class World {
     relay_.reset();
   }
 
-  // A client at 10.0.0.2:<40000 + index> connecting with a fresh token. Not pumped yet.
+  // A client at 10.0.1.<2 + index>:40000 (one address each, so per-address limits of the
+  // relay never get in the way) connecting with a fresh token. Not pumped yet.
   Client& AddClient(uint32_t player, uint32_t permissions, ClientListener* listener = nullptr) {
-    uint16_t port = static_cast<uint16_t>(40000 + sockets_.size());
-    sockets_.push_back(std::make_unique<TapSocket>(net_.CreateSocket(Ep("10.0.0.2", port))));
+    std::string address = "10.0.1." + std::to_string(2 + sockets_.size());
+    sockets_.push_back(
+        std::make_unique<TapSocket>(net_.CreateSocket(Ep(address.c_str(), 40000))));
     clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get(), listener));
     Client& c = *clients_.back();
     auto token = MintToken(player, permissions);

@@ -88,7 +88,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // Client B: handshaking with a server that never answers on its own.
   const Endpoint silent_server = Ep("10.0.0.1", 7778);
   auto silent_socket = world.network().CreateSocket(silent_server);
-  auto b_socket = world.network().CreateSocket(Ep("10.0.0.3", 40000));
+  auto b_socket = world.network().CreateSocket(Ep("10.0.2.3", 40000));
   Client b(ClientConfig{}, b_socket.get());
   auto b_token = MintToken(2, kDefaultPermissions);
   (void)b.Connect(silent_server, b_token, world.now());
