@@ -4,6 +4,8 @@
 //   edgephys-loadgen relay-compare --objects 32,64,128,256,512 --modes photon,paper,edgephys
 //   edgephys-loadgen interp-sweep --rates 6,12,24,30,48,60 --interpolators lerp-slerp,hermite
 //   edgephys-loadgen codec-sweep --steps 0.0005,0.001,0.002,0.005 --thresholds 0,0.0005
+//   edgephys-loadgen multiobject --objects 500,1000,2000,5000,10000
+//   edgephys-loadgen softbody --bunnies 1,3
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -13,8 +15,11 @@
 
 #include "loadgen/codec_sweep.h"
 #include "loadgen/interp_sweep.h"
+#include "loadgen/multiobject.h"
+#include "loadgen/ccu.h"
 #include "loadgen/relay_compare.h"
 #include "loadgen/report.h"
+#include "loadgen/softbody.h"
 
 namespace {
 
@@ -118,7 +123,135 @@ int main(int argc, char** argv) {
   cs->add_option("--json", codec_json, "Write results as JSON to this file");
   cs->add_option("--charts", codec_charts, "Chart file prefix ('' for none)")->capture_default_str();
 
+  // multiobject: PhyS step time vs raw Bullet and PhyS egress (the paper's Obj_N).
+  auto* mo = app.add_subcommand("multiobject", "PhyS MultiObject: step time vs raw Bullet, egress vs the paper");
+  MultiObjectOptions moo;
+  std::string mo_objects = "500,1000,2000,5000,10000";
+  std::string mo_json, mo_charts = "multiobject";
+  mo->add_option("--objects", mo_objects, "Box counts (comma separated)")->capture_default_str();
+  mo->add_option("--duration", moo.duration_s, "Relay run: measured seconds per size")->capture_default_str();
+  mo->add_option("--receivers", moo.receivers, "Relay run: receiving clients")->capture_default_str();
+  mo->add_option("--settle-steps", moo.relay_settle_steps, "Relay run: PhyS steps before measuring")->capture_default_str();
+  mo->add_option("--settle-max", moo.relay_settle_max_s, "Relay run: wall cap on settling (s)")->capture_default_str();
+  mo->add_option("--relay-max-substeps", moo.relay_max_substeps,
+                 "Relay run: PhysicsConfig::max_substeps (steps per relay update)")->capture_default_str();
+  mo->add_option("--bench-warmup", moo.bench_warmup_steps, "Standalone: settling steps")->capture_default_str();
+  mo->add_option("--bench-steps", moo.bench_steps, "Standalone: measured steps per scene (at most)")->capture_default_str();
+  mo->add_option("--bench-max", moo.bench_max_s, "Standalone: wall cap on measuring (s)")->capture_default_str();
+  mo->add_option("--bench-min-steps", moo.bench_min_steps, "Standalone: measured steps at least")->capture_default_str();
+  mo->add_option("--moving-speed", moo.moving_speed_mps, "Moving: speed above (m/s)")->capture_default_str();
+  mo->add_option("--seed", moo.seed, "Scene seed")->capture_default_str();
+  mo->add_option("--stirrer-speed", moo.stirrer_angular_speed, "Stirrer angular speed (rad/s)")->capture_default_str();
+  mo->add_option("--position-step", moo.position_step_m, "edgephys quantisation step (m)")->capture_default_str();
+  mo->add_option("--rotation-bound", moo.rotation_bound_deg, "edgephys rotation bound (deg)")->capture_default_str();
+  mo->add_flag("!--no-bench", moo.bench, "Skip the standalone PhyS vs raw Bullet steps");
+  mo->add_flag("!--no-relay", moo.relay, "Skip the relay run");
+  mo->add_option("--json", mo_json, "Write results as JSON to this file");
+  mo->add_option("--charts", mo_charts, "Chart file prefix ('' for none)")->capture_default_str();
+  mo->add_flag("!--no-progress", moo.progress, "Hide the progress line");
+
+  // softbody: bunnies poked by hands (the paper's Bunny_1 / Bunny_3).
+  auto* sb = app.add_subcommand("softbody", "PhyS soft bodies: egress vs the paper, step time, error");
+  SoftBodyOptions sbo;
+  std::string sb_bunnies = "1,3";
+  std::string sb_json, sb_charts = "softbody";
+  sb->add_option("--bunnies", sb_bunnies, "Bunny counts (comma separated)")->capture_default_str();
+  sb->add_option("--particles", sbo.particles, "Target particles per bunny")->capture_default_str();
+  sb->add_option("--duration", sbo.duration_s, "Relay run: measured seconds per count")->capture_default_str();
+  sb->add_option("--receivers", sbo.receivers, "Relay run: receiving clients")->capture_default_str();
+  sb->add_option("--settle-steps", sbo.relay_settle_steps, "Relay run: PhyS steps before measuring")->capture_default_str();
+  sb->add_option("--poke-period", sbo.poke_period_s, "Seconds per poke")->capture_default_str();
+  sb->add_option("--bench-warmup", sbo.bench_warmup_steps, "Standalone: settling steps")->capture_default_str();
+  sb->add_option("--bench-steps", sbo.bench_steps, "Standalone: measured steps")->capture_default_str();
+  sb->add_option("--position-step", sbo.position_step_m, "edgephys quantisation step (m)")->capture_default_str();
+  sb->add_option("--json", sb_json, "Write results as JSON to this file");
+  sb->add_option("--charts", sb_charts, "Chart file prefix ('' for none)")->capture_default_str();
+  sb->add_flag("!--no-progress", sbo.progress, "Hide the progress line");
+
+  auto* ccu = app.add_subcommand("ccu", "Concurrent users: bots with hands and grabbed objects");
+  CcuOptions ccu_o;
+  std::string ccu_users = "100", ccu_json, ccu_charts = "ccu";
+  ccu->add_option("--users", ccu_users, "User counts (comma separated; one run each)")->capture_default_str();
+  ccu->add_option("--rooms", ccu_o.rooms, "Rooms the users spread over")->capture_default_str();
+  ccu->add_option("--ramp", ccu_o.ramp_s, "Seconds over which users join")->capture_default_str();
+  ccu->add_option("--duration", ccu_o.duration_s, "Measured seconds after the ramp")->capture_default_str();
+  ccu->add_option("--tick-rate", ccu_o.tick_rate_hz, "Relay room tick rate")->capture_default_str();
+  ccu->add_option("--json", ccu_json, "Write results as JSON to this file");
+  ccu->add_option("--charts", ccu_charts, "Chart file prefix ('' for none)")->capture_default_str();
+  ccu->add_flag("!--no-progress", ccu_o.progress, "Hide the progress line");
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*ccu) {
+    if (!ParseList(ccu_users, &ccu_o.users) || ccu_o.rooms == 0 || ccu_o.duration_s <= 0) {
+      std::cerr << "--users must be a list of counts; --rooms and --duration positive\n";
+      return 2;
+    }
+    auto results = RunCcu(ccu_o);
+    std::cout << CcuTable(results);
+    if (!ccu_json.empty()) std::ofstream(ccu_json) << CcuJson(ccu_o, results) << "\n";
+    if (!ccu_charts.empty()) WriteCcuCharts(results, ccu_charts);
+    return 0;
+  }
+
+  if (*mo) {
+    if (!ParseList(mo_objects, &moo.objects)) {
+      std::cerr << "--objects: expected a comma-separated list of counts\n";
+      return 2;
+    }
+    for (uint32_t n : moo.objects) {
+      if (n == 0 || n > 60000) {
+        std::cerr << "--objects: counts must be in 1..60000\n";
+        return 2;
+      }
+    }
+    if (moo.duration_s <= 0 || moo.receivers == 0 || moo.bench_steps <= 0 || moo.bench_warmup_steps < 0 ||
+        moo.relay_settle_steps < 0 || moo.relay_max_substeps < 1) {
+      std::cerr << "invalid --duration, --receivers, --bench-steps, --bench-warmup, --settle-steps "
+                   "or --relay-max-substeps\n";
+      return 2;
+    }
+    auto results = RunMultiObject(moo);
+    std::cout << MultiObjectTable(results);
+    if (!mo_json.empty()) std::ofstream(mo_json) << MultiObjectJson(moo, results) << "\n";
+    if (!mo_charts.empty() && !WriteMultiObjectCharts(results, mo_charts)) {
+      std::cerr << "could not write charts with prefix " << mo_charts << "\n";
+      return 1;
+    }
+    for (const auto& r : results) {
+      if (moo.relay && !r.relay_ok) return 1;
+    }
+    return 0;
+  }
+
+  if (*sb) {
+    if (!ParseList(sb_bunnies, &sbo.bunnies)) {
+      std::cerr << "--bunnies: expected a comma-separated list of counts\n";
+      return 2;
+    }
+    for (uint32_t n : sbo.bunnies) {
+      if (n == 0 || n > 64) {
+        std::cerr << "--bunnies: counts must be in 1..64\n";
+        return 2;
+      }
+    }
+    if (sbo.duration_s <= 0 || sbo.receivers == 0 || sbo.particles < 10 || sbo.poke_period_s <= 0 ||
+        sbo.bench_steps <= 0) {
+      std::cerr << "invalid --duration, --receivers, --particles, --poke-period or --bench-steps\n";
+      return 2;
+    }
+    auto results = RunSoftBody(sbo);
+    std::cout << SoftBodyTable(results);
+    if (!sb_json.empty()) std::ofstream(sb_json) << SoftBodyJson(sbo, results) << "\n";
+    if (!sb_charts.empty() && !WriteSoftBodyCharts(results, sb_charts)) {
+      std::cerr << "could not write charts with prefix " << sb_charts << "\n";
+      return 1;
+    }
+    for (const auto& r : results) {
+      if (!r.relay_ok) return 1;
+    }
+    return 0;
+  }
 
   if (*is) {
     if (!ParseList(interp_rates, &io.rates_hz)) {

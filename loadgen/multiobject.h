@@ -26,15 +26,62 @@
 // pile; the same pose function drives the standalone scenes.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "client/client.h"
+#include "protocol/udp_socket.h"
+#include "relay/relay.h"
+
 namespace edgephys::loadgen {
+
+// An in-process relay on a loopback UDP socket with `clients` clients (client 0 the host),
+// each with its own socket; player ids 1..clients. Shared by multiobject and softbody.
+class LoopbackRoom {
+ public:
+  // `listeners[i]` (may be shorter, or hold nullptr) listens to client i.
+  LoopbackRoom(const RelayConfig& config, std::string room, uint32_t clients,
+               const ClientConfig& host_config, const std::vector<ClientListener*>& listeners);
+  ~LoopbackRoom();
+  // Connects every client and joins the room; false after `timeout_s` without success.
+  bool ConnectAndJoin(double timeout_s);
+  // One round: the relay, then every client.
+  void Step() {
+    UpdateRelay();
+    UpdateClients();
+  }
+  void UpdateRelay();
+  void UpdateClients();
+  double Now() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  Relay& relay() { return *relay_; }
+  RelayCounters& counters() { return counters_; }
+  Client& client(size_t i) { return *clients_[i]; }
+  size_t client_count() const { return clients_.size(); }
+  const Room* room() const { return relay_->FindRoom(room_); }
+
+ private:
+  std::string room_;
+  std::chrono::steady_clock::time_point start_;
+  RelayCounters counters_;
+  std::unique_ptr<UdpSocket> relay_socket_;
+  std::unique_ptr<Relay> relay_;
+  std::string secret_;
+  std::vector<std::unique_ptr<UdpSocket>> sockets_;
+  std::vector<std::unique_ptr<Client>> clients_;
+};
+
+// Counted observations of RelayCounters::physics_step_seconds (all buckets).
+uint64_t HistogramCount(const AtomicHistogram<10>& h);
 
 struct MultiObjectOptions {
   std::vector<uint32_t> objects = {500, 1000, 2000, 5000, 10000};
   uint32_t seed = 1;
+  float stirrer_angular_speed = 1.5f;  // rad/s (MultiObjectParams), both runs
   double moving_speed_mps = 0.01;  // "moving": linear speed above this
   // Standalone PhyS vs raw Bullet.
   bool bench = true;
@@ -69,7 +116,9 @@ struct MultiObjectResult {
   double socket_mbit_per_s_per_client = 0;  // receiving sockets
   double paper_mbit_per_s = 0;              // paper's Obj_N (0: not in the paper)
   double updates_per_s_per_client = 0;
-  double bytes_per_update = 0;
+  double bytes_per_update = 0;              // all egress bytes / entity updates
+  double state_mbit_per_s_per_client = 0;   // state payload bytes only (Client::state_bytes_received)
+  double events_per_s_per_client = 0;       // physics events received (reliable channel)
   double relay_step_ms_mean = 0;            // RelayCounters::physics_step_seconds
   double sim_speed = 0;                     // PhyS simulated seconds per wall second
   double relay_moving_fraction = 0, relay_moving_fraction_min = 0;  // from received states

@@ -1,0 +1,504 @@
+#include "loadgen/ccu.h"
+
+#include <pthread.h>
+#include <time.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+#include <unordered_map>
+
+#include "client/client.h"
+#include "client/snapshot_buffer.h"
+#include "loadgen/motion.h"
+#include "loadgen/report.h"
+#include "loadgen/stats.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/udp_socket.h"
+#include "relay/relay.h"
+
+namespace edgephys::loadgen {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr uint32_t kFlag(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
+constexpr uint8_t kGrabbed = static_cast<uint8_t>(schema::PhysicsEventKind::Grabbed);
+constexpr uint8_t kReleased = static_cast<uint8_t>(schema::PhysicsEventKind::Released);
+constexpr uint8_t kTriggerEnter = static_cast<uint8_t>(schema::PhysicsEventKind::TriggerEnter);
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch()).count());
+}
+
+double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
+}
+
+// The relay on its own thread, as edgephys-relay runs it.
+struct RelayThread {
+  RelayCounters counters;
+  std::unique_ptr<UdpSocket> socket;
+  std::unique_ptr<Relay> relay;
+  std::thread thread;
+  std::atomic<bool> stop{false};
+  std::atomic<double> cpu_s{0};
+  Clock::time_point start;
+
+  RelayThread(const RelayConfig& config, Clock::time_point t0) : start(t0) {
+    socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
+    relay = std::make_unique<Relay>(config, socket.get(), &counters);
+    thread = std::thread([this] {
+      while (!stop.load()) {
+        socket->WaitReadable(0.001);
+        double now = std::chrono::duration<double>(Clock::now() - start).count();
+        relay->Update(now, UnixNow());
+        cpu_s.store(ThreadCpuSeconds());
+      }
+      relay->Shutdown();
+    });
+  }
+  ~RelayThread() {
+    stop.store(true);
+    thread.join();
+  }
+};
+
+struct EventRecord {
+  uint32_t room;
+  uint8_t kind;
+  uint32_t entity;
+  double t;
+};
+
+class World;
+
+class Bot : public ClientListener {
+ public:
+  Bot(World* world, uint32_t index, uint32_t room) : world_(world), index_(index), room_(room) {}
+  void OnEntitySpawned(const RemoteEntity& e) override { ++spawns_seen[e.id]; }
+  void OnEntityUpdated(const RemoteEntity& e) override;
+  void OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) override;
+
+  void Tick(double now);
+
+  World* world_;
+  uint32_t index_;
+  uint32_t room_;
+  std::unique_ptr<UdpSocket> socket;
+  std::unique_ptr<Client> client;
+  double start_at = 0;
+  double joined_at = -1;
+  bool join_requested = false;
+  bool spawned = false;
+  uint32_t head = 0, left = 0, right = 0, box = 0;
+  Vec3f home;
+  double next_publish = 0;
+  // Right-hand publish history for latency matching: (time, position).
+  std::array<std::pair<double, Vec3f>, 64> history{};
+  size_t history_count = 0;
+  // Grab cycle.
+  int phase = 0;  // 0 free, 1 reaching, 2 requested, 3 holding
+  double phase_at = 0;
+  double next_grab = 0;
+  double grab_requested_at = -1;
+  bool hovering = false;
+  std::unordered_map<uint32_t, int> spawns_seen;
+  std::map<std::pair<uint8_t, uint32_t>, int> events_seen;  // (kind, entity) -> count
+  std::unordered_map<uint32_t, SnapshotBuffer> buffers;      // watched hands
+};
+
+class World {
+ public:
+  const CcuOptions& o;
+  RelayThread* relay = nullptr;
+  std::vector<std::unique_ptr<Bot>> bots;
+  std::unordered_map<uint32_t, Bot*> right_hand_owner;  // right hand id -> bot
+  std::unordered_map<uint32_t, Bot*> box_owner;
+  std::vector<EventRecord> events;  // grab/release as the grabbing bot saw them
+  std::vector<double> latencies_ms, grab_latencies_ms;
+  uint64_t hand_updates = 0;
+  bool measuring = false;
+  Clock::time_point start;
+  explicit World(const CcuOptions& options) : o(options) {}
+  double Now() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
+};
+
+Vec3f HandPath(const Bot& b, double t, float side) {
+  double w = 1.3 + 0.01 * (b.index_ % 17);
+  return {static_cast<float>(b.home.x + side * 0.25 + 0.2 * std::sin(w * t + b.index_)),
+          static_cast<float>(1.1 + 0.15 * std::sin(0.9 * w * t + 2 * b.index_)),
+          static_cast<float>(b.home.z + 0.2 * std::cos(w * t + b.index_))};
+}
+
+void Bot::OnEntityUpdated(const RemoteEntity& e) {
+  auto it = world_->right_hand_owner.find(e.id);
+  if (it == world_->right_hand_owner.end() || it->second == this) return;
+  const Bot& sender = *it->second;
+  double now = world_->Now();
+  SnapshotBuffer& buffer = buffers[e.id];
+  buffer.Insert({.sender_time_s = e.state_time_ms / 1000.0, .position = e.state.position,
+                 .rotation = e.state.rotation},
+                now);
+  if (!world_->measuring) return;
+  ++world_->hand_updates;
+  size_t n = std::min(sender.history_count, sender.history.size());
+  for (size_t k = 0; k < n; ++k) {
+    const auto& [t, p] = sender.history[k];
+    float dx = p.x - e.state.position.x, dy = p.y - e.state.position.y, dz = p.z - e.state.position.z;
+    if (dx * dx + dy * dy + dz * dz < 1.5e-6f) {  // the same pose (within the 1 mm lattice)
+      world_->latencies_ms.push_back((now - t) * 1000.0);
+      return;
+    }
+  }
+}
+
+void Bot::OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) {
+  if (kind == kTriggerEnter && a == right && b == box) hovering = true;
+  if (kind != kGrabbed && kind != kReleased) return;
+  ++events_seen[{kind, a}];
+  double now = world_->Now();
+  auto owner = world_->box_owner.find(a);
+  if (owner == world_->box_owner.end()) return;
+  Bot* grabber = owner->second;
+  if (grabber == this) {
+    world_->events.push_back({room_, kind, a, now});
+    if (kind == kGrabbed) phase = 3, phase_at = now;
+  } else if (kind == kGrabbed && grabber->grab_requested_at > 0 && world_->measuring) {
+    world_->grab_latencies_ms.push_back((now - grabber->grab_requested_at) * 1000.0);
+  }
+}
+
+void Bot::Tick(double now) {
+  Client& c = *client;
+  if (c.state() != ClientState::kConnected) return;
+  if (!c.joined()) return;
+  if (joined_at < 0) joined_at = now;
+  if (!spawned) {
+    spawned = true;
+    const uint32_t offloaded = kFlag(schema::EntityFlags::Offloaded);
+    if (index_ < world_->o.rooms) {  // the first bot of each room lays the floor
+      SpawnDesc ground{.position = {0, -0.5f, 0}, .flags = offloaded};
+      ground.colliders.push_back(BoxCollider({200, 0.5f, 200}));
+      (void)c.Spawn(ground);
+    }
+    SpawnDesc h{.position = {home.x, 1.6f, home.z}, .flags = kFlag(schema::EntityFlags::Avatar)};
+    h.rigid_body = RigidBodySpec{};
+    h.rigid_body->kinematic = true;
+    h.rigid_body->mass = 0;
+    head = *c.Spawn(h);
+    for (uint32_t* hand : {&left, &right}) {
+      SpawnDesc d{.position = HandPath(*this, now, hand == &left ? -1.f : 1.f),
+                  .flags = kFlag(schema::EntityFlags::Hand)};
+      d.rigid_body = RigidBodySpec{};
+      d.rigid_body->kinematic = true;
+      d.rigid_body->mass = 0;
+      ColliderSpec trigger = SphereCollider(0.15f);
+      trigger.is_trigger = true;
+      d.colliders.push_back(trigger);
+      *hand = *c.Spawn(d);
+    }
+    SpawnDesc b{.position = {home.x, 0.1f, home.z},
+                .flags = offloaded | kFlag(schema::EntityFlags::Interactable)};
+    b.rigid_body = RigidBodySpec{};
+    b.colliders.push_back(BoxCollider({0.1f, 0.1f, 0.1f}));
+    box = *c.Spawn(b);
+    world_->right_hand_owner[right] = this;
+    world_->box_owner[box] = this;
+    next_grab = now + 2.0 + (index_ % 50) * 0.1;
+    return;
+  }
+  if (now < next_publish) return;
+  next_publish = now + 1.0 / world_->o.publish_hz;
+  (void)c.PublishTransform(head, {home.x, 1.6f + 0.05f * std::sin(float(now)), home.z}, {});
+  (void)c.PublishTransform(left, HandPath(*this, now, -1.f), {});
+  Vec3f r = HandPath(*this, now, 1.f);
+  switch (phase) {
+    case 0:
+      if (now >= next_grab) phase = 1, phase_at = now, hovering = false;
+      break;
+    case 1: {  // reach down to the box
+      const RemoteEntity* e = c.FindEntity(box);
+      if (e != nullptr) r = {e->state.position.x, e->state.position.y + 0.05f, e->state.position.z};
+      if (hovering) {
+        (void)c.Grab(box, right);
+        grab_requested_at = now;
+        phase = 2, phase_at = now;
+      } else if (now - phase_at > 2.0) {
+        phase = 0, next_grab = now + 3.0;  // the box rolled away; try later
+      }
+      break;
+    }
+    case 2:  // waiting for Grabbed
+      if (const RemoteEntity* e = c.FindEntity(box)) r = {e->state.position.x, e->state.position.y + 0.05f, e->state.position.z};
+      if (now - phase_at > 2.0) phase = 0, next_grab = now + 3.0;
+      break;
+    case 3:  // carrying
+      if (now - phase_at > 2.0) {
+        (void)c.Release(box);
+        phase = 0;
+        next_grab = now + 4.0;
+      }
+      break;
+  }
+  (void)c.PublishTransform(right, r, {});
+  history[history_count++ % history.size()] = {now, r};
+}
+
+CcuResult RunOne(const CcuOptions& o, uint32_t users) {
+  World world(o);
+  world.start = Clock::now();
+  RelayConfig config;
+  config.secret = "ccu-" + std::to_string(SecureRandom64());
+  config.max_clients = users + 64;
+  config.room_defaults.capacity = users / std::max(1u, o.rooms) + 16;
+  config.room_defaults.tick_rate_hz = o.tick_rate_hz;
+  config.limits.max_sessions_per_address = users + 64;  // every bot comes from 127.0.0.1
+  config.limits.handshakes_per_s = 100000;
+  config.connection.timeout_s = 10;
+  RelayThread relay(config, world.start);
+  world.relay = &relay;
+
+  for (uint32_t i = 0; i < users; ++i) {
+    auto bot = std::make_unique<Bot>(&world, i, i % std::max(1u, o.rooms));
+    uint32_t slot = i / std::max(1u, o.rooms);
+    bot->home = {static_cast<float>((slot % 32) * 2.0), 0, static_cast<float>((slot / 32) * 2.0)};
+    bot->start_at = o.ramp_s * i / std::max(1u, users);
+    world.bots.push_back(std::move(bot));
+  }
+  auto token = [&](const Bot& b) {
+    JoinToken t;
+    t.room = "ccu-" + std::to_string(b.room_);
+    t.player_id = b.index_ + 1;
+    t.expiry_unix_s = UnixNow() + 3600;
+    t.nonce = SecureRandom64();
+    return *SignJoinToken(t, config.secret);
+  };
+  ClientConfig cc;
+  cc.publish_rate_hz = 240;  // the bot paces itself; the SDK adds no batching delay
+  cc.handshake_timeout_s = 10;
+
+  CcuResult result;
+  result.users = users;
+  result.rooms = o.rooms;
+  const double end = o.ramp_s + o.duration_s;
+  double next_sample = 1.0;
+  uint64_t last_sent = 0, last_recv = 0, last_updates = 0, last_resends = 0;
+  double last_cpu = 0, last_t = 0, last_step_sum = 0;
+  uint64_t last_steps = 0;
+  std::vector<double> step_ms;
+  for (;;) {
+    double now = world.Now();
+    if (now >= end) break;
+    world.measuring = now >= o.ramp_s;
+    for (auto& b : world.bots) {
+      if (!b->client) {
+        if (now < b->start_at) continue;
+        b->socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
+        b->client = std::make_unique<Client>(cc, b->socket.get(), b.get());
+        (void)b->client->Connect(relay.socket->LocalEndpoint(), token(*b), now);
+      }
+      b->client->Update(now);
+      if (b->client->state() == ClientState::kConnected && !b->join_requested) {
+        (void)b->client->JoinRoom("ccu-" + std::to_string(b->room_));
+        b->join_requested = true;
+      }
+      b->Tick(now);
+    }
+    if (now >= next_sample) {
+      next_sample += 1.0;
+      CcuSample s;
+      s.t = now;
+      for (auto& b : world.bots) s.users += b->client && b->client->joined();
+      uint64_t sent = relay.counters.bytes_sent.load(), recv = relay.counters.bytes_received.load();
+      uint64_t updates = relay.counters.entity_updates_sent.load();
+      uint64_t resends = relay.counters.reliable_resends.load();
+      double cpu = relay.cpu_s.load();
+      double dt = now - last_t;
+      s.egress_bytes_per_s = (sent - last_sent) / dt;
+      s.ingress_bytes_per_s = (recv - last_recv) / dt;
+      s.updates_per_s = (updates - last_updates) / dt;
+      s.resends_per_s = (resends - last_resends) / dt;
+      s.relay_cpu = (cpu - last_cpu) / dt;
+      double step_sum = relay.counters.physics_step_seconds.sum();
+      uint64_t steps = relay.counters.physics_steps.load();
+      s.physics_step_ms = steps > last_steps ? (step_sum - last_step_sum) / (steps - last_steps) * 1000 : 0;
+      if (world.measuring && s.physics_step_ms > 0) step_ms.push_back(s.physics_step_ms);
+      last_sent = sent, last_recv = recv, last_updates = updates, last_resends = resends;
+      last_cpu = cpu, last_t = now, last_step_sum = step_sum, last_steps = steps;
+      result.series.push_back(s);
+      if (o.progress) {
+        std::fprintf(stderr, "\r  ccu %u users: t=%5.1f joined=%u egress=%.0f KB/s cpu=%.2f ", users, now,
+                     s.users, s.egress_bytes_per_s / 1000, s.relay_cpu);
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  if (o.progress) std::fprintf(stderr, "\n");
+
+  // Reliable delivery: every other bot's spawns, and every grab/release seen by its grabber.
+  for (auto& b : world.bots) result.connected += b->client && b->client->joined();
+  for (auto& receiver : world.bots) {
+    if (!receiver->client || !receiver->client->joined()) continue;
+    for (auto& other : world.bots) {
+      if (other.get() == receiver.get() || other->room_ != receiver->room_ || other->box == 0) continue;
+      for (uint32_t id : {other->head, other->left, other->right, other->box}) {
+        ++result.reliable_expected;
+        auto it = receiver->spawns_seen.find(id);
+        if (it == receiver->spawns_seen.end()) ++result.reliable_lost;
+        else if (it->second > 1) result.reliable_duplicated += it->second - 1;
+      }
+    }
+    for (const EventRecord& ev : world.events) {
+      if (ev.room != receiver->room_ || receiver->joined_at < 0 || receiver->joined_at > ev.t - 1.0 ||
+          ev.t > end - 1.0) {
+        continue;  // joined after it, or too close to the end to have arrived
+      }
+      ++result.reliable_expected;
+      auto it = receiver->events_seen.find({ev.kind, ev.entity});
+      if (it == receiver->events_seen.end()) ++result.reliable_lost;
+    }
+  }
+  result.latency_ms_p50 = Percentile(world.latencies_ms, 50);
+  result.latency_ms_p99 = Percentile(world.latencies_ms, 99);
+  result.grab_latency_ms_p50 = Percentile(world.grab_latencies_ms, 50);
+  result.grab_latency_ms_p99 = Percentile(world.grab_latencies_ms, 99);
+  result.relay_wait_ms_mean = 500.0 / o.tick_rate_hz;
+  result.physics_step_ms_p99 = Percentile(step_ms, 99);
+  std::vector<double> delays;
+  for (auto& b : world.bots) {
+    for (auto& [id, buf] : b->buffers) delays.push_back(buf.target_delay_s() * 1000);
+  }
+  result.interpolation_delay_ms = Median(delays);
+  double cpu_sum = 0, egress_sum = 0;
+  int n = 0;
+  for (const CcuSample& s : result.series) {
+    if (s.t < o.ramp_s) continue;
+    cpu_sum += s.relay_cpu;
+    egress_sum += s.egress_bytes_per_s;
+    ++n;
+  }
+  result.relay_cpu_mean = n ? cpu_sum / n : 0;
+  result.egress_bytes_per_s_per_user = n && users ? egress_sum / n / users : 0;
+  // Each bot watches every other bot's right hand in its room, published at publish_hz and
+  // forwarded at min(publish, critical) rate.
+  double per_room = static_cast<double>(users) / std::max(1u, o.rooms);
+  double expected = users * (per_room - 1) * o.publish_hz * o.duration_s;
+  result.expected_update_ratio = expected > 0 ? world.hand_updates / expected : 0;
+  return result;
+}
+
+}  // namespace
+
+std::vector<CcuResult> RunCcu(const CcuOptions& options) {
+  std::vector<CcuResult> results;
+  for (uint32_t users : options.users) results.push_back(RunOne(options, users));
+  return results;
+}
+
+std::string CcuJson(const CcuOptions& o, const std::vector<CcuResult>& results) {
+  nlohmann::json j;
+  j["scenario"] = "ccu";
+  j["options"] = {{"rooms", o.rooms}, {"ramp_s", o.ramp_s}, {"duration_s", o.duration_s},
+                  {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
+  auto summary = [](const CcuResult& r) {
+    return nlohmann::json{{"users", r.users},
+                          {"rooms", r.rooms},
+                          {"connected", r.connected},
+                          {"reliable_expected", r.reliable_expected},
+                          {"reliable_lost", r.reliable_lost},
+                          {"reliable_duplicated", r.reliable_duplicated},
+                          {"latency_user_to_user_ms_p50", r.latency_ms_p50},
+                          {"latency_user_to_user_ms_p99", r.latency_ms_p99},
+                          {"grab_latency_ms_p50", r.grab_latency_ms_p50},
+                          {"grab_latency_ms_p99", r.grab_latency_ms_p99},
+                          {"latency_relay_wait_ms_mean", r.relay_wait_ms_mean},
+                          {"latency_physics_step_ms_p99", r.physics_step_ms_p99},
+                          {"latency_interpolation_ms", r.interpolation_delay_ms},
+                          {"relay_cpu_mean", r.relay_cpu_mean},
+                          {"egress_bytes_per_s_per_user", r.egress_bytes_per_s_per_user},
+                          {"hand_update_ratio", r.expected_update_ratio}};
+  };
+  auto series = [](const CcuResult& r) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const CcuSample& s : r.series) {
+      a.push_back({{"t", s.t}, {"users", s.users}, {"egress_bytes_per_s", s.egress_bytes_per_s},
+                   {"ingress_bytes_per_s", s.ingress_bytes_per_s}, {"updates_per_s", s.updates_per_s},
+                   {"resends_per_s", s.resends_per_s}, {"relay_cpu", s.relay_cpu},
+                   {"physics_step_ms", s.physics_step_ms}});
+    }
+    return a;
+  };
+  if (results.size() == 1) {
+    j["summary"] = summary(results[0]);
+    j["series"] = series(results[0]);
+  }
+  j["runs"] = nlohmann::json::array();
+  for (const CcuResult& r : results) j["runs"].push_back({{"summary", summary(r)}, {"series", series(r)}});
+  return j.dump(2);
+}
+
+std::string CcuTable(const std::vector<CcuResult>& results) {
+  std::ostringstream out;
+  char line[320];
+  std::snprintf(line, sizeof(line), "%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n", "users",
+                "rooms", "connected", "lost", "lat p50", "lat p99", "grab p50", "grab p99", "step p99",
+                "cpu", "B/s/user", "upd ratio");
+  out << line;
+  for (const CcuResult& r : results) {
+    std::snprintf(line, sizeof(line),
+                  "%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f %9.0f %8.2f\n", r.users,
+                  r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
+                  r.latency_ms_p50, r.latency_ms_p99, r.grab_latency_ms_p50, r.grab_latency_ms_p99,
+                  r.physics_step_ms_p99, r.relay_cpu_mean, r.egress_bytes_per_s_per_user,
+                  r.expected_update_ratio);
+    out << line;
+  }
+  out << "(latencies in ms, user to user on loopback; cpu = relay thread CPU / wall)\n";
+  return out.str();
+}
+
+bool WriteCcuCharts(const std::vector<CcuResult>& results, const std::string& prefix) {
+  std::ofstream dat(prefix + ".dat");
+  if (!dat) return false;
+  for (const CcuResult& r : results) {
+    dat << "# users " << r.users << "\n# t users egress_KBps ingress_KBps updates_per_s cpu step_ms\n";
+    for (const CcuSample& s : r.series) {
+      dat << s.t << " " << s.users << " " << s.egress_bytes_per_s / 1000 << " "
+          << s.ingress_bytes_per_s / 1000 << " " << s.updates_per_s << " " << s.relay_cpu << " "
+          << s.physics_step_ms << "\n";
+    }
+    dat << "\n\n";
+  }
+  dat.close();
+  for (const char* ext : {"png", "svg"}) {
+    std::ofstream gp(prefix + "." + ext + ".gp");
+    gp << "set terminal " << (std::string(ext) == "png" ? "pngcairo" : "svg") << " size 900,560\n"
+       << "set output '" << prefix << "." << ext << "'\nset title 'ccu: relay load over time'\n"
+       << "set xlabel 'time (s)'\nset ylabel 'users, KB/s'\nset y2label 'relay CPU (cores)'\n"
+       << "set y2tics\nset grid\nset key top left\nplot ";
+    for (size_t i = 0; i < results.size(); ++i) {
+      gp << "'" << prefix << ".dat' index " << i << " using 1:2 with lines title 'users (" << results[i].users
+         << ")', '' index " << i << " using 1:3 with lines title 'egress KB/s', '' index " << i
+         << " using 1:6 axes x1y2 with lines title 'relay cpu'" << (i + 1 < results.size() ? ", " : "\n");
+    }
+    gp.close();
+    std::string cmd = "command -v gnuplot >/dev/null && gnuplot '" + prefix + "." + ext + ".gp' 2>/dev/null";
+    (void)std::system(cmd.c_str());
+  }
+  return true;
+}
+
+}  // namespace edgephys::loadgen

@@ -1,0 +1,68 @@
+// ccu: concurrent users against one relay with embedded PhyS (issue #5's scenario).
+//
+// Bots join gradually (--users over --ramp seconds), spread over --rooms rooms. Each bot owns a
+// head (Avatar, kinematic, no collider), two hands (Hand, kinematic, with trigger spheres:
+// mirrored into PhyS) and one interactable box simulated by PhyS, which it grabs (hand moved
+// onto it, Grab), carries and releases now and then. All move constantly.
+//
+// The relay runs on its own thread (as in production); bots run on the calling thread. Every
+// second a sample records users, relay egress/ingress, updates/s, reliable resends and the
+// relay thread's CPU share. User-to-user latency: each bot watches other bots' right hands;
+// a received pose is matched to the publish time of the same pose on the sender (all in one
+// process and clock), so latency = receive time - publish time; grab latency = the Grab
+// request to the Grabbed event at another user. Reliable loss: every bot checks it received
+// every spawn and grab/release event of the other bots in its room, once each.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace edgephys::loadgen {
+
+struct CcuOptions {
+  std::vector<uint32_t> users = {100};  // one run per count
+  uint32_t rooms = 1;
+  double ramp_s = 10;
+  double duration_s = 20;                // measured after the ramp
+  double tick_rate_hz = 60;
+  double publish_hz = 30;                // bots' pose updates
+  uint64_t seed = 1;
+  bool progress = true;
+};
+
+struct CcuSample {
+  double t = 0;
+  uint32_t users = 0;
+  double egress_bytes_per_s = 0;   // relay total
+  double ingress_bytes_per_s = 0;
+  double updates_per_s = 0;        // entity updates sent by the relay
+  double resends_per_s = 0;
+  double relay_cpu = 0;            // relay thread CPU time / wall time (1.0 = one core)
+  double physics_step_ms = 0;      // mean over the second
+};
+
+struct CcuResult {
+  uint32_t users = 0;
+  uint32_t rooms = 0;
+  uint32_t connected = 0;          // bots connected and joined at the end
+  uint64_t reliable_expected = 0;
+  uint64_t reliable_lost = 0;      // expected reliable messages not received (spawns, grab events)
+  uint64_t reliable_duplicated = 0;
+  double latency_ms_p50 = 0, latency_ms_p99 = 0;   // hand pose, user to user
+  double grab_latency_ms_p50 = 0, grab_latency_ms_p99 = 0;
+  double relay_wait_ms_mean = 0;   // half a tick: expected relay queueing delay
+  double physics_step_ms_p99 = 0;
+  double interpolation_delay_ms = 0;  // playout delay a jitter buffer chooses for these arrivals
+  double relay_cpu_mean = 0;
+  double egress_bytes_per_s_per_user = 0;
+  double expected_update_ratio = 0;   // hand updates received / expected
+  std::vector<CcuSample> series;
+};
+
+std::vector<CcuResult> RunCcu(const CcuOptions& options);
+std::string CcuJson(const CcuOptions& options, const std::vector<CcuResult>& results);
+std::string CcuTable(const std::vector<CcuResult>& results);
+bool WriteCcuCharts(const std::vector<CcuResult>& results, const std::string& prefix);
+
+}  // namespace edgephys::loadgen

@@ -1,0 +1,652 @@
+#include "loadgen/multiobject.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+#include <unordered_map>
+
+#include "loadgen/stats.h"
+#include "physics_backend/scenes.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+
+namespace edgephys::loadgen {
+
+// ---------------------------------------------------------------------------------------------
+// LoopbackRoom
+
+namespace {
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+}  // namespace
+
+LoopbackRoom::LoopbackRoom(const RelayConfig& config_in, std::string room, uint32_t clients,
+                           const ClientConfig& host_config,
+                           const std::vector<ClientListener*>& listeners)
+    : room_(std::move(room)), start_(std::chrono::steady_clock::now()) {
+  RelayConfig config = config_in;
+  secret_ = Base64UrlEncode(std::vector<uint8_t>(8, 7)) + std::to_string(SecureRandom64());
+  config.secret = secret_;
+  auto loopback = asio::ip::make_address("127.0.0.1");
+  relay_socket_ = std::move(*UdpSocket::Open(Endpoint(loopback, 0)));
+  relay_ = std::make_unique<Relay>(config, relay_socket_.get(), &counters_);
+  for (uint32_t i = 0; i < clients; ++i) {
+    sockets_.push_back(std::move(*UdpSocket::Open(Endpoint(loopback, 0))));
+    ClientListener* listener = i < listeners.size() ? listeners[i] : nullptr;
+    clients_.push_back(std::make_unique<Client>(i == 0 ? host_config : ClientConfig{},
+                                                sockets_.back().get(), listener));
+  }
+}
+
+LoopbackRoom::~LoopbackRoom() {
+  clients_.clear();
+  relay_.reset();
+}
+
+bool LoopbackRoom::ConnectAndJoin(double timeout_s) {
+  for (size_t i = 0; i < clients_.size(); ++i) {
+    JoinToken t;
+    t.room = room_;
+    t.player_id = static_cast<uint32_t>(i + 1);
+    t.expiry_unix_s = UnixNow() + 3600;
+    t.nonce = SecureRandom64();
+    (void)clients_[i]->Connect(relay_socket_->LocalEndpoint(), *SignJoinToken(t, secret_), Now());
+  }
+  auto run_until = [&](auto&& done, double timeout) {
+    const double end = Now() + timeout;
+    while (Now() < end && !done()) {
+      Step();
+      std::this_thread::sleep_for(std::chrono::microseconds(300));
+    }
+    return done();
+  };
+  bool ok = run_until([&] {
+    for (auto& c : clients_) if (c->state() != ClientState::kConnected) return false;
+    return true;
+  }, timeout_s);
+  if (!ok) return false;
+  for (auto& c : clients_) (void)c->JoinRoom(room_);
+  return run_until([&] {
+    for (auto& c : clients_) if (!c->joined()) return false;
+    return true;
+  }, timeout_s);
+}
+
+void LoopbackRoom::UpdateRelay() { relay_->Update(Now(), UnixNow()); }
+
+void LoopbackRoom::UpdateClients() {
+  const double now = Now();
+  for (auto& c : clients_) c->Update(now);
+}
+
+uint64_t HistogramCount(const AtomicHistogram<10>& h) {
+  uint64_t n = 0;
+  for (size_t i = 0; i <= 10; ++i) n += h.bucket(i);
+  return n;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scenario
+
+namespace {
+
+constexpr size_t kRing = 16;  // recent relay states kept per box (at 60 Hz: 0.27 s)
+constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
+
+double Dist(const Vec3f& a, const Vec3f& b) {
+  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+double Seconds(std::chrono::steady_clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
+
+void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
+  physics::MultiObjectParams p;
+  p.num_objects = static_cast<int>(n);
+  p.seed = o.seed;
+  p.stirrer_angular_speed = o.stirrer_angular_speed;
+  physics::PhysSMultiObjectScene phys(p);
+  physics::RawBulletMultiObjectScene raw(p);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < o.bench_warmup_steps; ++i) {
+    phys.Step();
+    raw.Step();
+    if (o.progress && i % 10 == 0) {
+      std::fprintf(stderr, "\r  %6u objects  standalone: settling %d / %d steps (%.0f s)   ", n, i,
+                   o.bench_warmup_steps, Seconds(std::chrono::steady_clock::now() - t0));
+    }
+  }
+  std::vector<double> phys_ms, raw_ms, phys_moving, raw_moving;
+  const auto m0 = std::chrono::steady_clock::now();
+  auto time_step = [](auto& scene) {
+    const auto a = std::chrono::steady_clock::now();
+    scene.Step();
+    return Seconds(std::chrono::steady_clock::now() - a) * 1000.0;
+  };
+  for (int i = 0; i < o.bench_steps; ++i) {
+    if (i >= o.bench_min_steps && Seconds(std::chrono::steady_clock::now() - m0) > o.bench_max_s) break;
+    if (i % 2 == 0) {
+      phys_ms.push_back(time_step(phys));
+      raw_ms.push_back(time_step(raw));
+    } else {
+      raw_ms.push_back(time_step(raw));
+      phys_ms.push_back(time_step(phys));
+    }
+    if (i % 10 == 0) {
+      const float v = static_cast<float>(o.moving_speed_mps);
+      phys_moving.push_back(static_cast<double>(phys.MovingBoxes(v)) / n);
+      raw_moving.push_back(static_cast<double>(raw.MovingBoxes(v)) / n);
+      if (o.progress) {
+        std::fprintf(stderr, "\r  %6u objects  standalone: step %d / %d (%.0f s)               ", n,
+                     i, o.bench_steps, Seconds(std::chrono::steady_clock::now() - m0));
+      }
+    }
+  }
+  auto mean = [](const std::vector<double>& v) {
+    double s = 0;
+    for (double x : v) s += x;
+    return v.empty() ? 0.0 : s / static_cast<double>(v.size());
+  };
+  auto min = [](const std::vector<double>& v) {
+    return v.empty() ? 0.0 : *std::min_element(v.begin(), v.end());
+  };
+  r->bench_steps = static_cast<int>(phys_ms.size());
+  r->step_ms_median = Median(phys_ms);
+  r->step_ms_p99 = Percentile(phys_ms, 99);
+  r->raw_bullet_step_ms_median = Median(raw_ms);
+  r->raw_bullet_step_ms_p99 = Percentile(raw_ms, 99);
+  r->step_ratio = r->raw_bullet_step_ms_median > 0 ? r->step_ms_median / r->raw_bullet_step_ms_median : 0;
+  r->moving_fraction = mean(phys_moving);
+  r->moving_fraction_min = min(phys_moving);
+  r->raw_moving_fraction = mean(raw_moving);
+  r->raw_moving_fraction_min = min(raw_moving);
+}
+
+struct BoxTable {
+  std::unordered_map<uint32_t, size_t> index;  // entity id -> box index
+  std::vector<std::array<Vec3f, kRing>> ring;  // relay's recent positions per box
+  std::vector<uint32_t> count;
+};
+
+class BoxReceiver : public ClientListener {
+ public:
+  explicit BoxReceiver(const BoxTable* boxes) : boxes_(boxes) {}
+  void OnEntityUpdated(const RemoteEntity& e) override {
+    if (!measuring) return;
+    auto it = boxes_->index.find(e.id);
+    if (it == boxes_->index.end()) return;
+    ++updates;
+    const size_t k = it->second;
+    const size_t n = std::min<size_t>(boxes_->count[k], kRing);
+    if (n == 0) return;
+    double best = 1e9;
+    for (size_t j = 0; j < n; ++j) best = std::min(best, Dist(e.state.position, boxes_->ring[k][j]));
+    sent_errors.push_back(best);
+  }
+  void OnPhysicsEvent(uint8_t, uint32_t, uint32_t) override {
+    if (measuring) ++events;
+  }
+  bool measuring = false;
+  uint64_t updates = 0, events = 0;
+  std::vector<double> sent_errors;
+
+ private:
+  const BoxTable* boxes_;
+};
+
+void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
+  physics::MultiObjectParams p;
+  p.num_objects = static_cast<int>(n);
+  p.seed = o.seed;
+  p.stirrer_angular_speed = o.stirrer_angular_speed;
+  const double dt = p.config.fixed_dt;
+
+  RelayConfig config;
+  config.room_defaults.capacity = o.receivers + 2;
+  config.room_defaults.tick_rate_hz = 60;
+  config.room_defaults.max_entities_per_player = n + 64;
+  config.room_defaults.replication.mode = ReplicationMode::kEdgephys;
+  config.room_defaults.replication.position_step_m = o.position_step_m;
+  config.room_defaults.replication.rotation_bound_deg = o.rotation_bound_deg;
+  // The benchmark host is trusted and spawns the whole scene at once: no abuse rate limits.
+  config.limits.spawns_per_s = 0;
+  config.limits.packets_per_s = 0;
+  config.limits.bytes_per_s = 0;
+  config.physics.max_substeps = o.relay_max_substeps;
+  config.connection.max_pending_reliable_bytes = std::max<size_t>(
+      config.connection.max_pending_reliable_bytes, static_cast<size_t>(n) * 1024);
+
+  BoxTable boxes;
+  std::vector<std::unique_ptr<BoxReceiver>> receivers;
+  std::vector<ClientListener*> listeners = {nullptr};
+  for (uint32_t i = 0; i < o.receivers; ++i) {
+    receivers.push_back(std::make_unique<BoxReceiver>(&boxes));
+    listeners.push_back(receivers.back().get());
+  }
+  ClientConfig host_config;
+  host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
+  LoopbackRoom world(config, "multiobject", o.receivers + 1, host_config, listeners);
+  if (!world.ConnectAndJoin(5.0)) {
+    std::fprintf(stderr, "multiobject: clients failed to connect/join\n");
+    return;
+  }
+  Client& host = world.client(0);
+  RelayCounters& counters = world.counters();
+
+  // The host dissects the scene: static floor and walls, the kinematic stirrer it drives, and
+  // the boxes handed to PhyS.
+  const double spawn_start = world.Now();
+  uint32_t stirrer = 0;
+  std::vector<uint32_t> box_ids;
+  const auto specs = physics::MultiObjectSpecs(p);
+  for (const EntitySpec& s : specs) {
+    SpawnDesc d{.position = s.position, .rotation = s.rotation, .scale = s.scale,
+                .flags = s.flags | F(schema::EntityFlags::Offloaded)};
+    d.rigid_body = s.rigid_body;
+    d.colliders = s.colliders;
+    auto id = host.Spawn(d);
+    if (!id.ok()) {
+      std::fprintf(stderr, "multiobject: spawn failed: %s\n", std::string(id.status().message()).c_str());
+      return;
+    }
+    if (s.id == physics::kSceneStirrerId) stirrer = *id;
+    if (s.id >= physics::kSceneFirstBoxId) {
+      boxes.index[*id] = box_ids.size();
+      box_ids.push_back(*id);
+    }
+  }
+  boxes.ring.resize(box_ids.size());
+  boxes.count.assign(box_ids.size(), 0);
+
+  auto drive_stirrer = [&] {
+    Vec3f pos;
+    Quatf rot;
+    const double sim_t = static_cast<double>(RelayCounters::Get(counters.physics_steps)) * dt;
+    physics::StirrerPose(p, sim_t, &pos, &rot);
+    (void)host.PublishTransform(stirrer, pos, rot);
+  };
+  auto round = [&] {
+    drive_stirrer();
+    world.Step();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  };
+
+  // Everyone has the whole scene.
+  double last_check = -1;
+  bool spawned = false;
+  while (world.Now() - spawn_start < 120.0) {
+    round();
+    if (world.Now() - last_check < 0.2) continue;
+    last_check = world.Now();
+    const Room* room = world.room();
+    if (room == nullptr || room->entities().size() < specs.size()) continue;
+    bool all = true;
+    for (size_t c = 1; c < world.client_count() && all; ++c) {
+      size_t have = 0;
+      for (const auto& [id, e] : world.client(c).entities()) have += e.spawned ? 1 : 0;
+      all = have >= specs.size();
+    }
+    if (all) {
+      spawned = true;
+      break;
+    }
+    if (o.progress) {
+      std::fprintf(stderr, "\r  %6u objects  relay: spawning (%zu in room)             ", n,
+                   room->entities().size());
+    }
+  }
+  if (!spawned) {
+    for (size_t c = 0; c < world.client_count(); ++c) {
+      std::fprintf(stderr, "multiobject: client %zu state %d disconnect reason %d\n", c,
+                   static_cast<int>(world.client(c).state()),
+                   static_cast<int>(world.client(c).disconnect_reason()));
+    }
+    std::fprintf(stderr, "\nmultiobject: the scene did not reach every client within 120 s\n");
+    return;
+  }
+  r->spawn_s = world.Now() - spawn_start;
+
+  // Cache the relay's entities (node-based map: stable while they exist).
+  const Room* room = world.room();
+  std::vector<const Entity*> relay_boxes(box_ids.size());
+  for (size_t k = 0; k < box_ids.size(); ++k) relay_boxes[k] = &room->entities().at(box_ids[k]);
+  std::vector<uint32_t> seen_version(box_ids.size(), 0);
+
+  // Settle.
+  const uint64_t steps_at_spawn = RelayCounters::Get(counters.physics_steps);
+  const double settle_start = world.Now();
+  while (RelayCounters::Get(counters.physics_steps) - steps_at_spawn <
+             static_cast<uint64_t>(o.relay_settle_steps) &&
+         world.Now() - settle_start < o.relay_settle_max_s) {
+    round();
+    if (o.progress) {
+      std::fprintf(stderr, "\r  %6u objects  relay: settling %llu / %d steps        ", n,
+                   static_cast<unsigned long long>(RelayCounters::Get(counters.physics_steps) - steps_at_spawn),
+                   o.relay_settle_steps);
+    }
+  }
+
+  // Measure.
+  const size_t R = o.receivers;
+  std::vector<uint64_t> relay_bytes0(R), socket_bytes0(R), state_bytes0(R);
+  for (size_t k = 0; k < R; ++k) {
+    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
+    relay_bytes0[k] = rs ? rs->bytes_sent : 0;
+    socket_bytes0[k] = world.client(k + 1).stats()->bytes_received;
+    state_bytes0[k] = world.client(k + 1).state_bytes_received();
+    receivers[k]->measuring = true;
+  }
+  const uint64_t steps0 = RelayCounters::Get(counters.physics_steps);
+  const double step_sum0 = counters.physics_step_seconds.sum();
+  const uint64_t step_count0 = HistogramCount(counters.physics_step_seconds);
+  const double t0 = world.Now();
+  const double t_end = t0 + o.duration_s;
+  double next_error = t0, next_moving = t0, last_progress = 0;
+  uint64_t last_scanned_steps = 0;
+  std::vector<double> same_errors, moving_samples;
+  std::vector<Vec3f> prev_pos(box_ids.size());
+  uint64_t prev_steps = 0;
+  bool have_prev = false;
+  const Client& watcher = world.client(1);
+  while (world.Now() < t_end) {
+    drive_stirrer();
+    world.UpdateRelay();
+    if (world.room() == nullptr || world.room()->size() < world.client_count() ||
+        world.room()->entities().size() < specs.size()) {
+      std::fprintf(stderr, "\nmultiobject: %u objects: a client left the room during the measurement\n", n);
+      break;  // cached entity pointers may dangle now
+    }
+    const uint64_t steps = RelayCounters::Get(counters.physics_steps);
+    if (steps != last_scanned_steps) {  // record what PhyS produced (and the relay may send)
+      last_scanned_steps = steps;
+      for (size_t k = 0; k < relay_boxes.size(); ++k) {
+        if (relay_boxes[k]->version == seen_version[k]) continue;
+        seen_version[k] = relay_boxes[k]->version;
+        boxes.ring[k][boxes.count[k]++ % kRing] = relay_boxes[k]->state.position;
+      }
+    }
+    world.UpdateClients();
+    const double now = world.Now();
+    if (now >= next_error) {  // receivers' latest vs the relay's state, same moment
+      next_error += 0.1;
+      for (size_t c = 1; c < world.client_count(); ++c) {
+        for (size_t k = 0; k < box_ids.size(); ++k) {
+          const RemoteEntity* e = world.client(c).FindEntity(box_ids[k]);
+          if (e == nullptr || !e->spawned) continue;
+          same_errors.push_back(Dist(e->state.position, relay_boxes[k]->state.position));
+        }
+      }
+    }
+    if (now >= next_moving) {  // moving share from the states the first receiver holds
+      next_moving += 0.5;
+      std::vector<Vec3f> pos(box_ids.size());
+      for (size_t k = 0; k < box_ids.size(); ++k) {
+        const RemoteEntity* e = watcher.FindEntity(box_ids[k]);
+        if (e != nullptr) pos[k] = e->state.position;
+      }
+      if (have_prev && steps > prev_steps) {
+        const double sim_dt = static_cast<double>(steps - prev_steps) * dt;
+        size_t moving = 0;
+        for (size_t k = 0; k < pos.size(); ++k) {
+          if (Dist(pos[k], prev_pos[k]) / sim_dt > o.moving_speed_mps) ++moving;
+        }
+        moving_samples.push_back(static_cast<double>(moving) / static_cast<double>(pos.size()));
+      }
+      if (!have_prev || steps > prev_steps) {
+        prev_pos = std::move(pos);
+        prev_steps = steps;
+        have_prev = true;
+      }
+    }
+    if (o.progress && now - last_progress >= 0.5) {
+      last_progress = now;
+      std::fprintf(stderr, "\r  %6u objects  relay: measuring %4.1f / %.1f s             ", n,
+                   now - t0, o.duration_s);
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  const double elapsed = world.Now() - t0;
+  for (size_t c = 0; c < world.client_count(); ++c) {
+    if (world.client(c).state() != ClientState::kConnected) {
+      std::fprintf(stderr, "\nmultiobject: %u objects: client %zu lost its connection (reason %d); "
+                   "results of this size are void\n", n, c,
+                   static_cast<int>(world.client(c).disconnect_reason()));
+      return;
+    }
+  }
+  double relay_total = 0, socket_total = 0, state_total = 0, updates = 0, events = 0;
+  std::vector<double> sent;
+  for (size_t k = 0; k < R; ++k) {
+    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
+    relay_total += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0[k]) : 0;
+    socket_total += static_cast<double>(world.client(k + 1).stats()->bytes_received - socket_bytes0[k]);
+    state_total += static_cast<double>(world.client(k + 1).state_bytes_received() - state_bytes0[k]);
+    updates += static_cast<double>(receivers[k]->updates);
+    events += static_cast<double>(receivers[k]->events);
+    sent.insert(sent.end(), receivers[k]->sent_errors.begin(), receivers[k]->sent_errors.end());
+  }
+  const double per = static_cast<double>(R) * elapsed;
+  r->relay_ok = true;
+  r->egress_mbit_per_s_per_client = relay_total * 8 / 1e6 / per;
+  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->updates_per_s_per_client = updates / per;
+  r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
+  r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
+  r->events_per_s_per_client = events / per;
+  const uint64_t steps_done = RelayCounters::Get(counters.physics_steps) - steps0;
+  const uint64_t observed = HistogramCount(counters.physics_step_seconds) - step_count0;
+  r->relay_step_ms_mean =
+      observed > 0 ? (counters.physics_step_seconds.sum() - step_sum0) / static_cast<double>(observed) * 1000 : 0;
+  r->sim_speed = static_cast<double>(steps_done) * dt / elapsed;
+  r->relay_moving_fraction = moving_samples.empty() ? 0 : [&] {
+    double s = 0;
+    for (double x : moving_samples) s += x;
+    return s / static_cast<double>(moving_samples.size());
+  }();
+  r->relay_moving_fraction_min =
+      moving_samples.empty() ? 0 : *std::min_element(moving_samples.begin(), moving_samples.end());
+  r->pos_err_max_m = Max(same_errors);
+  r->pos_err_p99_m = Percentile(same_errors, 99);
+  r->pos_err_sent_max_m = Max(sent);
+  r->pos_err_sent_p99_m = Percentile(sent, 99);
+  r->error_samples = same_errors.size();
+}
+
+}  // namespace
+
+double PaperObjMbitPerS(uint32_t objects) {
+  switch (objects) {
+    case 500: return 0.72;
+    case 1000: return 1.32;
+    case 2000: return 2.70;
+    case 5000: return 5.45;
+    case 7500: return 8.31;
+    case 10000: return 10.95;
+  }
+  return 0;
+}
+
+std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& o) {
+  std::vector<MultiObjectResult> results;
+  for (uint32_t n : o.objects) {
+    MultiObjectResult r;
+    r.objects = n;
+    r.paper_mbit_per_s = PaperObjMbitPerS(n);
+    if (o.bench) Bench(o, n, &r);
+    if (o.relay) RelayRun(o, n, &r);
+    if (o.progress) std::fprintf(stderr, "\r%78s\r", "");
+    results.push_back(r);
+  }
+  return results;
+}
+
+std::string MultiObjectJson(const MultiObjectOptions& o, const std::vector<MultiObjectResult>& results) {
+  nlohmann::json j;
+  j["scenario"] = "multiobject";
+  j["options"] = {{"seed", o.seed},
+                  {"stirrer_angular_speed", o.stirrer_angular_speed},
+                  {"moving_speed_mps", o.moving_speed_mps},
+                  {"bench_warmup_steps", o.bench_warmup_steps},
+                  {"bench_steps", o.bench_steps},
+                  {"bench_max_s", o.bench_max_s},
+                  {"receivers", o.receivers},
+                  {"duration_s", o.duration_s},
+                  {"relay_settle_steps", o.relay_settle_steps},
+                  {"relay_max_substeps", o.relay_max_substeps},
+                  {"position_step_m", o.position_step_m},
+                  {"rotation_bound_deg", o.rotation_bound_deg},
+                  {"tick_rate_hz", 60},
+                  {"mode", "edgephys"}};
+  j["results"] = nlohmann::json::array();
+  for (const auto& r : results) {
+    nlohmann::json e = {{"objects", r.objects}};
+    if (o.bench) {
+      e.update({{"step_ms_median", r.step_ms_median},
+                {"step_ms_p99", r.step_ms_p99},
+                {"raw_bullet_step_ms_median", r.raw_bullet_step_ms_median},
+                {"raw_bullet_step_ms_p99", r.raw_bullet_step_ms_p99},
+                {"step_ratio_phys_to_raw", r.step_ratio},
+                {"bench_steps", r.bench_steps},
+                {"realtime_60hz", r.step_ms_median <= 1000.0 / 60.0},
+                {"moving_fraction", r.moving_fraction},
+                {"moving_fraction_min", r.moving_fraction_min},
+                {"raw_moving_fraction", r.raw_moving_fraction},
+                {"raw_moving_fraction_min", r.raw_moving_fraction_min}});
+    }
+    if (o.relay) {
+      e.update({{"relay_ok", r.relay_ok},
+                {"egress_mbit_per_s_per_client", r.egress_mbit_per_s_per_client},
+                {"socket_mbit_per_s_per_client", r.socket_mbit_per_s_per_client},
+                {"paper_mbit_per_s", r.paper_mbit_per_s},
+                {"egress_ratio_to_paper",
+                 r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0},
+                {"updates_per_s_per_client", r.updates_per_s_per_client},
+                {"bytes_per_update", r.bytes_per_update},
+                {"state_mbit_per_s_per_client", r.state_mbit_per_s_per_client},
+                {"events_per_s_per_client", r.events_per_s_per_client},
+                {"relay_step_ms_mean", r.relay_step_ms_mean},
+                {"sim_speed", r.sim_speed},
+                {"relay_moving_fraction", r.relay_moving_fraction},
+                {"relay_moving_fraction_min", r.relay_moving_fraction_min},
+                {"pos_err_max_m", r.pos_err_max_m},
+                {"pos_err_p99_m", r.pos_err_p99_m},
+                {"pos_err_sent_max_m", r.pos_err_sent_max_m},
+                {"pos_err_sent_p99_m", r.pos_err_sent_p99_m},
+                {"error_samples", r.error_samples},
+                {"spawn_s", r.spawn_s}});
+    }
+    j["results"].push_back(e);
+  }
+  return j.dump(2);
+}
+
+std::string MultiObjectTable(const std::vector<MultiObjectResult>& results) {
+  std::ostringstream out;
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "%7s | %8s %8s %8s %8s %6s %6s | %7s %5s %7s %6s %6s %7s %7s %7s %6s %6s %8s %8s %8s\n",
+                "objects", "PhyS med", "PhyS p99", "raw med", "raw p99", "ratio", "moving",
+                "relay ms", "sim x", "Mb/s", "paper", "ratio", "state", "upd/s", "ev/s", "B/upd", "moving",
+                "err max", "err p99", "sent max");
+  out << line;
+  for (const auto& r : results) {
+    std::snprintf(line, sizeof(line),
+                  "%7u | %8.2f %8.2f %8.2f %8.2f %6.3f %6.2f | %8.2f %5.2f %7.3f %6.2f %6.3f %7.3f %7.0f "
+                  "%7.0f %6.2f %6.2f %8.2f %8.2f %8.3f\n",
+                  r.objects, r.step_ms_median, r.step_ms_p99, r.raw_bullet_step_ms_median,
+                  r.raw_bullet_step_ms_p99, r.step_ratio, r.moving_fraction, r.relay_step_ms_mean,
+                  r.sim_speed, r.egress_mbit_per_s_per_client, r.paper_mbit_per_s,
+                  r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0,
+                  r.state_mbit_per_s_per_client, r.updates_per_s_per_client,
+                  r.events_per_s_per_client, r.bytes_per_update, r.relay_moving_fraction,
+                  r.pos_err_max_m * 1000, r.pos_err_p99_m * 1000, r.pos_err_sent_max_m * 1000);
+    out << line;
+  }
+  out << "(standalone, same run, interleaved: PhyS/raw step ms median & p99, ratio of medians,\n"
+         " moving = share of boxes > 1 cm/s; relay run: relay ms = relay's mean PhyS step, sim x =\n"
+         " simulated s per wall s, Mb/s = relay egress per receiver (10^6 bit/s), paper = Obj_N,\n"
+         " state = state payload Mb/s within it, ev/s = physics events received per receiver,\n"
+         " err = receiver's latest vs relay's state at the same moment (mm), sent max = vs the\n"
+         " relay state it was sent from (mm))\n";
+  return out.str();
+}
+
+bool WriteGnuplotChart(const std::string& prefix, const std::string& name, const std::string& body) {
+  const bool have_gnuplot = std::system("command -v gnuplot >/dev/null 2>&1") == 0;
+  for (const char* term : {"pngcairo size 900,560", "svg size 900,560"}) {
+    const std::string ext = std::string(term).rfind("png", 0) == 0 ? ".png" : ".svg";
+    const std::string out = prefix + "_" + name + ext;
+    const std::string script = out + ".gp";
+    {
+      std::ofstream gp(script);
+      if (!gp) return false;
+      gp << "set terminal " << term << "\nset output '" << out << "'\n" << body;
+    }
+    if (!have_gnuplot) continue;
+    const std::string cmd = "gnuplot '" + script + "' 2>/dev/null";
+    if (std::system(cmd.c_str()) != 0 && ext == ".png") {  // no cairo: plain png
+      std::ofstream gp(script);
+      gp << "set terminal png size 900,560\nset output '" << out << "'\n" << body;
+      gp.close();
+      (void)std::system(cmd.c_str());
+    }
+  }
+  return true;
+}
+
+bool WriteMultiObjectCharts(const std::vector<MultiObjectResult>& results, const std::string& prefix) {
+  {
+    std::ofstream dat(prefix + ".dat");
+    if (!dat) return false;
+    dat << "# objects phys_med phys_p99 raw_med raw_p99 mbit paper_mbit paper_fifth err_max_mm "
+           "err_p99_mm sent_max_mm relay_step_ms\n";
+    for (const auto& r : results) {
+      dat << r.objects << " " << r.step_ms_median << " " << r.step_ms_p99 << " "
+          << r.raw_bullet_step_ms_median << " " << r.raw_bullet_step_ms_p99 << " "
+          << r.egress_mbit_per_s_per_client << " " << r.paper_mbit_per_s << " "
+          << r.paper_mbit_per_s / 5 << " " << r.pos_err_max_m * 1000 << " "
+          << r.pos_err_p99_m * 1000 << " " << r.pos_err_sent_max_m * 1000 << " "
+          << r.relay_step_ms_mean << "\n";
+    }
+  }
+  const std::string d = "'" + prefix + ".dat'";
+  std::ostringstream st;
+  st << "set title 'MultiObject: PhyS step time vs raw Bullet (same scene, same run)'\n"
+        "set xlabel 'objects'\nset ylabel 'ms per step'\nset logscale xy\nset grid\n"
+        "set key top left\n"
+        "plot " << d << " using 1:2 with linespoints lw 2 title 'PhyS median', "
+     << d << " using 1:3 with linespoints dt 2 title 'PhyS p99', "
+     << d << " using 1:4 with linespoints lw 2 title 'raw Bullet median', "
+     << d << " using 1:5 with linespoints dt 2 title 'raw Bullet p99', "
+     << "16.667 with lines lc rgb 'gray' title '60 Hz budget (16.7 ms)'\n";
+  std::ostringstream eg;
+  eg << "set title 'MultiObject: PhyS egress per client vs the paper (1 mm / 0.1 deg)'\n"
+        "set xlabel 'objects'\nset ylabel 'Mb/s per client'\nset logscale xy\nset grid\n"
+        "set key top left\n"
+        "plot " << d << " using 1:6 with linespoints lw 2 title 'edgephys (measured)', "
+     << d << " using 1:($7>0?$7:1/0) with linespoints pt 6 ps 1.5 title 'paper', "
+     << d << " using 1:($8>0?$8:1/0) with lines dt 2 title 'paper / 5 (target)'\n";
+  std::ostringstream er;
+  er << "set title 'MultiObject: receiver position error'\n"
+        "set xlabel 'objects'\nset ylabel 'mm'\nset logscale x\nset grid\nset key top left\n"
+        "plot " << d << " using 1:9 with linespoints title 'max vs relay state, same moment', "
+     << d << " using 1:10 with linespoints title 'p99 vs relay state, same moment', "
+     << d << " using 1:11 with linespoints title 'max vs the relay state sent'\n";
+  return WriteGnuplotChart(prefix, "steptime", st.str()) && WriteGnuplotChart(prefix, "egress", eg.str()) &&
+         WriteGnuplotChart(prefix, "error", er.str());
+}
+
+}  // namespace edgephys::loadgen

@@ -1,0 +1,545 @@
+#include "loadgen/softbody.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+#include <unordered_map>
+
+#include "loadgen/multiobject.h"
+#include "loadgen/stats.h"
+#include "physics_backend/scenes.h"
+
+namespace edgephys::loadgen {
+namespace {
+
+constexpr size_t kRing = 16;  // recent relay particle versions kept per bunny
+constexpr uint32_t kFloorId = 1, kFirstBunnyId = 10, kFirstHandId = 100;
+constexpr float kHandRadius = 0.08f;
+constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
+
+double Dist(const Vec3f& a, const Vec3f& b) {
+  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+double Seconds(std::chrono::steady_clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
+
+std::vector<Vec3f> Nodes(const SoftBodySpec& s) {
+  std::vector<Vec3f> out;
+  for (size_t i = 0; i + 2 < s.particles.size(); i += 3) {
+    out.push_back({s.particles[i], s.particles[i + 1], s.particles[i + 2]});
+  }
+  return out;
+}
+
+// Floor, N bunnies in a row, one hand above each.
+struct Scene {
+  std::vector<EntitySpec> specs;   // floor, bunnies, hands
+  std::vector<std::vector<uint32_t>> springs;     // per bunny: index pairs
+  std::vector<std::vector<float>> rest_lengths;   // per bunny, per spring
+  std::vector<float> hand_x, hand_z, hand_high, hand_low;
+  uint32_t particles = 0;
+  double period = 1.5;
+
+  // Aims hand i at bunny i as it lies now: above its centroid, poking down to 40% of the
+  // body's thickness there.
+  void Calibrate(size_t i, const std::vector<Vec3f>& nodes) {
+    if (nodes.empty()) return;
+    Vec3f c{};
+    for (const Vec3f& p : nodes) c = {c.x + p.x, c.y + p.y, c.z + p.z};
+    const float k = 1.0f / static_cast<float>(nodes.size());
+    c = {c.x * k, c.y * k, c.z * k};
+    float top = -1e9f, bottom = 1e9f;
+    for (const Vec3f& p : nodes) {
+      if (std::fabs(p.x - c.x) < 0.08f && std::fabs(p.z - c.z) < 0.08f) {
+        top = std::max(top, p.y);
+        bottom = std::min(bottom, p.y);
+      }
+    }
+    if (top < bottom) top = bottom = c.y;
+    hand_x[i] = c.x;
+    hand_z[i] = c.z;
+    hand_high[i] = top + kHandRadius + 0.1f;
+    hand_low[i] = bottom + 0.6f * (top - bottom) + kHandRadius;
+  }
+  // Largest change of a spring's length from rest (m): deformation, whatever the pose.
+  double Deformation(size_t i, const std::vector<Vec3f>& nodes) const {
+    double worst = 0;
+    const auto& sp = springs[i];
+    for (size_t s = 0; s + 1 < sp.size(); s += 2) {
+      if (sp[s] >= nodes.size() || sp[s + 1] >= nodes.size()) continue;
+      worst = std::max(worst, std::fabs(Dist(nodes[sp[s]], nodes[sp[s + 1]]) - rest_lengths[i][s / 2]));
+    }
+    return worst;
+  }
+
+  // t < 0: the hand waits above the bunny (settling); from t = 0 it pokes every period.
+  void HandPose(size_t i, double t, Vec3f* pos) const {
+    if (t < 0) {
+      *pos = {hand_x[i], hand_high[i], hand_z[i]};
+      return;
+    }
+    const double phase = static_cast<double>(i) / static_cast<double>(hand_x.size());
+    const double u = std::fmod(t / period + phase, 1.0);
+    const double f = 0.5 * (1.0 - std::cos(2.0 * M_PI * u));
+    *pos = {hand_x[i], static_cast<float>(hand_high[i] - (hand_high[i] - hand_low[i]) * f), hand_z[i]};
+  }
+};
+
+Scene MakeScene(const SoftBodyOptions& o, uint32_t n) {
+  Scene s;
+  s.period = o.poke_period_s;
+  const float spacing = 1.2f;
+  s.specs.push_back(StaticBox(kFloorId, {0, -0.1f, 0}, {0.5f * spacing * n + 1.0f, 0.1f, 1.5f}));
+  s.specs.back().colliders[0].shape = schema::ColliderShape::Box;
+  for (uint32_t i = 0; i < n; ++i) {
+    physics::BunnyParams bp;
+    bp.center = {(static_cast<float>(i) - 0.5f * static_cast<float>(n - 1)) * spacing, 0.6f, 0.0f};
+    bp.target_particles = o.particles;
+    EntitySpec bunny;
+    bunny.id = kFirstBunnyId + i;
+    bunny.name = "bunny";
+    bunny.soft_body = physics::MakeBunnySoftBody(bp);
+    const std::vector<Vec3f> nodes = Nodes(*bunny.soft_body);
+    s.particles += static_cast<uint32_t>(nodes.size());
+    s.springs.push_back(bunny.soft_body->springs);
+    std::vector<float> rest;
+    for (size_t k = 0; k + 1 < s.springs.back().size(); k += 2) {
+      rest.push_back(static_cast<float>(Dist(nodes[s.springs.back()[k]], nodes[s.springs.back()[k + 1]])));
+    }
+    s.rest_lengths.push_back(std::move(rest));
+    // Poke at the centroid: from above the body's top there down to ~55% of its height.
+    Vec3f c{};
+    float min_y = 1e9f;
+    for (const Vec3f& p : nodes) {
+      c = {c.x + p.x, c.y + p.y, c.z + p.z};
+      min_y = std::min(min_y, p.y);
+    }
+    c = {c.x / nodes.size(), c.y / nodes.size(), c.z / nodes.size()};
+    float top = min_y;
+    for (const Vec3f& p : nodes) {
+      if (std::fabs(p.x - c.x) < 0.08f && std::fabs(p.z - c.z) < 0.08f) top = std::max(top, p.y);
+    }
+    const float height = top - min_y;  // landed: bottom ~ floor (y 0)
+    s.hand_x.push_back(c.x);
+    s.hand_z.push_back(c.z);
+    s.hand_high.push_back(height + kHandRadius + 0.15f);
+    s.hand_low.push_back(0.55f * height);
+    s.specs.push_back(std::move(bunny));
+  }
+  for (uint32_t i = 0; i < n; ++i) {
+    EntitySpec hand;
+    hand.id = kFirstHandId + i;
+    hand.name = "hand";
+    hand.flags = F(schema::EntityFlags::Hand) | F(schema::EntityFlags::Kinematic);
+    hand.rigid_body = RigidBodySpec{};
+    hand.rigid_body->mass = 0;
+    hand.rigid_body->kinematic = true;
+    hand.colliders.push_back(SphereCollider(kHandRadius));
+    s.HandPose(i, -1.0, &hand.position);
+    s.specs.push_back(std::move(hand));
+  }
+  return s;
+}
+
+void Bench(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
+  Scene scene = MakeScene(o, n);
+  physics::PhysicsConfig config;
+  physics::PhysicsWorld world(config);
+  for (const EntitySpec& s : scene.specs) {
+    const std::vector<uint8_t> buf = BuildContainer(s);
+    if (!world.AddEntity(AsContainer(buf)).ok()) {
+      std::fprintf(stderr, "softbody: the standalone world refused entity %u\n", s.id);
+      return;
+    }
+  }
+  std::vector<EntityState> moved;
+  std::vector<physics::PhysicsEvent> events;
+  std::vector<Vec3f> nodes;
+  int64_t poke_steps = -1000000;  // steps since the hands were aimed (negative: waiting)
+  auto step = [&] {
+    ++poke_steps;
+    const auto a = std::chrono::steady_clock::now();
+    for (uint32_t i = 0; i < n; ++i) {
+      Vec3f pos;
+      scene.HandPose(i, static_cast<double>(poke_steps) * config.fixed_dt, &pos);
+      (void)world.MoveToTransform(kFirstHandId + i, pos, Quatf{});
+    }
+    world.Step();
+    world.CollectStates(&moved);
+    events.clear();
+    world.DrainEvents(&events);
+    for (const EntityState& st : moved) {
+      if (st.entity_id >= kFirstBunnyId && st.entity_id < kFirstBunnyId + n) {
+        (void)world.GetSoftBodyNodes(st.entity_id, &nodes);
+      }
+    }
+    return Seconds(std::chrono::steady_clock::now() - a) * 1000.0;
+  };
+  for (int i = 0; i < o.bench_warmup_steps; ++i) (void)step();
+  for (uint32_t i = 0; i < n; ++i) {
+    if (world.GetSoftBodyNodes(kFirstBunnyId + i, &nodes).ok()) scene.Calibrate(i, nodes);
+  }
+  poke_steps = 0;
+  std::vector<double> ms;
+  const auto m0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < o.bench_steps; ++i) {
+    if (i >= 30 && Seconds(std::chrono::steady_clock::now() - m0) > o.bench_max_s) break;
+    ms.push_back(step());
+  }
+  r->bench_steps = static_cast<int>(ms.size());
+  r->step_ms_median = Median(ms);
+  r->step_ms_p99 = Percentile(ms, 99);
+}
+
+struct BunnyTable {
+  std::unordered_map<uint32_t, size_t> index;             // entity id -> bunny index
+  std::vector<std::vector<std::vector<Vec3f>>> ring;      // per bunny: recent relay versions
+  std::vector<uint32_t> count;
+};
+
+class SoftReceiver : public ClientListener {
+ public:
+  explicit SoftReceiver(const BunnyTable* bunnies) : bunnies_(bunnies) {}
+  void OnSoftBodyUpdated(const RemoteEntity& e) override {
+    if (!measuring) return;
+    auto it = bunnies_->index.find(e.id);
+    if (it == bunnies_->index.end()) return;
+    ++updates;
+    const size_t k = it->second;
+    const size_t versions = std::min<size_t>(bunnies_->count[k], kRing);
+    if (versions == 0) return;
+    double worst = 0;
+    for (size_t p = 0; p < e.nodes.size(); ++p) {
+      double best = 1e9;
+      for (size_t v = 0; v < versions; ++v) {
+        const auto& relay_nodes = bunnies_->ring[k][v];
+        if (p < relay_nodes.size()) best = std::min(best, Dist(e.nodes[p], relay_nodes[p]));
+      }
+      worst = std::max(worst, best);
+    }
+    sent_errors.push_back(worst);
+  }
+  bool measuring = false;
+  uint64_t updates = 0;
+  std::vector<double> sent_errors;
+
+ private:
+  const BunnyTable* bunnies_;
+};
+
+void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
+  Scene scene = MakeScene(o, n);
+  RelayConfig config;
+  config.room_defaults.capacity = o.receivers + 2;
+  config.room_defaults.tick_rate_hz = 60;
+  config.room_defaults.max_entities_per_player = 2 * n + 16;
+  config.room_defaults.replication.mode = ReplicationMode::kEdgephys;
+  config.room_defaults.replication.position_step_m = o.position_step_m;
+  config.room_defaults.replication.rotation_bound_deg = o.rotation_bound_deg;
+  // The benchmark host is trusted and spawns the whole scene at once: no abuse rate limits.
+  config.limits.spawns_per_s = 0;
+  config.limits.packets_per_s = 0;
+  config.limits.bytes_per_s = 0;
+  const double dt = config.physics.fixed_dt;
+
+  BunnyTable bunnies;
+  std::vector<std::unique_ptr<SoftReceiver>> receivers;
+  std::vector<ClientListener*> listeners = {nullptr};
+  for (uint32_t i = 0; i < o.receivers; ++i) {
+    receivers.push_back(std::make_unique<SoftReceiver>(&bunnies));
+    listeners.push_back(receivers.back().get());
+  }
+  ClientConfig host_config;
+  host_config.publish_rate_hz = 120;
+  LoopbackRoom world(config, "softbody", o.receivers + 1, host_config, listeners);
+  if (!world.ConnectAndJoin(5.0)) {
+    std::fprintf(stderr, "softbody: clients failed to connect/join\n");
+    return;
+  }
+  Client& host = world.client(0);
+  RelayCounters& counters = world.counters();
+
+  std::vector<uint32_t> bunny_ids, hand_ids;
+  for (const EntitySpec& s : scene.specs) {
+    SpawnDesc d{.position = s.position, .rotation = s.rotation, .scale = s.scale,
+                .flags = s.flags | F(schema::EntityFlags::Offloaded), .name = s.name};
+    d.rigid_body = s.rigid_body;
+    d.colliders = s.colliders;
+    d.soft_body = s.soft_body;
+    auto id = host.Spawn(d);
+    if (!id.ok()) {
+      std::fprintf(stderr, "softbody: spawn failed: %s\n", std::string(id.status().message()).c_str());
+      return;
+    }
+    if (s.soft_body) {
+      bunnies.index[*id] = bunny_ids.size();
+      bunny_ids.push_back(*id);
+    }
+    if (s.id >= kFirstHandId) hand_ids.push_back(*id);
+  }
+  bunnies.ring.assign(n, std::vector<std::vector<Vec3f>>(kRing));
+  bunnies.count.assign(n, 0);
+
+  uint64_t poke_start = ~uint64_t{0};  // PhyS step the pokes start at (after settling)
+  auto drive_hands = [&] {
+    const uint64_t steps = RelayCounters::Get(counters.physics_steps);
+    const double sim_t = steps >= poke_start ? static_cast<double>(steps - poke_start) * dt : -1.0;
+    for (size_t i = 0; i < hand_ids.size(); ++i) {
+      Vec3f pos;
+      scene.HandPose(i, sim_t, &pos);
+      (void)host.PublishTransform(hand_ids[i], pos, Quatf{});
+    }
+  };
+  auto round = [&] {
+    drive_hands();
+    world.Step();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  };
+
+  // Everyone has the scene, bunnies with their particles.
+  const double spawn_start = world.Now();
+  bool ready = false;
+  while (!ready && world.Now() - spawn_start < 30.0) {
+    round();
+    const Room* room = world.room();
+    if (room == nullptr || room->entities().size() < scene.specs.size()) continue;
+    ready = true;
+    for (size_t c = 1; c < world.client_count() && ready; ++c) {
+      for (size_t k = 0; k < bunny_ids.size() && ready; ++k) {
+        const RemoteEntity* e = world.client(c).FindEntity(bunny_ids[k]);
+        ready = e != nullptr && e->spawned && !e->nodes.empty();
+      }
+    }
+  }
+  if (!ready) {
+    std::fprintf(stderr, "softbody: the scene did not reach every client within 30 s\n");
+    return;
+  }
+  const Room* room = world.room();
+  std::vector<const Entity*> relay_bunnies;
+  for (uint32_t id : bunny_ids) relay_bunnies.push_back(&room->entities().at(id));
+  std::vector<uint32_t> seen_version(n, 0);
+
+  const uint64_t steps_at_spawn = RelayCounters::Get(counters.physics_steps);
+  const double settle_start = world.Now();
+  while (RelayCounters::Get(counters.physics_steps) - steps_at_spawn <
+             static_cast<uint64_t>(o.relay_settle_steps) &&
+         world.Now() - settle_start < o.relay_settle_max_s) {
+    round();
+  }
+  // Aim the hands at the bunnies as the host sees them, let them start poking.
+  for (size_t k = 0; k < bunny_ids.size(); ++k) {
+    const RemoteEntity* e = host.FindEntity(bunny_ids[k]);
+    scene.Calibrate(k, e != nullptr && !e->nodes.empty() ? e->nodes : relay_bunnies[k]->nodes);
+  }
+  poke_start = RelayCounters::Get(counters.physics_steps);
+  const uint64_t poke_warm = poke_start + static_cast<uint64_t>(0.25 / dt);
+  while (RelayCounters::Get(counters.physics_steps) < poke_warm && world.Now() - settle_start < 2 * o.relay_settle_max_s) {
+    round();
+  }
+
+  const size_t R = o.receivers;
+  std::vector<uint64_t> relay_bytes0(R), socket_bytes0(R);
+  for (size_t k = 0; k < R; ++k) {
+    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
+    relay_bytes0[k] = rs ? rs->bytes_sent : 0;
+    socket_bytes0[k] = world.client(k + 1).stats()->bytes_received;
+    receivers[k]->measuring = true;
+  }
+  const uint64_t steps0 = RelayCounters::Get(counters.physics_steps);
+  const double step_sum0 = counters.physics_step_seconds.sum();
+  const uint64_t step_count0 = HistogramCount(counters.physics_step_seconds);
+  const double t0 = world.Now();
+  double next_sample = t0, last_progress = 0;
+  std::vector<double> same_errors, deformation;
+  while (world.Now() < t0 + o.duration_s) {
+    drive_hands();
+    world.UpdateRelay();
+    for (size_t k = 0; k < relay_bunnies.size(); ++k) {
+      if (relay_bunnies[k]->nodes_version == seen_version[k]) continue;
+      seen_version[k] = relay_bunnies[k]->nodes_version;
+      bunnies.ring[k][bunnies.count[k]++ % kRing] = relay_bunnies[k]->nodes;
+    }
+    world.UpdateClients();
+    const double now = world.Now();
+    if (now >= next_sample) {
+      next_sample += 0.1;
+      for (size_t c = 1; c < world.client_count(); ++c) {
+        for (size_t k = 0; k < bunny_ids.size(); ++k) {
+          const RemoteEntity* e = world.client(c).FindEntity(bunny_ids[k]);
+          const auto& truth = relay_bunnies[k]->nodes;
+          if (e == nullptr || e->nodes.size() != truth.size()) continue;
+          double worst = 0;
+          for (size_t p = 0; p < truth.size(); ++p) worst = std::max(worst, Dist(e->nodes[p], truth[p]));
+          same_errors.push_back(worst);
+        }
+      }
+      const double d = scene.Deformation(0, relay_bunnies[0]->nodes);
+      deformation.push_back(d);
+    }
+    if (o.progress && now - last_progress >= 0.5) {
+      last_progress = now;
+      std::fprintf(stderr, "\r  %u bunnies  relay: measuring %4.1f / %.1f s   ", n, now - t0, o.duration_s);
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  const double elapsed = world.Now() - t0;
+  double relay_total = 0, socket_total = 0, updates = 0;
+  std::vector<double> sent;
+  for (size_t k = 0; k < R; ++k) {
+    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
+    relay_total += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0[k]) : 0;
+    socket_total += static_cast<double>(world.client(k + 1).stats()->bytes_received - socket_bytes0[k]);
+    updates += static_cast<double>(receivers[k]->updates);
+    sent.insert(sent.end(), receivers[k]->sent_errors.begin(), receivers[k]->sent_errors.end());
+  }
+  const double per = static_cast<double>(R) * elapsed;
+  r->relay_ok = true;
+  r->egress_mbit_per_s_per_client = relay_total * 8 / 1e6 / per;
+  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->soft_updates_per_s_per_client = updates / per;
+  const uint64_t observed = HistogramCount(counters.physics_step_seconds) - step_count0;
+  r->relay_step_ms_mean =
+      observed > 0 ? (counters.physics_step_seconds.sum() - step_sum0) / static_cast<double>(observed) * 1000 : 0;
+  r->sim_speed = static_cast<double>(RelayCounters::Get(counters.physics_steps) - steps0) * dt / elapsed;
+  r->deformation_min_m = deformation.empty() ? 0 : *std::min_element(deformation.begin(), deformation.end());
+  r->deformation_max_m = Max(deformation);
+  r->node_err_max_m = Max(same_errors);
+  r->node_err_p99_m = Percentile(same_errors, 99);
+  r->node_err_sent_max_m = Max(sent);
+  r->node_err_sent_p99_m = Percentile(sent, 99);
+  r->error_samples = same_errors.size();
+}
+
+}  // namespace
+
+double PaperBunnyMbitPerS(uint32_t bunnies) {
+  switch (bunnies) {
+    case 1: return 0.46;
+    case 3: return 1.40;
+  }
+  return 0;
+}
+
+std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& o) {
+  std::vector<SoftBodyResult> results;
+  for (uint32_t n : o.bunnies) {
+    SoftBodyResult r;
+    r.bunnies = n;
+    r.paper_mbit_per_s = PaperBunnyMbitPerS(n);
+    r.particles = MakeScene(o, n).particles;
+    if (o.progress) std::fprintf(stderr, "\r  %u bunnies  standalone step time ...   ", n);
+    Bench(o, n, &r);
+    RelayRun(o, n, &r);
+    if (o.progress) std::fprintf(stderr, "\r%70s\r", "");
+    results.push_back(r);
+  }
+  return results;
+}
+
+std::string SoftBodyJson(const SoftBodyOptions& o, const std::vector<SoftBodyResult>& results) {
+  nlohmann::json j;
+  j["scenario"] = "softbody";
+  j["options"] = {{"particles_per_bunny_target", o.particles},
+                  {"poke_period_s", o.poke_period_s},
+                  {"bench_warmup_steps", o.bench_warmup_steps},
+                  {"bench_steps", o.bench_steps},
+                  {"receivers", o.receivers},
+                  {"duration_s", o.duration_s},
+                  {"relay_settle_steps", o.relay_settle_steps},
+                  {"position_step_m", o.position_step_m},
+                  {"tick_rate_hz", 60},
+                  {"mode", "edgephys"}};
+  j["results"] = nlohmann::json::array();
+  for (const auto& r : results) {
+    j["results"].push_back(
+        {{"bunnies", r.bunnies},
+         {"particles", r.particles},
+         {"step_ms_median", r.step_ms_median},
+         {"step_ms_p99", r.step_ms_p99},
+         {"bench_steps", r.bench_steps},
+         {"relay_ok", r.relay_ok},
+         {"egress_mbit_per_s_per_client", r.egress_mbit_per_s_per_client},
+         {"socket_mbit_per_s_per_client", r.socket_mbit_per_s_per_client},
+         {"paper_mbit_per_s", r.paper_mbit_per_s},
+         {"egress_ratio_to_paper",
+          r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0},
+         {"soft_updates_per_s_per_client", r.soft_updates_per_s_per_client},
+         {"relay_step_ms_mean", r.relay_step_ms_mean},
+         {"sim_speed", r.sim_speed},
+         {"deformation_min_m", r.deformation_min_m},
+         {"deformation_max_m", r.deformation_max_m},
+         {"node_err_max_m", r.node_err_max_m},
+         {"node_err_p99_m", r.node_err_p99_m},
+         {"node_err_sent_max_m", r.node_err_sent_max_m},
+         {"node_err_sent_p99_m", r.node_err_sent_p99_m},
+         {"error_samples", r.error_samples}});
+  }
+  return j.dump(2);
+}
+
+std::string SoftBodyTable(const std::vector<SoftBodyResult>& results) {
+  std::ostringstream out;
+  char line[512];
+  std::snprintf(line, sizeof(line), "%7s %9s | %8s %8s | %8s %5s %7s %6s %6s %7s %11s %8s %8s %8s\n",
+                "bunnies", "particles", "PhyS med", "PhyS p99", "relay ms", "sim x", "Mb/s", "paper",
+                "ratio", "chunk/s", "deform mm", "err max", "err p99", "sent max");
+  out << line;
+  for (const auto& r : results) {
+    char deform[32];
+    std::snprintf(deform, sizeof(deform), "%.0f-%.0f", r.deformation_min_m * 1000, r.deformation_max_m * 1000);
+    std::snprintf(line, sizeof(line),
+                  "%7u %9u | %8.2f %8.2f | %8.2f %5.2f %7.3f %6.2f %6.3f %7.1f %11s %8.2f %8.2f %8.3f\n",
+                  r.bunnies, r.particles, r.step_ms_median, r.step_ms_p99, r.relay_step_ms_mean,
+                  r.sim_speed, r.egress_mbit_per_s_per_client, r.paper_mbit_per_s,
+                  r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0,
+                  r.soft_updates_per_s_per_client, deform, r.node_err_max_m * 1000,
+                  r.node_err_p99_m * 1000, r.node_err_sent_max_m * 1000);
+    out << line;
+  }
+  out << "(PhyS med/p99: standalone step ms; relay ms: relay's mean PhyS step; Mb/s: relay egress per\n"
+         " receiver, 10^6 bit/s; paper: Bunny_N; deform: bunny 0's largest spring length change from\n"
+         " rest, min-max over the window; err: receiver's particles vs the relay's at the same moment,\n"
+         " max over particles (mm); sent max: vs the particles the relay sent (mm))\n";
+  return out.str();
+}
+
+bool WriteSoftBodyCharts(const std::vector<SoftBodyResult>& results, const std::string& prefix) {
+  {
+    std::ofstream dat(prefix + ".dat");
+    if (!dat) return false;
+    dat << "# bunnies mbit paper_mbit step_med step_p99 relay_step_ms err_max_mm sent_max_mm\n";
+    for (const auto& r : results) {
+      dat << r.bunnies << " " << r.egress_mbit_per_s_per_client << " " << r.paper_mbit_per_s << " "
+          << r.step_ms_median << " " << r.step_ms_p99 << " " << r.relay_step_ms_mean << " "
+          << r.node_err_max_m * 1000 << " " << r.node_err_sent_max_m * 1000 << "\n";
+    }
+  }
+  const std::string d = "'" + prefix + ".dat'";
+  std::ostringstream eg;
+  eg << "set title 'Soft bodies: PhyS egress per client vs the paper (1 mm particle step)'\n"
+        "set xlabel 'bunnies (~500 particles each)'\nset ylabel 'Mb/s per client'\nset grid\n"
+        "set key top left\nset style data histograms\nset style histogram clustered gap 1\n"
+        "set style fill solid 0.7 border -1\nset yrange [0:*]\n"
+        "plot " << d << " using 2:xtic(1) title 'edgephys (measured)', "
+     << d << " using ($3>0?$3:1/0):xtic(1) title 'paper'\n";
+  std::ostringstream st;
+  st << "set title 'Soft bodies: PhyS step time'\n"
+        "set xlabel 'bunnies (~500 particles each)'\nset ylabel 'ms per step'\nset grid\n"
+        "set key top left\nset style data histograms\nset style histogram clustered gap 1\n"
+        "set style fill solid 0.7 border -1\nset yrange [0:*]\n"
+        "plot " << d << " using 4:xtic(1) title 'median (standalone)', "
+     << d << " using 5:xtic(1) title 'p99 (standalone)', "
+     << d << " using 6:xtic(1) title 'relay mean'\n";
+  return WriteGnuplotChart(prefix, "egress", eg.str()) && WriteGnuplotChart(prefix, "steptime", st.str());
+}
+
+}  // namespace edgephys::loadgen
