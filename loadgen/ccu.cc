@@ -118,6 +118,7 @@ class Bot : public ClientListener {
   std::unordered_map<uint32_t, int> spawns_seen;
   std::map<std::pair<uint8_t, uint32_t>, int> events_seen;  // (kind, entity) -> count
   std::unordered_map<uint32_t, SnapshotBuffer> buffers;      // watched hands
+  std::unordered_map<uint32_t, Vec3f> last_seen;
 };
 
 class World {
@@ -152,7 +153,11 @@ void Bot::OnEntityUpdated(const RemoteEntity& e) {
   buffer.Insert({.sender_time_s = e.state_time_ms / 1000.0, .position = e.state.position,
                  .rotation = e.state.rotation},
                 now);
-  if (!world_->measuring) return;
+  Vec3f& last = last_seen[e.id];
+  const bool repeat = last.x == e.state.position.x && last.y == e.state.position.y &&
+                      last.z == e.state.position.z;
+  last = e.state.position;
+  if (!world_->measuring || repeat) return;  // a resend of a pose already seen
   ++world_->hand_updates;
   size_t n = std::min(sender.history_count, sender.history.size());
   for (size_t k = 0; k < n; ++k) {

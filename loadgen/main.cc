@@ -142,6 +142,12 @@ int main(int argc, char** argv) {
   mo->add_option("--moving-speed", moo.moving_speed_mps, "Moving: speed above (m/s)")->capture_default_str();
   mo->add_option("--seed", moo.seed, "Scene seed")->capture_default_str();
   mo->add_option("--stirrer-speed", moo.stirrer_angular_speed, "Stirrer angular speed (rad/s)")->capture_default_str();
+  mo->add_option("--stirrer-reach", moo.stirrer_reach,
+                 "Stirrer paddle half length / container half width (0.95: stirs everything)")
+      ->capture_default_str();
+  mo->add_option("--sleep-threshold", moo.sleep_threshold,
+                 "PhyS sleeping thresholds (m/s, rad/s); Bullet's defaults are 0.8 / 1.0")
+      ->capture_default_str();
   mo->add_option("--position-step", moo.position_step_m, "edgephys quantisation step (m)")->capture_default_str();
   mo->add_option("--rotation-bound", moo.rotation_bound_deg, "edgephys rotation bound (deg)")->capture_default_str();
   mo->add_flag("!--no-bench", moo.bench, "Skip the standalone PhyS vs raw Bullet steps");

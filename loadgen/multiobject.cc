@@ -118,6 +118,9 @@ void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.num_objects = static_cast<int>(n);
   p.seed = o.seed;
   p.stirrer_angular_speed = o.stirrer_angular_speed;
+  p.stirrer_reach = o.stirrer_reach;
+  p.config.sleep_linear_threshold = o.sleep_threshold;
+  p.config.sleep_angular_threshold = o.sleep_threshold;
   physics::PhysSMultiObjectScene phys(p);
   physics::RawBulletMultiObjectScene raw(p);
   const auto t0 = std::chrono::steady_clock::now();
@@ -212,6 +215,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.num_objects = static_cast<int>(n);
   p.seed = o.seed;
   p.stirrer_angular_speed = o.stirrer_angular_speed;
+  p.stirrer_reach = o.stirrer_reach;
   const double dt = p.config.fixed_dt;
 
   RelayConfig config;
@@ -226,6 +230,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   config.limits.packets_per_s = 0;
   config.limits.bytes_per_s = 0;
   config.physics.max_substeps = o.relay_max_substeps;
+  config.physics.sleep_linear_threshold = o.sleep_threshold;
+  config.physics.sleep_angular_threshold = o.sleep_threshold;
   config.connection.max_pending_reliable_bytes = std::max<size_t>(
       config.connection.max_pending_reliable_bytes, static_cast<size_t>(n) * 1024);
 
@@ -498,6 +504,8 @@ std::string MultiObjectJson(const MultiObjectOptions& o, const std::vector<Multi
   j["scenario"] = "multiobject";
   j["options"] = {{"seed", o.seed},
                   {"stirrer_angular_speed", o.stirrer_angular_speed},
+                  {"stirrer_reach", o.stirrer_reach},
+                  {"sleep_threshold", o.sleep_threshold},
                   {"moving_speed_mps", o.moving_speed_mps},
                   {"bench_warmup_steps", o.bench_warmup_steps},
                   {"bench_steps", o.bench_steps},

@@ -82,6 +82,8 @@ struct MultiObjectOptions {
   std::vector<uint32_t> objects = {500, 1000, 2000, 5000, 10000};
   uint32_t seed = 1;
   float stirrer_angular_speed = 1.5f;  // rad/s (MultiObjectParams), both runs
+  float stirrer_reach = 0.95f;         // paddle half length / container half width
+  float sleep_threshold = 0.1f;        // PhyS sleeping thresholds, m/s and rad/s (both runs)
   double moving_speed_mps = 0.01;  // "moving": linear speed above this
   // Standalone PhyS vs raw Bullet.
   bool bench = true;

@@ -56,7 +56,7 @@ std::vector<EntitySpec> MultiObjectSpecs(const MultiObjectParams& p) {
   stirrer.rigid_body->mass = 0;
   stirrer.rigid_body->kinematic = true;
   stirrer.rigid_body->friction = p.friction;
-  stirrer.colliders.push_back(BoxCollider({0.95f * w, 0.4f, 0.05f}));
+  stirrer.colliders.push_back(BoxCollider({p.stirrer_reach * w, 0.4f, 0.05f}));
   specs.push_back(stirrer);
 
   std::mt19937 rng(p.seed);

@@ -29,6 +29,7 @@ struct MultiObjectParams {
   float restitution = 0.1f;
   float wall_height = 1.5f;           // m
   float stirrer_angular_speed = 1.5f; // rad/s about +Y
+  float stirrer_reach = 0.95f;        // paddle half length, as a fraction of the half width
   uint32_t seed = 1;
   PhysicsConfig config;               // dt, iterations, gravity, sleeping, CCD (both variants)
 };

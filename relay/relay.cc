@@ -15,10 +15,9 @@ using schema::RejectReason;
 
 uint16_t Code(RejectReason r) { return static_cast<uint16_t>(r); }
 
-// Whether clients want collision events of `e` (ReportContacts, Interactable or Hand).
+// Whether clients want collision events of `e` (ReportContacts or Hand).
 bool ReportsContacts(const Entity* e) {
   constexpr uint32_t kMask = static_cast<uint32_t>(schema::EntityFlags::ReportContacts) |
-                             static_cast<uint32_t>(schema::EntityFlags::Interactable) |
                              static_cast<uint32_t>(schema::EntityFlags::Hand);
   return e != nullptr && (e->flags & kMask) != 0;
 }
@@ -114,15 +113,7 @@ void Relay::Update(double now, uint64_t unix_now_s) {
   for (uint32_t id : removal_scratch_) RemoveSession(id, now);
 
   StepAllPhysics(now);
-  for (auto& [name, room] : rooms_) {
-    if (now >= room->next_tick()) {
-      auto start = std::chrono::steady_clock::now();
-      TickRoom(*room, now);
-      room->ScheduleNextTick(now);
-      counters_->tick_seconds.Observe(
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-    }
-  }
+  TickDueRooms(now);
   CloseIdleRooms(now);
   if (sample_rtt) {  // once a second: PhyS gauges
     int64_t bodies = 0, sleeping = 0;
@@ -798,13 +789,36 @@ void Relay::OnStates(Session& s, std::span<const uint8_t> payload) {
   }
 }
 
-void Relay::TickRoom(Room& room, double now) {
-  for (const auto& [pid, member] : room.members()) {
-    auto sit = sessions_.find(member.session);
-    if (sit == sessions_.end() || !sit->second->connection().connected()) continue;
-    Session& s = *sit->second;
-    s.replicator().Tick(room.entities(), s.player_id(), now, s.connection(), s, *counters_);
+void Relay::TickDueRooms(double now) {
+  // Every due room's clients are independent: each ClientReplicator reads its room's entities
+  // (unchanged during the tick) and writes only its own session. They run on the pool; their
+  // datagrams are queued per session and sent from this thread afterwards.
+  tick_jobs_.clear();
+  auto start = std::chrono::steady_clock::now();
+  size_t due_rooms = 0;
+  for (auto& [name, room] : rooms_) {
+    if (now < room->next_tick()) continue;
+    ++due_rooms;
+    for (const auto& [pid, member] : room->members()) {
+      auto sit = sessions_.find(member.session);
+      if (sit == sessions_.end() || !sit->second->connection().connected()) continue;
+      tick_jobs_.push_back({room.get(), sit->second.get()});
+    }
+    room->ScheduleNextTick(now);
   }
+  if (due_rooms == 0) return;
+  for (const TickJob& job : tick_jobs_) job.session->set_buffering(true);
+  physics_pool_.Run(tick_jobs_.size(), [this, now](size_t i) {
+    Session& s = *tick_jobs_[i].session;
+    s.replicator().Tick(tick_jobs_[i].room->entities(), s.player_id(), now, s.connection(), s,
+                        *counters_);
+  });
+  for (const TickJob& job : tick_jobs_) {
+    job.session->set_buffering(false);
+    job.session->FlushOutbox();
+  }
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  counters_->tick_seconds.Observe(seconds / static_cast<double>(due_rooms));
 }
 
 void Relay::BroadcastReliable(Room& room, std::span<const uint8_t> message,

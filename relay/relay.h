@@ -102,7 +102,8 @@ class Relay {
   void SendError(Session& s, uint16_t reason, uint32_t entity_id, std::string_view detail);
 
   void RemoveSession(uint32_t connection_id, double now);
-  void TickRoom(Room& room, double now);
+  // Runs the replication tick of every due room, clients in parallel on the pool.
+  void TickDueRooms(double now);
   void BroadcastReliable(Room& room, std::span<const uint8_t> message, uint32_t except_player);
   void CloseIdleRooms(double now);
   Room* GetOrCreateRoom(const std::string& name, double now);
@@ -121,6 +122,11 @@ class Relay {
   StateBatch batch_;
   std::vector<RoomPhysics::StepOutput> step_outputs_;  // one per room with physics
   std::vector<Room*> physics_rooms_;
+  struct TickJob {
+    Room* room;
+    Session* session;
+  };
+  std::vector<TickJob> tick_jobs_;
   uint32_t next_room_handle_ = 0;
   double now_ = 0;
   double last_rtt_sample_ = 0;

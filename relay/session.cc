@@ -73,6 +73,15 @@ void Session::OnPacketAcked(uint16_t sequence) {
   if (replicator_) replicator_->OnPacketAcked(sequence);
 }
 
-void Session::WritePacket(std::span<const uint8_t> packet) { relay_->Send(endpoint_, packet); }
+void Session::WritePacket(std::span<const uint8_t> packet) {
+  if (!buffering_) return relay_->Send(endpoint_, packet);
+  if (outbox_size_ == outbox_.size()) outbox_.emplace_back();
+  outbox_[outbox_size_++].assign(packet.begin(), packet.end());
+}
+
+void Session::FlushOutbox() {
+  for (size_t i = 0; i < outbox_size_; ++i) relay_->Send(endpoint_, outbox_[i]);
+  outbox_size_ = 0;
+}
 
 }  // namespace edgephys

@@ -38,6 +38,10 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
     return connection_.SendReliable(message).ok();
   }
   bool WorkerConnected() const override { return connection_.connected(); }
+  // While buffering (the parallel replication tick), packets are queued instead of sent;
+  // FlushOutbox() sends them from the relay's thread.
+  void set_buffering(bool on) { buffering_ = on; }
+  void FlushOutbox();
   bool is_worker() const { return is_worker_; }
   // Rate limits (AbuseLimits); workers are exempt from the packet limits.
   bool AllowPacket(double now, size_t bytes) {
@@ -82,6 +86,9 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
   std::vector<uint8_t> accept_packet_;
   std::unordered_map<uint32_t, EntityState> early_states_;
   bool is_worker_ = false;
+  bool buffering_ = false;
+  std::vector<std::vector<uint8_t>> outbox_;  // capacity reused between ticks
+  size_t outbox_size_ = 0;
   double now_;
   TokenBucket packets_, bytes_, spawns_;
   double connected_at_;

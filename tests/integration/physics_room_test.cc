@@ -69,7 +69,9 @@ TEST(PhysicsRoom, OffloadedSceneIsSimulatedSharedPushedGrabbedAndStoppedByAWall)
   auto ground_id = a.Spawn(ground), wall_id = a.Spawn(wall), parent_id = a.Spawn(parent);
   ASSERT_TRUE(ground_id.ok() && wall_id.ok() && parent_id.ok());
   SpawnDesc cube{.position = {0, 2, 0}, .parent = *parent_id,
-                 .flags = F(EntityFlags::Offloaded) | F(EntityFlags::Interactable), .name = "cube"};
+                 .flags = F(EntityFlags::Offloaded) | F(EntityFlags::Interactable) |
+                          F(EntityFlags::ReportContacts),
+                 .name = "cube"};
   cube.rigid_body = RigidBodySpec{};
   cube.colliders.push_back(BoxCollider({0.1f, 0.1f, 0.1f}));
   SpawnDesc hand{.position = {0, 1.5f, 3}, .flags = F(EntityFlags::Offloaded) | F(EntityFlags::Hand),
