@@ -38,3 +38,4 @@ option(EDGEPHYS_BUILD_FUZZ "Build libFuzzer targets (requires clang)" OFF)
 # Container tests (tests/container_test.sh: podman build + run of the Dockerfile) are slow and
 # need root; they are registered but DISABLED unless this is ON.
 option(EDGEPHYS_CONTAINER_TESTS "Enable the podman image build-and-run test (label container)" OFF)
+option(EDGEPHYS_SOAK_TESTS "Enable the 10-minute soak test (label soak; scripts/soak.sh)" OFF)

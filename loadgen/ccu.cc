@@ -273,6 +273,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   config.limits.max_sessions_per_address = users + 64;  // every bot comes from 127.0.0.1
   config.limits.handshakes_per_s = 100000;
   config.connection.timeout_s = 10;
+  config.physics_threads = std::max<size_t>(1, o.relay_threads);
   RelayThread relay(config, world.start);
   world.relay = &relay;
 
@@ -417,6 +418,7 @@ std::string CcuJson(const CcuOptions& o, const std::vector<CcuResult>& results) 
   nlohmann::json j;
   j["scenario"] = "ccu";
   j["options"] = {{"rooms", o.rooms}, {"ramp_s", o.ramp_s}, {"duration_s", o.duration_s},
+                  {"relay_threads", o.relay_threads},
                   {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
   auto summary = [](const CcuResult& r) {
     return nlohmann::json{{"users", r.users},

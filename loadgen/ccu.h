@@ -28,6 +28,7 @@ struct CcuOptions {
   double tick_rate_hz = 60;
   double publish_hz = 30;                // bots' pose updates
   uint64_t seed = 1;
+  size_t relay_threads = 1;              // relay worker threads (ticks and PhyS), its own included
   bool progress = true;
 };
 

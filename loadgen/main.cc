@@ -182,6 +182,9 @@ int main(int argc, char** argv) {
   ccu->add_option("--ramp", ccu_o.ramp_s, "Seconds over which users join")->capture_default_str();
   ccu->add_option("--duration", ccu_o.duration_s, "Measured seconds after the ramp")->capture_default_str();
   ccu->add_option("--tick-rate", ccu_o.tick_rate_hz, "Relay room tick rate")->capture_default_str();
+  ccu->add_option("--relay-threads", ccu_o.relay_threads,
+                  "Relay threads for ticks and PhyS (1: the relay keeps to one core; the bots use the other)")
+      ->capture_default_str();
   ccu->add_option("--json", ccu_json, "Write results as JSON to this file");
   ccu->add_option("--charts", ccu_charts, "Chart file prefix ('' for none)")->capture_default_str();
   ccu->add_flag("!--no-progress", ccu_o.progress, "Hide the progress line");
