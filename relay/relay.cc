@@ -807,7 +807,9 @@ void Relay::TickDueRooms(double now) {
     room->ScheduleNextTick(now);
   }
   if (due_rooms == 0) return;
-  for (const TickJob& job : tick_jobs_) job.session->set_buffering(true);
+  // Serial: send as we go. Parallel: queue per session, send after the join.
+  const bool parallel = physics_pool_.threads() > 1 && tick_jobs_.size() > 1;
+  for (const TickJob& job : tick_jobs_) job.session->set_buffering(parallel);
   physics_pool_.Run(tick_jobs_.size(), [this, now](size_t i) {
     Session& s = *tick_jobs_[i].session;
     s.replicator().Tick(tick_jobs_[i].room->entities(), s.player_id(), now, s.connection(), s,
