@@ -8,7 +8,7 @@ PACKAGES=(
   libasio-dev libbullet-dev libeigen3-dev flatbuffers-compiler libflatbuffers-dev
   libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
   prometheus-cpp-dev libcli11-dev nlohmann-json3-dev libssl-dev zlib1g-dev libcurl4-openssl-dev
-  gnuplot-nox prometheus iproute2 iperf3 clang libclang-rt-14-dev
+  gnuplot-nox prometheus iproute2 iperf3 clang libclang-rt-14-dev jq
 )
 
 missing=()
