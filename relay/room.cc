@@ -9,13 +9,14 @@ Room::Room(std::string name, const RoomConfig& config, double now)
 
 uint32_t Room::AddMember(uint32_t player_id, uint32_t session) {
   if (members_.size() >= config_.capacity) return 0;
-  // Lowest free slot; slot 0 is reserved for the room's own entities.
-  std::vector<bool> used(config_.capacity + 2, false);
-  for (const auto& [id, m] : members_) {
-    if (m.slot < used.size()) used[m.slot] = true;
-  }
+  // Lowest free slot: not a member's, and not the id block of entities that outlived their
+  // owner (Persistent ones pass to the room but keep their ids). Slot 0 is the room's own.
+  std::vector<bool> used(kEntityIdBlock, false);
+  used[0] = true;
+  for (const auto& [id, m] : members_) used[m.slot] = true;
+  for (const auto& [id, e] : entities_) used[id / kEntityIdBlock] = true;
   uint32_t slot = 1;
-  while (slot < used.size() && used[slot]) ++slot;
+  while (slot < kEntityIdBlock && used[slot]) ++slot;
   if (slot >= kEntityIdBlock) return 0;
   members_[player_id] = Member{player_id, slot, session, 0};
   return slot;

@@ -113,6 +113,26 @@ TEST(RelayRooms, SpectatorTokensCannotSpawnAndEntityLimitHolds) {
   EXPECT_EQ(world.relay().FindRoom("s")->entities().size(), 3u);
 }
 
+TEST(RelayRooms, ANewPlayerNeverGetsTheIdBlockOfPersistentEntities) {
+  SimWorld world;
+  Errors errors;
+  Client& a = world.AddClient(MintToken("keep", 1));
+  Join(world, a, "keep");
+  auto kept = a.Spawn({.flags = 1 /* Persistent */});
+  ASSERT_TRUE(kept.ok());
+  world.RunFor(0.2);
+  ASSERT_TRUE(a.LeaveRoom().ok());
+  world.RunFor(0.2);
+  Client& b = world.AddClient(MintToken("keep", 2), &errors);
+  Join(world, b, "keep");
+  EXPECT_NE(b.entity_id_base(), *kept / kEntityIdBlock * kEntityIdBlock);
+  auto fresh = b.Spawn({});
+  ASSERT_TRUE(fresh.ok());
+  world.RunFor(0.3);
+  EXPECT_TRUE(errors.reasons.empty()) << "reason " << errors.reasons.front();
+  EXPECT_EQ(world.relay().FindRoom("keep")->entities().size(), 2u);
+}
+
 TEST(RelayRooms, SamePlayerReconnectingReplacesItsOldSession) {
   SimWorld world;
   Client& first = world.AddClient(MintToken("p", 9));
