@@ -19,99 +19,12 @@
 namespace edgephys::loadgen {
 
 // ---------------------------------------------------------------------------------------------
-// LoopbackRoom
-
-namespace {
-
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
-}  // namespace
-
-LoopbackRoom::LoopbackRoom(const RelayConfig& config_in, std::string room, uint32_t clients,
-                           const ClientConfig& host_config,
-                           const std::vector<ClientListener*>& listeners)
-    : room_(std::move(room)), start_(std::chrono::steady_clock::now()) {
-  RelayConfig config = config_in;
-  secret_ = Base64UrlEncode(std::vector<uint8_t>(8, 7)) + std::to_string(SecureRandom64());
-  config.secret = secret_;
-  auto loopback = asio::ip::make_address("127.0.0.1");
-  relay_socket_ = std::move(*UdpSocket::Open(Endpoint(loopback, 0)));
-  relay_ = std::make_unique<Relay>(config, relay_socket_.get(), &counters_);
-  for (uint32_t i = 0; i < clients; ++i) {
-    sockets_.push_back(std::move(*UdpSocket::Open(Endpoint(loopback, 0))));
-    ClientListener* listener = i < listeners.size() ? listeners[i] : nullptr;
-    clients_.push_back(std::make_unique<Client>(i == 0 ? host_config : ClientConfig{},
-                                                sockets_.back().get(), listener));
-  }
-}
-
-LoopbackRoom::~LoopbackRoom() {
-  clients_.clear();
-  relay_.reset();
-}
-
-bool LoopbackRoom::ConnectAndJoin(double timeout_s) {
-  for (size_t i = 0; i < clients_.size(); ++i) {
-    JoinToken t;
-    t.room = room_;
-    t.player_id = static_cast<uint32_t>(i + 1);
-    t.expiry_unix_s = UnixNow() + 3600;
-    t.nonce = SecureRandom64();
-    (void)clients_[i]->Connect(relay_socket_->LocalEndpoint(), *SignJoinToken(t, secret_), Now());
-  }
-  auto run_until = [&](auto&& done, double timeout) {
-    const double end = Now() + timeout;
-    while (Now() < end && !done()) {
-      Step();
-      std::this_thread::sleep_for(std::chrono::microseconds(300));
-    }
-    return done();
-  };
-  bool ok = run_until([&] {
-    for (auto& c : clients_) if (c->state() != ClientState::kConnected) return false;
-    return true;
-  }, timeout_s);
-  if (!ok) return false;
-  for (auto& c : clients_) (void)c->JoinRoom(room_);
-  return run_until([&] {
-    for (auto& c : clients_) if (!c->joined()) return false;
-    return true;
-  }, timeout_s);
-}
-
-void LoopbackRoom::UpdateRelay() { relay_->Update(Now(), UnixNow()); }
-
-void LoopbackRoom::UpdateClients() {
-  const double now = Now();
-  for (auto& c : clients_) c->Update(now);
-}
-
-uint64_t HistogramCount(const AtomicHistogram<10>& h) {
-  uint64_t n = 0;
-  for (size_t i = 0; i <= 10; ++i) n += h.bucket(i);
-  return n;
-}
-
-// ---------------------------------------------------------------------------------------------
 // The scenario
 
 namespace {
 
 constexpr size_t kRing = 16;  // recent relay states kept per box (at 60 Hz: 0.27 s)
 constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
-
-double Dist(const Vec3f& a, const Vec3f& b) {
-  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
-double Seconds(std::chrono::steady_clock::duration d) {
-  return std::chrono::duration<double>(d).count();
-}
 
 void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   physics::MultiObjectParams p;
@@ -218,17 +131,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.stirrer_reach = o.stirrer_reach;
   const double dt = p.config.fixed_dt;
 
-  RelayConfig config;
-  config.room_defaults.capacity = o.receivers + 2;
-  config.room_defaults.tick_rate_hz = 60;
-  config.room_defaults.max_entities_per_player = n + 64;
-  config.room_defaults.replication.mode = ReplicationMode::kEdgephys;
-  config.room_defaults.replication.position_step_m = o.position_step_m;
-  config.room_defaults.replication.rotation_bound_deg = o.rotation_bound_deg;
-  // The benchmark host is trusted and spawns the whole scene at once: no abuse rate limits.
-  config.limits.spawns_per_s = 0;
-  config.limits.packets_per_s = 0;
-  config.limits.bytes_per_s = 0;
+  RelayConfig config =
+      BenchmarkRelayConfig(o.receivers, n + 64, o.position_step_m, o.rotation_bound_deg);
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -259,11 +163,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   std::vector<uint32_t> box_ids;
   const auto specs = physics::MultiObjectSpecs(p);
   for (const EntitySpec& s : specs) {
-    SpawnDesc d{.position = s.position, .rotation = s.rotation, .scale = s.scale,
-                .flags = s.flags | F(schema::EntityFlags::Offloaded)};
-    d.rigid_body = s.rigid_body;
-    d.colliders = s.colliders;
-    auto id = host.Spawn(d);
+    auto id = host.Spawn(OffloadedSpawn(s));
     if (!id.ok()) {
       std::fprintf(stderr, "multiobject: spawn failed: %s\n", std::string(id.status().message()).c_str());
       return;
@@ -332,32 +232,18 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   std::vector<uint32_t> seen_version(box_ids.size(), 0);
 
   // Settle.
-  const uint64_t steps_at_spawn = RelayCounters::Get(counters.physics_steps);
-  const double settle_start = world.Now();
-  while (RelayCounters::Get(counters.physics_steps) - steps_at_spawn <
-             static_cast<uint64_t>(o.relay_settle_steps) &&
-         world.Now() - settle_start < o.relay_settle_max_s) {
-    round();
-    if (o.progress) {
-      std::fprintf(stderr, "\r  %6u objects  relay: settling %llu / %d steps        ", n,
-                   static_cast<unsigned long long>(RelayCounters::Get(counters.physics_steps) - steps_at_spawn),
-                   o.relay_settle_steps);
-    }
-  }
+  if (o.progress) std::fprintf(stderr, "\r  %6u objects  relay: settling                     ", n);
+  RunPhysicsSteps(world, static_cast<uint64_t>(o.relay_settle_steps), o.relay_settle_max_s, round);
 
   // Measure.
   const size_t R = o.receivers;
-  std::vector<uint64_t> relay_bytes0(R), socket_bytes0(R), state_bytes0(R);
+  std::vector<uint64_t> state_bytes0(R);
   for (size_t k = 0; k < R; ++k) {
-    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
-    relay_bytes0[k] = rs ? rs->bytes_sent : 0;
-    socket_bytes0[k] = world.client(k + 1).stats()->bytes_received;
     state_bytes0[k] = world.client(k + 1).state_bytes_received();
     receivers[k]->measuring = true;
   }
-  const uint64_t steps0 = RelayCounters::Get(counters.physics_steps);
-  const double step_sum0 = counters.physics_step_seconds.sum();
-  const uint64_t step_count0 = HistogramCount(counters.physics_step_seconds);
+  WindowMeter meter;
+  meter.Start(world, R);
   const double t0 = world.Now();
   const double t_end = t0 + o.duration_s;
   double next_error = t0, next_moving = t0, last_progress = 0;
@@ -424,7 +310,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
     }
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
-  const double elapsed = world.Now() - t0;
+  const WindowMeter::Totals window = meter.Finish(world);
+  const double elapsed = window.elapsed_s;
   for (size_t c = 0; c < world.client_count(); ++c) {
     if (world.client(c).state() != ClientState::kConnected) {
       std::fprintf(stderr, "\nmultiobject: %u objects: client %zu lost its connection (reason %d); "
@@ -433,12 +320,10 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
       return;
     }
   }
-  double relay_total = 0, socket_total = 0, state_total = 0, updates = 0, events = 0;
+  const double relay_total = window.relay_bytes;
+  double state_total = 0, updates = 0, events = 0;
   std::vector<double> sent;
   for (size_t k = 0; k < R; ++k) {
-    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
-    relay_total += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0[k]) : 0;
-    socket_total += static_cast<double>(world.client(k + 1).stats()->bytes_received - socket_bytes0[k]);
     state_total += static_cast<double>(world.client(k + 1).state_bytes_received() - state_bytes0[k]);
     updates += static_cast<double>(receivers[k]->updates);
     events += static_cast<double>(receivers[k]->events);
@@ -446,17 +331,14 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   }
   const double per = static_cast<double>(R) * elapsed;
   r->relay_ok = true;
-  r->egress_mbit_per_s_per_client = relay_total * 8 / 1e6 / per;
-  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
+  r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
   r->updates_per_s_per_client = updates / per;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;
-  const uint64_t steps_done = RelayCounters::Get(counters.physics_steps) - steps0;
-  const uint64_t observed = HistogramCount(counters.physics_step_seconds) - step_count0;
-  r->relay_step_ms_mean =
-      observed > 0 ? (counters.physics_step_seconds.sum() - step_sum0) / static_cast<double>(observed) * 1000 : 0;
-  r->sim_speed = static_cast<double>(steps_done) * dt / elapsed;
+  r->relay_step_ms_mean = window.step_ms_mean;
+  r->sim_speed = static_cast<double>(window.physics_steps) * dt / elapsed;
   r->relay_moving_fraction = moving_samples.empty() ? 0 : [&] {
     double s = 0;
     for (double x : moving_samples) s += x;

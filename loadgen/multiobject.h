@@ -32,51 +32,9 @@
 #include <string>
 #include <vector>
 
-#include "client/client.h"
-#include "protocol/udp_socket.h"
-#include "relay/relay.h"
+#include "loadgen/loopback_room.h"
 
 namespace edgephys::loadgen {
-
-// An in-process relay on a loopback UDP socket with `clients` clients (client 0 the host),
-// each with its own socket; player ids 1..clients. Shared by multiobject and softbody.
-class LoopbackRoom {
- public:
-  // `listeners[i]` (may be shorter, or hold nullptr) listens to client i.
-  LoopbackRoom(const RelayConfig& config, std::string room, uint32_t clients,
-               const ClientConfig& host_config, const std::vector<ClientListener*>& listeners);
-  ~LoopbackRoom();
-  // Connects every client and joins the room; false after `timeout_s` without success.
-  bool ConnectAndJoin(double timeout_s);
-  // One round: the relay, then every client.
-  void Step() {
-    UpdateRelay();
-    UpdateClients();
-  }
-  void UpdateRelay();
-  void UpdateClients();
-  double Now() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-  Relay& relay() { return *relay_; }
-  RelayCounters& counters() { return counters_; }
-  Client& client(size_t i) { return *clients_[i]; }
-  size_t client_count() const { return clients_.size(); }
-  const Room* room() const { return relay_->FindRoom(room_); }
-
- private:
-  std::string room_;
-  std::chrono::steady_clock::time_point start_;
-  RelayCounters counters_;
-  std::unique_ptr<UdpSocket> relay_socket_;
-  std::unique_ptr<Relay> relay_;
-  std::string secret_;
-  std::vector<std::unique_ptr<UdpSocket>> sockets_;
-  std::vector<std::unique_ptr<Client>> clients_;
-};
-
-// Counted observations of RelayCounters::physics_step_seconds (all buckets).
-uint64_t HistogramCount(const AtomicHistogram<10>& h);
 
 struct MultiObjectOptions {
   std::vector<uint32_t> objects = {500, 1000, 2000, 5000, 10000};

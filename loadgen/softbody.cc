@@ -22,15 +22,6 @@ constexpr uint32_t kFloorId = 1, kFirstBunnyId = 10, kFirstHandId = 100;
 constexpr float kHandRadius = 0.08f;
 constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
 
-double Dist(const Vec3f& a, const Vec3f& b) {
-  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
-double Seconds(std::chrono::steady_clock::duration d) {
-  return std::chrono::duration<double>(d).count();
-}
-
 std::vector<Vec3f> Nodes(const SoftBodySpec& s) {
   std::vector<Vec3f> out;
   for (size_t i = 0; i + 2 < s.particles.size(); i += 3) {
@@ -237,17 +228,8 @@ class SoftReceiver : public ClientListener {
 
 void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   Scene scene = MakeScene(o, n);
-  RelayConfig config;
-  config.room_defaults.capacity = o.receivers + 2;
-  config.room_defaults.tick_rate_hz = 60;
-  config.room_defaults.max_entities_per_player = 2 * n + 16;
-  config.room_defaults.replication.mode = ReplicationMode::kEdgephys;
-  config.room_defaults.replication.position_step_m = o.position_step_m;
-  config.room_defaults.replication.rotation_bound_deg = o.rotation_bound_deg;
-  // The benchmark host is trusted and spawns the whole scene at once: no abuse rate limits.
-  config.limits.spawns_per_s = 0;
-  config.limits.packets_per_s = 0;
-  config.limits.bytes_per_s = 0;
+  RelayConfig config =
+      BenchmarkRelayConfig(o.receivers, 2 * n + 16, o.position_step_m, o.rotation_bound_deg);
   const double dt = config.physics.fixed_dt;
 
   BunnyTable bunnies;
@@ -269,12 +251,7 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
 
   std::vector<uint32_t> bunny_ids, hand_ids;
   for (const EntitySpec& s : scene.specs) {
-    SpawnDesc d{.position = s.position, .rotation = s.rotation, .scale = s.scale,
-                .flags = s.flags | F(schema::EntityFlags::Offloaded), .name = s.name};
-    d.rigid_body = s.rigid_body;
-    d.colliders = s.colliders;
-    d.soft_body = s.soft_body;
-    auto id = host.Spawn(d);
+    auto id = host.Spawn(OffloadedSpawn(s));
     if (!id.ok()) {
       std::fprintf(stderr, "softbody: spawn failed: %s\n", std::string(id.status().message()).c_str());
       return;
@@ -328,13 +305,8 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   for (uint32_t id : bunny_ids) relay_bunnies.push_back(&room->entities().at(id));
   std::vector<uint32_t> seen_version(n, 0);
 
-  const uint64_t steps_at_spawn = RelayCounters::Get(counters.physics_steps);
   const double settle_start = world.Now();
-  while (RelayCounters::Get(counters.physics_steps) - steps_at_spawn <
-             static_cast<uint64_t>(o.relay_settle_steps) &&
-         world.Now() - settle_start < o.relay_settle_max_s) {
-    round();
-  }
+  RunPhysicsSteps(world, static_cast<uint64_t>(o.relay_settle_steps), o.relay_settle_max_s, round);
   // Aim the hands at the bunnies as the host sees them, let them start poking.
   for (size_t k = 0; k < bunny_ids.size(); ++k) {
     const RemoteEntity* e = host.FindEntity(bunny_ids[k]);
@@ -347,16 +319,9 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   }
 
   const size_t R = o.receivers;
-  std::vector<uint64_t> relay_bytes0(R), socket_bytes0(R);
-  for (size_t k = 0; k < R; ++k) {
-    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
-    relay_bytes0[k] = rs ? rs->bytes_sent : 0;
-    socket_bytes0[k] = world.client(k + 1).stats()->bytes_received;
-    receivers[k]->measuring = true;
-  }
-  const uint64_t steps0 = RelayCounters::Get(counters.physics_steps);
-  const double step_sum0 = counters.physics_step_seconds.sum();
-  const uint64_t step_count0 = HistogramCount(counters.physics_step_seconds);
+  for (size_t k = 0; k < R; ++k) receivers[k]->measuring = true;
+  WindowMeter meter;
+  meter.Start(world, R);
   const double t0 = world.Now();
   double next_sample = t0, last_progress = 0;
   std::vector<double> same_errors, deformation;
@@ -391,25 +356,21 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
     }
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
-  const double elapsed = world.Now() - t0;
-  double relay_total = 0, socket_total = 0, updates = 0;
+  const WindowMeter::Totals window = meter.Finish(world);
+  const double elapsed = window.elapsed_s;
+  double updates = 0;
   std::vector<double> sent;
   for (size_t k = 0; k < R; ++k) {
-    const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
-    relay_total += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0[k]) : 0;
-    socket_total += static_cast<double>(world.client(k + 1).stats()->bytes_received - socket_bytes0[k]);
     updates += static_cast<double>(receivers[k]->updates);
     sent.insert(sent.end(), receivers[k]->sent_errors.begin(), receivers[k]->sent_errors.end());
   }
   const double per = static_cast<double>(R) * elapsed;
   r->relay_ok = true;
-  r->egress_mbit_per_s_per_client = relay_total * 8 / 1e6 / per;
-  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
+  r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
   r->soft_updates_per_s_per_client = updates / per;
-  const uint64_t observed = HistogramCount(counters.physics_step_seconds) - step_count0;
-  r->relay_step_ms_mean =
-      observed > 0 ? (counters.physics_step_seconds.sum() - step_sum0) / static_cast<double>(observed) * 1000 : 0;
-  r->sim_speed = static_cast<double>(RelayCounters::Get(counters.physics_steps) - steps0) * dt / elapsed;
+  r->relay_step_ms_mean = window.step_ms_mean;
+  r->sim_speed = static_cast<double>(window.physics_steps) * dt / elapsed;
   r->deformation_min_m = deformation.empty() ? 0 : *std::min_element(deformation.begin(), deformation.end());
   r->deformation_max_m = Max(deformation);
   r->node_err_max_m = Max(same_errors);
