@@ -8,26 +8,14 @@
 #include <cstdlib>
 #include <new>
 
+#include "protocol/allocation_counter_test_util.h"
 #include "protocol/connection.h"
-
-// The replacement pair below is malloc/free based on purpose; GCC cannot see that they match.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace edgephys {
 namespace {
+
+using testing_util::g_allocations;
+using testing_util::g_counting;
 
 class CountingHandler : public ConnectionHandler {
  public:

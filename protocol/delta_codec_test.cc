@@ -12,28 +12,16 @@
 #include <random>
 #include <vector>
 
+#include "protocol/allocation_counter_test_util.h"
 #include "protocol/codec_test_util.h"
 #include "protocol/connection.h"
-
-// Allocation counting for the steady-state test (malloc-based replacement; see
-// connection_alloc_test.cc).
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace edgephys {
 namespace {
 
 using testing_util::FloatSlack;
+using testing_util::g_allocations;
+using testing_util::g_counting;
 using testing_util::PositionError;
 using testing_util::RandomRotation;
 using testing_util::RotationErrorDeg;
