@@ -6,6 +6,7 @@
 //   edgephys-loadgen codec-sweep --steps 0.0005,0.001,0.002,0.005 --thresholds 0,0.0005
 //   edgephys-loadgen multiobject --objects 500,1000,2000,5000,10000
 //   edgephys-loadgen softbody --bunnies 1,3
+//   edgephys-loadgen ceiling --io-threads 1,2 --repeat 3 --json ceiling.json
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -17,6 +18,7 @@
 #include "loadgen/interp_sweep.h"
 #include "loadgen/multiobject.h"
 #include "loadgen/ccu.h"
+#include "loadgen/ceiling.h"
 #include "loadgen/relay_compare.h"
 #include "loadgen/report.h"
 #include "loadgen/softbody.h"
@@ -189,7 +191,56 @@ int main(int argc, char** argv) {
   ccu->add_option("--charts", ccu_charts, "Chart file prefix ('' for none)")->capture_default_str();
   ccu->add_flag("!--no-progress", ccu_o.progress, "Hide the progress line");
 
+  auto* ce = app.add_subcommand("ceiling",
+                                "Relay packets/s and bytes/s vs the iperf3 -u loopback ceiling");
+  CeilingOptions ce_o;
+  std::string ce_threads = "1,2", ce_json;
+  ce->add_option("--io-threads", ce_threads,
+                 "Relay --io-threads values (comma separated; one run each)")
+      ->capture_default_str();
+  ce->add_option("--clients", ce_o.clients, "Bot clients")->capture_default_str();
+  ce->add_option("--rooms", ce_o.rooms, "Rooms the clients spread over")->capture_default_str();
+  ce->add_option("--entities", ce_o.entities_per_client, "Entities each client moves")
+      ->capture_default_str();
+  ce->add_option("--publish-hz", ce_o.publish_hz, "Client publish rate")->capture_default_str();
+  ce->add_option("--tick-rate", ce_o.tick_rate_hz, "Relay room tick rate")->capture_default_str();
+  ce->add_option("--warmup", ce_o.warmup_s, "Seconds of load before measuring")
+      ->capture_default_str();
+  ce->add_option("--duration", ce_o.duration_s, "Measured seconds per relay run")
+      ->capture_default_str();
+  ce->add_option("--iperf-seconds", ce_o.iperf_seconds, "iperf3 -t")->capture_default_str();
+  ce->add_option("--iperf-length", ce_o.iperf_length,
+                 "iperf3 -l (bytes; 0: the relay's mean datagram size)")
+      ->capture_default_str();
+  ce->add_option("--iperf-port", ce_o.iperf_port, "iperf3 port (0: a free one)")
+      ->capture_default_str();
+  ce->add_option("--repeat", ce_o.repeat, "Repetitions (medians reported)")->capture_default_str();
+  ce->add_option("--json", ce_json, "Write results as JSON to this file");
+  ce->add_flag("!--no-progress", ce_o.progress, "Hide progress lines");
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*ce) {
+    if (!ParseList(ce_threads, &ce_o.io_threads) || ce_o.clients == 0 || ce_o.rooms == 0 ||
+        ce_o.entities_per_client == 0 || ce_o.publish_hz <= 0 || ce_o.tick_rate_hz <= 0 ||
+        ce_o.tick_rate_hz > 1000 || ce_o.warmup_s < 0 || ce_o.duration_s <= 0 ||
+        ce_o.duration_s > 120 || ce_o.iperf_seconds <= 0 || ce_o.iperf_seconds > 120 ||
+        ce_o.repeat == 0 || ce_o.repeat > 20) {
+      std::cerr << "invalid ceiling options (durations 0..120 s, repeat 1..20, counts > 0)\n";
+      return 2;
+    }
+    for (size_t t : ce_o.io_threads) {
+      if (t == 0 || t > 64) {
+        std::cerr << "--io-threads: values must be in 1..64\n";
+        return 2;
+      }
+    }
+    auto reps = RunCeiling(ce_o);
+    auto summary = SummarizeCeiling(ce_o, reps);
+    std::cout << CeilingTable(summary, reps);
+    if (!ce_json.empty()) std::ofstream(ce_json) << CeilingJson(ce_o, reps, summary) << "\n";
+    return 0;
+  }
 
   if (*ccu) {
     if (!ParseList(ccu_users, &ccu_o.users) || ccu_o.rooms == 0 || ccu_o.duration_s <= 0) {

@@ -216,6 +216,9 @@ class RelayCollectable : public prometheus::Collectable {
                                      c.connections_accepted));
     families.push_back(CounterFamily("edgephys_send_errors_total",
                                      "Datagrams the socket refused to send.", c.send_errors));
+    families.push_back(CounterFamily("edgephys_io_queue_drops_total",
+                                     "Datagrams dropped because their I/O thread's queue was full.",
+                                     c.io_queue_drops));
 
     families.push_back(LabeledCounterFamily("edgephys_packets_rejected_total",
                                             "Incoming datagrams dropped, by reason.",

@@ -11,7 +11,7 @@
 //   counters   packets_received_total, packets_sent_total, bytes_received_total,
 //              bytes_sent_total, entity_updates_sent_total, entity_updates_received_total,
 //              reliable_resends_total, reliable_messages_received_total,
-//              connections_accepted_total, send_errors_total,
+//              connections_accepted_total, send_errors_total, io_queue_drops_total,
 //              packets_rejected_total{reason}, entity_updates_rejected_total{reason}
 //                (reason = DropReasonName(), every reason exported, also at 0),
 //              requests_rejected_total{reason}  (schema RejectReason in snake_case, no "none"),

@@ -114,6 +114,7 @@ TEST_F(MetricsExporterTest, ExportsScalarCountersAndGauges) {
   RelayCounters::Inc(counters_.reliable_messages_received, 4);
   RelayCounters::Inc(counters_.connections_accepted, 5);
   RelayCounters::Inc(counters_.send_errors, 6);
+  RelayCounters::Inc(counters_.io_queue_drops, 8);
   counters_.rooms = 2;
   counters_.clients = 9;
   counters_.entities = 31;
@@ -133,6 +134,7 @@ TEST_F(MetricsExporterTest, ExportsScalarCountersAndGauges) {
       {"edgephys_reliable_messages_received_total", 4},
       {"edgephys_connections_accepted_total", 5},
       {"edgephys_send_errors_total", 6},
+      {"edgephys_io_queue_drops_total", 8},
       {"edgephys_rooms", 2},
       {"edgephys_clients", 9},
       {"edgephys_entities", 31},
@@ -162,6 +164,7 @@ TEST_F(MetricsExporterTest, TypeAndHelpLinesAndSingleTotalSuffix) {
       {"edgephys_reliable_messages_received_total", "counter"},
       {"edgephys_connections_accepted_total", "counter"},
       {"edgephys_send_errors_total", "counter"},
+      {"edgephys_io_queue_drops_total", "counter"},
       {"edgephys_packets_rejected_total", "counter"},
       {"edgephys_entity_updates_rejected_total", "counter"},
       {"edgephys_requests_rejected_total", "counter"},

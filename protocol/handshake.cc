@@ -21,8 +21,12 @@ uint64_t SecureRandom64() {
   return LoadU64LE(bytes);
 }
 
-CookieJar::CookieJar() {
-  if (RAND_bytes(key_.data(), static_cast<int>(key_.size())) != 1) std::abort();
+CookieJar::CookieJar() : key_(RandomKey()) {}
+
+CookieJar::Key CookieJar::RandomKey() {
+  Key key;
+  if (RAND_bytes(key.data(), static_cast<int>(key.size())) != 1) std::abort();
+  return key;
 }
 
 void CookieJar::Mac(const Endpoint& from, uint64_t nonce, uint64_t issued_ms,

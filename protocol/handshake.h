@@ -28,10 +28,15 @@ inline constexpr double kCookieLifetimeS = 10.0;
 
 // Issues and checks stateless challenge cookies: HMAC-SHA256 (truncated to 16 bytes) under a
 // random per-process key over the client's address, port, nonce and the issue time.
+// Jars built from the same Key issue and accept the same cookies (relay shards share one).
 // Thread-safety: const methods are thread-safe.
 class CookieJar {
  public:
+  using Key = std::array<uint8_t, 32>;
   CookieJar();  // draws a random 32-byte key from OpenSSL's RNG
+  explicit CookieJar(const Key& key) : key_(key) {}
+  // A fresh random key from OpenSSL's RNG (aborts if the RNG fails, as CookieJar() does).
+  static Key RandomKey();
   using Cookie = std::array<uint8_t, kCookieSize>;
   Cookie Issue(const Endpoint& from, uint64_t client_nonce, double now) const;
   // True if `cookie` was issued by this jar to `from`/`client_nonce` at most
@@ -41,7 +46,7 @@ class CookieJar {
 
  private:
   void Mac(const Endpoint& from, uint64_t nonce, uint64_t issued_ms, uint8_t out[16]) const;
-  std::array<uint8_t, 32> key_;
+  Key key_;
 };
 
 // Builds a handshake datagram: packet prefix (connection id 0) followed by `message`.

@@ -27,6 +27,15 @@ TEST(CookieJar, VerifiesOnlyForTheSameAddressNonceAndWithinLifetime) {
   EXPECT_FALSE(jar.Verify(std::span(cookie).first(10), Ep("127.0.0.1", 5000), 99, 100.5));
 }
 
+TEST(CookieJar, JarsWithTheSameKeyAcceptEachOthersCookies) {
+  const CookieJar::Key key = CookieJar::RandomKey();
+  CookieJar a(key), b(key), c(CookieJar::RandomKey());
+  auto cookie = a.Issue(Ep("127.0.0.1", 5000), 7, 10.0);
+  EXPECT_TRUE(b.Verify(cookie, Ep("127.0.0.1", 5000), 7, 10.5));
+  EXPECT_FALSE(c.Verify(cookie, Ep("127.0.0.1", 5000), 7, 10.5));
+  EXPECT_FALSE(b.Verify(cookie, Ep("127.0.0.1", 5001), 7, 10.5));
+}
+
 TEST(Handshake, HelloIsPaddedAndChallengeIsSmaller) {
   flatbuffers::FlatBufferBuilder hello;
   FinishControl(hello, schema::CreateHello(hello, 1));

@@ -89,6 +89,24 @@ Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_vi
   return token;
 }
 
+bool PeekJoinToken(std::span<const uint8_t> bytes, JoinTokenRoute* route) {
+  // The same layout checks as VerifyJoinToken, in the same order.
+  if (bytes.size() < kFixedSize + 1 + kJoinTokenMacSize || bytes.size() > kMaxJoinTokenSize ||
+      bytes[0] != kTokenVersion) {
+    return false;
+  }
+  size_t room_size = bytes[25];
+  if (room_size == 0 || room_size > kMaxRoomNameSize ||
+      bytes.size() != kFixedSize + room_size + kJoinTokenMacSize) {
+    return false;
+  }
+  route->permissions = LoadU32LE(bytes.data() + 5);
+  route->nonce = LoadU64LE(bytes.data() + 17);
+  route->room =
+      std::string_view(reinterpret_cast<const char*>(bytes.data() + kFixedSize), room_size);
+  return true;
+}
+
 std::string Base64UrlEncode(std::span<const uint8_t> bytes) {
   std::string out;
   out.reserve((bytes.size() * 4 + 2) / 3);

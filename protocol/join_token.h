@@ -51,6 +51,17 @@ Result<std::vector<uint8_t>> SignJoinToken(const JoinToken& token, std::string_v
 Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_view secret,
                                   uint64_t now_unix_s, TokenError* error);
 
+// The routing fields of a token, read without checking its MAC or expiry (for a router that
+// must send every Connect carrying one token to the same place; never for admission).
+// Applies exactly VerifyJoinToken's layout checks, so a token that verifies always peeks, with
+// the same values. Returns false on a malformed layout. Untrusted input; O(1), no allocation.
+struct JoinTokenRoute {
+  std::string_view room;  // points into the peeked bytes
+  uint32_t permissions = 0;
+  uint64_t nonce = 0;
+};
+bool PeekJoinToken(std::span<const uint8_t> bytes, JoinTokenRoute* route);
+
 std::string Base64UrlEncode(std::span<const uint8_t> bytes);
 // Returns kMalformed on characters outside the base64url alphabet.
 Result<std::vector<uint8_t>> Base64UrlDecode(std::string_view text);

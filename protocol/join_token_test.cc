@@ -31,6 +31,39 @@ TEST(JoinToken, SignVerifyRoundTrip) {
   EXPECT_EQ(t->nonce, 0x1122334455667788ull);
 }
 
+TEST(JoinToken, PeekReadsRoutingFieldsOfEveryTokenThatVerifies) {
+  JoinToken sample = Sample();
+  sample.permissions = kPermissionWorker;
+  auto bytes = *SignJoinToken(sample, "s3cret");
+  JoinTokenRoute route;
+  ASSERT_TRUE(PeekJoinToken(bytes, &route));
+  EXPECT_EQ(route.room, "lobby");
+  EXPECT_EQ(route.permissions, kPermissionWorker);
+  EXPECT_EQ(route.nonce, sample.nonce);
+  // Truncated, extended, or a wrong room length: no route (and no verification either).
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    EXPECT_FALSE(PeekJoinToken(std::span(bytes).first(n), &route)) << n;
+  }
+  auto longer = bytes;
+  longer.push_back(0);
+  EXPECT_FALSE(PeekJoinToken(longer, &route));
+  auto bad_length = bytes;
+  bad_length[25] = 0;
+  EXPECT_FALSE(PeekJoinToken(bad_length, &route));
+  bad_length[25] = 200;
+  EXPECT_FALSE(PeekJoinToken(bad_length, &route));
+  // Random bytes never crash; whenever they verify they also peek.
+  std::mt19937 rng(3);
+  for (int i = 0; i < 2000; ++i) {
+    std::vector<uint8_t> junk(rng() % 140);
+    for (auto& b : junk) b = static_cast<uint8_t>(rng());
+    TokenError err;
+    bool verified = VerifyJoinToken(junk, "s3cret", 0, &err).ok();
+    bool peeked = PeekJoinToken(junk, &route);
+    EXPECT_TRUE(!verified || peeked);
+  }
+}
+
 TEST(JoinToken, WrongSecretExpiryAndEveryFlippedBitAreRejected) {
   auto bytes = *SignJoinToken(Sample(), "s3cret");
   TokenError err;

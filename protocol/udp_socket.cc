@@ -8,8 +8,11 @@
 #include <sys/socket.h>
 
 #include <asio/ip/v6_only.hpp>
+#include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 
 namespace edgephys {
@@ -59,19 +62,25 @@ Result<std::unique_ptr<UdpSocket>> UdpSocket::Open(const Endpoint& bind) {
   return socket;
 }
 
-Status UdpSocket::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
-  if (data.size() > kMaxUdpPayload)
-    return Status(StatusCode::kInvalidArgument, "datagram too large");
-  Endpoint destination = to;
+Status UdpSocket::Destination(const Endpoint& to, Endpoint* destination) const {
+  *destination = to;
   if (local_.address().is_v6() && to.address().is_v4()) {
-    destination =
+    *destination =
         Endpoint(asio::ip::make_address_v6(asio::ip::v4_mapped, to.address().to_v4()), to.port());
   } else if (local_.address().is_v4() && to.address().is_v6()) {
-    destination = Normalize(to);
-    if (destination.address().is_v6()) {
+    *destination = Normalize(to);
+    if (destination->address().is_v6()) {
       return Status(StatusCode::kInvalidArgument, "IPv6 destination from an IPv4 socket");
     }
   }
+  return Status::Ok();
+}
+
+Status UdpSocket::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
+  if (data.size() > kMaxUdpPayload)
+    return Status(StatusCode::kInvalidArgument, "datagram too large");
+  Endpoint destination;
+  if (Status st = Destination(to, &destination); !st.ok()) return st;
   asio::error_code ec;
   socket_.send_to(asio::buffer(data.data(), data.size()), destination, 0, ec);
   if (ec) return Status(StatusCode::kIoError, "UDP send failed");
@@ -94,6 +103,92 @@ size_t UdpSocket::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) {
     if (ec == asio::error::would_block || ec == asio::error::try_again) return 0;
   }
   return 0;
+}
+
+size_t UdpSocket::ReceiveBatch(std::span<ReceiveSlot> slots) {
+  const size_t n = std::min(slots.size(), kMaxBatch);
+  if (n == 0) return 0;
+  std::array<mmsghdr, kMaxBatch> headers{};
+  std::array<iovec, kMaxBatch> vectors{};
+  std::array<sockaddr_storage, kMaxBatch> addresses{};
+  for (size_t i = 0; i < n; ++i) {
+    vectors[i].iov_base = slots[i].buffer.data();
+    vectors[i].iov_len = slots[i].buffer.size();
+    headers[i].msg_hdr.msg_name = &addresses[i];
+    headers[i].msg_hdr.msg_namelen = sizeof(sockaddr_storage);
+    headers[i].msg_hdr.msg_iov = &vectors[i];
+    headers[i].msg_hdr.msg_iovlen = 1;
+  }
+  const int fd = socket_.native_handle();
+  // A few attempts, as ReceiveFrom: a pending ICMP error is reported once.
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    // MSG_TRUNC: msg_len is the datagram's full length even when it was truncated.
+    int got =
+        ::recvmmsg(fd, headers.data(), static_cast<unsigned>(n), MSG_DONTWAIT | MSG_TRUNC, nullptr);
+    if (got < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK) return 0;
+      if (errno == EINTR) continue;
+      continue;  // e.g. ECONNREFUSED from an earlier send: reported once, try again
+    }
+    for (int i = 0; i < got; ++i) {
+      Endpoint sender;
+      const socklen_t length = headers[i].msg_hdr.msg_namelen;
+      if (length <= sender.capacity()) {
+        std::memcpy(sender.data(), &addresses[i], length);
+        sender.resize(length);
+      }
+      slots[i].from = Normalize(sender);
+      slots[i].size = headers[i].msg_len;
+    }
+    return static_cast<size_t>(got);
+  }
+  return 0;
+}
+
+UdpSocket::BatchSendResult UdpSocket::SendBatch(std::span<const Outgoing> datagrams) {
+  BatchSendResult result;
+  std::array<mmsghdr, kMaxBatch> headers{};
+  std::array<iovec, kMaxBatch> vectors{};
+  std::array<Endpoint, kMaxBatch> destinations{};
+  std::array<size_t, kMaxBatch> sizes{};
+  const int fd = socket_.native_handle();
+  size_t next = 0;
+  while (next < datagrams.size()) {
+    // Fill one batch with valid datagrams; invalid ones are refused without a system call.
+    size_t n = 0;
+    while (n < kMaxBatch && next < datagrams.size()) {
+      const Outgoing& d = datagrams[next++];
+      if (d.data.size() > kMaxUdpPayload || !Destination(d.to, &destinations[n]).ok()) {
+        ++result.refused;
+        continue;
+      }
+      vectors[n].iov_base = const_cast<uint8_t*>(d.data.data());
+      vectors[n].iov_len = d.data.size();
+      headers[n].msg_hdr = msghdr{};
+      headers[n].msg_hdr.msg_name = destinations[n].data();
+      headers[n].msg_hdr.msg_namelen = static_cast<socklen_t>(destinations[n].size());
+      headers[n].msg_hdr.msg_iov = &vectors[n];
+      headers[n].msg_hdr.msg_iovlen = 1;
+      sizes[n] = d.data.size();
+      ++n;
+    }
+    // sendmmsg stops at the first datagram the OS refuses: count it lost and go on after it.
+    size_t done = 0;
+    while (done < n) {
+      int sent =
+          ::sendmmsg(fd, headers.data() + done, static_cast<unsigned>(n - done), MSG_DONTWAIT);
+      if (sent < 0 && errno == EINTR) continue;
+      if (sent <= 0) {
+        ++result.refused;
+        ++done;
+        continue;
+      }
+      for (int i = 0; i < sent; ++i) result.bytes_sent += sizes[done + static_cast<size_t>(i)];
+      result.sent += static_cast<size_t>(sent);
+      done += static_cast<size_t>(sent);
+    }
+  }
+  return result;
 }
 
 bool UdpSocket::WaitReadable(double timeout_s) {

@@ -12,14 +12,23 @@
 // pending (a zero-length datagram also reads as 0) and reports the full size of a datagram
 // larger than the buffer (its tail is lost).
 //
-// Thread-safety: none; one thread owns the socket (the kernel socket itself tolerates a
-// sender and a receiver thread, but this class makes no such promise). Cost: one system call
-// per SendTo/ReceiveFrom/WaitReadable, no allocation.
+// Batches (Linux): ReceiveBatch() reads up to kMaxBatch datagrams with one recvmmsg(2);
+// SendBatch() sends a span of datagrams with sendmmsg(2), kMaxBatch per system call. They use
+// only the OS handle (no member state besides it), so SendBatch() may be called from several
+// threads at once and concurrently with one thread calling ReceiveBatch() (the kernel
+// serialises datagram sends and receives on one UDP socket). The single calls keep the
+// one-owner rule.
+//
+// Thread-safety: none for SendTo/ReceiveFrom/WaitReadable; one thread owns the socket. See
+// above for the batch calls. Cost: one system call per SendTo/ReceiveFrom/WaitReadable and per
+// kMaxBatch datagrams of a batch call, no allocation.
 #pragma once
 
 #include <asio/io_context.hpp>
 #include <asio/ip/udp.hpp>
+#include <cstddef>
 #include <memory>
+#include <span>
 
 #include "protocol/datagram_socket.h"
 #include "protocol/status.h"
@@ -38,6 +47,34 @@ class UdpSocket final : public DatagramSocket {
   size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override;
   Endpoint LocalEndpoint() const override { return local_; }
 
+  // Datagrams per recvmmsg/sendmmsg system call.
+  static constexpr size_t kMaxBatch = 64;
+
+  // One slot of ReceiveBatch(): the caller points `buffer` at its storage; ReceiveBatch sets
+  // `from` and `size` (the datagram's full size, larger than buffer.size() when truncated).
+  struct ReceiveSlot {
+    std::span<uint8_t> buffer;
+    Endpoint from;
+    size_t size = 0;
+  };
+  // Receives up to min(slots.size(), kMaxBatch) pending datagrams with one recvmmsg(2), in
+  // arrival order, into slots[0..n). Returns n (0 when nothing is pending). Never blocks.
+  size_t ReceiveBatch(std::span<ReceiveSlot> slots);
+
+  struct Outgoing {
+    Endpoint to;
+    std::span<const uint8_t> data;
+  };
+  struct BatchSendResult {
+    size_t sent = 0;        // datagrams the OS accepted
+    size_t bytes_sent = 0;  // their payload bytes
+    size_t refused = 0;     // datagrams lost: invalid (as SendTo) or refused by the OS
+  };
+  // Sends every datagram of `datagrams` (sendmmsg(2), kMaxBatch per call). A datagram the OS
+  // refuses (e.g. a full send buffer) is counted in `refused` and skipped; the rest are still
+  // sent. sent + refused == datagrams.size(). Never blocks.
+  BatchSendResult SendBatch(std::span<const Outgoing> datagrams);
+
   // Blocks until a datagram is pending or `timeout_s` seconds passed (0: just checks; negative
   // values count as 0). Returns true when a datagram is pending. For simple event loops.
   bool WaitReadable(double timeout_s);
@@ -47,6 +84,9 @@ class UdpSocket final : public DatagramSocket {
 
  private:
   UdpSocket();
+  // The address to hand the OS for `to` (IPv4-mapped from an IPv6 socket); kInvalidArgument
+  // for an IPv6 destination from an IPv4 socket.
+  Status Destination(const Endpoint& to, Endpoint* destination) const;
 
   asio::io_context io_;  // required by Asio's socket; never run
   asio::ip::udp::socket socket_;

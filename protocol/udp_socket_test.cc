@@ -105,5 +105,97 @@ TEST(UdpSocketTest, DualStackServesIPv4Peers) {
   EXPECT_EQ(ReceiveWithin(**client, &from, buffer), 1u);
 }
 
+// Two senders batch 32 datagrams each (distinct sizes and contents) to one receiver, which
+// batch-receives all 64 with their sources.
+void BatchRoundTrip(const char* loopback) {
+  auto a = UdpSocket::Open(At(loopback, 0));
+  auto b = UdpSocket::Open(At(loopback, 0));
+  auto r = UdpSocket::Open(At(loopback, 0));
+  ASSERT_TRUE(a.ok() && b.ok() && r.ok());
+  constexpr size_t kCount = 64;
+  std::vector<std::vector<uint8_t>> payloads(kCount);
+  std::vector<UdpSocket::Outgoing> from_a, from_b;
+  for (size_t i = 0; i < kCount; ++i) {
+    payloads[i].resize(8 + i * 17);
+    for (size_t k = 0; k < payloads[i].size(); ++k)
+      payloads[i][k] = static_cast<uint8_t>(i + k * 3);
+    payloads[i][0] = static_cast<uint8_t>(i);  // index, to match it on arrival
+    (i % 2 == 0 ? from_a : from_b).push_back({(*r)->LocalEndpoint(), payloads[i]});
+  }
+  UdpSocket::BatchSendResult sa = (*a)->SendBatch(from_a);
+  UdpSocket::BatchSendResult sb = (*b)->SendBatch(from_b);
+  EXPECT_EQ(sa.sent + sb.sent, kCount);
+  EXPECT_EQ(sa.refused + sb.refused, 0u);
+  size_t expected_bytes = 0;
+  for (const auto& p : payloads) expected_bytes += p.size();
+  EXPECT_EQ(sa.bytes_sent + sb.bytes_sent, expected_bytes);
+
+  std::vector<std::array<uint8_t, 1500>> storage(kCount);
+  std::vector<UdpSocket::ReceiveSlot> slots(kCount);
+  for (size_t i = 0; i < kCount; ++i) slots[i].buffer = storage[i];
+  std::vector<bool> seen(kCount, false);
+  size_t received = 0;
+  for (int round = 0; round < 100 && received < kCount; ++round) {
+    size_t n = (*r)->ReceiveBatch(slots);
+    if (n == 0) {
+      (*r)->WaitReadable(0.05);
+      continue;
+    }
+    for (size_t k = 0; k < n; ++k) {
+      const size_t i = slots[k].buffer[0];
+      ASSERT_LT(i, kCount);
+      EXPECT_FALSE(seen[i]) << "datagram " << i << " twice";
+      seen[i] = true;
+      ASSERT_EQ(slots[k].size, payloads[i].size());
+      EXPECT_TRUE(std::equal(payloads[i].begin(), payloads[i].end(), slots[k].buffer.begin()));
+      EXPECT_EQ(slots[k].from, i % 2 == 0 ? (*a)->LocalEndpoint() : (*b)->LocalEndpoint());
+      ++received;
+    }
+  }
+  EXPECT_EQ(received, kCount);
+  EXPECT_EQ((*r)->ReceiveBatch(slots), 0u);  // nothing left, and no blocking
+}
+
+TEST(UdpSocketTest, BatchSendAndReceiveIPv4) { BatchRoundTrip("127.0.0.1"); }
+
+TEST(UdpSocketTest, BatchSendAndReceiveIPv6) {
+  if (!UdpSocket::Open(At("::1", 0)).ok()) GTEST_SKIP() << "IPv6 loopback unavailable";
+  BatchRoundTrip("::1");
+}
+
+TEST(UdpSocketTest, BatchCountsInvalidDatagramsAsRefusedAndSendsTheRest) {
+  auto a = UdpSocket::Open(At("127.0.0.1", 0));
+  auto r = UdpSocket::Open(At("127.0.0.1", 0));
+  ASSERT_TRUE(a.ok() && r.ok());
+  std::vector<uint8_t> small = {1, 2, 3}, huge(70000, 1);
+  std::vector<UdpSocket::Outgoing> out = {{(*r)->LocalEndpoint(), small},
+                                          {At("::1", 9), small},  // IPv6 from an IPv4 socket
+                                          {(*r)->LocalEndpoint(), huge},
+                                          {(*r)->LocalEndpoint(), small}};
+  UdpSocket::BatchSendResult result = (*a)->SendBatch(out);
+  EXPECT_EQ(result.sent, 2u);
+  EXPECT_EQ(result.refused, 2u);
+  EXPECT_EQ(result.bytes_sent, 6u);
+  std::array<uint8_t, 64> buffer{};
+  Endpoint from;
+  EXPECT_EQ(ReceiveWithin(**r, &from, buffer), 3u);
+  EXPECT_EQ(ReceiveWithin(**r, &from, buffer), 3u);
+}
+
+TEST(UdpSocketTest, BatchReceiveReportsTruncatedFullSize) {
+  auto a = UdpSocket::Open(At("127.0.0.1", 0));
+  auto r = UdpSocket::Open(At("127.0.0.1", 0));
+  ASSERT_TRUE(a.ok() && r.ok());
+  ASSERT_TRUE((*a)->SendTo((*r)->LocalEndpoint(), std::vector<uint8_t>(3000, 5)).ok());
+  ASSERT_TRUE((*r)->WaitReadable(5.0));
+  std::array<uint8_t, 1200> buffer{};
+  std::array<UdpSocket::ReceiveSlot, 4> slots{};
+  slots[0].buffer = buffer;
+  ASSERT_EQ((*r)->ReceiveBatch(std::span<UdpSocket::ReceiveSlot>(slots.data(), 1)), 1u);
+  EXPECT_EQ(slots[0].size, 3000u);
+  EXPECT_EQ(slots[0].from, (*a)->LocalEndpoint());
+  EXPECT_EQ(buffer[1199], 5);
+}
+
 }  // namespace
 }  // namespace edgephys

@@ -19,6 +19,7 @@
 #include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
+#include "relay/relay_shards.h"
 
 namespace {
 
@@ -100,6 +101,12 @@ int main(int argc, char** argv) {
   app.add_option("--physics-threads", config.physics_threads,
                  "Threads stepping embedded PhyS worlds (rooms spread over them)")
       ->capture_default_str();
+  size_t io_threads = 1;
+  app.add_option("--io-threads", io_threads,
+                 "Relay shards, each on its own thread, rooms spread over them (1: one thread, "
+                 "as before; N>1 adds a receive thread; see docs/operations.md)")
+      ->capture_default_str()
+      ->check(CLI::Range(size_t{1}, RelayShards::kMaxShards));
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
@@ -159,6 +166,28 @@ int main(int argc, char** argv) {
     }
     exporter = std::move(*started);
     spdlog::info("metrics on http://{}/metrics", metrics);
+  }
+  if (io_threads > 1) {
+    std::signal(SIGINT, OnSignal);
+    std::signal(SIGTERM, OnSignal);
+    RelayShardsOptions options;
+    options.shards = io_threads;
+    auto shards = RelayShards::Start(config, socket->get(), &counters, options);
+    if (!shards.ok()) {
+      spdlog::error("cannot start {} relay shards: {}", io_threads, shards.status().message());
+      return 1;
+    }
+    spdlog::info("edgephys-relay listening on udp {} ({} shards)",
+                 FormatEndpoint((*socket)->LocalEndpoint()), io_threads);
+    const auto start = std::chrono::steady_clock::now();
+    while (!g_stop.load()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (run_for_s > 0 && now >= run_for_s) break;
+    }
+    spdlog::info("shutting down");
+    (*shards)->Stop();
+    return 0;
   }
   Relay relay(config, socket->get(), &counters);
   spdlog::info("edgephys-relay listening on udp {}", FormatEndpoint((*socket)->LocalEndpoint()));

@@ -56,13 +56,18 @@ DropLog& Log() {
 
 }  // namespace
 
-Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters)
+Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters,
+             const RelayShardOptions& shard)
     : config_(config),
+      shard_(shard),
       physics_pool_(std::max<size_t>(1, config.physics_threads)),
       handshake_limiter_(config.limits.handshakes_per_s, config.limits.handshakes_per_s * 2),
       socket_(socket),
       counters_(counters),
+      cookies_(shard.cookie_key ? CookieJar(*shard.cookie_key) : CookieJar()),
       receive_buffer_(kMaxPacketSize + 512) {
+  if (shard_.count == 0) shard_.count = 1;
+  shard_.index %= shard_.count;
   batch_.states.reserve(kMaxPacketSize / 8);
 }
 
@@ -70,6 +75,21 @@ Relay::~Relay() {
   // Rooms before sessions (members are destroyed in reverse order, sessions_ first): a room's
   // remote PhyS link holds its worker Session and sends it WorkerUnassign when destroyed.
   rooms_.clear();
+  if (shard_.shared_counters) {  // withdraw this relay's share of the shared gauges
+    PublishGauge(counters_->rooms, &published_rooms_, 0);
+    PublishGauge(counters_->clients, &published_clients_, 0);
+    PublishGauge(counters_->physics_bodies, &published_bodies_, 0);
+    PublishGauge(counters_->physics_sleeping_bodies, &published_sleeping_, 0);
+  }
+}
+
+void Relay::PublishGauge(RelayCounters::Gauge& gauge, int64_t* published, int64_t value) {
+  if (!shard_.shared_counters) {
+    gauge.store(value, std::memory_order_relaxed);
+    return;
+  }
+  gauge.fetch_add(value - *published, std::memory_order_relaxed);
+  *published = value;
 }
 
 void Relay::Update(double now, uint64_t unix_now_s) {
@@ -123,11 +143,11 @@ void Relay::Update(double now, uint64_t unix_now_s) {
       bodies += static_cast<int64_t>(pc.bodies);
       sleeping += static_cast<int64_t>(pc.sleeping_bodies);
     }
-    counters_->physics_bodies.store(bodies, std::memory_order_relaxed);
-    counters_->physics_sleeping_bodies.store(sleeping, std::memory_order_relaxed);
+    PublishGauge(counters_->physics_bodies, &published_bodies_, bodies);
+    PublishGauge(counters_->physics_sleeping_bodies, &published_sleeping_, sleeping);
   }
-  counters_->rooms.store(static_cast<int64_t>(rooms_.size()), std::memory_order_relaxed);
-  counters_->clients.store(static_cast<int64_t>(sessions_.size()), std::memory_order_relaxed);
+  PublishGauge(counters_->rooms, &published_rooms_, static_cast<int64_t>(rooms_.size()));
+  PublishGauge(counters_->clients, &published_clients_, static_cast<int64_t>(sessions_.size()));
 }
 
 void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
@@ -244,6 +264,10 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
   uint32_t connection_id = 0;
   while (connection_id == 0 || sessions_.count(connection_id) != 0) {
     connection_id = static_cast<uint32_t>(SecureRandom64());
+    if (shard_.count > 1) {  // the id's residue names this shard (0 if it would overflow)
+      uint64_t id = connection_id - connection_id % shard_.count + uint64_t{shard_.index};
+      connection_id = id > UINT32_MAX ? 0 : static_cast<uint32_t>(id);
+    }
   }
   auto session = std::make_unique<Session>(this, from, connection_id, token->player_id,
                                            token->permissions, token->room, token->nonce,
@@ -878,6 +902,7 @@ void Relay::CloseIdleRooms(double now) {
 void Relay::Shutdown() {
   for (auto& [id, s] : sessions_) s->connection().Disconnect(DisconnectReason::kServerShutdown, *s);
   while (!sessions_.empty()) RemoveSession(sessions_.begin()->first, now_);
+  if (shard_.shared_counters) PublishGauge(counters_->clients, &published_clients_, 0);
 }
 
 const Room* Relay::FindRoom(const std::string& name) const {

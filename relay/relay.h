@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -38,10 +39,27 @@ namespace edgephys {
 
 class Session;
 
+// How a Relay runs as one of several shards over one socket (relay/relay_shards.h). The
+// defaults are a standalone relay, which behaves exactly as without them.
+struct RelayShardOptions {
+  // This relay is shard `index` of `count`: the connection ids it allocates are all
+  // congruent to `index` modulo `count`, so a router can find a session's shard from the id.
+  uint32_t index = 0;
+  uint32_t count = 1;
+  // The handshake cookie key, shared by all shards (one shard may answer a Hello and another
+  // check the Connect that follows). Unset: a random key of this relay's own.
+  std::optional<CookieJar::Key> cookie_key;
+  // Several relays write one RelayCounters: the gauges this relay would store() (rooms,
+  // clients, PhyS bodies) are published as fetch_add of the change in its own value instead,
+  // so the shared gauges hold the sums. Its contribution is withdrawn when it is destroyed.
+  bool shared_counters = false;
+};
+
 class Relay {
  public:
   // `socket` and `counters` are not owned and must outlive the relay.
-  Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters);
+  Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters,
+        const RelayShardOptions& shard = {});
   ~Relay();
   Relay(const Relay&) = delete;
   Relay& operator=(const Relay&) = delete;
@@ -107,8 +125,11 @@ class Relay {
   void BroadcastReliable(Room& room, std::span<const uint8_t> message, uint32_t except_player);
   void CloseIdleRooms(double now);
   Room* GetOrCreateRoom(const std::string& name, double now);
+  // Sets a gauge to `value` (shared counters: adds the change since the last publication).
+  void PublishGauge(RelayCounters::Gauge& gauge, int64_t* published, int64_t value);
 
   RelayConfig config_;
+  RelayShardOptions shard_;
   PhysicsPool physics_pool_;
   AddressRateLimiter handshake_limiter_;
   DatagramSocket* socket_;
@@ -131,6 +152,11 @@ class Relay {
   double now_ = 0;
   double last_rtt_sample_ = 0;
   std::vector<uint32_t> removal_scratch_;
+  // Gauge values last published (shared_counters only).
+  int64_t published_rooms_ = 0;
+  int64_t published_clients_ = 0;
+  int64_t published_bodies_ = 0;
+  int64_t published_sleeping_ = 0;
 };
 
 }  // namespace edgephys

@@ -65,6 +65,9 @@ struct RelayCounters {
   Counter reliable_messages_received{0};
   Counter connections_accepted{0};
   Counter send_errors{0};              // socket refused a datagram
+  Counter io_queue_drops{0};           // datagrams dropped before a relay saw them: the
+                                       // receive thread found their shard's queue full
+                                       // (relay_shards.h; always 0 single-threaded)
 
   // Incoming datagrams dropped, by DropReason.
   std::array<Counter, static_cast<size_t>(DropReason::kCount)> packets_rejected{};

@@ -1,0 +1,512 @@
+// RelayShards on real loopback UDP: rooms on one shard each, clients of a room meeting across
+// shards' handshakes, garbage dropped and counted, clean shutdown. Every wait is bounded; no
+// assertion is about speed.
+#include "relay/relay_shards.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "client/client.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/packet.h"
+#include "protocol/udp_socket.h"
+#include "relay/spsc_ring.h"
+
+namespace edgephys {
+namespace {
+
+constexpr char kSecret[] = "shard-test-secret";
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+std::vector<uint8_t> MintToken(const std::string& room, uint32_t player,
+                               uint32_t permissions = kDefaultPermissions) {
+  JoinToken t;
+  t.room = room;
+  t.player_id = player;
+  t.permissions = permissions;
+  t.expiry_unix_s = UnixNow() + 3600;
+  t.nonce = SecureRandom64();
+  return *SignJoinToken(t, kSecret);
+}
+
+Endpoint At(const std::string& address, uint16_t port) {
+  return Endpoint(asio::ip::make_address(address), port);
+}
+
+uint64_t Sum(const std::array<RelayCounters::Counter, static_cast<size_t>(DropReason::kCount)>& a) {
+  uint64_t total = 0;
+  for (const auto& c : a) total += c.load();
+  return total;
+}
+
+// A relay of `shards` shards on 127.0.0.1 and clients pumped from the test thread.
+class ShardedWorld {
+ public:
+  explicit ShardedWorld(size_t shards) {
+    socket_ = std::move(*UdpSocket::Open(At("127.0.0.1", 0)));
+    RelayConfig config;
+    config.secret = kSecret;
+    config.physics_threads = 1;
+    config.room_defaults.tick_rate_hz = 30;
+    RelayShardsOptions options;
+    options.shards = shards;
+    auto started = RelayShards::Start(config, socket_.get(), &counters_, options);
+    EXPECT_TRUE(started.ok());
+    shards_ = std::move(*started);
+    start_ = std::chrono::steady_clock::now();
+  }
+  ~ShardedWorld() { shards_->Stop(); }
+
+  double Now() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+  // A client bound to `address` (any 127.0.0.0/8 address is loopback on Linux).
+  Client& AddClient(const std::vector<uint8_t>& token, const std::string& address = "127.0.0.1") {
+    auto socket = UdpSocket::Open(At(address, 0));
+    EXPECT_TRUE(socket.ok()) << address;
+    sockets_.push_back(std::move(*socket));
+    clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get()));
+    (void)clients_.back()->Connect(socket_->LocalEndpoint(), token, Now());
+    return *clients_.back();
+  }
+  UdpSocket& client_socket(size_t i) { return *sockets_[i]; }
+
+  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
+    const double deadline = Now() + timeout_s;
+    while (Now() < deadline) {
+      for (auto& c : clients_) c->Update(Now());
+      if (done()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return done();
+  }
+
+  // Shards (by index) that hold room `name`.
+  std::vector<size_t> ShardsHolding(const std::string& name) {
+    std::vector<size_t> holding;
+    for (size_t i = 0; i < shards_->shard_count(); ++i) {
+      bool found = false;
+      EXPECT_TRUE(
+          shards_->RunOnShard(i, [&](Relay& r, double) { found = r.FindRoom(name) != nullptr; }));
+      if (found) holding.push_back(i);
+    }
+    return holding;
+  }
+
+  RelayShards& shards() { return *shards_; }
+  RelayCounters& counters() { return counters_; }
+  Endpoint relay_endpoint() const { return socket_->LocalEndpoint(); }
+
+ private:
+  RelayCounters counters_;
+  std::unique_ptr<UdpSocket> socket_;
+  std::unique_ptr<RelayShards> shards_;
+  std::vector<std::unique_ptr<UdpSocket>> sockets_;
+  std::vector<std::unique_ptr<Client>> clients_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+// The first room name "<prefix><k>" that the shards route to `shard`.
+std::string RoomOnShard(const RelayShards& shards, size_t shard, const std::string& prefix) {
+  for (int k = 0; k < 10000; ++k) {
+    std::string name = prefix + std::to_string(k);
+    if (shards.ShardOfRoom(name) == shard) return name;
+  }
+  ADD_FAILURE() << "no room name for shard " << shard;
+  return prefix;
+}
+
+// A Hello-typed datagram: routed by source address only.
+size_t HelloShard(const RelayShards& shards, const Endpoint& from) {
+  std::vector<uint8_t> hello(kMinHelloPacketSize, 0);
+  WritePacketPrefix(PacketType::kHello, 0, hello);
+  return shards.Route(from, hello);
+}
+
+TEST(SpscRing, FillsDrainsAndRefusesWhenFull) {
+  SpscRing<int> ring(3);  // rounded up to 4
+  EXPECT_EQ(ring.capacity(), 4u);
+  EXPECT_TRUE(ring.Empty());
+  EXPECT_EQ(ring.Front(), nullptr);
+  for (int i = 0; i < 4; ++i) {
+    int* slot = ring.Claim();
+    ASSERT_NE(slot, nullptr);
+    *slot = i;
+    ring.Publish();
+  }
+  EXPECT_EQ(ring.Claim(), nullptr);
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_NE(ring.Front(), nullptr);
+    EXPECT_EQ(*ring.Front(), i);
+    ring.Pop();
+  }
+  EXPECT_TRUE(ring.Empty());
+  EXPECT_NE(ring.Claim(), nullptr);
+}
+
+TEST(SpscRing, TwoThreadsTransferEveryItemInOrder) {
+  SpscRing<uint64_t> ring(64);
+  constexpr uint64_t kItems = 200000;
+  std::thread producer([&] {
+    for (uint64_t i = 0; i < kItems;) {
+      if (uint64_t* slot = ring.Claim()) {
+        *slot = i++;
+        ring.Publish();
+      } else {
+        std::this_thread::yield();
+      }
+    }
+  });
+  uint64_t expected = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (expected < kItems && std::chrono::steady_clock::now() < deadline) {
+    if (uint64_t* v = ring.Front()) {
+      ASSERT_EQ(*v, expected);
+      ++expected;
+      ring.Pop();
+    } else {
+      std::this_thread::yield();
+    }
+  }
+  producer.join();
+  EXPECT_EQ(expected, kItems);
+}
+
+TEST(RelayShards, RejectsInvalidOptions) {
+  auto socket = UdpSocket::Open(At("127.0.0.1", 0));
+  ASSERT_TRUE(socket.ok());
+  RelayCounters counters;
+  RelayShardsOptions options;
+  options.shards = 0;
+  EXPECT_FALSE(RelayShards::Start(RelayConfig{}, socket->get(), &counters, options).ok());
+  options.shards = RelayShards::kMaxShards + 1;
+  EXPECT_FALSE(RelayShards::Start(RelayConfig{}, socket->get(), &counters, options).ok());
+  options.shards = 2;
+  EXPECT_FALSE(RelayShards::Start(RelayConfig{}, nullptr, &counters, options).ok());
+}
+
+TEST(RelayShards, RoutesSessionsByConnectionIdAndConnectsByRoom) {
+  ShardedWorld world(3);
+  RelayShards& shards = world.shards();
+  const Endpoint from = At("127.0.0.9", 4000);
+  for (uint32_t id : {1u, 2u, 3u, 7u, 0xfffffffeu}) {
+    std::vector<uint8_t> data(kPacketPrefixSize + 8, 0);
+    WritePacketPrefix(PacketType::kData, id, data);
+    EXPECT_EQ(shards.Route(from, data), id % 3);
+    WritePacketPrefix(PacketType::kDisconnect, id, data);
+    EXPECT_EQ(shards.Route(from, data), id % 3);
+  }
+  // Connects go by the token's room, whatever their source (and whatever connection id).
+  std::set<size_t> seen;
+  for (int k = 0; k < 12; ++k) {
+    const std::string room = "r" + std::to_string(k);
+    flatbuffers::FlatBufferBuilder fbb(256);
+    auto token = MintToken(room, 5);
+    std::array<uint8_t, kCookieSize> cookie{};
+    FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie.data(), cookie.size()),
+                                             fbb.CreateVector(token), 1));
+    auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
+    for (const char* address : {"127.0.0.1", "127.0.0.2", "127.0.0.3"}) {
+      EXPECT_EQ(shards.Route(At(address, 5000), packet), shards.ShardOfRoom(room));
+    }
+    packet[6] = 7;  // a non-zero connection id does not divert a Connect
+    EXPECT_EQ(shards.Route(At("127.0.0.1", 5000), packet), shards.ShardOfRoom(room));
+    seen.insert(shards.ShardOfRoom(room));
+  }
+  EXPECT_EQ(seen.size(), 3u) << "12 rooms all hashed onto fewer than 3 shards";
+}
+
+struct Pair {
+  std::string room;
+  Client* a;
+  Client* b;
+  uint32_t entity_a = 0;
+  uint32_t entity_b = 0;
+};
+
+TEST(RelayShards, RoomsLiveOnOneShardAndMembersSeeEachOtherWhateverTheirAddress) {
+  ShardedWorld world(3);
+  RelayShards& shards = world.shards();
+  // One room per shard; each room's two clients come from different loopback addresses, so
+  // their Hellos land on various shards (the shared cookie key makes that work).
+  std::vector<Pair> pairs;
+  const std::vector<std::string> addresses = {"127.0.0.1", "127.0.0.2", "127.0.0.3",
+                                              "127.0.0.4", "127.0.0.5", "127.0.0.6"};
+  size_t hello_elsewhere = 0;
+  uint32_t player = 1;
+  for (size_t s = 0; s < 3; ++s) {
+    Pair p;
+    p.room = RoomOnShard(shards, s, "room-");
+    const std::string& addr_a = addresses[2 * s];
+    const std::string& addr_b = addresses[2 * s + 1];
+    p.a = &world.AddClient(MintToken(p.room, player++), addr_a);
+    p.b = &world.AddClient(MintToken(p.room, player++), addr_b);
+    hello_elsewhere += HelloShard(shards, At(addr_a, 1)) != s;
+    hello_elsewhere += HelloShard(shards, At(addr_b, 1)) != s;
+    pairs.push_back(p);
+  }
+  EXPECT_GT(hello_elsewhere, 0u)
+      << "every Hello landed on its room's shard: cookie sharing untested";
+
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (const Pair& p : pairs) {
+          if (p.a->state() != ClientState::kConnected || p.b->state() != ClientState::kConnected) {
+            return false;
+          }
+        }
+        return true;
+      },
+      5.0))
+      << "handshakes did not finish";
+  for (Pair& p : pairs) {
+    ASSERT_TRUE(p.a->JoinRoom(p.room).ok());
+    ASSERT_TRUE(p.b->JoinRoom(p.room).ok());
+  }
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (const Pair& p : pairs) {
+          if (!p.a->joined() || !p.b->joined()) return false;
+        }
+        return true;
+      },
+      5.0))
+      << "joins did not finish";
+
+  for (size_t s = 0; s < pairs.size(); ++s) {
+    Pair& p = pairs[s];
+    EXPECT_EQ(world.ShardsHolding(p.room), std::vector<size_t>{s}) << p.room;
+    auto ea = p.a->Spawn({.position = {1, 1, 1}, .rotation = {0, 0, 0, 1}});
+    auto eb = p.b->Spawn({.position = {2, 2, 2}, .rotation = {0, 0, 0, 1}});
+    ASSERT_TRUE(ea.ok() && eb.ok());
+    p.entity_a = *ea;
+    p.entity_b = *eb;
+  }
+  for (size_t s = 0; s < 3; ++s) {
+    EXPECT_EQ(shards.stats(s).sessions, 2u) << "shard " << s;
+  }
+
+  // Each publishes a pose distinct per room; the other member sees it, no one else does.
+  auto pose_of = [](size_t room, int who) {
+    return Vec3f{static_cast<float>(room) + 0.25f * static_cast<float>(who), 1.5f, -2.0f};
+  };
+  const double publish_until = world.Now() + 0.5;
+  world.RunUntil(
+      [&] {
+        for (size_t s = 0; s < pairs.size(); ++s) {
+          (void)pairs[s].a->PublishTransform(pairs[s].entity_a, pose_of(s, 1), {0, 0, 0, 1});
+          (void)pairs[s].b->PublishTransform(pairs[s].entity_b, pose_of(s, 2), {0, 0, 0, 1});
+        }
+        return world.Now() > publish_until;
+      },
+      2.0);
+  auto sees = [](Client* c, uint32_t id, const Vec3f& at) {
+    const RemoteEntity* e = c->FindEntity(id);
+    return e != nullptr && e->spawned && std::fabs(e->state.position.x - at.x) < 0.01f &&
+           std::fabs(e->state.position.z - at.z) < 0.01f;
+  };
+  EXPECT_TRUE(world.RunUntil(
+      [&] {
+        for (size_t s = 0; s < pairs.size(); ++s) {
+          if (!sees(pairs[s].b, pairs[s].entity_a, pose_of(s, 1))) return false;
+          if (!sees(pairs[s].a, pairs[s].entity_b, pose_of(s, 2))) return false;
+        }
+        return true;
+      },
+      5.0));
+  // Nothing leaks between rooms: each client knows its room's other entity and two players.
+  for (const Pair& p : pairs) {
+    for (Client* c : {p.a, p.b}) {
+      EXPECT_EQ(c->entities().size(), 1u)
+          << p.room;  // the other member's (own ones are not listed)
+      EXPECT_EQ(c->players().size(), 2u) << p.room;
+    }
+  }
+
+  // The exporter's totals are the shards' sums.
+  EXPECT_TRUE(world.RunUntil([&] { return world.counters().clients.load() == 6; }, 2.0));
+  EXPECT_EQ(world.counters().rooms.load(), 3);
+  EXPECT_EQ(world.counters().entities.load(), 6);
+  EXPECT_EQ(world.counters().connections_accepted.load(), 6u);
+  EXPECT_EQ(world.counters().io_queue_drops.load(), 0u);
+}
+
+TEST(RelayShards, OperatorRoomsAreCreatedOnTheirShard) {
+  ShardedWorld world(2);
+  RoomConfig config;
+  config.capacity = 4;
+  for (const std::string name : {"ops-a", "ops-b", "ops-c", "ops-d"}) {
+    ASSERT_TRUE(world.shards().CreateRoom(name, config).ok()) << name;
+    EXPECT_EQ(world.ShardsHolding(name), std::vector<size_t>{world.shards().ShardOfRoom(name)})
+        << name;
+  }
+  EXPECT_FALSE(world.shards().CreateRoom("", config).ok());
+  // A player of that room joins it, on that shard, with its capacity.
+  Client& c = world.AddClient(MintToken("ops-a", 3), "127.0.0.7");
+  ASSERT_TRUE(world.RunUntil([&] { return c.state() == ClientState::kConnected; }, 5.0));
+  ASSERT_TRUE(c.JoinRoom("ops-a").ok());
+  ASSERT_TRUE(world.RunUntil([&] { return c.joined(); }, 5.0));
+  uint32_t capacity = 0;
+  world.shards().RunOnShard(world.shards().ShardOfRoom("ops-a"), [&](Relay& r, double) {
+    if (const Room* room = r.FindRoom("ops-a")) capacity = room->config().capacity;
+  });
+  EXPECT_EQ(capacity, 4u);
+}
+
+TEST(RelayShards, GarbageIsDroppedAndCountedAndRoomsKeepWorking) {
+  ShardedWorld world(3);
+  const std::string room = "steady";
+  Client& a = world.AddClient(MintToken(room, 1), "127.0.0.2");
+  Client& b = world.AddClient(MintToken(room, 2), "127.0.0.3");
+  ASSERT_TRUE(world.RunUntil(
+      [&] { return a.state() == ClientState::kConnected && b.state() == ClientState::kConnected; },
+      5.0));
+  ASSERT_TRUE(a.JoinRoom(room).ok() && b.JoinRoom(room).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 5.0));
+  const uint64_t received_before = world.counters().packets_received.load();
+  const uint64_t rejected_before = Sum(world.counters().packets_rejected);
+
+  // Garbage from a raw socket: random bytes, valid prefixes with random connection ids (zero
+  // and not), Connects with truncated and random tokens (no valid cookie), Hellos too small or
+  // with a junk body, an oversized datagram and empty datagrams (discarded uncounted).
+  auto raw = UdpSocket::Open(At("127.0.0.4", 0));
+  ASSERT_TRUE(raw.ok());
+  std::mt19937 rng(11);
+  std::vector<std::vector<uint8_t>> garbage;
+  auto random_bytes = [&](size_t n) {
+    std::vector<uint8_t> v(n);
+    for (auto& x : v) x = static_cast<uint8_t>(rng());
+    return v;
+  };
+  for (int i = 0; i < 40; ++i) garbage.push_back(random_bytes(1 + rng() % 300));
+  for (int i = 0; i < 40; ++i) {
+    auto v = random_bytes(kPacketPrefixSize + rng() % 100);
+    const auto type = i % 2 == 0 ? PacketType::kData : PacketType::kDisconnect;
+    WritePacketPrefix(type, i % 4 == 0 ? 0 : static_cast<uint32_t>(rng()), v);
+    garbage.push_back(v);
+  }
+  auto token = MintToken(room, 9);
+  for (int i = 0; i < 20; ++i) {
+    std::vector<uint8_t> bad_token =
+        i % 2 == 0 ? std::vector<uint8_t>(token.begin(), token.begin() + rng() % token.size())
+                   : random_bytes(rng() % 150);
+    if (i % 5 == 0 && !bad_token.empty()) bad_token[25 % bad_token.size()] = 200;  // room length
+    flatbuffers::FlatBufferBuilder fbb(256);
+    std::array<uint8_t, kCookieSize> cookie{};
+    FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie.data(), cookie.size()),
+                                             fbb.CreateVector(bad_token), rng()));
+    auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
+    if (i % 3 == 0) packet[6] = static_cast<uint8_t>(rng() | 1);  // non-zero connection id
+    if (i % 4 == 0) packet.resize(packet.size() / 2);             // truncated message
+    garbage.push_back(packet);
+  }
+  for (int i = 0; i < 10; ++i) {
+    std::vector<uint8_t> hello = random_bytes(i % 2 == 0 ? 200 : kMinHelloPacketSize);
+    WritePacketPrefix(PacketType::kHello, 0, hello);
+    garbage.push_back(hello);
+  }
+  garbage.push_back(std::vector<uint8_t>(2000, 0x45));
+  for (const auto& g : garbage) ASSERT_TRUE((*raw)->SendTo(world.relay_endpoint(), g).ok());
+  for (int i = 0; i < 3; ++i) (void)(*raw)->SendTo(world.relay_endpoint(), {});
+
+  // Every non-empty datagram reaches a relay and is rejected there exactly once.
+  const uint64_t n = garbage.size();
+  EXPECT_TRUE(world.RunUntil(
+      [&] { return Sum(world.counters().packets_rejected) - rejected_before >= n; }, 5.0));
+  EXPECT_EQ(world.counters().io_queue_drops.load(), 0u);
+  EXPECT_GE(world.counters().packets_received.load() - received_before, n);
+  EXPECT_EQ(Sum(world.counters().packets_rejected) - rejected_before, n);
+  EXPECT_GT(
+      world.counters().packets_rejected[static_cast<size_t>(DropReason::kUnknownConnection)].load(),
+      0u);
+  EXPECT_GT(world.counters().packets_rejected[static_cast<size_t>(DropReason::kTooLarge)].load(),
+            0u);
+
+  // Connects that pass the cookie check but carry bad tokens are refused with BadToken.
+  Client& truncated =
+      world.AddClient(std::vector<uint8_t>(token.begin(), token.end() - 5), "127.0.0.5");
+  Client& random = world.AddClient(random_bytes(60), "127.0.0.6");
+  EXPECT_TRUE(world.RunUntil(
+      [&] {
+        return truncated.state() == ClientState::kRejected &&
+               random.state() == ClientState::kRejected;
+      },
+      5.0));
+  EXPECT_EQ(truncated.reject_reason(), static_cast<uint16_t>(schema::RejectReason::BadToken));
+  EXPECT_EQ(random.reject_reason(), static_cast<uint16_t>(schema::RejectReason::BadToken));
+
+  // The room still works.
+  auto id = a.Spawn({.position = {0, 1, 0}, .rotation = {0, 0, 0, 1}});
+  ASSERT_TRUE(id.ok());
+  EXPECT_TRUE(world.RunUntil(
+      [&] {
+        const RemoteEntity* e = b.FindEntity(*id);
+        return e != nullptr && e->spawned;
+      },
+      5.0));
+}
+
+TEST(RelayShards, StopDisconnectsEveryClientCleanly) {
+  ShardedWorld world(2);
+  std::vector<Client*> clients;
+  for (uint32_t i = 0; i < 6; ++i) {
+    const std::string room = "stop-" + std::to_string(i % 3);
+    clients.push_back(&world.AddClient(MintToken(room, i + 1), "127.0.0." + std::to_string(i + 1)));
+  }
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (Client* c : clients) {
+          if (c->state() != ClientState::kConnected) return false;
+        }
+        return true;
+      },
+      5.0));
+  for (uint32_t i = 0; i < clients.size(); ++i) {
+    ASSERT_TRUE(clients[i]->JoinRoom("stop-" + std::to_string(i % 3)).ok());
+  }
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (Client* c : clients) {
+          if (!c->joined()) return false;
+        }
+        return true;
+      },
+      5.0));
+
+  world.shards().Stop();
+  world.shards().Stop();  // idempotent
+  EXPECT_TRUE(world.RunUntil(
+      [&] {
+        for (Client* c : clients) {
+          if (c->state() != ClientState::kDisconnected) return false;
+        }
+        return true;
+      },
+      5.0));
+  for (Client* c : clients) EXPECT_EQ(c->disconnect_reason(), DisconnectReason::kServerShutdown);
+  EXPECT_EQ(world.counters().clients.load(), 0);
+  EXPECT_EQ(
+      world.counters().disconnects[static_cast<size_t>(DisconnectReason::kServerShutdown)].load(),
+      clients.size());
+  EXPECT_FALSE(world.shards().RunOnShard(0, [](Relay&, double) {}));
+  EXPECT_EQ(world.shards().CreateRoom("late", RoomConfig{}).code(), StatusCode::kNotConnected);
+}
+
+}  // namespace
+}  // namespace edgephys
