@@ -5,6 +5,9 @@
 
 #include <array>
 #include <cmath>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
@@ -60,6 +63,35 @@ void BM_InsertInOrder(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<int64_t>(state.iterations()));
 }
 BENCHMARK(BM_InsertInOrder);
+
+// Insert with what a real link does: +-20 ms arrival jitter, 5 % loss and the occasional late
+// (reordered) snapshot, so the estimates' windows and the in-place insertion both get exercised.
+// The arrival pattern is precomputed (a prime count of them, replayed with a growing time base).
+void BM_InsertJittered(benchmark::State& state) {
+  struct Arrival {
+    double sent, received;
+  };
+  std::vector<Arrival> pattern;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int i = 0; i < 4093; ++i) {
+    if (unit(rng) < 0.05) continue;
+    const double sent = i / 30.0;
+    pattern.push_back({sent, sent + 0.05 + 0.04 * unit(rng)});
+  }
+  for (size_t i = 0; i + 1 < pattern.size(); i += 7) std::swap(pattern[i], pattern[i + 1]);
+  const double period = 4093 / 30.0;
+  SnapshotBuffer buffer;
+  size_t i = 0;
+  double base = 0;
+  for (auto _ : state) {
+    const Arrival& a = pattern[i];
+    benchmark::DoNotOptimize(buffer.Insert({.sender_time_s = base + a.sent}, base + a.received));
+    if (++i == pattern.size()) i = 0, base += period;
+  }
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations()));
+}
+BENCHMARK(BM_InsertJittered);
 
 }  // namespace
 }  // namespace edgephys

@@ -1,5 +1,6 @@
 #include "client/client.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "protocol/emulation_codec.h"
@@ -7,6 +8,12 @@
 #include "protocol/soft_body_codec.h"
 
 namespace edgephys {
+namespace {
+
+// Most remote entities the table is pre-sized for from a RoomState (it grows past this freely).
+constexpr size_t kMaxReservedEntities = 1 << 16;
+
+}  // namespace
 
 Client::Client(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener)
     : config_(config),
@@ -151,7 +158,7 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   EntityState st{0, desc.position, desc.rotation};
   if (!IsValidState(st)) return Status(StatusCode::kInvalidArgument, "transform not finite/unit");
   uint32_t id = 0;
-  while (next_local_id_ < 65536) {
+  while (next_local_id_ < kEntityIdBlockSize) {
     uint32_t candidate = entity_id_base_ + next_local_id_++;
     if (owned_.count(candidate) == 0) {
       id = candidate;
@@ -323,6 +330,9 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       const auto* rs = msg->body_as_RoomState();
       players_.clear();
       if (rs->players()) players_.assign(rs->players()->begin(), rs->players()->end());
+      // The spawns follow: size the table once rather than rehashing as they arrive (capped,
+      // the count is only a hint from the network).
+      entities_.reserve(std::min<size_t>(rs->entity_count(), kMaxReservedEntities));
       break;
     }
     case schema::Body::Spawn: {
@@ -417,11 +427,21 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
     return;
   }
   if (!joined_ || !DecodeStates(payload).ok()) return;
+  // One hash lookup per state in the common case (a known remote entity): own entities can only
+  // have ids in this player's block, and an id in entities_ is never a tombstone (Spawn erases
+  // the tombstone, Despawn erases the entity), so owned_ and despawned_ are consulted only for
+  // ids in our block and for ids not seen yet.
   for (const EntityState& st : batch_.states) {
-    if (owned_.count(st.entity_id) != 0 || despawned_.count(st.entity_id) != 0) continue;
+    const uint32_t id = st.entity_id;
     if (!IsValidState(st)) continue;
-    RemoteEntity& e = entities_[st.entity_id];
-    e.id = st.entity_id;
+    if (id - entity_id_base_ < kEntityIdBlockSize && owned_.count(id) != 0) continue;
+    auto it = entities_.find(id);
+    if (it == entities_.end()) {
+      if (despawned_.count(id) != 0) continue;
+      it = entities_.try_emplace(id).first;
+      it->second.id = id;
+    }
+    RemoteEntity& e = it->second;
     e.state = st;
     e.has_state = true;
     e.state_time_ms = batch_.time_ms;

@@ -27,6 +27,36 @@ bool NormaliseQuat(Quatf* q) {
   return true;
 }
 
+// Adds `value` to a sliding window of N values held twice: `ring` in arrival order (`*next` is
+// the slot of the oldest once full) and `sorted` ascending (its first `*count` entries). Once the
+// window is full the oldest value leaves it: its sorted entry becomes a hole that walks to
+// `value`'s place, moving only the entries in between.
+template <size_t N>
+void SlideWindow(double value, std::array<double, N>& ring, std::array<double, N>& sorted,
+                 size_t* count, size_t* next) {
+  double* a = sorted.data();
+  size_t n = *count;
+  size_t hole;
+  if (n < N) {
+    hole = n++;
+    *count = n;
+  } else {
+    // The oldest value is in `sorted` (it went in unchanged): find one entry equal to it.
+    hole = static_cast<size_t>(std::lower_bound(a, a + n, ring[*next]) - a);
+  }
+  while (hole + 1 < n && a[hole + 1] < value) {
+    a[hole] = a[hole + 1];
+    ++hole;
+  }
+  while (hole > 0 && a[hole - 1] > value) {
+    a[hole] = a[hole - 1];
+    --hole;
+  }
+  a[hole] = value;
+  ring[*next] = value;
+  *next = *next + 1 == N ? 0 : *next + 1;
+}
+
 }  // namespace
 
 SnapshotBuffer::SnapshotBuffer(const SnapshotBufferConfig& config) : config_(config) {
@@ -34,6 +64,7 @@ SnapshotBuffer::SnapshotBuffer(const SnapshotBufferConfig& config) : config_(con
   config_.max_slew = std::clamp(config_.max_slew, 0.0, 0.9);
   config_.max_delay_s = std::max(config_.max_delay_s, config_.min_delay_s);
   ring_.resize(config_.capacity);
+  capacity_ = ring_.size();
   Clear();
 }
 
@@ -71,7 +102,11 @@ InsertResult SnapshotBuffer::Insert(const Snapshot& snapshot, double receive_tim
     return InsertResult::kInvalid;
   }
 
-  size_t pos = UpperBound(s.sender_time_s);
+  // In-order arrivals (the common case) go after the newest without a search; UpperBound would
+  // return count_ for them too.
+  size_t pos = count_ == 0 || newest().sender_time_s <= s.sender_time_s
+                   ? count_
+                   : UpperBound(s.sender_time_s);
   if ((pos > 0 && s.sender_time_s - (*this)[pos - 1].sender_time_s < config_.duplicate_epsilon_s) ||
       (pos < count_ &&
        (*this)[pos].sender_time_s - s.sender_time_s < config_.duplicate_epsilon_s)) {
@@ -80,31 +115,26 @@ InsertResult SnapshotBuffer::Insert(const Snapshot& snapshot, double receive_tim
 
   const double raw_offset = receive_time_s - s.sender_time_s;
   UpdateOffset(raw_offset, receive_time_s);
-  raw_offsets_[raw_offsets_next_] = raw_offset;
-  raw_offsets_next_ = (raw_offsets_next_ + 1) % kJitterWindow;
-  raw_offsets_count_ = std::min(raw_offsets_count_ + 1, kJitterWindow);
+  SlideWindow(raw_offset, raw_offsets_, raw_offsets_sorted_, &raw_offsets_count_,
+              &raw_offsets_next_);
 
-  const size_t cap = ring_.size();
-  if (count_ == cap) {
+  if (count_ == capacity_) {
     if (pos == 0) {
       UpdateEstimates();
       return InsertResult::kTooOld;
     }
-    head_ = (head_ + 1) % cap;  // evict the oldest
+    head_ = Slot(1);  // evict the oldest
     --count_;
     --pos;
   }
   // Shift [pos, count_) one slot towards the newest end, then place `s` at pos.
-  for (size_t i = count_; i > pos; --i) {
-    ring_[(head_ + i) % cap] = ring_[(head_ + i - 1) % cap];
-  }
-  ring_[(head_ + pos) % cap] = s;
+  for (size_t i = count_; i > pos; --i) ring_[Slot(i)] = ring_[Slot(i - 1)];
+  ring_[Slot(pos)] = s;
   ++count_;
 
   if (pos == count_ - 1 && count_ >= 2) {
-    gaps_[gaps_next_] = s.sender_time_s - (*this)[pos - 1].sender_time_s;
-    gaps_next_ = (gaps_next_ + 1) % kIntervalWindow;
-    gaps_count_ = std::min(gaps_count_ + 1, kIntervalWindow);
+    SlideWindow(s.sender_time_s - (*this)[pos - 1].sender_time_s, gaps_, gaps_sorted_, &gaps_count_,
+                &gaps_next_);
   }
   UpdateEstimates();
   return InsertResult::kInserted;
@@ -133,23 +163,14 @@ double SnapshotBuffer::clock_offset_s() const {
 }
 
 void SnapshotBuffer::UpdateEstimates() {
-  if (gaps_count_ > 0) {
-    std::array<double, kIntervalWindow> gaps = gaps_;
-    auto mid = gaps.begin() + static_cast<std::ptrdiff_t>(gaps_count_ / 2);
-    std::nth_element(gaps.begin(), mid, gaps.begin() + static_cast<std::ptrdiff_t>(gaps_count_));
-    send_interval_s_ = *mid;
-  } else {
-    send_interval_s_ = config_.initial_send_interval_s;
-  }
+  // Median: the (n / 2)-th smallest gap, 0-based.
+  send_interval_s_ =
+      gaps_count_ > 0 ? gaps_sorted_[gaps_count_ / 2] : config_.initial_send_interval_s;
 
   if (raw_offsets_count_ > 0) {
-    std::array<double, kJitterWindow> raw = raw_offsets_;
     // Nearest-rank 95th percentile: ceil(0.95 n)-th smallest.
     const size_t rank = (raw_offsets_count_ * 95 + 99) / 100;
-    auto it = raw.begin() + static_cast<std::ptrdiff_t>(rank - 1);
-    std::nth_element(raw.begin(), it,
-                     raw.begin() + static_cast<std::ptrdiff_t>(raw_offsets_count_));
-    jitter_p95_s_ = std::max(0.0, *it - clock_offset_s());
+    jitter_p95_s_ = std::max(0.0, raw_offsets_sorted_[rank - 1] - clock_offset_s());
   } else {
     jitter_p95_s_ = 0;
   }

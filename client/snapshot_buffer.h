@@ -35,9 +35,14 @@
 // Thread-safety: none; use from one thread (typically the render thread, fed by Client updates).
 // Memory: fixed at construction (capacity snapshots plus small fixed windows); Insert() and the
 // accessors never allocate.
-// Cost: Insert() is O(1) amortised for in-order arrivals (O(capacity) worst case for a late one)
-// plus a fixed O(kJitterWindow) percentile update; RenderTime() O(1); operator[] O(1);
-// UpperBound() O(log capacity).
+// Cost: Insert() is O(1) for in-order arrivals (O(capacity) worst case for a late one). The
+// estimates are kept incrementally: each window (kJitterWindow raw delays, kIntervalWindow gaps)
+// is also held sorted, and an arrival replaces the value it evicts with one binary search and a
+// move of only the entries between the old and the new value, so the median and the percentile
+// are read, not recomputed (exactly the values a full sort of the windows would give). The
+// Client receive path calls Insert() once per remote entity state, so this is the hot path of a
+// client rendering many entities (bench/interpolation_bench.cc: BM_Insert*). RenderTime() O(1);
+// operator[] O(1); UpperBound() O(log capacity).
 #pragma once
 
 #include <array>
@@ -96,9 +101,9 @@ class SnapshotBuffer {
 
   size_t size() const { return count_; }
   bool empty() const { return count_ == 0; }
-  size_t capacity() const { return ring_.size(); }
+  size_t capacity() const { return capacity_; }
   // i-th snapshot in sender-time order, 0 = oldest. Requires i < size().
-  const Snapshot& operator[](size_t i) const { return ring_[(head_ + i) % ring_.size()]; }
+  const Snapshot& operator[](size_t i) const { return ring_[Slot(i)]; }
   const Snapshot& oldest() const { return (*this)[0]; }
   const Snapshot& newest() const { return (*this)[count_ - 1]; }
   // Index of the first snapshot whose sender time is > t (size() if none). O(log n).
@@ -125,11 +130,19 @@ class SnapshotBuffer {
   double current_delay_s() const { return current_delay_s_; }
 
  private:
+  // Ring index of the i-th snapshot; i < 2 * capacity_ - head_ (no division: this is on every
+  // access).
+  size_t Slot(size_t i) const {
+    const size_t j = head_ + i;
+    return j < capacity_ ? j : j - capacity_;
+  }
   void UpdateOffset(double raw_offset_s, double receive_time_s);
+  // Recomputes jitter_p95_s_ and target_delay_s_ from the sorted windows: O(1).
   void UpdateEstimates();
 
   SnapshotBufferConfig config_;
   std::vector<Snapshot> ring_;  // fixed size = capacity
+  size_t capacity_ = 0;         // ring_.size()
   size_t head_ = 0;             // index of the oldest
   size_t count_ = 0;
 
@@ -139,13 +152,16 @@ class SnapshotBuffer {
   double bucket_min_s_ = 0;
   double previous_bucket_min_s_ = 0;
 
-  // Raw (receive - sender) of the last kJitterWindow arrivals.
+  // Raw (receive - sender) of the last kJitterWindow arrivals, in arrival order (a ring, to know
+  // which value leaves the window) and sorted ascending (first raw_offsets_count_ entries).
   std::array<double, kJitterWindow> raw_offsets_{};
+  std::array<double, kJitterWindow> raw_offsets_sorted_{};
   size_t raw_offsets_count_ = 0;
   size_t raw_offsets_next_ = 0;
 
-  // Sender-time gaps between consecutive newest snapshots.
+  // Sender-time gaps between consecutive newest snapshots: ring and sorted, as above.
   std::array<double, kIntervalWindow> gaps_{};
+  std::array<double, kIntervalWindow> gaps_sorted_{};
   size_t gaps_count_ = 0;
   size_t gaps_next_ = 0;
 

@@ -2,9 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <random>
+#include <vector>
 
 namespace edgephys {
 namespace {
@@ -141,6 +144,100 @@ TEST(SnapshotBufferTest, PlayoutDelayAdaptsToJitter) {
   SnapshotBuffer fast(config);
   for (int i = 0; i < 20; ++i) fast.Insert(At(i * 0.001), i * 0.001);
   EXPECT_DOUBLE_EQ(fast.target_delay_s(), 0.010);
+}
+
+// The estimates are maintained incrementally (sorted sliding windows); they must equal a full
+// recomputation over the same windows — the median of the last kIntervalWindow gaps appended
+// at the newest end and the nearest-rank p95 of the last kJitterWindow raw delays (inserted or
+// too old) minus the clock offset — after every insert, for arrival streams with jitter, loss,
+// reordering, duplicates, too-old snapshots, interval changes and clears.
+TEST(SnapshotBufferTest, IncrementalEstimatesEqualAFullRecomputation) {
+  for (uint32_t seed = 1; seed <= 8; ++seed) {
+    const SnapshotBufferConfig config{.capacity = seed % 2 == 0 ? 32u : 6u};
+    SnapshotBuffer b(config);
+    std::deque<double> gaps, raws;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    double interval = 1.0 / 30, jitter = 0.02, sent = 0, base_delay = 0.05;
+    for (int i = 0; i < 3000; ++i) {
+      if (unit(rng) < 0.01) interval = 0.005 + 0.1 * unit(rng);   // sender changes its rate
+      if (unit(rng) < 0.01) jitter = 0.05 * unit(rng);            // the path changes
+      if (unit(rng) < 0.003) base_delay = 0.3 * unit(rng) - 0.1;  // route / clock step
+      if (unit(rng) < 0.002) {
+        b.Clear();
+        gaps.clear();
+        raws.clear();
+      }
+      sent += interval;
+      double t = sent;
+      const double r = unit(rng);
+      if (r < 0.05) t -= interval * (1 + std::floor(10 * unit(rng)));  // late or duplicate
+      if (r > 0.97) t = std::round(t * 1000) / 1000;                   // coarse (ms) times
+      const double received = sent + base_delay + jitter * unit(rng);
+      const InsertResult result = b.Insert(At(t), received);
+      if (result == InsertResult::kInserted || result == InsertResult::kTooOld) {
+        raws.push_back(received - t);
+        if (raws.size() > SnapshotBuffer::kJitterWindow) raws.pop_front();
+      }
+      if (result == InsertResult::kInserted && b.size() >= 2 && b.newest().sender_time_s == t) {
+        gaps.push_back(t - b[b.size() - 2].sender_time_s);
+        if (gaps.size() > SnapshotBuffer::kIntervalWindow) gaps.pop_front();
+      }
+
+      double interval_ref = config.initial_send_interval_s;
+      if (!gaps.empty()) {
+        std::vector<double> sorted(gaps.begin(), gaps.end());
+        std::sort(sorted.begin(), sorted.end());
+        interval_ref = sorted[sorted.size() / 2];
+      }
+      double jitter_ref = 0;
+      if (!raws.empty()) {
+        std::vector<double> sorted(raws.begin(), raws.end());
+        std::sort(sorted.begin(), sorted.end());
+        const size_t rank = (sorted.size() * 95 + 99) / 100;
+        jitter_ref = std::max(0.0, sorted[rank - 1] - b.clock_offset_s());
+      }
+      ASSERT_EQ(b.send_interval_s(), interval_ref) << "seed " << seed << " insert " << i;
+      ASSERT_EQ(b.jitter_p95_s(), jitter_ref) << "seed " << seed << " insert " << i;
+      ASSERT_EQ(b.target_delay_s(),
+                std::clamp(config.interval_multiplier * interval_ref + jitter_ref,
+                           config.min_delay_s, config.max_delay_s))
+          << "seed " << seed << " insert " << i;
+      for (size_t k = 1; k < b.size(); ++k) ASSERT_LT(b[k - 1].sender_time_s, b[k].sender_time_s);
+    }
+  }
+}
+
+// The estimates follow a change of the sender's rate and of the path's jitter within their
+// windows, in both directions, whatever the random draw.
+TEST(SnapshotBufferTest, EstimatesTrackAChangedSendIntervalAndJitter) {
+  for (uint32_t seed = 1; seed <= 20; ++seed) {
+    SnapshotBuffer b;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    double sent = 0;
+    auto run = [&](int n, double interval, double jitter) {
+      for (int i = 0; i < n; ++i) {
+        sent += interval;
+        if (unit(rng) < 0.1) continue;  // loss
+        b.Insert(At(sent), sent + 0.04 + jitter * unit(rng));
+      }
+    };
+    run(200, 1.0 / 30, 0.0);
+    EXPECT_NEAR(b.send_interval_s(), 1.0 / 30, 1e-9);
+    EXPECT_NEAR(b.jitter_p95_s(), 0.0, 1e-9);
+    // 60 Hz with 0..30 ms of queueing: after a full window of both, the median gap is the new
+    // interval (losses make a minority of double gaps) and the p95 sits in the top of 0..30 ms.
+    run(100, 1.0 / 60, 0.030);
+    EXPECT_NEAR(b.send_interval_s(), 1.0 / 60, 1e-9) << "seed " << seed;
+    EXPECT_GT(b.jitter_p95_s(), 0.022) << "seed " << seed;
+    EXPECT_LE(b.jitter_p95_s(), 0.030 + 1e-9) << "seed " << seed;
+    EXPECT_NEAR(b.target_delay_s(), 1.5 / 60 + b.jitter_p95_s(), 1e-9);
+    // Back to a quiet 20 Hz: the jitter leaves the window within kJitterWindow arrivals.
+    run(100, 0.05, 0.0);
+    EXPECT_NEAR(b.send_interval_s(), 0.05, 1e-9) << "seed " << seed;
+    EXPECT_LT(b.jitter_p95_s(), 1e-9) << "seed " << seed;
+  }
 }
 
 TEST(SnapshotBufferTest, RenderTimeIsMonotonicSlewLimitedAndConverges) {

@@ -1,0 +1,290 @@
+// Client's handling of received entity states, against a scripted relay (a server-side
+// Connection behind a fake socket): which states create or update entities, which are ignored
+// (own entities, despawned ids, invalid values), and when OnEntityUpdated fires. The end-to-end
+// behaviour with a real relay is covered by tests/integration.
+#include "client/client.h"
+
+#include <gtest/gtest.h>
+
+#include <deque>
+#include <limits>
+#include <vector>
+
+#include "protocol/container_builder.h"
+#include "protocol/handshake.h"
+
+namespace edgephys {
+namespace {
+
+using Bytes = std::vector<uint8_t>;
+
+constexpr uint32_t kConnectionId = 0x77;
+constexpr uint32_t kPlayerId = 1;
+constexpr uint32_t kOwnBase = 65536;        // this client's id block
+constexpr uint32_t kOtherBase = 3 * 65536;  // another player's block
+
+class FakeSocket final : public DatagramSocket {
+ public:
+  explicit FakeSocket(const Endpoint& server) : server_(server) {}
+  Status SendTo(const Endpoint&, std::span<const uint8_t> data) override {
+    sent.emplace_back(data.begin(), data.end());
+    return Status::Ok();
+  }
+  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
+    if (inbox.empty()) return 0;
+    const Bytes p = std::move(inbox.front());
+    inbox.pop_front();
+    std::copy_n(p.begin(), std::min(p.size(), buffer.size()), buffer.begin());
+    *from = server_;
+    return p.size();
+  }
+  Endpoint LocalEndpoint() const override { return Endpoint(); }
+
+  std::deque<Bytes> inbox;
+  std::vector<Bytes> sent;
+
+ private:
+  Endpoint server_;
+};
+
+class CapturingWriter final : public PacketWriter {
+ public:
+  void WritePacket(std::span<const uint8_t> packet) override {
+    packets.emplace_back(packet.begin(), packet.end());
+  }
+  std::vector<Bytes> packets;
+};
+
+class NullHandler final : public ConnectionHandler {
+ public:
+  void OnReliableMessage(std::span<const uint8_t>) override {}
+  void OnUnreliablePayload(uint16_t, std::span<const uint8_t>) override {}
+};
+
+class RecordingListener final : public ClientListener {
+ public:
+  void OnEntitySpawned(const RemoteEntity& e) override { spawned.push_back(e.id); }
+  void OnEntityUpdated(const RemoteEntity& e) override {
+    updated.push_back(e.id);
+    last_x = e.state.position.x;
+  }
+  void OnEntityDespawned(uint32_t id) override { despawned.push_back(id); }
+  std::vector<uint32_t> spawned, updated, despawned;
+  float last_x = 0;
+};
+
+// A client joined to room "r" (own block kOwnBase) through a scripted relay.
+class ClientReceiveTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(client_.Connect(server_, Bytes(64, 1), now_).ok());
+    flatbuffers::FlatBufferBuilder challenge(64);
+    FinishControl(challenge, schema::CreateChallenge(
+                                 challenge, challenge.CreateVector(Bytes(kCookieSize, 2))));
+    socket_.inbox.push_back(BuildHandshakePacket(PacketType::kChallenge, challenge));
+    client_.Update(now_);
+    flatbuffers::FlatBufferBuilder accept(64);
+    FinishControl(accept, schema::CreateAccept(accept, kConnectionId, kPlayerId, 1000, 60000));
+    socket_.inbox.push_back(BuildHandshakePacket(PacketType::kAccept, accept));
+    client_.Update(now_);
+    ASSERT_EQ(client_.state(), ClientState::kConnected);
+    flatbuffers::FlatBufferBuilder joined(64);
+    FinishControl(joined,
+                  schema::CreateJoined(joined, joined.CreateString("r"), kPlayerId, kOwnBase));
+    SendReliable(joined);
+    Pump();
+    ASSERT_TRUE(client_.joined());
+    ASSERT_EQ(client_.entity_id_base(), kOwnBase);
+  }
+
+  void SendReliable(flatbuffers::FlatBufferBuilder& fbb) {
+    ASSERT_TRUE(relay_.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()}).ok());
+  }
+
+  void Spawn(uint32_t id, float x = 0) {
+    flatbuffers::FlatBufferBuilder fbb(256);
+    EntitySpec spec;
+    spec.id = id;
+    spec.owner = 2;
+    spec.position = {x, 0, 0};
+    FinishControl(fbb, schema::CreateSpawn(fbb, AddContainer(fbb, spec)));
+    SendReliable(fbb);
+    Pump();
+  }
+
+  void Despawn(uint32_t id) {
+    flatbuffers::FlatBufferBuilder fbb(32);
+    FinishControl(fbb, schema::CreateDespawn(fbb, id));
+    SendReliable(fbb);
+    Pump();
+  }
+
+  // One state packet (format 1) with these states, relay time `time_ms`.
+  void SendStates(const std::vector<EntityState>& states, uint32_t time_ms = 1000) {
+    Bytes payload(kMaxUnreliablePayload);
+    FloatStateEncoder encoder;
+    encoder.Begin(payload, time_ms);
+    for (const EntityState& s : states) ASSERT_TRUE(encoder.Add(s));
+    const size_t size = encoder.Finish();
+    relay_out_.packets.clear();
+    ASSERT_TRUE(relay_.SendUnreliable({payload.data(), size}, now_, relay_out_).ok());
+    for (const Bytes& p : relay_out_.packets) socket_.inbox.push_back(p);
+    Pump();
+  }
+
+  // Relay <-> client until the relay has nothing more to send.
+  void Pump() {
+    for (int round = 0; round < 16; ++round) {
+      now_ += 0.01;
+      relay_out_.packets.clear();
+      relay_.Update(now_, relay_out_);
+      for (const Bytes& p : relay_out_.packets) socket_.inbox.push_back(p);
+      socket_.sent.clear();
+      client_.Update(now_);
+      for (const Bytes& p : socket_.sent) (void)relay_.ProcessPacket(p, now_, relay_handler_);
+      if (relay_out_.packets.empty() && socket_.inbox.empty() && round > 1) break;
+    }
+  }
+
+  static EntityState At(uint32_t id, float x) { return {id, {x, 0, 0}, {}}; }
+
+  Endpoint server_{asio::ip::make_address("127.0.0.1"), 7777};
+  FakeSocket socket_{server_};
+  RecordingListener listener_;
+  double now_ = 0;
+  Client client_{ClientConfig{}, &socket_, &listener_};
+  Connection relay_{kConnectionId, ConnectionConfig{}, 0};
+  NullHandler relay_handler_;
+  CapturingWriter relay_out_;
+};
+
+TEST_F(ClientReceiveTest, StateUpdatesASpawnedEntityAndNotifies) {
+  const uint32_t id = kOtherBase + 5;
+  Spawn(id, 1.0f);
+  ASSERT_EQ(listener_.spawned, std::vector<uint32_t>{id});
+  ASSERT_NE(client_.FindEntity(id), nullptr);
+  EXPECT_FALSE(client_.FindEntity(id)->has_state);
+  EXPECT_EQ(client_.FindEntity(id)->state.position.x, 1.0f);  // the spawn's transform
+
+  SendStates({At(id, 2.0f)}, 1234);
+  ASSERT_EQ(listener_.updated, std::vector<uint32_t>{id});
+  EXPECT_EQ(listener_.last_x, 2.0f);
+  const RemoteEntity* e = client_.FindEntity(id);
+  ASSERT_NE(e, nullptr);
+  EXPECT_TRUE(e->has_state);
+  EXPECT_TRUE(e->spawned);
+  EXPECT_EQ(e->id, id);
+  EXPECT_EQ(e->state.position.x, 2.0f);
+  EXPECT_EQ(e->state_time_ms, 1234u);
+  EXPECT_EQ(client_.entities().size(), 1u);
+}
+
+TEST_F(ClientReceiveTest, StateBeforeSpawnIsKeptSilentlyAndSurvivesTheSpawn) {
+  const uint32_t id = kOtherBase + 6;
+  SendStates({At(id, 3.0f)}, 50);
+  const RemoteEntity* e = client_.FindEntity(id);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->id, id);
+  EXPECT_FALSE(e->spawned);
+  EXPECT_TRUE(e->has_state);
+  EXPECT_TRUE(listener_.updated.empty());  // no update before the spawn
+
+  Spawn(id, 9.0f);
+  e = client_.FindEntity(id);
+  ASSERT_NE(e, nullptr);
+  EXPECT_TRUE(e->spawned);
+  EXPECT_EQ(e->state.position.x, 3.0f);  // the newer state is not overwritten by the spawn
+  SendStates({At(id, 4.0f)}, 60);
+  EXPECT_EQ(listener_.updated, std::vector<uint32_t>{id});
+}
+
+TEST_F(ClientReceiveTest, OwnEntitiesAreNotListedButOthersInOurBlockAre) {
+  ASSERT_EQ(client_.state(), ClientState::kConnected);
+  Result<uint32_t> own = client_.Spawn({.position = {0, 1, 0}});
+  ASSERT_TRUE(own.ok());
+  ASSERT_GE(*own, kOwnBase);
+  ASSERT_LT(*own, kOwnBase + kEntityIdBlockSize);
+  // A PhyS-owned (offloaded) entity has an id from our block but is not ours to publish.
+  const uint32_t offloaded = kOwnBase + 500;
+  Spawn(offloaded);
+  const uint32_t other = kOtherBase + 1;
+  Spawn(other);
+  listener_.updated.clear();
+
+  SendStates({At(*own, 5.0f), At(offloaded, 6.0f), At(other, 7.0f)});
+  EXPECT_EQ(client_.FindEntity(*own), nullptr);
+  ASSERT_NE(client_.FindEntity(offloaded), nullptr);
+  EXPECT_EQ(client_.FindEntity(offloaded)->state.position.x, 6.0f);
+  ASSERT_NE(client_.FindEntity(other), nullptr);
+  EXPECT_EQ(client_.FindEntity(other)->state.position.x, 7.0f);
+  EXPECT_EQ(listener_.updated, (std::vector<uint32_t>{offloaded, other}));
+
+  // Once despawned it is no longer ours: a state for it then counts as a remote one.
+  ASSERT_TRUE(client_.Despawn(*own).ok());
+  SendStates({At(*own, 8.0f)});
+  ASSERT_NE(client_.FindEntity(*own), nullptr);
+  EXPECT_FALSE(client_.FindEntity(*own)->spawned);
+}
+
+TEST_F(ClientReceiveTest, LateStatesOfADespawnedEntityAreIgnoredUntilItRespawns) {
+  const uint32_t id = kOtherBase + 9;
+  Spawn(id);
+  SendStates({At(id, 1.0f)});
+  Despawn(id);
+  EXPECT_EQ(listener_.despawned, std::vector<uint32_t>{id});
+  EXPECT_EQ(client_.FindEntity(id), nullptr);
+  listener_.updated.clear();
+
+  SendStates({At(id, 2.0f)});  // late, reordered: must not resurrect it
+  EXPECT_EQ(client_.FindEntity(id), nullptr);
+  EXPECT_TRUE(client_.entities().empty());
+  EXPECT_TRUE(listener_.updated.empty());
+
+  Spawn(id, 3.0f);  // the id is reused
+  SendStates({At(id, 4.0f)});
+  ASSERT_NE(client_.FindEntity(id), nullptr);
+  EXPECT_EQ(client_.FindEntity(id)->state.position.x, 4.0f);
+  EXPECT_EQ(listener_.updated, std::vector<uint32_t>{id});
+}
+
+TEST_F(ClientReceiveTest, InvalidStatesAreSkippedAndTheRestOfTheBatchApplies) {
+  const uint32_t a = kOtherBase + 1, b = kOtherBase + 2, c = kOtherBase + 3;
+  Spawn(a);
+  Spawn(b);
+  listener_.updated.clear();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EntityState bad = At(a, nan);
+  EntityState not_unit = At(c, 0.0f);
+  not_unit.rotation = {0, 0, 0, 2};
+  SendStates({bad, At(b, 1.5f), not_unit});
+  ASSERT_NE(client_.FindEntity(a), nullptr);
+  EXPECT_FALSE(client_.FindEntity(a)->has_state);
+  EXPECT_EQ(client_.FindEntity(c), nullptr);  // an invalid state does not create an entity
+  ASSERT_NE(client_.FindEntity(b), nullptr);
+  EXPECT_EQ(client_.FindEntity(b)->state.position.x, 1.5f);
+  EXPECT_EQ(listener_.updated, std::vector<uint32_t>{b});
+}
+
+TEST_F(ClientReceiveTest, ManyEntitiesEachKeepTheirLatestState) {
+  std::vector<EntityState> batch;
+  for (uint32_t i = 0; i < 30; ++i) {
+    Spawn(kOtherBase + i);
+    batch.push_back(At(kOtherBase + i, static_cast<float>(i)));
+  }
+  listener_.updated.clear();
+  for (int round = 1; round <= 3; ++round) {
+    for (EntityState& s : batch) s.position.y = static_cast<float>(round);
+    SendStates(batch, static_cast<uint32_t>(round * 33));
+  }
+  EXPECT_EQ(listener_.updated.size(), 90u);
+  ASSERT_EQ(client_.entities().size(), 30u);
+  for (const auto& [id, e] : client_.entities()) {
+    EXPECT_EQ(e.id, id);
+    EXPECT_EQ(e.state.position.x, static_cast<float>(id - kOtherBase));
+    EXPECT_EQ(e.state.position.y, 3.0f);
+    EXPECT_EQ(e.state_time_ms, 99u);
+  }
+}
+
+}  // namespace
+}  // namespace edgephys
