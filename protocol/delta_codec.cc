@@ -20,6 +20,9 @@ constexpr size_t kPacketRecords = 128;
 constexpr int64_t kMaxGapMs = 2048;
 constexpr int64_t kMaxStep = int64_t{1} << 24;
 constexpr int kMaxK = 7;
+// The adaptive parameters' statistics are gathered on one delta record in this many (they
+// only rank the candidate orders and k; sampling cuts most of the encoder's cost).
+constexpr uint64_t kStatsSampleEvery = 4;
 
 // ---- Prediction (identical at both ends; integer arithmetic only) ----
 
@@ -147,18 +150,6 @@ bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
   return order[0] <= 2 && order[1] <= 2 && (v >> 12) == 0;
 }
 
-double AngleBetweenDeg(const Quatf& a, const Quatf& b) {
-  const double dot = std::fabs(static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
-                               static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w);
-  return 2.0 * std::acos(std::min(1.0, dot)) * 180.0 / 3.14159265358979323846;
-}
-
-double DistanceM(const Vec3f& a, const Vec3f& b) {
-  const double dx = static_cast<double>(a.x) - b.x, dy = static_cast<double>(a.y) - b.y,
-               dz = static_cast<double>(a.z) - b.z;
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
 }  // namespace
 
 // ================================ Encoder ================================
@@ -167,14 +158,11 @@ DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderO
     : params_(params), options_(options), records_(kPacketRecords) {}
 
 const DeltaEncoder::Entry* DeltaEncoder::NewestAcked(const Track& t) const {
-  const Entry* best = nullptr;
-  for (const Entry& e : t.ring) {
-    if (!e.valid || !e.acked) continue;
-    const uint32_t distance = counter_ - e.counter;
-    if (distance < 1 || distance > kMaxReferenceDistance) continue;
-    if (best == nullptr || static_cast<int32_t>(e.counter - best->counter) > 0) best = &e;
-  }
-  return best;
+  if (t.newest_acked == kNoSlot) return nullptr;
+  const Entry& e = t.ring[t.newest_acked];
+  const uint32_t distance = counter_ - e.counter;
+  if (distance < 1 || distance > kMaxReferenceDistance) return nullptr;
+  return &e;
 }
 
 void DeltaEncoder::ChooseParams() {
@@ -251,8 +239,9 @@ bool DeltaEncoder::Add(const EntityState& truth) {
   bool ok = count_ == 0 ? w.WriteExpGolomb(id, 0) : w.WriteExpGolomb(id - last_id_ - 1, 0);
   uint32_t distance = 0;
   // Residual statistics of this record, committed only if it fits.
-  double add_full[2][3][8] = {};
-  double add_masked[2][3][8] = {};
+  bool sample = false;  // add_full / add_masked filled (one delta record in kStatsSampleEvery)
+  double add_full[2][3][8];
+  double add_masked[2][3][8];
   uint32_t max_zz[2] = {0, 0};
   uint64_t eg_bits = 0;
   int n_residuals[2] = {0, 0};
@@ -273,41 +262,51 @@ bool DeltaEncoder::Add(const EntityState& truth) {
             : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
     ok = ok && w.WriteExpGolomb(sym, 0);
 
-    // Residuals for every order (statistics for the adaptive parameters); code the chosen one.
+    // Residuals for every order (statistics for the adaptive parameters) on one delta record
+    // in kStatsSampleEvery; otherwise only for the orders in use. Code the chosen one.
+    const int po = order_[0], ro = order_[1];
+    sample = records_added_++ % kStatsSampleEvery == 0;
     std::array<int32_t, 3> pos_res[3];
     std::array<int32_t, 3> rot_res[3];
-    int rot_index_bits[3];
-    bool pos_zero[3], rot_zero[3];
+    bool pos_zero[3], rot_zero[3], rot_same[3];
     for (int o = 0; o < 3; ++o) {
-      Prediction pp, pr;
+      if (!sample && o != po) continue;
+      Prediction pp;
       PredictPosition(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pp);
-      PredictRotation(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pr);
       pos_zero[o] = true;
       for (int a = 0; a < 3; ++a) {
         pos_res[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
         pos_zero[o] = pos_zero[o] && pos_res[o][a] == 0;
       }
+    }
+    for (int o = 0; o < 3; ++o) {
+      if (!sample && o != ro) continue;
+      Prediction pr;
+      PredictRotation(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pr);
       const int li = q.rotation.largest;
       const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
-      rot_index_bits[o] = li == pr.largest ? 1 : 3;
-      rot_zero[o] = li == pr.largest;
+      rot_same[o] = li == pr.largest;
+      rot_zero[o] = rot_same[o];
       for (int c = 0; c < 3; ++c) {
         rot_res[o][c] = q.rotation.c[c] - pc[c];
         rot_zero[o] = rot_zero[o] && rot_res[o][c] == 0;
       }
-      for (int k = 0; k <= kMaxK; ++k) {
-        double pos_bits = 0, rot_bits = rot_index_bits[o];
-        for (int a = 0; a < 3; ++a) {
-          pos_bits += ExpGolombBits(ZigZag(pos_res[o][a]), k);
-          rot_bits += ExpGolombBits(ZigZag(rot_res[o][a]), k);
+    }
+    if (sample) {
+      for (int o = 0; o < 3; ++o) {
+        for (int k = 0; k <= kMaxK; ++k) {
+          double pos_bits = 0, rot_bits = rot_same[o] ? 1 : 3;
+          for (int a = 0; a < 3; ++a) {
+            pos_bits += ExpGolombBits(ZigZag(pos_res[o][a]), k);
+            rot_bits += ExpGolombBits(ZigZag(rot_res[o][a]), k);
+          }
+          add_full[0][o][k] = pos_bits;
+          add_full[1][o][k] = rot_bits;
+          add_masked[0][o][k] = 1 + (pos_zero[o] ? 0 : pos_bits);
+          add_masked[1][o][k] = 1 + (rot_zero[o] ? 0 : rot_bits);
         }
-        add_full[0][o][k] = pos_bits;
-        add_full[1][o][k] = rot_bits;
-        add_masked[0][o][k] = 1 + (pos_zero[o] ? 0 : pos_bits);
-        add_masked[1][o][k] = 1 + (rot_zero[o] ? 0 : rot_bits);
       }
     }
-    const int po = order_[0], ro = order_[1];
     // With a reduced history the effective order is lower, but the residual is the same.
     const bool pos_coded = !mask_[0] || !pos_zero[po];
     const bool rot_coded = !mask_[1] || !rot_zero[ro];
@@ -322,9 +321,7 @@ bool DeltaEncoder::Add(const EntityState& truth) {
       n_residuals[0] = 3;
     }
     if (rot_coded) {
-      Prediction pr;
-      PredictRotation(params_, base_hist, MakeTiming(base_hist, ro, time_ms_), &pr);
-      const bool same = q.rotation.largest == pr.largest;
+      const bool same = rot_same[ro];
       ok = ok && w.WriteBit(same);
       if (!same) ok = ok && w.WriteBits(q.rotation.largest, 2);
       for (int c = 0; c < 3; ++c) {
@@ -352,7 +349,7 @@ bool DeltaEncoder::Add(const EntityState& truth) {
     prev_distance_ = distance;
     ++track.sends_since_keyframe;
     for (int f = 0; f < 2; ++f) {
-      for (int o = 0; o < 3; ++o) {
+      for (int o = 0; sample && o < 3; ++o) {
         for (int k = 0; k <= kMaxK; ++k) {
           packet_costs_.full[f][o][k] += add_full[f][o][k];
           packet_costs_.masked[f][o][k] += add_masked[f][o][k];
@@ -363,15 +360,20 @@ bool DeltaEncoder::Add(const EntityState& truth) {
     }
     stats_.residual_bits_exp_golomb += eg_bits;
   }
-  Entry& e = track.ring[track.next % kDeltaBaselineWindow];
+  const auto slot = static_cast<uint8_t>(track.next % kDeltaBaselineWindow);
+  Entry& e = track.ring[slot];
   ++track.next;
+  if (track.newest_acked == slot) track.newest_acked = kNoSlot;  // the oldest entry goes
+  if (track.newest_sent == slot) track.newest_sent = kNoSlot;
   e.valid = true;
   e.acked = false;
   e.sent = false;
   e.counter = counter_;
   e.q = q;
+  e.position = DequantizePosition(params_, q.position);
+  e.rotation = DequantizeRotation(params_, q.rotation);
   e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(params_, q, time_ms_));
-  pending_ids_.push_back(id);
+  pending_ids_.emplace_back(id, slot);
   payload_used_ = true;
   last_id_ = id;
   ++count_;
@@ -420,14 +422,17 @@ void DeltaEncoder::OnSent(uint16_t packet_sequence, double now) {
   max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
   if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);  // grows rarely
   r.ids.assign(pending_ids_.begin(), pending_ids_.end());
-  for (uint32_t id : r.ids) {
+  for (const auto& [id, slot] : r.ids) {
     auto it = tracks_.find(id);
     if (it == tracks_.end()) continue;
-    for (Entry& e : it->second.ring) {
-      if (e.valid && e.counter == counter_) {
-        e.sent = true;
-        e.sent_at = now;
-      }
+    Track& t = it->second;
+    Entry& e = t.ring[slot];
+    if (!e.valid || e.counter != counter_) continue;
+    e.sent = true;
+    e.sent_at = now;
+    if (t.newest_sent == kNoSlot ||
+        static_cast<int32_t>(e.counter - t.ring[t.newest_sent].counter) > 0) {
+      t.newest_sent = static_cast<int8_t>(slot);
     }
   }
 }
@@ -439,47 +444,55 @@ void DeltaEncoder::OnPacketAcked(uint16_t packet_sequence) {
     return;
   }
   r.valid = false;
-  for (uint32_t id : r.ids) {
+  for (const auto& [id, slot] : r.ids) {
     auto it = tracks_.find(id);
     if (it == tracks_.end()) {
       ++stats_.acks_unmatched;
       continue;
     }
-    for (Entry& e : it->second.ring) {
-      if (e.valid && e.counter == r.counter) e.acked = true;
+    Track& t = it->second;
+    Entry& e = t.ring[slot];
+    if (!e.valid || e.counter != r.counter) continue;  // overwritten since: too old to matter
+    e.acked = true;
+    if (t.newest_acked == kNoSlot ||
+        static_cast<int32_t>(e.counter - t.ring[t.newest_acked].counter) > 0) {
+      t.newest_acked = static_cast<int8_t>(slot);
     }
   }
 }
 
 void DeltaEncoder::Forget(uint32_t id) { tracks_.erase(id); }
 
-bool DeltaEncoder::NeedsUpdate(uint32_t id, const EntityState& truth, float pos_threshold_m,
-                               float rot_threshold_deg, double now, double resend_after_s) const {
+DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& truth,
+                                            float pos_threshold_m, float rot_threshold_deg,
+                                            double now, double resend_after_s) const {
   auto it = tracks_.find(id);
-  if (it == tracks_.end()) return true;
-  const Entry* acked = nullptr;
-  const Entry* newest = nullptr;
-  for (const Entry& e : it->second.ring) {
-    if (!e.valid) continue;
-    if (e.acked && (acked == nullptr || static_cast<int32_t>(e.counter - acked->counter) > 0)) {
-      acked = &e;
-    }
-    if (e.sent && (newest == nullptr || static_cast<int32_t>(e.counter - newest->counter) > 0)) {
-      newest = &e;
-    }
-  }
+  if (it == tracks_.end()) return UpdateNeed::kSend;
+  const Track& t = it->second;
+  // angle(a, b) <= threshold  <=>  |dot(a, b)| >= cos(threshold / 2).
+  const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
+  const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
   auto within = [&](const Entry& e) {
-    return DistanceM(DequantizePosition(params_, e.q.position), truth.position) <=
-               pos_threshold_m &&
-           AngleBetweenDeg(DequantizeRotation(params_, e.q.rotation), truth.rotation) <=
-               rot_threshold_deg;
+    const double dx = static_cast<double>(e.position.x) - truth.position.x;
+    const double dy = static_cast<double>(e.position.y) - truth.position.y;
+    const double dz = static_cast<double>(e.position.z) - truth.position.z;
+    if (dx * dx + dy * dy + dz * dz > pos2) return false;
+    const Quatf& a = e.rotation;
+    const Quatf& b = truth.rotation;
+    const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
+                       static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
+    return std::fabs(dot) >= min_dot;
   };
-  if (acked != nullptr && within(*acked)) return false;
-  if (newest != nullptr && !newest->acked && now - newest->sent_at < resend_after_s &&
-      within(*newest)) {
-    return false;
+  if (t.newest_acked != kNoSlot && within(t.ring[t.newest_acked])) {
+    return UpdateNeed::kAckedWithin;
   }
-  return true;
+  if (t.newest_sent != kNoSlot) {
+    const Entry& newest = t.ring[t.newest_sent];
+    if (!newest.acked && now - newest.sent_at < resend_after_s && within(newest)) {
+      return UpdateNeed::kInFlightWithin;
+    }
+  }
+  return UpdateNeed::kSend;
 }
 
 // ================================ Decoder ================================
@@ -578,6 +591,7 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
       const Entry* base = nullptr;
       auto it = tracks_.find(s.id);
       if (it != tracks_.end()) {
+        s.track = &it->second;
         for (const Entry& e : it->second.ring) {
           if (e.valid && e.counter == s.reference) base = &e;
         }
@@ -622,15 +636,19 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
       ++stats_.unresolved_references;
       continue;
     }
-    auto it = tracks_.find(s.id);
-    if (it == tracks_.end()) {
-      if (tracks_.size() >= max_entities_) {
-        ++stats_.capacity_dropped;
-        continue;
+    Track* track = s.track;  // unordered_map nodes stay put while others are inserted
+    if (track == nullptr) {
+      auto it = tracks_.find(s.id);
+      if (it == tracks_.end()) {
+        if (tracks_.size() >= max_entities_) {
+          ++stats_.capacity_dropped;
+          continue;
+        }
+        it = tracks_.try_emplace(s.id).first;
       }
-      it = tracks_.try_emplace(s.id).first;
+      track = &it->second;
     }
-    Track& t = it->second;
+    Track& t = *track;
     if (s.keyframe) ++stats_.keyframes;
     last_references_.push_back({s.id, counter, s.keyframe ? -1 : s.reference});
     // Keep the kDeltaBaselineWindow highest counters.

@@ -118,7 +118,16 @@ class DeltaEncoder final : public StateEncoder {
   // state in flight (sent less than `resend_after_s` before `now` and not yet acknowledged)
   // is itself within the thresholds of `truth`. Cost O(kDeltaBaselineWindow), no allocation.
   bool NeedsUpdate(uint32_t id, const EntityState& truth, float pos_threshold_m,
-                   float rot_threshold_deg, double now, double resend_after_s) const;
+                   float rot_threshold_deg, double now, double resend_after_s) const {
+    return Need(id, truth, pos_threshold_m, rot_threshold_deg, now, resend_after_s) ==
+           UpdateNeed::kSend;
+  }
+  // NeedsUpdate with the reason for "no". kAckedWithin is sticky: it stays the answer for the
+  // same `truth` until the entity is sent or forgotten (acknowledgements only make newer states
+  // the reference), so a caller may skip asking again while `truth` is unchanged.
+  enum class UpdateNeed { kSend, kAckedWithin, kInFlightWithin };
+  UpdateNeed Need(uint32_t id, const EntityState& truth, float pos_threshold_m,
+                  float rot_threshold_deg, double now, double resend_after_s) const;
 
   const DeltaEncoderStats& stats() const { return stats_; }
   const QuantizationParams& params() const { return params_; }
@@ -142,18 +151,23 @@ class DeltaEncoder final : public StateEncoder {
     uint32_t counter = 0;  // payload counter (32-bit internally, 16 bits on the wire)
     double sent_at = 0;
     QuantizedState q;
+    Vec3f position;  // q dequantised (what the client reconstructs), for NeedsUpdate
+    Quatf rotation;
     History hist;
   };
+  static constexpr int8_t kNoSlot = -1;
   struct Track {
     std::array<Entry, kDeltaBaselineWindow> ring;
     uint32_t next = 0;
     uint32_t sends_since_keyframe = 0;
+    int8_t newest_acked = kNoSlot;  // ring slot of the acked entry with the highest counter
+    int8_t newest_sent = kNoSlot;   // ring slot of the sent entry with the highest counter
   };
   struct PacketRecord {
     bool valid = false;
     uint16_t sequence = 0;
     uint32_t counter = 0;
-    std::vector<uint32_t> ids;
+    std::vector<std::pair<uint32_t, uint8_t>> ids;  // (entity id, ring slot)
   };
   // Adaptive parameter statistics, per field (0 position, 1 rotation), order (0..2) and k.
   struct CostTable {
@@ -168,7 +182,8 @@ class DeltaEncoder final : public StateEncoder {
   DeltaEncoderOptions options_;
   std::unordered_map<uint32_t, Track> tracks_;
   std::vector<PacketRecord> records_;
-  std::vector<uint32_t> pending_ids_;
+  std::vector<std::pair<uint32_t, uint8_t>> pending_ids_;  // (entity id, ring slot)
+  uint64_t records_added_ = 0;  // delta records ever added (samples the statistics)
   size_t max_packet_ids_ = 0;  // most entities seen in one payload (record capacity)
   DeltaEncoderStats stats_;
   CostTable costs_;
@@ -244,6 +259,7 @@ class DeltaDecoder {
     bool keyframe = false;
     uint32_t id = 0;
     int64_t reference = -1;
+    Track* track = nullptr;  // the entity's track if it existed when resolved (node-stable)
     QuantizedState q;
     DeltaEncoder::History hist;
   };

@@ -636,6 +636,64 @@ TEST(DeltaCodec, NeedsUpdateFollowsAcknowledgedState) {
   EXPECT_TRUE(enc.NeedsUpdate(1, s, 0.01f, 1.f, 5.0, 0.2));
 }
 
+// The encoder keeps its newest acknowledged and newest sent state per entity incrementally
+// (no scan): late and reordered acks, acks of states the ring has overwritten and unsent
+// payloads must all leave it pointing at the right state.
+TEST(DeltaCodec, NeedTracksNewestAckedStateThroughReorderedAndStaleAcks) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc(*params);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  using Need = DeltaEncoder::UpdateNeed;
+  auto at = [](float x) {
+    EntityState s;
+    s.entity_id = 7;
+    s.position.x = x;
+    return s;
+  };
+  // 40 payloads (more than the 16-state window), position x = i cm, packet sequence 100 + i.
+  for (int i = 0; i < 40; ++i) {
+    enc.Begin(buf, static_cast<uint32_t>(i * 20));
+    ASSERT_TRUE(enc.Add(at(0.01f * i)));
+    ASSERT_GT(enc.Finish(), 0u);
+    enc.OnSent(static_cast<uint16_t>(100 + i), 0.02 * i);
+  }
+  const double now = 0.8;
+  // Nothing acked; the newest sent (x = 39 cm) is in flight and equal: wait for it.
+  EXPECT_EQ(enc.Need(7, at(0.39f), 0.001f, 0.1f, now, 0.2), Need::kInFlightWithin);
+  EXPECT_EQ(enc.Need(7, at(0.30f), 0.001f, 0.1f, now, 0.2), Need::kSend);
+  // An ack of a state the ring overwrote long ago changes nothing.
+  enc.OnPacketAcked(101);
+  EXPECT_EQ(enc.Need(7, at(0.01f), 0.001f, 0.1f, now, 0.2), Need::kSend);
+  // Acks out of order: the newest acknowledged one (x = 35 cm) is the reference.
+  enc.OnPacketAcked(135);
+  enc.OnPacketAcked(130);
+  EXPECT_EQ(enc.Need(7, at(0.35f), 0.001f, 0.1f, now, 0.2), Need::kAckedWithin);
+  EXPECT_EQ(enc.Need(7, at(0.30f), 0.001f, 0.1f, now, 0.2), Need::kSend);
+  // A finished payload never reported through OnSent is not "in flight".
+  enc.Begin(buf, 900);
+  ASSERT_TRUE(enc.Add(at(0.5f)));
+  ASSERT_GT(enc.Finish(), 0u);
+  EXPECT_EQ(enc.Need(7, at(0.5f), 0.001f, 0.1f, now, 0.2), Need::kSend);
+  // 16 more sent states push x = 35 cm out of the window: no acked reference remains, so the
+  // next record is a keyframe, and the newest sent one is what an equal truth waits for.
+  for (int i = 0; i < 16; ++i) {
+    enc.Begin(buf, static_cast<uint32_t>(1000 + i * 20));
+    ASSERT_TRUE(enc.Add(at(0.6f + 0.01f * i)));
+    ASSERT_GT(enc.Finish(), 0u);
+    enc.OnSent(static_cast<uint16_t>(200 + i), 1.0 + 0.02 * i);
+  }
+  EXPECT_EQ(enc.Need(7, at(0.35f), 0.001f, 0.1f, 1.3, 0.2), Need::kSend);
+  EXPECT_EQ(enc.Need(7, at(0.75f), 0.001f, 0.1f, 1.3, 0.2), Need::kInFlightWithin);
+  const uint64_t keyframes = enc.stats().keyframes;
+  enc.Begin(buf, 2000);
+  ASSERT_TRUE(enc.Add(at(0.8f)));
+  ASSERT_GT(enc.Finish(), 0u);
+  EXPECT_EQ(enc.stats().keyframes, keyframes + 1);
+  // The newest ack then makes that state the reference again.
+  enc.OnPacketAcked(215);
+  EXPECT_EQ(enc.Need(7, at(0.75f), 0.001f, 0.1f, 1.3, 0.2), Need::kAckedWithin);
+}
+
 TEST(DeltaCodec, UnchangedFieldsCostAboutOneBit) {
   auto params = MakeQuantizationParams(QuantizationConfig{});
   DeltaEncoderOptions no_refresh;

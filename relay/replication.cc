@@ -132,8 +132,8 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
   for (const auto& [id, e] : entities) {
     if (e.owner == self) continue;
     View& v = views_[id];
+    if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
-    if (now + kEpsilon < v.next_due) continue;
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
     switch (config_.mode) {
@@ -155,10 +155,14 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
       case ReplicationMode::kFloat:
         want = tracker_.NeedsSend(id, e.version, now, resend_after);
         break;
-      case ReplicationMode::kEdgephys:
-        want = delta_->NeedsUpdate(id, e.state, config_.position_threshold_m,
-                                   config_.rotation_threshold_deg, now, resend_after);
+      case ReplicationMode::kEdgephys: {
+        const DeltaEncoder::UpdateNeed need =
+            delta_->Need(id, e.state, config_.position_threshold_m,
+                         config_.rotation_threshold_deg, now, resend_after);
+        if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
+        want = need == DeltaEncoder::UpdateNeed::kSend;
         break;
+      }
     }
     if (!want) continue;
     double waiting = std::max(now - v.last_sent, IntervalOf(cls));

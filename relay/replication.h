@@ -84,6 +84,9 @@ class ClientReplicator {
     double accumulator = 0;
     EntityState last_sent_state;  // paper mode's significance test
     bool ever_sent = false;
+    // edgephys mode: the entity version whose state the client has acknowledged within the
+    // thresholds (nothing to send until the version changes); 0 = none.
+    uint32_t settled_version = 0;
   };
   struct Candidate {
     double priority;
