@@ -54,6 +54,10 @@ struct CcuResult {
   double grab_latency_ms_p50 = 0, grab_latency_ms_p99 = 0;
   double relay_wait_ms_mean = 0;   // half a tick: expected relay queueing delay
   double physics_step_ms_p99 = 0;
+  // One pass of the load generator over all its bots (receive, decode, publish): a delay the
+  // bots add on both ends that a real client, with one connection, does not have.
+  double bot_pass_ms_p50 = 0;
+  double bot_pass_ms_p99 = 0;
   double interpolation_delay_ms = 0;  // playout delay a jitter buffer chooses for these arrivals
   double relay_cpu_mean = 0;
   double egress_bytes_per_s_per_user = 0;

@@ -147,6 +147,11 @@ int main(int argc, char** argv) {
   mo->add_option("--stirrer-reach", moo.stirrer_reach,
                  "Stirrer paddle half length / container half width (0.95: stirs everything)")
       ->capture_default_str();
+  mo->add_option("--stirrer-y", moo.stirrer_center_y, "Stirrer paddle centre height (m)")
+      ->capture_default_str();
+  mo->add_option("--stirrer-half-height", moo.stirrer_half_height,
+                 "Stirrer paddle half height (m; 0.4 at y 0.4 spans the ~0.6 m pile)")
+      ->capture_default_str();
   mo->add_option("--sleep-threshold", moo.sleep_threshold,
                  "PhyS sleeping thresholds (m/s, rad/s); Bullet's defaults are 0.8 / 1.0")
       ->capture_default_str();

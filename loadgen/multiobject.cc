@@ -32,6 +32,8 @@ void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.seed = o.seed;
   p.stirrer_angular_speed = o.stirrer_angular_speed;
   p.stirrer_reach = o.stirrer_reach;
+  p.stirrer_center_y = o.stirrer_center_y;
+  p.stirrer_half_height = o.stirrer_half_height;
   p.config.sleep_linear_threshold = o.sleep_threshold;
   p.config.sleep_angular_threshold = o.sleep_threshold;
   physics::PhysSMultiObjectScene phys(p);
@@ -129,6 +131,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.seed = o.seed;
   p.stirrer_angular_speed = o.stirrer_angular_speed;
   p.stirrer_reach = o.stirrer_reach;
+  p.stirrer_center_y = o.stirrer_center_y;
+  p.stirrer_half_height = o.stirrer_half_height;
   const double dt = p.config.fixed_dt;
 
   RelayConfig config =
@@ -387,6 +391,8 @@ std::string MultiObjectJson(const MultiObjectOptions& o, const std::vector<Multi
   j["options"] = {{"seed", o.seed},
                   {"stirrer_angular_speed", o.stirrer_angular_speed},
                   {"stirrer_reach", o.stirrer_reach},
+                  {"stirrer_center_y", o.stirrer_center_y},
+                  {"stirrer_half_height", o.stirrer_half_height},
                   {"sleep_threshold", o.sleep_threshold},
                   {"moving_speed_mps", o.moving_speed_mps},
                   {"bench_warmup_steps", o.bench_warmup_steps},

@@ -41,6 +41,8 @@ struct MultiObjectOptions {
   uint32_t seed = 1;
   float stirrer_angular_speed = 1.5f;  // rad/s (MultiObjectParams), both runs
   float stirrer_reach = 0.95f;         // paddle half length / container half width
+  float stirrer_center_y = 0.4f;       // paddle centre height (m)
+  float stirrer_half_height = 0.4f;    // paddle half height (m); 0.4 at 0.4 spans the pile
   float sleep_threshold = 0.1f;        // PhyS sleeping thresholds, m/s and rad/s (both runs)
   double moving_speed_mps = 0.01;  // "moving": linear speed above this
   // Standalone PhyS vs raw Bullet.

@@ -31,7 +31,7 @@ float MultiObjectHalfWidth(const MultiObjectParams& p) {
 }
 
 void StirrerPose(const MultiObjectParams& p, double time, Vec3f* position, Quatf* rotation) {
-  *position = Vec3f{0.0f, 0.4f, 0.0f};
+  *position = Vec3f{0.0f, p.stirrer_center_y, 0.0f};
   *rotation = AxisAngle(0, 1, 0, static_cast<float>(std::fmod(time * p.stirrer_angular_speed,
                                                               2.0 * M_PI)));
 }
@@ -56,7 +56,7 @@ std::vector<EntitySpec> MultiObjectSpecs(const MultiObjectParams& p) {
   stirrer.rigid_body->mass = 0;
   stirrer.rigid_body->kinematic = true;
   stirrer.rigid_body->friction = p.friction;
-  stirrer.colliders.push_back(BoxCollider({p.stirrer_reach * w, 0.4f, 0.05f}));
+  stirrer.colliders.push_back(BoxCollider({p.stirrer_reach * w, p.stirrer_half_height, 0.05f}));
   specs.push_back(stirrer);
 
   std::mt19937 rng(p.seed);

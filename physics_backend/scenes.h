@@ -30,6 +30,8 @@ struct MultiObjectParams {
   float wall_height = 1.5f;           // m
   float stirrer_angular_speed = 1.5f; // rad/s about +Y
   float stirrer_reach = 0.95f;        // paddle half length, as a fraction of the half width
+  float stirrer_center_y = 0.4f;      // m; the pile is ~0.6 m deep (3 layers of 0.2 m boxes)
+  float stirrer_half_height = 0.4f;   // m; 0.4 at 0.4 spans the whole pile
   uint32_t seed = 1;
   PhysicsConfig config;               // dt, iterations, gravity, sleeping, CCD (both variants)
 };
