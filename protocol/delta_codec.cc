@@ -370,8 +370,7 @@ bool DeltaEncoder::Add(const EntityState& truth) {
   e.sent = false;
   e.counter = counter_;
   e.q = q;
-  e.position = DequantizePosition(params_, q.position);
-  e.rotation = DequantizeRotation(params_, q.rotation);
+  e.has_float = false;
   e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(params_, q, time_ms_));
   pending_ids_.emplace_back(id, slot);
   payload_used_ = true;
@@ -473,6 +472,11 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
   auto within = [&](const Entry& e) {
+    if (!e.has_float) {
+      e.position = DequantizePosition(params_, e.q.position);
+      e.rotation = DequantizeRotation(params_, e.q.rotation);
+      e.has_float = true;
+    }
     const double dx = static_cast<double>(e.position.x) - truth.position.x;
     const double dy = static_cast<double>(e.position.y) - truth.position.y;
     const double dz = static_cast<double>(e.position.z) - truth.position.z;

@@ -151,8 +151,10 @@ class DeltaEncoder final : public StateEncoder {
     uint32_t counter = 0;  // payload counter (32-bit internally, 16 bits on the wire)
     double sent_at = 0;
     QuantizedState q;
-    Vec3f position;  // q dequantised (what the client reconstructs), for NeedsUpdate
-    Quatf rotation;
+    // q dequantised (what the client reconstructs), computed on NeedsUpdate's first look.
+    mutable bool has_float = false;
+    mutable Vec3f position;
+    mutable Quatf rotation;
     History hist;
   };
   static constexpr int8_t kNoSlot = -1;
