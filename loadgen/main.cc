@@ -147,6 +147,8 @@ int main(int argc, char** argv) {
   mo->add_option("--stirrer-reach", moo.stirrer_reach,
                  "Stirrer paddle half length / container half width (0.95: stirs everything)")
       ->capture_default_str();
+  mo->add_option("--layers", moo.layers, "Container floor sized for this many layers of boxes")
+      ->capture_default_str();
   mo->add_option("--stirrer-y", moo.stirrer_center_y, "Stirrer paddle centre height (m)")
       ->capture_default_str();
   mo->add_option("--stirrer-half-height", moo.stirrer_half_height,
@@ -157,6 +159,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   mo->add_option("--position-step", moo.position_step_m, "edgephys quantisation step (m)")->capture_default_str();
   mo->add_option("--rotation-bound", moo.rotation_bound_deg, "edgephys rotation bound (deg)")->capture_default_str();
+  mo->add_option("--position-threshold", moo.position_threshold_m,
+                 "Send when the client's copy is off by more than this (m; <0: relay default 0.0005)")
+      ->capture_default_str();
+  mo->add_option("--rotation-threshold", moo.rotation_threshold_deg,
+                 "Send when the client's copy is off by more than this (deg; <0: relay default 0.05)")
+      ->capture_default_str();
   mo->add_flag("!--no-bench", moo.bench, "Skip the standalone PhyS vs raw Bullet steps");
   mo->add_flag("!--no-relay", moo.relay, "Skip the relay run");
   mo->add_option("--json", mo_json, "Write results as JSON to this file");

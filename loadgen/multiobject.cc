@@ -33,6 +33,7 @@ void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.stirrer_angular_speed = o.stirrer_angular_speed;
   p.stirrer_reach = o.stirrer_reach;
   p.stirrer_center_y = o.stirrer_center_y;
+  p.layers = o.layers;
   p.stirrer_half_height = o.stirrer_half_height;
   p.config.sleep_linear_threshold = o.sleep_threshold;
   p.config.sleep_angular_threshold = o.sleep_threshold;
@@ -132,11 +133,18 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   p.stirrer_angular_speed = o.stirrer_angular_speed;
   p.stirrer_reach = o.stirrer_reach;
   p.stirrer_center_y = o.stirrer_center_y;
+  p.layers = o.layers;
   p.stirrer_half_height = o.stirrer_half_height;
   const double dt = p.config.fixed_dt;
 
   RelayConfig config =
       BenchmarkRelayConfig(o.receivers, n + 64, o.position_step_m, o.rotation_bound_deg);
+  if (o.position_threshold_m >= 0) {
+    config.room_defaults.replication.position_threshold_m = o.position_threshold_m;
+  }
+  if (o.rotation_threshold_deg >= 0) {
+    config.room_defaults.replication.rotation_threshold_deg = o.rotation_threshold_deg;
+  }
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -392,6 +400,9 @@ std::string MultiObjectJson(const MultiObjectOptions& o, const std::vector<Multi
                   {"stirrer_angular_speed", o.stirrer_angular_speed},
                   {"stirrer_reach", o.stirrer_reach},
                   {"stirrer_center_y", o.stirrer_center_y},
+                  {"layers", o.layers},
+                  {"position_threshold_m", o.position_threshold_m},
+                  {"rotation_threshold_deg", o.rotation_threshold_deg},
                   {"stirrer_half_height", o.stirrer_half_height},
                   {"sleep_threshold", o.sleep_threshold},
                   {"moving_speed_mps", o.moving_speed_mps},

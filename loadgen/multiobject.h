@@ -41,6 +41,7 @@ struct MultiObjectOptions {
   uint32_t seed = 1;
   float stirrer_angular_speed = 1.5f;  // rad/s (MultiObjectParams), both runs
   float stirrer_reach = 0.95f;         // paddle half length / container half width
+  float layers = 3.0f;                 // container floor sized for this many layers of boxes
   float stirrer_center_y = 0.4f;       // paddle centre height (m)
   float stirrer_half_height = 0.4f;    // paddle half height (m); 0.4 at 0.4 spans the pile
   float sleep_threshold = 0.1f;        // PhyS sleeping thresholds, m/s and rad/s (both runs)
@@ -60,6 +61,9 @@ struct MultiObjectOptions {
   int relay_max_substeps = 1;      // PhysicsConfig::max_substeps of the relay's PhyS
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
+  // Selective-sync thresholds (ReplicationConfig); negative: the relay's defaults.
+  float position_threshold_m = -1.f;
+  float rotation_threshold_deg = -1.f;
   bool progress = true;
 };
 

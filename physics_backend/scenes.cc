@@ -25,8 +25,9 @@ btQuaternion Bt(const Quatf& q) { return btQuaternion(q.x, q.y, q.z, q.w); }
 
 float MultiObjectHalfWidth(const MultiObjectParams& p) {
   const float box = 2.0f * p.box_half_extent;
-  // ~3 layers at ~60% packing: (2W)^2 * 3 * box * 0.6 = N * box^3.
-  const float w = 0.5f * std::sqrt(static_cast<float>(p.num_objects) * box * box / 1.8f);
+  // `layers` layers at ~60% packing: (2W)^2 * layers * box * 0.6 = N * box^3.
+  const float w = 0.5f * std::sqrt(static_cast<float>(p.num_objects) * box * box /
+                                   (0.6f * std::max(0.1f, p.layers)));
   return std::max(w, 1.0f);
 }
 

@@ -30,6 +30,7 @@ struct MultiObjectParams {
   float wall_height = 1.5f;           // m
   float stirrer_angular_speed = 1.5f; // rad/s about +Y
   float stirrer_reach = 0.95f;        // paddle half length, as a fraction of the half width
+  float layers = 3.0f;                // container floor sized for this many layers (60% packing)
   float stirrer_center_y = 0.4f;      // m; the pile is ~0.6 m deep (3 layers of 0.2 m boxes)
   float stirrer_half_height = 0.4f;   // m; 0.4 at 0.4 spans the whole pile
   uint32_t seed = 1;
@@ -41,7 +42,8 @@ inline constexpr uint32_t kSceneFloorId = 1;      // floor 1, walls 2..5
 inline constexpr uint32_t kSceneStirrerId = 6;
 inline constexpr uint32_t kSceneFirstBoxId = 100; // boxes 100 .. 100 + N - 1
 
-// Inner half width of the container (m): grows with sqrt(N) so the boxes settle in ~3 layers.
+// Inner half width of the container (m): grows with sqrt(N) so the boxes settle in ~p.layers
+// layers.
 float MultiObjectHalfWidth(const MultiObjectParams& p);
 // Every entity of the scene (floor, walls, stirrer, boxes), deterministic in p.seed.
 std::vector<EntitySpec> MultiObjectSpecs(const MultiObjectParams& p);
