@@ -55,4 +55,18 @@ le 0.0001 "$ratio" || fail "multiobject: no egress measured"
   --no-progress --charts '' --json sb.json >/dev/null
 le 0.0001 "$(num '.results[0].egress_mbit_per_s_per_client' sb.json)" || fail "softbody: no egress"
 echo "physics scenarios ok"
+
+# ceiling: the relay with 1 and 2 I/O threads carries a small load with every client joined and
+# nothing dropped between its receive thread and its shards; iperf3 measured beside it.
+"$lg" ceiling --io-threads 1,2 --clients 16 --rooms 2 --warmup 0.5 --duration 1 --iperf-seconds 1 \
+  --no-progress --json ce.json >/dev/null
+for i in 0 1; do
+  [ "$(num ".summary[$i].clients_joined" ce.json)" = "16" ] || fail "ceiling run $i: not every client joined"
+  [ "$(num ".summary[$i].drops" ce.json)" = "0" ] || fail "ceiling run $i: shard queue drops"
+  le 1000 "$(num ".summary[$i].relay_packets_per_s" ce.json)" || fail "ceiling run $i: relay idle"
+done
+if command -v iperf3 >/dev/null; then
+  le 0.000001 "$(num '.summary[0].ratio_packets' ce.json)" || fail "ceiling: no iperf3 ratio"
+fi
+echo "ceiling ok"
 echo "loadgen smoke test passed"
