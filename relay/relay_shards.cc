@@ -184,6 +184,12 @@ Result<std::unique_ptr<RelayShards>> RelayShards::Start(const RelayConfig& confi
   if (options.shards == 0 || options.shards > kMaxShards || options.queue_capacity == 0) {
     return Status(StatusCode::kInvalidArgument, "shards must be 1..64, queue capacity > 0");
   }
+  // The shards log through spdlog's default logger, which libspdlog creates lazily (a function
+  // static) on first use. Create it here, before any shard thread exists, so that the threads
+  // only ever read a finished logger: the lazy initialisation happens inside the (possibly
+  // uninstrumented) library, where ThreadSanitizer cannot see the guard that orders it and
+  // reports the shards' first log lines as racing with it.
+  (void)spdlog::default_logger_raw();
   std::unique_ptr<RelayShards> self(new RelayShards(socket, counters, options));
   const size_t n = options.shards;
   RelayConfig shard_config = config;
@@ -296,13 +302,16 @@ void RelayShards::ReceiveLoop() {
       shard.datagrams_queued.fetch_add(1, std::memory_order_relaxed);
       touched |= uint64_t{1} << target;
     }
-    // Wake the shards that sleep. The fence pairs with the one in ShardLoop: either the shard
-    // sees the published datagrams before it sleeps, or this sees it sleeping.
-    std::atomic_thread_fence(std::memory_order_seq_cst);
+    // Wake the shards that sleep. Both sides flip `sleeping` with read-modify-writes, so they
+    // are ordered against each other on that one variable: either this exchange comes after
+    // the shard's exchange(true) and reads `true` (wake it), or the shard's exchange reads
+    // this one's write, which (acq_rel) makes the datagrams published above visible to the
+    // shard's Empty() check, and it does not sleep. (Stand-alone fences would do the same, but
+    // ThreadSanitizer does not model them.) Clearing the flag also spares the next batches a
+    // redundant eventfd write while the shard is still waking.
     for (size_t i = 0; i < shards_.size(); ++i) {
-      if ((touched >> i & 1) != 0 && shards_[i]->sleeping.load(std::memory_order_relaxed)) {
-        shards_[i]->Wake();
-      }
+      if ((touched >> i & 1) == 0) continue;
+      if (shards_[i]->sleeping.exchange(false, std::memory_order_acq_rel)) shards_[i]->Wake();
     }
   }
 }
@@ -332,8 +341,8 @@ void RelayShards::ShardLoop(Shard& shard) {
     shard.rooms.store(relay.room_count(), std::memory_order_relaxed);
     shard.sessions.store(relay.session_count(), std::memory_order_relaxed);
 
-    shard.sleeping.store(true, std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_seq_cst);
+    // Pairs with the exchange in ReceiveLoop (see there).
+    shard.sleeping.exchange(true, std::memory_order_acq_rel);
     if (shard.socket.ring().Empty() && !shard.has_tasks.load(std::memory_order_relaxed) &&
         !shard.stop.load(std::memory_order_relaxed)) {
       pollfd fd{};
@@ -347,9 +356,15 @@ void RelayShards::ShardLoop(Shard& shard) {
     }
     shard.sleeping.store(false, std::memory_order_relaxed);
   }
-  // Stopping: the receive thread has stopped; handle what is queued, then say goodbye.
+  // Stopping: the receive thread has stopped (joined before `stop` was set), so the ring only
+  // shrinks now. Handle everything queued - one Update takes at most
+  // config.max_datagrams_per_update of it (bounded by the ring's capacity in case that is 0)
+  // - then say goodbye.
   run_tasks(true);
-  relay.Update(Now(), UnixNow());
+  for (size_t i = 0; i <= shard.socket.ring().capacity(); ++i) {
+    relay.Update(Now(), UnixNow());
+    if (shard.socket.ring().Empty()) break;
+  }
   relay.Shutdown();
   shard.socket.Flush();
   shard.rooms.store(relay.room_count(), std::memory_order_relaxed);
