@@ -471,6 +471,12 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   // angle(a, b) <= threshold  <=>  |dot(a, b)| >= cos(threshold / 2).
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
+  // The truth quantised, computed only if a threshold test fails: a state that quantises to
+  // what the client already has cannot be improved by sending it (thresholds finer than the
+  // lattice would otherwise resend a resting entity forever).
+  std::array<uint32_t, 3> truth_pos{};
+  QuantizedRotation truth_rot;
+  bool have_truth_pos = false, have_truth_rot = false;
   auto within = [&](const Entry& e) {
     if (!e.has_float) {
       e.position = DequantizePosition(params_, e.q.position);
@@ -480,12 +486,25 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
     const double dx = static_cast<double>(e.position.x) - truth.position.x;
     const double dy = static_cast<double>(e.position.y) - truth.position.y;
     const double dz = static_cast<double>(e.position.z) - truth.position.z;
-    if (dx * dx + dy * dy + dz * dz > pos2) return false;
+    if (dx * dx + dy * dy + dz * dz > pos2) {
+      if (!have_truth_pos) {
+        (void)QuantizePosition(params_, truth.position, &truth_pos);
+        have_truth_pos = true;
+      }
+      if (truth_pos != e.q.position) return false;
+    }
     const Quatf& a = e.rotation;
     const Quatf& b = truth.rotation;
     const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
                        static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
-    return std::fabs(dot) >= min_dot;
+    if (std::fabs(dot) < min_dot) {
+      if (!have_truth_rot) {
+        (void)QuantizeRotation(params_, truth.rotation, &truth_rot);
+        have_truth_rot = true;
+      }
+      if (!(truth_rot == e.q.rotation)) return false;
+    }
+    return true;
   };
   if (t.newest_acked != kNoSlot && within(t.ring[t.newest_acked])) {
     return UpdateNeed::kAckedWithin;

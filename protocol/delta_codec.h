@@ -116,7 +116,10 @@ class DeltaEncoder final : public StateEncoder {
   // the state the client last acknowledged (or nothing is acknowledged) by more than
   // `pos_threshold_m` (Euclidean) or `rot_threshold_deg` (rotation angle), unless the newest
   // state in flight (sent less than `resend_after_s` before `now` and not yet acknowledged)
-  // is itself within the thresholds of `truth`. Cost O(kDeltaBaselineWindow), no allocation.
+  // is itself within the thresholds of `truth`. A field whose quantised truth equals the
+  // compared state's counts as within (sending it again could not bring the client closer),
+  // so thresholds below the lattice's own error never resend a resting entity.
+  // Cost O(1) (a hash lookup, at most two quantisations), no allocation.
   bool NeedsUpdate(uint32_t id, const EntityState& truth, float pos_threshold_m,
                    float rot_threshold_deg, double now, double resend_after_s) const {
     return Need(id, truth, pos_threshold_m, rot_threshold_deg, now, resend_after_s) ==

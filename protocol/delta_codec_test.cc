@@ -694,6 +694,40 @@ TEST(DeltaCodec, NeedTracksNewestAckedStateThroughReorderedAndStaleAcks) {
   EXPECT_EQ(enc.Need(7, at(0.75f), 0.001f, 0.1f, 1.3, 0.2), Need::kAckedWithin);
 }
 
+// Thresholds finer than the lattice: a resting entity whose truth sits 0.57 mm from its
+// lattice point must not be resent forever (the client already has the best state the codec
+// can give it); a truth on another lattice point beyond the threshold still is.
+TEST(DeltaCodec, NeedDoesNotResendWhatQuantisesToTheAcknowledgedState) {
+  auto params = MakeQuantizationParams(QuantizationConfig{});  // 1 mm lattice, 0.1 degree
+  DeltaEncoder enc(*params);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  using Need = DeltaEncoder::UpdateNeed;
+  EntityState s;
+  s.entity_id = 3;
+  s.position = {1.2f, 0.5f, -0.25f};
+  s.rotation = {0.f, std::sin(0.3f), 0.f, std::cos(0.3f)};
+  enc.Begin(buf, 0);
+  ASSERT_TRUE(enc.Add(s));
+  ASSERT_GT(enc.Finish(), 0u);
+  enc.OnSent(1, 0.0);
+  enc.OnPacketAcked(1);
+  std::array<uint32_t, 3> lattice{};
+  QuantizePosition(*params, s.position, &lattice);
+  const Vec3f point = DequantizePosition(*params, lattice);
+  EntityState off = s;  // same lattice point, 0.57 mm from it
+  off.position = {point.x + 0.0004f, point.y + 0.0004f, point.z};
+  EXPECT_EQ(enc.Need(3, off, 0.0005f, 0.05f, 1.0, 0.2), Need::kAckedWithin);
+  EntityState moved = s;  // the next lattice point on x, 0.6 mm from the acknowledged one
+  moved.position = {point.x + 0.0006f, point.y, point.z};
+  EXPECT_EQ(enc.Need(3, moved, 0.0005f, 0.05f, 1.0, 0.2), Need::kSend);
+  // Rotation: a change well inside one quantisation cell but above a 0.001 degree threshold.
+  EntityState turned = s;
+  turned.rotation = {0.f, std::sin(0.3f + 1e-5f), 0.f, std::cos(0.3f + 1e-5f)};
+  EXPECT_EQ(enc.Need(3, turned, 0.0005f, 0.001f, 1.0, 0.2), Need::kAckedWithin);
+  turned.rotation = {0.f, std::sin(0.31f), 0.f, std::cos(0.31f)};  // 1.1 degrees
+  EXPECT_EQ(enc.Need(3, turned, 0.0005f, 0.05f, 1.0, 0.2), Need::kSend);
+}
+
 TEST(DeltaCodec, UnchangedFieldsCostAboutOneBit) {
   auto params = MakeQuantizationParams(QuantizationConfig{});
   DeltaEncoderOptions no_refresh;
