@@ -205,8 +205,10 @@ class SoftReceiver : public ClientListener {
     if (it == bunnies_->index.end()) return;
     ++updates;
     const size_t k = it->second;
-    const size_t versions = std::min<size_t>(bunnies_->count[k], kRing);
-    if (versions == 0) return;
+    // Compare only once the ring holds kRing versions: at the start of the window the
+    // receiver's particles may come from versions sent before the ring began recording.
+    if (bunnies_->count[k] < kRing) return;
+    const size_t versions = kRing;
     double worst = 0;
     for (size_t p = 0; p < e.nodes.size(); ++p) {
       double best = 1e9;
