@@ -78,6 +78,7 @@ struct Probe : ClientListener {
   std::map<uint32_t, int> spawn_count;  // entity id -> OnEntitySpawned calls
   int spawns = 0;
   int despawns = 0;
+  int updates = 0;  // OnEntityUpdated calls (states received), for the progress line
   int errors = 0;
   int disconnects = 0;
   bool joined = false;
@@ -90,6 +91,7 @@ struct Probe : ClientListener {
     ++spawns;
     ++spawn_count[e.id];
   }
+  void OnEntityUpdated(const RemoteEntity&) override { ++updates; }
   void OnEntityDespawned(uint32_t) override { ++despawns; }
   void OnDisconnected(DisconnectReason reason) override {
     ++disconnects;
@@ -262,9 +264,21 @@ int main(int argc, char** argv) {
     }
     if (now - last_progress >= 2.0) {
       last_progress = now;
-      std::fprintf(stderr, "probe %s: t=%.1f state=%s joined=%d entities=%zu spawns=%d\n",
+      const ConnectionStats* cs = client.stats();
+      std::fprintf(stderr, "probe %s: t=%.1f state=%s joined=%d entities=%zu spawns=%d updates=%d"
+                   " stale_dropped=%llu duplicates_dropped=%llu",
                    role.c_str(), wall - schedule.start_s, StateName(st), probe.joined ? 1 : 0,
-                   client.entities().size(), probe.spawns);
+                   client.entities().size(), probe.spawns, probe.updates,
+                   static_cast<unsigned long long>(cs ? cs->stale_dropped : 0),
+                   static_cast<unsigned long long>(cs ? cs->duplicates_dropped : 0));
+      if (!owner) {  // where the observer sees owner entity 1, and since when (relay ms)
+        owner_entities(&seen);
+        if (const RemoteEntity* e = seen.empty() ? nullptr : seen[0]) {
+          std::fprintf(stderr, " entity1=(%.3f,%.3f,%.3f)@%u", e->state.position.x,
+                       e->state.position.y, e->state.position.z, e->state_time_ms);
+        }
+      }
+      std::fprintf(stderr, "\n");
     }
   }
 
