@@ -155,7 +155,17 @@ bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
 // ================================ Encoder ================================
 
 DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderOptions& options)
-    : params_(params), options_(options), records_(kPacketRecords) {}
+    : params_(params), options_(options), records_(kPacketRecords) {
+  // A truth that quantises to a state lies within the quantisation error of that state's
+  // dequantised value: half a cell's diagonal in position, the rotation bound in angle. The
+  // 1 % slack only makes Need quantise a little more often than needed (the exact lattice
+  // comparison decides).
+  const double reach = 0.5 * std::sqrt(3.0) * params_.step * 1.01;
+  lattice_reach2_ = reach * reach;
+  const double bound_rad =
+      params_.config.rotation_error_deg * 1.01 * (3.14159265358979323846 / 180.0);
+  lattice_min_dot_ = std::cos(std::min(bound_rad, 3.14159265358979323846) / 2.0);
+}
 
 const DeltaEncoder::Entry* DeltaEncoder::NewestAcked(const Track& t) const {
   if (t.newest_acked == kNoSlot) return nullptr;
@@ -218,8 +228,8 @@ bool DeltaEncoder::Add(const EntityState& truth) {
   const bool pos_exact = QuantizePosition(params_, truth.position, &q.position);
   const bool rot_ok = QuantizeRotation(params_, truth.rotation, &q.rotation);
 
-  auto [track_it, created] = tracks_.try_emplace(id);
-  Track& track = track_it->second;
+  auto [track_ptr, created] = tracks_.TryEmplace(id);
+  Track& track = *track_ptr;
   if (created && options_.keyframe_refresh_sends > 0) {
     // Stagger refreshes by id so that entities created together do not refresh together.
     track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
@@ -422,9 +432,9 @@ void DeltaEncoder::OnSent(uint16_t packet_sequence, double now) {
   if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);  // grows rarely
   r.ids.assign(pending_ids_.begin(), pending_ids_.end());
   for (const auto& [id, slot] : r.ids) {
-    auto it = tracks_.find(id);
-    if (it == tracks_.end()) continue;
-    Track& t = it->second;
+    Track* track = tracks_.Find(id);
+    if (track == nullptr) continue;
+    Track& t = *track;
     Entry& e = t.ring[slot];
     if (!e.valid || e.counter != counter_) continue;
     e.sent = true;
@@ -444,30 +454,34 @@ void DeltaEncoder::OnPacketAcked(uint16_t packet_sequence) {
   }
   r.valid = false;
   for (const auto& [id, slot] : r.ids) {
-    auto it = tracks_.find(id);
-    if (it == tracks_.end()) {
+    Track* track = tracks_.Find(id);
+    if (track == nullptr) {
       ++stats_.acks_unmatched;
       continue;
     }
-    Track& t = it->second;
+    Track& t = *track;
     Entry& e = t.ring[slot];
     if (!e.valid || e.counter != r.counter) continue;  // overwritten since: too old to matter
     e.acked = true;
-    if (t.newest_acked == kNoSlot ||
-        static_cast<int32_t>(e.counter - t.ring[t.newest_acked].counter) > 0) {
+    if (t.newest_acked == kNoSlot || static_cast<int32_t>(e.counter - t.acked_counter) > 0) {
       t.newest_acked = static_cast<int8_t>(slot);
+      t.acked_counter = e.counter;
+      t.acked.q = e.q;
+      t.acked.has_float = e.has_float;
+      t.acked.position = e.position;
+      t.acked.rotation = e.rotation;
     }
   }
 }
 
-void DeltaEncoder::Forget(uint32_t id) { tracks_.erase(id); }
+void DeltaEncoder::Forget(uint32_t id) { tracks_.Erase(id); }
 
 DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& truth,
                                             float pos_threshold_m, float rot_threshold_deg,
                                             double now, double resend_after_s) const {
-  auto it = tracks_.find(id);
-  if (it == tracks_.end()) return UpdateNeed::kSend;
-  const Track& t = it->second;
+  const Track* track = tracks_.Find(id);
+  if (track == nullptr) return UpdateNeed::kSend;
+  const Track& t = *track;
   // angle(a, b) <= threshold  <=>  |dot(a, b)| >= cos(threshold / 2).
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
@@ -477,7 +491,7 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   std::array<uint32_t, 3> truth_pos{};
   QuantizedRotation truth_rot;
   bool have_truth_pos = false, have_truth_rot = false;
-  auto within = [&](const Entry& e) {
+  auto within = [&](const auto& e) {  // an Entry or a Track::AckedCopy
     if (!e.has_float) {
       e.position = DequantizePosition(params_, e.q.position);
       e.rotation = DequantizeRotation(params_, e.q.rotation);
@@ -486,7 +500,11 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
     const double dx = static_cast<double>(e.position.x) - truth.position.x;
     const double dy = static_cast<double>(e.position.y) - truth.position.y;
     const double dz = static_cast<double>(e.position.z) - truth.position.z;
-    if (dx * dx + dy * dy + dz * dz > pos2) {
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    if (d2 > pos2) {
+      // Both would lie within the lattice's own error of one lattice point: farther apart,
+      // they cannot quantise alike (no need to quantise the truth to know).
+      if (d2 > lattice_reach2_) return false;
       if (!have_truth_pos) {
         (void)QuantizePosition(params_, truth.position, &truth_pos);
         have_truth_pos = true;
@@ -498,6 +516,7 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
     const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
                        static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
     if (std::fabs(dot) < min_dot) {
+      if (std::fabs(dot) < lattice_min_dot_) return false;
       if (!have_truth_rot) {
         (void)QuantizeRotation(params_, truth.rotation, &truth_rot);
         have_truth_rot = true;
@@ -506,7 +525,7 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
     }
     return true;
   };
-  if (t.newest_acked != kNoSlot && within(t.ring[t.newest_acked])) {
+  if (t.newest_acked != kNoSlot && within(t.acked)) {
     return UpdateNeed::kAckedWithin;
   }
   if (t.newest_sent != kNoSlot) {

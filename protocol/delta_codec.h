@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "protocol/bit_stream.h"
+#include "protocol/flat_id_map.h"
 #include "protocol/quantize.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
@@ -166,6 +167,15 @@ class DeltaEncoder final : public StateEncoder {
     uint32_t next = 0;
     uint32_t sends_since_keyframe = 0;
     int8_t newest_acked = kNoSlot;  // ring slot of the acked entry with the highest counter
+    uint32_t acked_counter = 0;     // its counter
+    // A copy of that entry's state, so that NeedsUpdate reads this header only (the ring
+    // entry itself would be one more cache miss per entity and receiver).
+    struct AckedCopy {
+      QuantizedState q;
+      mutable bool has_float = false;
+      mutable Vec3f position;
+      mutable Quatf rotation;
+    } acked;
     int8_t newest_sent = kNoSlot;   // ring slot of the sent entry with the highest counter
   };
   struct PacketRecord {
@@ -185,10 +195,13 @@ class DeltaEncoder final : public StateEncoder {
 
   QuantizationParams params_;
   DeltaEncoderOptions options_;
-  std::unordered_map<uint32_t, Track> tracks_;
+  FlatIdMap<Track> tracks_;
   std::vector<PacketRecord> records_;
   std::vector<std::pair<uint32_t, uint8_t>> pending_ids_;  // (entity id, ring slot)
   uint64_t records_added_ = 0;  // delta records ever added (samples the statistics)
+  // Beyond these, a truth cannot quantise to the compared state (see Need).
+  double lattice_reach2_ = 0;   // squared metres
+  double lattice_min_dot_ = 1;  // |quaternion dot product|
   size_t max_packet_ids_ = 0;  // most entities seen in one payload (record capacity)
   DeltaEncoderStats stats_;
   CostTable costs_;

@@ -298,7 +298,7 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   tracker_.Forget(entity_id);
   soft_views_.erase(entity_id);
   if (delta_ != nullptr) delta_->Forget(entity_id);
-  views_.erase(entity_id);
+  views_.Erase(entity_id);
 }
 
 }  // namespace edgephys

@@ -29,6 +29,7 @@
 #include "protocol/connection.h"
 #include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
+#include "protocol/flat_id_map.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
@@ -125,7 +126,7 @@ class ClientReplicator {
   PaperEmulationEncoder* paper_ = nullptr;  // encoder_ when mode is kPaper
   DeltaEncoder* delta_ = nullptr;           // encoder_ when mode is kEdgephys
   ReplicationTracker tracker_;              // acks for float / emulation modes
-  std::unordered_map<uint32_t, View> views_;
+  FlatIdMap<View> views_;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> selected_;
   std::vector<std::pair<uint32_t, uint32_t>> in_payload_;  // (id, version)
