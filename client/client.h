@@ -225,6 +225,16 @@ class Client final : private ConnectionHandler, private PacketWriter {
   DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
 
   bool joined_ = false;
+  // State payloads that arrived after JoinRoom but before the reliable Joined message (a
+  // reordering can deliver them first). The connection has acknowledged them, so the relay's
+  // delta encoder may use them as baselines: they are decoded, in arrival order, as soon as
+  // Joined sets up the decoder. Bounded (kMaxEarlyPayloads, kMaxEarlyBytes); beyond, the
+  // oldest are dropped and the stream recovers at its next keyframe refresh.
+  static constexpr size_t kMaxEarlyPayloads = 256;
+  static constexpr size_t kMaxEarlyBytes = 1 << 20;
+  bool join_pending_ = false;
+  std::vector<std::vector<uint8_t>> early_payloads_;
+  size_t early_bytes_ = 0;
   std::string room_;
   uint32_t entity_id_base_ = 0;
   uint32_t next_local_id_ = 1;
