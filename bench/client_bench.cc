@@ -20,6 +20,7 @@
 #include "client/client.h"
 #include "client/snapshot_buffer.h"
 #include "protocol/byte_io.h"
+#include "protocol/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 
@@ -61,19 +62,8 @@ class FakeSocket final : public DatagramSocket {
   std::deque<Bytes> inbox_;
 };
 
-class CapturingWriter final : public PacketWriter {
- public:
-  void WritePacket(std::span<const uint8_t> packet) override {
-    packets.emplace_back(packet.begin(), packet.end());
-  }
-  std::vector<Bytes> packets;
-};
-
-class NullHandler final : public ConnectionHandler {
- public:
-  void OnReliableMessage(std::span<const uint8_t>) override {}
-  void OnUnreliablePayload(uint16_t, std::span<const uint8_t>) override {}
-};
+using edgephys::testing::CapturingWriter;
+using edgephys::testing::NullHandler;
 
 // What a renderer (or edgephys-loadgen ccu) does per update: feed the entity's jitter buffer.
 class BufferingListener final : public ClientListener {

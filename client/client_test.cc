@@ -10,6 +10,7 @@
 #include <limits>
 #include <vector>
 
+#include "protocol/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 
@@ -47,19 +48,8 @@ class FakeSocket final : public DatagramSocket {
   Endpoint server_;
 };
 
-class CapturingWriter final : public PacketWriter {
- public:
-  void WritePacket(std::span<const uint8_t> packet) override {
-    packets.emplace_back(packet.begin(), packet.end());
-  }
-  std::vector<Bytes> packets;
-};
-
-class NullHandler final : public ConnectionHandler {
- public:
-  void OnReliableMessage(std::span<const uint8_t>) override {}
-  void OnUnreliablePayload(uint16_t, std::span<const uint8_t>) override {}
-};
+using edgephys::testing::CapturingWriter;
+using edgephys::testing::NullHandler;
 
 class RecordingListener final : public ClientListener {
  public:
