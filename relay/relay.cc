@@ -175,7 +175,12 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
       if (!s.AllowPacket(now, data.size())) return drop(DropReason::kRateLimited);
       s.set_now(now);
       Status st = s.connection().ProcessPacket(data, now, s);
-      if (!st.ok()) drop(DropReason::kMalformed);
+      if (st.code() == StatusCode::kAlreadyExists) {
+        // The network delivered a packet twice: ordinary, so counted but not logged.
+        counters_->RejectPacket(DropReason::kDuplicate);
+      } else if (!st.ok()) {
+        drop(DropReason::kMalformed);
+      }
       return;
     }
     default:

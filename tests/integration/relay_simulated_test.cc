@@ -60,6 +60,10 @@ TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   const ConnectionStats* stats = b.stats();
   ASSERT_NE(stats, nullptr);
   EXPECT_GT(stats->stale_dropped + stats->duplicates_dropped, 0u);
+  // The relay sees duplicates too: counted as such, never as malformed input.
+  const auto& rejected = world.counters().packets_rejected;
+  EXPECT_GT(rejected[static_cast<size_t>(DropReason::kDuplicate)].load(), 0u);
+  EXPECT_EQ(rejected[static_cast<size_t>(DropReason::kMalformed)].load(), 0u);
   // Delay is 50 ms each way: the RTT estimate reflects it.
   EXPECT_GT(stats->rtt_s, 0.06);
   EXPECT_LT(stats->rtt_s, 0.30);
