@@ -129,9 +129,6 @@ Status Client::JoinRoom(std::string_view room) {
   if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
   flatbuffers::FlatBufferBuilder fbb(128);
   FinishControl(fbb, schema::CreateJoinRoom(fbb, fbb.CreateString(room.data(), room.size())));
-  early_payloads_.clear();
-  early_bytes_ = 0;
-  join_pending_ = true;
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
@@ -146,9 +143,6 @@ Status Client::LeaveRoom() {
 
 void Client::ResetRoom() {
   joined_ = false;
-  join_pending_ = false;
-  early_payloads_.clear();
-  early_bytes_ = 0;
   room_.clear();
   entities_.clear();
   despawned_.clear();
@@ -311,7 +305,6 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
   switch (msg->body_type()) {
     case schema::Body::Joined: {
       const auto* j = msg->body_as_Joined();
-      std::vector<std::vector<uint8_t>> early = std::move(early_payloads_);
       ResetRoom();
       joined_ = true;
       room_ = j->room() ? j->room()->str() : std::string();
@@ -331,7 +324,6 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
         if (params.ok()) delta_decoder_ = std::make_unique<DeltaDecoder>(*params);
       }
       listener_->OnJoined(room_, entity_id_base_);
-      for (const std::vector<uint8_t>& payload : early) OnUnreliablePayload(0, payload);
       break;
     }
     case schema::Body::RoomState: {
@@ -421,16 +413,10 @@ Status Client::DecodeStates(std::span<const uint8_t> payload) {
 
 void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
   if (!joined_) {
-    if (join_pending_ && !payload.empty() && payload.size() <= kMaxEarlyBytes) {
-      while (!early_payloads_.empty() &&
-             (early_payloads_.size() >= kMaxEarlyPayloads ||
-              early_bytes_ + payload.size() > kMaxEarlyBytes)) {
-        early_bytes_ -= early_payloads_.front().size();
-        early_payloads_.erase(early_payloads_.begin());
-      }
-      early_payloads_.emplace_back(payload.begin(), payload.end());
-      early_bytes_ += payload.size();
-    }
+    // Not decodable without the room's Joined (format, quantisation). The relay holds a
+    // member's states until the member has acknowledged Joined, so these come only from a
+    // room just left; the new room's stream never references them.
+    ++state_payloads_outside_room_;
     return;
   }
   bytes_state_received_ += payload.size();

@@ -192,6 +192,10 @@ class Client final : private ConnectionHandler, private PacketWriter {
   const std::vector<uint32_t>& players() const { return players_; }
   // Bytes of state payload received (all formats), for bandwidth measurements.
   uint64_t state_bytes_received() const { return bytes_state_received_; }
+  // State payloads that arrived while not in a room, and were dropped. The relay sends a
+  // member states only after it has acknowledged its Joined message, so in a room this stays 0;
+  // late payloads from a room just left land here.
+  uint64_t state_payloads_outside_room() const { return state_payloads_outside_room_; }
 
  private:
   struct OwnedEntity {
@@ -225,16 +229,6 @@ class Client final : private ConnectionHandler, private PacketWriter {
   DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
 
   bool joined_ = false;
-  // State payloads that arrived after JoinRoom but before the reliable Joined message (a
-  // reordering can deliver them first). The connection has acknowledged them, so the relay's
-  // delta encoder may use them as baselines: they are decoded, in arrival order, as soon as
-  // Joined sets up the decoder. Bounded (kMaxEarlyPayloads, kMaxEarlyBytes); beyond, the
-  // oldest are dropped and the stream recovers at its next keyframe refresh.
-  static constexpr size_t kMaxEarlyPayloads = 256;
-  static constexpr size_t kMaxEarlyBytes = 1 << 20;
-  bool join_pending_ = false;
-  std::vector<std::vector<uint8_t>> early_payloads_;
-  size_t early_bytes_ = 0;
   std::string room_;
   uint32_t entity_id_base_ = 0;
   uint32_t next_local_id_ = 1;
@@ -255,6 +249,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   float position_step_m_ = 0.001f;               // the room's quantisation step
   SoftBodyChunk soft_chunk_;
   uint64_t bytes_state_received_ = 0;
+  uint64_t state_payloads_outside_room_ = 0;
 };
 
 }  // namespace edgephys

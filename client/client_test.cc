@@ -169,36 +169,6 @@ TEST_F(ClientReceiveTest, StateUpdatesASpawnedEntityAndNotifies) {
   EXPECT_EQ(client_.entities().size(), 1u);
 }
 
-// A reordering can deliver a room's first state payloads before the reliable Joined. The
-// connection acknowledges them, so the relay's delta encoder may reference them as baselines:
-// the client must decode them once Joined arrives, not drop them. States that arrive while no
-// join is pending (after LeaveRoom) are not kept.
-TEST_F(ClientReceiveTest, StatesBeforeJoinedAreAppliedOnceJoined) {
-  ASSERT_TRUE(client_.LeaveRoom().ok());
-  Pump();
-  ASSERT_FALSE(client_.joined());
-  SendStates({At(kOtherBase + 1, 5.0f)}, 10);  // no join pending: ignored
-  ASSERT_TRUE(client_.JoinRoom("r2").ok());
-  SendStates({At(kOtherBase + 2, 6.0f), At(kOtherBase + 3, 7.0f)}, 20);
-  SendStates({At(kOtherBase + 2, 6.5f)}, 30);
-  EXPECT_FALSE(client_.joined());
-  EXPECT_EQ(client_.FindEntity(kOtherBase + 2), nullptr);
-
-  flatbuffers::FlatBufferBuilder joined(64);
-  FinishControl(joined, schema::CreateJoined(joined, joined.CreateString("r2"), kPlayerId, kOwnBase));
-  SendReliable(joined);
-  Pump();
-  ASSERT_TRUE(client_.joined());
-  EXPECT_EQ(client_.FindEntity(kOtherBase + 1), nullptr);
-  const RemoteEntity* a = client_.FindEntity(kOtherBase + 2);
-  const RemoteEntity* b = client_.FindEntity(kOtherBase + 3);
-  ASSERT_NE(a, nullptr);
-  ASSERT_NE(b, nullptr);
-  EXPECT_EQ(a->state.position.x, 6.5f);  // replayed in arrival order: the newer state wins
-  EXPECT_EQ(a->state_time_ms, 30u);
-  EXPECT_EQ(b->state.position.x, 7.0f);
-}
-
 TEST_F(ClientReceiveTest, StateBeforeSpawnIsKeptSilentlyAndSurvivesTheSpawn) {
   const uint32_t id = kOtherBase + 6;
   SendStates({At(id, 3.0f)}, 50);

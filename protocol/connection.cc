@@ -279,6 +279,9 @@ Status Connection::SendReliable(std::span<const uint8_t> message) {
   return status;
 }
 
+uint64_t Connection::reliable_queued_end() const { return impl_->sender.queued_end(); }
+uint64_t Connection::reliable_acked_end() const { return impl_->sender.acked_end(); }
+
 Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, double now,
                                             PacketWriter& out) {
   if (!connected()) return Status(StatusCode::kNotConnected, "connection closed");

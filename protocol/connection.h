@@ -113,6 +113,11 @@ class Connection {
   // Queues `message` (1 .. config.max_message_size bytes) on the reliable channel; it goes out
   // on the next Update(). Errors: kTooLarge, kQueueFull (pending bytes limit), kNotConnected.
   Status SendReliable(std::span<const uint8_t> message);
+  // Positions in the reliable stream, in bytes since the connection opened. A message queued
+  // when reliable_queued_end() was E has been received by the peer (and, the channel being
+  // ordered, delivered with everything before it) once reliable_acked_end() >= E.
+  uint64_t reliable_queued_end() const;
+  uint64_t reliable_acked_end() const;
 
   // Sends one packet now carrying `payload` (1 .. kMaxUnreliablePayload bytes) and the current
   // acks. Returns the packet sequence, which OnPacketAcked() later reports if it arrives.

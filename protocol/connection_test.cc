@@ -85,6 +85,36 @@ TEST(ConnectionTest, ThousandReliableMessagesArriveOnceInOrderUnderLoss) {
   EXPECT_GT(link.b.connection->stats().duplicates_dropped, 0u);
 }
 
+// reliable_acked_end() passes the position a message was queued at only once the peer has
+// received it and everything before it (what the relay relies on before sending a member
+// states): checked after every step of a lossy, reordering link.
+TEST(ConnectionTest, ReliableAckedEndPassesAMessageOnlyAfterItIsDelivered) {
+  Link link(Harsh(21));
+  std::mt19937 rng(9);
+  std::vector<uint64_t> ends;
+  for (uint32_t i = 0; i < 200; ++i) {
+    EXPECT_EQ(link.a.connection->reliable_queued_end(),
+              i == 0 ? 0u : ends.back());
+    ASSERT_TRUE(link.a.connection->SendReliable(TestMessage(i, rng)).ok());
+    ends.push_back(link.a.connection->reliable_queued_end());
+  }
+  EXPECT_EQ(link.a.connection->reliable_acked_end(), 0u);
+  bool ok = true;
+  ASSERT_TRUE(link.RunUntil(
+      [&] {
+        const uint64_t acked = link.a.connection->reliable_acked_end();
+        const size_t delivered = link.b.handler.reliable.size();
+        for (size_t i = 0; i < ends.size(); ++i) {
+          if (acked >= ends[i] && delivered <= i) ok = false;  // acked before delivered
+        }
+        return acked == ends.back();
+      },
+      300.0));
+  EXPECT_TRUE(ok);
+  EXPECT_EQ(link.b.handler.reliable.size(), ends.size());
+  EXPECT_EQ(link.a.connection->stats().pending_reliable_bytes, 0u);
+}
+
 TEST(ConnectionTest, LargeReliableMessageArrivesIntactUnderLoss) {
   Link link(Harsh(12));
   Bytes big = RandomBytes(200 * 1024, 1);

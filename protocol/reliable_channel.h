@@ -58,6 +58,10 @@ class ReliableSender {
 
   // Bytes queued or sent but not yet acknowledged.
   size_t pending_bytes() const { return pending_bytes_; }
+  // Absolute stream offsets: where the next queued byte will go, and the end of the longest
+  // acknowledged prefix (every byte before it has been acknowledged).
+  uint64_t queued_end() const { return bytes_base_ + bytes_.size(); }
+  uint64_t acked_end() const { return bytes_head_; }
   size_t queued_units() const { return units_.size(); }
 
  private:

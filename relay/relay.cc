@@ -415,6 +415,7 @@ void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
     FinishControl(fbb, jb.Finish());
   }
   send(fbb);
+  s.HoldStatesUntilReliable(s.connection().reliable_queued_end());
   std::vector<uint32_t> players;
   for (const auto& [id, m] : room->members()) players.push_back(id);
   fbb.Clear();
@@ -831,6 +832,7 @@ void Relay::TickDueRooms(double now) {
     for (const auto& [pid, member] : room->members()) {
       auto sit = sessions_.find(member.session);
       if (sit == sessions_.end() || !sit->second->connection().connected()) continue;
+      if (!sit->second->ReadyForStates()) continue;  // Joined not acknowledged yet
       tick_jobs_.push_back({room.get(), sit->second.get()});
     }
     room->ScheduleNextTick(now);

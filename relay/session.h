@@ -62,6 +62,12 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
   void set_room(std::string room) { room_ = std::move(room); }
   // What this client has of the joined room's state; reset on every join.
   ClientReplicator& replicator() { return *replicator_; }
+  // States are sent to a member only once it has acknowledged its Joined message (reliable
+  // stream position `end`): before that, a reordered state payload could reach the client
+  // before Joined, where it cannot be decoded, although the connection acknowledges it, and
+  // the delta encoder would then reference a baseline the client never had.
+  void HoldStatesUntilReliable(uint64_t end) { states_after_reliable_ = end; }
+  bool ReadyForStates() const { return connection_.reliable_acked_end() >= states_after_reliable_; }
   void ResetReplicator(const ReplicationConfig& config) {
     replicator_ = std::make_unique<ClientReplicator>(config);
   }
@@ -81,6 +87,7 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
   uint32_t permissions_;
   std::string token_room_;
   uint64_t token_nonce_;
+  uint64_t states_after_reliable_ = 0;
   std::string room_;
   std::unique_ptr<ClientReplicator> replicator_;
   std::vector<uint8_t> accept_packet_;

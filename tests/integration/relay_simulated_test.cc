@@ -60,6 +60,10 @@ TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   const ConnectionStats* stats = b.stats();
   ASSERT_NE(stats, nullptr);
   EXPECT_GT(stats->stale_dropped + stats->duplicates_dropped, 0u);
+  // The relay sends states only after Joined was acknowledged: none reached B outside a room
+  // (a reordered state ahead of Joined would be undecodable, yet acknowledged).
+  EXPECT_EQ(b.state_payloads_outside_room(), 0u);
+  EXPECT_EQ(a.state_payloads_outside_room(), 0u);
   // The relay sees duplicates too: counted as such, never as malformed input.
   const auto& rejected = world.counters().packets_rejected;
   EXPECT_GT(rejected[static_cast<size_t>(DropReason::kDuplicate)].load(), 0u);
@@ -69,6 +73,50 @@ TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   EXPECT_LT(stats->rtt_s, 0.30);
   EXPECT_GT(a_loss, 0.0);
   EXPECT_LT(a_loss, 0.40);
+}
+
+// A late joiner in a room whose entities are moving: under loss and reordering its first state
+// payloads could overtake the reliable Joined and be acknowledged without being decodable. The
+// relay holds a member's states until Joined is acknowledged, so none arrives outside the room
+// and the late joiner converges.
+TEST(RelaySimulated, LateJoinerGetsNoStateBeforeJoinedAndConverges) {
+  // The simulators' random streams are seeded per socket; joining at different moments puts
+  // the Joined packet at different points of them (lost, delayed, reordered or not).
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    SimWorld world(Bad());
+    Client& a = world.AddClient(MintToken("late", 1));
+    ASSERT_TRUE(world.RunUntil([&] { return a.state() == ClientState::kConnected; }, 10.0));
+    ASSERT_TRUE(a.JoinRoom("late").ok());
+    ASSERT_TRUE(world.RunUntil([&] { return a.joined(); }, 10.0));
+    std::vector<uint32_t> ids;
+    for (int k = 0; k < 8; ++k) ids.push_back(*a.Spawn({.position = {float(k), 0, 0}}));
+    std::vector<EntityState> last(ids.size());
+    auto move = [&](double now) {
+      for (size_t k = 0; k < ids.size(); ++k) {
+        last[k] = {ids[k], {float(k), static_cast<float>(std::sin(now)), 0}, {}};
+        ASSERT_TRUE(a.PublishTransform(ids[k], last[k].position, last[k].rotation).ok());
+      }
+    };
+    world.RunFor(1.0 + 0.173 * static_cast<double>(seed), move);
+    Client& b = world.AddClient(MintToken("late", 2));
+    bool join_sent = false;
+    world.RunFor(3.0, [&](double now) {
+      move(now);
+      if (!join_sent && b.state() == ClientState::kConnected) {
+        ASSERT_TRUE(b.JoinRoom("late").ok());
+        join_sent = true;
+      }
+    });
+    ASSERT_TRUE(b.joined()) << "seed " << seed;
+    ASSERT_TRUE(world.RunUntil([&] {
+      for (size_t k = 0; k < ids.size(); ++k) {
+        const RemoteEntity* e = b.FindEntity(ids[k]);
+        if (!e || !e->spawned || !WithinPrecision(e->state, last[k])) return false;
+      }
+      return true;
+    }, 3.0)) << "seed " << seed << ": the late joiner did not converge";
+    EXPECT_EQ(b.state_payloads_outside_room(), 0u) << "seed " << seed;
+  }
 }
 
 TEST(RelaySimulated, SpawnsAndDespawnsArriveOnceInOrderUnderLoss) {
