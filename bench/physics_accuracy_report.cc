@@ -518,38 +518,6 @@ void RunCcd() {
 // (6) Soft-body stability envelope: 5x5x5 lattice cube (125 particles of 10 g, 5 cm spacing,
 // 26-neighbour springs) dropped from 0.3 m, 2 simulated seconds, kLST unclamped.
 
-SoftBodySpec Lattice(float stiffness) {
-  SoftBodySpec s;
-  constexpr int n = 5;
-  const float spacing = 0.05f;
-  auto id = [](int x, int y, int z) { return static_cast<uint32_t>((x * n + y) * n + z); };
-  for (int x = 0; x < n; ++x) {
-    for (int y = 0; y < n; ++y) {
-      for (int z = 0; z < n; ++z) {
-        s.particles.push_back(x * spacing);
-        s.particles.push_back(0.3f + y * spacing);
-        s.particles.push_back(z * spacing);
-        s.masses.push_back(0.01f);
-      }
-    }
-  }
-  for (int x = 0; x < n; ++x)
-    for (int y = 0; y < n; ++y)
-      for (int z = 0; z < n; ++z)
-        for (int dx = -1; dx <= 1; ++dx)
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dz = -1; dz <= 1; ++dz) {
-              const int a = x + dx, b = y + dy, c = z + dz;
-              if (a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n) continue;
-              if (id(a, b, c) <= id(x, y, z)) continue;
-              s.springs.push_back(id(x, y, z));
-              s.springs.push_back(id(a, b, c));
-            }
-  s.stiffness = stiffness;
-  s.damping = 0.05f;
-  return s;
-}
-
 struct SoftCell {
   double klst = 0;          // k dt^2 2 / m (unclamped)
   uint64_t resets = 0;
@@ -571,7 +539,7 @@ SoftCell RunSoftCell(float k, int hz, int iterations, float max_link) {
   AddSpec(world, GroundSlab(1, 0.5f, 0.0f));
   EntitySpec e;
   e.id = 2;
-  e.soft_body = Lattice(k);
+  e.soft_body = MakeLatticeCubeSoftBody(k);
   AddSpec(world, e);
   SoftCell c;
   const double dt = cfg.fixed_dt;

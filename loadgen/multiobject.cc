@@ -26,15 +26,21 @@ namespace {
 constexpr size_t kRing = 16;  // recent relay states kept per box (at 60 Hz: 0.27 s)
 constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
 
-void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
+// The scene both runs build: same boxes, container and stirrer from the options.
+physics::MultiObjectParams SceneParams(const MultiObjectOptions& o, uint32_t n) {
   physics::MultiObjectParams p;
   p.num_objects = static_cast<int>(n);
   p.seed = o.seed;
+  p.layers = o.layers;
   p.stirrer_angular_speed = o.stirrer_angular_speed;
   p.stirrer_reach = o.stirrer_reach;
   p.stirrer_center_y = o.stirrer_center_y;
-  p.layers = o.layers;
   p.stirrer_half_height = o.stirrer_half_height;
+  return p;
+}
+
+void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
+  physics::MultiObjectParams p = SceneParams(o, n);
   p.config.sleep_linear_threshold = o.sleep_threshold;
   p.config.sleep_angular_threshold = o.sleep_threshold;
   physics::PhysSMultiObjectScene phys(p);
@@ -127,14 +133,7 @@ class BoxReceiver : public ClientListener {
 };
 
 void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
-  physics::MultiObjectParams p;
-  p.num_objects = static_cast<int>(n);
-  p.seed = o.seed;
-  p.stirrer_angular_speed = o.stirrer_angular_speed;
-  p.stirrer_reach = o.stirrer_reach;
-  p.stirrer_center_y = o.stirrer_center_y;
-  p.layers = o.layers;
-  p.stirrer_half_height = o.stirrer_half_height;
+  physics::MultiObjectParams p = SceneParams(o, n);
   const double dt = p.config.fixed_dt;
 
   RelayConfig config =

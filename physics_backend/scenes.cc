@@ -328,4 +328,39 @@ SoftBodySpec MakeBunnySoftBody(const BunnyParams& p) {
   return out;
 }
 
+SoftBodySpec MakeLatticeCubeSoftBody(float stiffness) {
+  SoftBodySpec s;
+  constexpr int n = 5;
+  constexpr float spacing = 0.05f;
+  auto index = [](int x, int y, int z) { return static_cast<uint32_t>((x * n + y) * n + z); };
+  for (int x = 0; x < n; ++x) {
+    for (int y = 0; y < n; ++y) {
+      for (int z = 0; z < n; ++z) {
+        s.particles.insert(s.particles.end(), {x * spacing, 0.3f + y * spacing, z * spacing});
+        s.masses.push_back(0.01f);
+      }
+    }
+  }
+  for (int x = 0; x < n; ++x) {
+    for (int y = 0; y < n; ++y) {
+      for (int z = 0; z < n; ++z) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          for (int dy = -1; dy <= 1; ++dy) {
+            for (int dz = -1; dz <= 1; ++dz) {
+              const int a = x + dx, b = y + dy, c = z + dz;
+              if (a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n) continue;
+              if (index(a, b, c) <= index(x, y, z)) continue;
+              s.springs.push_back(index(x, y, z));
+              s.springs.push_back(index(a, b, c));
+            }
+          }
+        }
+      }
+    }
+  }
+  s.stiffness = stiffness;
+  s.damping = 0.05f;
+  return s;
+}
+
 }  // namespace edgephys::physics

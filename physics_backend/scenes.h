@@ -93,4 +93,9 @@ struct BunnyParams {
 // between all lattice neighbours (26-neighbourhood). Deterministic.
 SoftBodySpec MakeBunnySoftBody(const BunnyParams& p);
 
+// A 5x5x5 lattice cube: 125 particles of 10 g at 5 cm spacing, the lowest layer 0.3 m up,
+// springs between all 26-neighbours, damping 0.05. The soft-body stability tests and the
+// stability-envelope report both use it.
+SoftBodySpec MakeLatticeCubeSoftBody(float stiffness);
+
 }  // namespace edgephys::physics

@@ -16,35 +16,6 @@ namespace {
 using testing::Add;
 using testing::Ground;
 
-// A 5x5x5 lattice cube (125 particles, 10 g each, 26-neighbour springs) 0.3 m above ground.
-SoftBodySpec LatticeCube(float stiffness) {
-  SoftBodySpec s;
-  const int n = 5;
-  const float h = 0.05f;
-  for (int x = 0; x < n; ++x)
-    for (int y = 0; y < n; ++y)
-      for (int z = 0; z < n; ++z) {
-        s.particles.insert(s.particles.end(), {x * h, 0.3f + y * h, z * h});
-        s.masses.push_back(0.01f);
-      }
-  auto idx = [&](int x, int y, int z) { return static_cast<uint32_t>((x * n + y) * n + z); };
-  for (int x = 0; x < n; ++x)
-    for (int y = 0; y < n; ++y)
-      for (int z = 0; z < n; ++z)
-        for (int dx = -1; dx <= 1; ++dx)
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dz = -1; dz <= 1; ++dz) {
-              const int X = x + dx, Y = y + dy, Z = z + dz;
-              if (X < 0 || Y < 0 || Z < 0 || X >= n || Y >= n || Z >= n) continue;
-              if (idx(X, Y, Z) <= idx(x, y, z)) continue;
-              s.springs.push_back(idx(x, y, z));
-              s.springs.push_back(idx(X, Y, Z));
-            }
-  s.stiffness = stiffness;
-  s.damping = 0.05f;
-  return s;
-}
-
 struct EnvelopeCell {
   double klst = 0;        // stiffness * dt^2 * 2 / m before clamping
   uint64_t resets = 0;
@@ -62,7 +33,7 @@ EnvelopeCell RunCell(float stiffness, float dt, int iterations, float max_link_s
   EXPECT_TRUE(Add(world, Ground(1)).ok());
   EntitySpec e;
   e.id = 2;
-  e.soft_body = LatticeCube(stiffness);
+  e.soft_body = MakeLatticeCubeSoftBody(stiffness);
   EXPECT_TRUE(Add(world, e).ok());
   EnvelopeCell cell;
   cell.klst = stiffness * dt * dt * 2.0 / 0.01;
@@ -134,7 +105,7 @@ TEST(SoftBodyTest, GuardRestoresInjectedNaN) {
   ASSERT_TRUE(Add(world, Ground(1)).ok());
   EntitySpec e;
   e.id = 2;
-  e.soft_body = LatticeCube(200);
+  e.soft_body = MakeLatticeCubeSoftBody(200);
   ASSERT_TRUE(Add(world, e).ok());
   for (int i = 0; i < 5; ++i) world.Step();
   btSoftBody* sb = world.SoftBodyForTesting(2);

@@ -484,7 +484,11 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   const Track& t = *track;
   // angle(a, b) <= threshold  <=>  |dot(a, b)| >= cos(threshold / 2).
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
-  const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
+  if (rot_threshold_deg != min_dot_for_deg_) {  // the relay passes the same threshold each call
+    min_dot_for_deg_ = rot_threshold_deg;
+    min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
+  }
+  const double min_dot = min_dot_;
   // The truth quantised, computed only if a threshold test fails: a state that quantises to
   // what the client already has cannot be improved by sending it (thresholds finer than the
   // lattice would otherwise resend a resting entity forever).

@@ -202,6 +202,9 @@ class DeltaEncoder final : public StateEncoder {
   // Beyond these, a truth cannot quantise to the compared state (see Need).
   double lattice_reach2_ = 0;   // squared metres
   double lattice_min_dot_ = 1;  // |quaternion dot product|
+  // cos(threshold / 2) for the last rotation threshold Need was given (a cache).
+  mutable float min_dot_for_deg_ = -1.f;
+  mutable double min_dot_ = 1;
   size_t max_packet_ids_ = 0;  // most entities seen in one payload (record capacity)
   DeltaEncoderStats stats_;
   CostTable costs_;

@@ -18,14 +18,8 @@ command -v curl >/dev/null || { echo "SKIPPED: curl not installed"; exit 0; }
 work=$(mktemp -d)
 relay_pid=""
 prom_pid=""
-stop() {  # stop <pid>: SIGTERM, up to 5 s, then SIGKILL
-  local p="$1"
-  [ -n "$p" ] || return 0
-  kill -TERM "$p" 2>/dev/null || return 0
-  for _ in $(seq 1 50); do kill -0 "$p" 2>/dev/null || break; sleep 0.1; done
-  kill -KILL "$p" 2>/dev/null || true
-  wait "$p" 2>/dev/null || true
-}
+# shellcheck source=../scripts/lib/stop_process.sh
+source "$(dirname "${BASH_SOURCE[0]}")/../scripts/lib/stop_process.sh"  # stop <pid> [seconds]
 cleanup() { stop "$prom_pid"; stop "$relay_pid"; rm -rf "$work"; }
 trap cleanup EXIT
 fail() {

@@ -69,16 +69,11 @@ all_ns=("$ns_relay" "$ns_a" "$ns_b" "$ns_p")
 work=$(mktemp -d)
 pids=()
 created=()
-stop() {  # stop <pid>: SIGTERM, up to 3 s, then SIGKILL
-  local q="$1"
-  kill -TERM "$q" 2>/dev/null || return 0
-  for _ in $(seq 1 30); do kill -0 "$q" 2>/dev/null || break; sleep 0.1; done
-  kill -KILL "$q" 2>/dev/null || true
-  wait "$q" 2>/dev/null || true
-}
+# shellcheck source=../../scripts/lib/stop_process.sh
+source "$(dirname "${BASH_SOURCE[0]}")/../../scripts/lib/stop_process.sh"  # stop <pid> [seconds]
 cleanup() {
   local q ns
-  for q in "${pids[@]}"; do stop "$q"; done
+  for q in "${pids[@]}"; do stop "$q" 3; done
   for ns in "${created[@]}"; do ip netns del "$ns" 2>/dev/null || true; done
   if [ -n "${NETEM_LOG_DIR:-}" ]; then  # keep every log (relay, phys, probes, proxy)
     mkdir -p "$NETEM_LOG_DIR" && cp "$work"/*.log "$work"/*.json "$NETEM_LOG_DIR"/ 2>/dev/null
@@ -265,7 +260,7 @@ if command -v tc >/dev/null && [[ "$impairment" == netem* ]]; then
   echo "netem on ${p}b: $(in_ns "$ns_b" tc -s qdisc show dev "${p}b" | grep -o 'Sent [0-9]* bytes [0-9]* pkt (dropped [0-9]*' | head -1)"
 fi
 if [ -n "$proxy_pid" ]; then  # its counters: proof the clients' traffic was impaired
-  stop "$proxy_pid"
+  stop "$proxy_pid" 3
   proxy=$(cat "$work/proxy.json")
   echo "udp_impair: $proxy"
   pstat() {  # pstat <up|down> <counter>
