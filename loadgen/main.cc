@@ -165,6 +165,9 @@ int main(int argc, char** argv) {
   mo->add_option("--rotation-threshold", moo.rotation_threshold_deg,
                  "Send when the client's copy is off by more than this (deg; <0: relay default 0.05)")
       ->capture_default_str();
+  mo->add_option("--ambient-hz", moo.ambient_hz,
+                 "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)")
+      ->capture_default_str();
   mo->add_flag("!--no-bench", moo.bench, "Skip the standalone PhyS vs raw Bullet steps");
   mo->add_flag("!--no-relay", moo.relay, "Skip the relay run");
   mo->add_option("--json", mo_json, "Write results as JSON to this file");

@@ -11,6 +11,8 @@
 #include <thread>
 #include <unordered_map>
 
+#include "client/interpolation.h"
+#include "client/snapshot_buffer.h"
 #include "loadgen/stats.h"
 #include "physics_backend/scenes.h"
 #include "protocol/handshake.h"
@@ -106,13 +108,72 @@ struct BoxTable {
   std::vector<uint32_t> count;
 };
 
+// What a receiver displays, against the truth: a sample of boxes gets a jitter buffer each (the
+// SDK's adaptive playout), and every `period` the pose interpolated at the playout time is
+// compared with the relay's state at that same relay time (linear between the relay's
+// recorded states, which change at PhyS's 60 Hz). This is the accuracy a lower send rate
+// costs; the quantisation error alone is the "vs sent" error.
+struct DisplayProbe {
+  static constexpr size_t kMaxBoxes = 128;
+  std::unordered_map<size_t, size_t> slot;  // box index -> probe slot
+  std::vector<SnapshotBuffer> buffers;
+  std::vector<std::vector<std::pair<double, Vec3f>>> truth;  // (relay time s, position)
+  std::vector<double> lerp_errors, hermite_errors, delays_ms;
+  double local_now = 0;
+
+  void Init(size_t boxes) {
+    const size_t n = std::min(boxes, kMaxBoxes);
+    buffers.assign(n, SnapshotBuffer());
+    truth.assign(n, {});
+    for (size_t i = 0; i < n; ++i) slot[i * boxes / n] = i;
+  }
+  void RecordTruth(size_t box, double relay_time, const Vec3f& p) {
+    auto it = slot.find(box);
+    if (it != slot.end()) truth[it->second].emplace_back(relay_time, p);
+  }
+  void OnReceived(size_t box, const RemoteEntity& e) {
+    auto it = slot.find(box);
+    if (it == slot.end()) return;
+    (void)buffers[it->second].Insert({.sender_time_s = e.state_time_ms / 1000.0,
+                                      .position = e.state.position,
+                                      .rotation = e.state.rotation},
+                                     local_now);
+  }
+  // The relay's position at relay time t (false if t is outside what was recorded).
+  bool TruthAt(size_t i, double t, Vec3f* out) const {
+    const auto& h = truth[i];
+    auto it = std::lower_bound(h.begin(), h.end(), t,
+                               [](const std::pair<double, Vec3f>& a, double v) { return a.first < v; });
+    if (it == h.begin() || it == h.end()) return false;
+    const auto& [t1, p1] = *it;
+    const auto& [t0, p0] = *(it - 1);
+    const float u = t1 > t0 ? static_cast<float>((t - t0) / (t1 - t0)) : 1.f;
+    *out = {p0.x + (p1.x - p0.x) * u, p0.y + (p1.y - p0.y) * u, p0.z + (p1.z - p0.z) * u};
+    return true;
+  }
+  void Sample(double now) {
+    for (size_t i = 0; i < buffers.size(); ++i) {
+      SnapshotBuffer& b = buffers[i];
+      if (b.size() < 2) continue;
+      const double render = b.RenderTime(now);
+      Vec3f want;
+      if (!TruthAt(i, render, &want)) continue;
+      lerp_errors.push_back(Dist(edgephys::Sample(b, render, Interpolator::kLerpSlerp).position, want));
+      hermite_errors.push_back(Dist(edgephys::Sample(b, render, Interpolator::kHermite).position, want));
+      delays_ms.push_back((b.newest().sender_time_s - render) * 1000.0);
+    }
+  }
+};
+
 class BoxReceiver : public ClientListener {
  public:
   explicit BoxReceiver(const BoxTable* boxes) : boxes_(boxes) {}
   void OnEntityUpdated(const RemoteEntity& e) override {
-    if (!measuring) return;
+    if (!measuring && probe == nullptr) return;
     auto it = boxes_->index.find(e.id);
     if (it == boxes_->index.end()) return;
+    if (probe != nullptr) probe->OnReceived(it->second, e);
+    if (!measuring) return;
     ++updates;
     const size_t k = it->second;
     const size_t n = std::min<size_t>(boxes_->count[k], kRing);
@@ -125,6 +186,7 @@ class BoxReceiver : public ClientListener {
     if (measuring) ++events;
   }
   bool measuring = false;
+  DisplayProbe* probe = nullptr;  // receiver 0 only
   uint64_t updates = 0, events = 0;
   std::vector<double> sent_errors;
 
@@ -144,6 +206,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   if (o.rotation_threshold_deg >= 0) {
     config.room_defaults.replication.rotation_threshold_deg = o.rotation_threshold_deg;
   }
+  if (o.ambient_hz > 0) config.room_defaults.replication.ambient_hz = o.ambient_hz;
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -187,6 +250,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   }
   boxes.ring.resize(box_ids.size());
   boxes.count.assign(box_ids.size(), 0);
+  DisplayProbe probe;
+  probe.Init(box_ids.size());
 
   auto drive_stirrer = [&] {
     Vec3f pos;
@@ -264,8 +329,12 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   uint64_t prev_steps = 0;
   bool have_prev = false;
   const Client& watcher = world.client(1);
+  // Warm the probe's jitter buffers for a second before sampling them.
+  receivers[0]->probe = &probe;
+  double probe_from = t0 + 1.0, next_probe = probe_from;
   while (world.Now() < t_end) {
     drive_stirrer();
+    const double relay_now = world.Now();
     world.UpdateRelay();
     if (world.room() == nullptr || world.room()->size() < world.client_count() ||
         world.room()->entities().size() < specs.size()) {
@@ -279,10 +348,16 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
         if (relay_boxes[k]->version == seen_version[k]) continue;
         seen_version[k] = relay_boxes[k]->version;
         boxes.ring[k][boxes.count[k]++ % kRing] = relay_boxes[k]->state.position;
+        probe.RecordTruth(k, relay_now, relay_boxes[k]->state.position);
       }
     }
+    probe.local_now = world.Now();
     world.UpdateClients();
     const double now = world.Now();
+    if (now >= next_probe) {
+      next_probe += 0.05;
+      if (now >= probe_from) probe.Sample(now);
+    }
     if (now >= next_error) {  // receivers' latest vs the relay's state, same moment
       next_error += 0.1;
       for (size_t c = 1; c < world.client_count(); ++c) {
@@ -362,6 +437,12 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->pos_err_sent_max_m = Max(sent);
   r->pos_err_sent_p99_m = Percentile(sent, 99);
   r->error_samples = same_errors.size();
+  r->display_err_p50_m = Percentile(probe.lerp_errors, 50);
+  r->display_err_p99_m = Percentile(probe.lerp_errors, 99);
+  r->display_err_hermite_p50_m = Percentile(probe.hermite_errors, 50);
+  r->display_err_hermite_p99_m = Percentile(probe.hermite_errors, 99);
+  r->display_delay_ms_median = Percentile(probe.delays_ms, 50);
+  r->display_samples = probe.lerp_errors.size();
 }
 
 }  // namespace
@@ -452,6 +533,12 @@ std::string MultiObjectJson(const MultiObjectOptions& o, const std::vector<Multi
                 {"pos_err_sent_max_m", r.pos_err_sent_max_m},
                 {"pos_err_sent_p99_m", r.pos_err_sent_p99_m},
                 {"error_samples", r.error_samples},
+                {"display_err_p50_m", r.display_err_p50_m},
+                {"display_err_p99_m", r.display_err_p99_m},
+                {"display_err_hermite_p50_m", r.display_err_hermite_p50_m},
+                {"display_err_hermite_p99_m", r.display_err_hermite_p99_m},
+                {"display_delay_ms_median", r.display_delay_ms_median},
+                {"display_samples", r.display_samples},
                 {"spawn_s", r.spawn_s}});
     }
     j["results"].push_back(e);
@@ -463,22 +550,23 @@ std::string MultiObjectTable(const std::vector<MultiObjectResult>& results) {
   std::ostringstream out;
   char line[512];
   std::snprintf(line, sizeof(line),
-                "%7s | %8s %8s %8s %8s %6s %6s | %7s %5s %7s %6s %6s %7s %7s %7s %6s %6s %8s %8s %8s\n",
+                "%7s | %8s %8s %8s %8s %6s %6s | %7s %5s %7s %6s %6s %7s %7s %7s %6s %6s %8s %8s %8s %8s %8s\n",
                 "objects", "PhyS med", "PhyS p99", "raw med", "raw p99", "ratio", "moving",
                 "relay ms", "sim x", "Mb/s", "paper", "ratio", "state", "upd/s", "ev/s", "B/upd", "moving",
-                "err max", "err p99", "sent max");
+                "err max", "err p99", "sent max", "disp p50", "disp p99");
   out << line;
   for (const auto& r : results) {
     std::snprintf(line, sizeof(line),
                   "%7u | %8.2f %8.2f %8.2f %8.2f %6.3f %6.2f | %8.2f %5.2f %7.3f %6.2f %6.3f %7.3f %7.0f "
-                  "%7.0f %6.2f %6.2f %8.2f %8.2f %8.3f\n",
+                  "%7.0f %6.2f %6.2f %8.2f %8.2f %8.3f %8.2f %8.2f\n",
                   r.objects, r.step_ms_median, r.step_ms_p99, r.raw_bullet_step_ms_median,
                   r.raw_bullet_step_ms_p99, r.step_ratio, r.moving_fraction, r.relay_step_ms_mean,
                   r.sim_speed, r.egress_mbit_per_s_per_client, r.paper_mbit_per_s,
                   r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0,
                   r.state_mbit_per_s_per_client, r.updates_per_s_per_client,
                   r.events_per_s_per_client, r.bytes_per_update, r.relay_moving_fraction,
-                  r.pos_err_max_m * 1000, r.pos_err_p99_m * 1000, r.pos_err_sent_max_m * 1000);
+                  r.pos_err_max_m * 1000, r.pos_err_p99_m * 1000, r.pos_err_sent_max_m * 1000,
+                  r.display_err_p50_m * 1000, r.display_err_p99_m * 1000);
     out << line;
   }
   out << "(standalone, same run, interleaved: PhyS/raw step ms median & p99, ratio of medians,\n"
@@ -486,7 +574,8 @@ std::string MultiObjectTable(const std::vector<MultiObjectResult>& results) {
          " simulated s per wall s, Mb/s = relay egress per receiver (10^6 bit/s), paper = Obj_N,\n"
          " state = state payload Mb/s within it, ev/s = physics events received per receiver,\n"
          " err = receiver's latest vs relay's state at the same moment (mm), sent max = vs the\n"
-         " relay state it was sent from (mm))\n";
+         " relay state it was sent from (mm), disp = what receiver 0 displays (jitter buffer,\n"
+         " lerp) vs the relay's state at the displayed time (mm))\n";
   return out.str();
 }
 

@@ -64,6 +64,8 @@ struct MultiObjectOptions {
   // Selective-sync thresholds (ReplicationConfig); negative: the relay's defaults.
   float position_threshold_m = -1.f;
   float rotation_threshold_deg = -1.f;
+  // ReplicationConfig::ambient_hz (boxes nobody touches); <= 0: the relay's default.
+  double ambient_hz = 0;
   bool progress = true;
 };
 
@@ -91,6 +93,12 @@ struct MultiObjectResult {
   double pos_err_max_m = 0, pos_err_p99_m = 0;            // vs relay state, same moment
   double pos_err_sent_max_m = 0, pos_err_sent_p99_m = 0;  // vs the relay state it was sent from
   uint64_t error_samples = 0;
+  // What receiver 0 displays (jitter buffer + interpolation, up to 128 boxes sampled every
+  // 50 ms) against the relay's state at the displayed relay time: lerp+slerp and Hermite.
+  double display_err_p50_m = 0, display_err_p99_m = 0;
+  double display_err_hermite_p50_m = 0, display_err_hermite_p99_m = 0;
+  double display_delay_ms_median = 0;  // playout delay behind the newest received state
+  uint64_t display_samples = 0;
   double spawn_s = 0;                       // wall time to spawn the scene everywhere
 };
 

@@ -79,6 +79,12 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(1.0, 240.0));
   app.add_option("--normal-hz", rep.normal_hz, "Send rate of other moving entities")
       ->capture_default_str()->check(CLI::Range(1.0, 240.0));
+  app.add_option("--ambient-hz", rep.ambient_hz,
+                 "Send rate of PhyS-simulated entities no user interacts with")
+      ->capture_default_str()->check(CLI::Range(1.0, 240.0));
+  app.add_option("--interaction-linger", rep.interaction_linger_s,
+                 "Seconds an entity stays out of the ambient class after a grab, release or event")
+      ->capture_default_str()->check(CLI::Range(0.0, 3600.0));
   app.add_option("--client-budget", rep.bandwidth_budget_bytes_per_s,
                  "Per-client bandwidth budget in bytes/s (0: unlimited)")
       ->capture_default_str();

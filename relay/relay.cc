@@ -600,6 +600,11 @@ void Relay::OnRelease(Session& s, uint32_t entity_id) {
 
 void Relay::BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a,
                                   uint32_t b) {
+  // Whatever an event names is being interacted with: replication takes it out of the
+  // ambient class for ReplicationConfig::interaction_linger_s.
+  for (uint32_t id : {a, b}) {
+    if (Entity* e = id != 0 ? room.FindEntity(id) : nullptr) e->interacted_at = now_;
+  }
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreatePhysicsEvent(fbb, kind, a, b));
   BroadcastReliable(room, {fbb.GetBufferPointer(), fbb.GetSize()}, 0);
@@ -677,6 +682,15 @@ void Relay::ApplyPhysics(Room& room, const RoomPhysics::StepOutput& out, double 
         RelayCounters::Inc(counters_->guard_resets);
         break;
     }
+    // Open touches keep both entities out of replication's ambient class until they part.
+    const bool enter = ev.type == T::kCollisionEnter || ev.type == T::kTriggerEnter;
+    const bool exit = ev.type == T::kCollisionExit || ev.type == T::kTriggerExit;
+    for (uint32_t id : {ev.entity_a, ev.entity_b}) {
+      Entity* e = (enter || exit) ? room.FindEntity(id) : nullptr;
+      if (e == nullptr) continue;
+      if (enter) ++e->touching;
+      if (exit && e->touching > 0) --e->touching;
+    }
     BroadcastPhysicsEvent(room, kind, ev.entity_a, ev.entity_b);
   }
 }
@@ -717,6 +731,7 @@ void Relay::FailOver(Room& room, double now) {
   std::sort(order.begin(), order.end(),
             [](const Entity* a, const Entity* b) { return a->spawn_seq < b->spawn_seq; });
   for (Entity* e : order) {
+    e->touching = 0;  // the new world reports its overlaps afresh
     const auto* msg = schema::GetControlMessage(e->spawn.data());
     const schema::Container* c = msg->body_as_Spawn()->container();
     std::string detail;

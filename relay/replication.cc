@@ -20,6 +20,7 @@ double Weight(PriorityClass c) {
   switch (c) {
     case PriorityClass::kCritical: return 4.0;
     case PriorityClass::kNormal: return 1.0;
+    case PriorityClass::kAmbient: return 0.75;
     case PriorityClass::kResting: return 0.5;
   }
   return 1.0;
@@ -105,12 +106,20 @@ ClientReplicator::~ClientReplicator() = default;
 PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
   if ((e.flags & (kFlagAvatar | kFlagHand)) || e.held_by != 0) return PriorityClass::kCritical;
   if (now - e.changed_at > config_.resting_after_s) return PriorityClass::kResting;
+  if (e.physics == PhysicsRole::kSimulated && e.touching == 0 &&
+      now - e.interacted_at > config_.interaction_linger_s) {
+    return PriorityClass::kAmbient;
+  }
   return PriorityClass::kNormal;
 }
 
 double ClientReplicator::IntervalOf(PriorityClass c) const {
   if (config_.fixed_rate_hz > 0) return 1.0 / config_.fixed_rate_hz;
-  return c == PriorityClass::kCritical ? 1.0 / config_.critical_hz : 1.0 / config_.normal_hz;
+  switch (c) {
+    case PriorityClass::kCritical: return 1.0 / config_.critical_hz;
+    case PriorityClass::kAmbient: return 1.0 / config_.ambient_hz;
+    default: return 1.0 / config_.normal_hz;
+  }
 }
 
 void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,

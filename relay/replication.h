@@ -3,7 +3,9 @@
 // Per client, per tick, ClientReplicator
 //  1. picks candidates: entities the client does not own that are due by their priority
 //     class's send interval (critical: avatars, hands, grabbed — default 48 Hz; normal —
-//     default 12 Hz; resting — nothing changed for `resting_after_s`: only on change) and whose
+//     default 12 Hz; ambient — simulated by PhyS and untouched by any user for
+//     `interaction_linger_s` — `ambient_hz`; resting — nothing changed for `resting_after_s`:
+//     only on change) and whose
 //     state differs from what the client has (selective synchronisation: in `edgephys` mode,
 //     against what it ACKNOWLEDGED, by more than the thresholds; in `paper` mode against what
 //     was last sent, by more than the thresholds; in `photon` mode always);
@@ -44,12 +46,25 @@ std::string_view ReplicationModeName(ReplicationMode mode);
 // Parses "float", "edgephys", "photon" or "paper"; false if unknown.
 bool ParseReplicationMode(std::string_view text, ReplicationMode* mode);
 
-enum class PriorityClass : uint8_t { kCritical = 0, kNormal, kResting };
+// kAmbient: a PhyS-simulated entity that nothing reported touches (no open trigger overlap or
+// reported contact) and that no event named for `interaction_linger_s` (grab, release, hand or
+// reported contact): the background of a scene, sent at `ambient_hz`.
+enum class PriorityClass : uint8_t { kCritical = 0, kNormal, kAmbient, kResting };
 
 struct ReplicationConfig {
   ReplicationMode mode = ReplicationMode::kEdgephys;
   double critical_hz = 48;            // avatars, hands, grabbed objects
   double normal_hz = 12;              // everything else that moves
+  // PhyS-simulated entities no user interacts with. A receiver interpolates them over a longer
+  // interval: the accuracy this costs (display error against the truth) is charted in
+  // docs/benchmarks.md ("PhyS: multiobject", ambient rate). Equal to normal_hz: no ambient
+  // class. Default 6 Hz: about the per-object rate the paper's PhyS table implies (its
+  // throughput / 33 bytes per update: 4-5.5 updates per object per second).
+  double ambient_hz = 6;
+  // An entity counts as interacted with while a trigger overlap or a reported contact naming
+  // it is open (Enter without Exit), and for this long after a grab, a release or any physics
+  // event that names it (hand triggers and contacts, ReportContacts entities).
+  double interaction_linger_s = 2.0;
   double resting_after_s = 1.0;       // unchanged this long: resting (sent only on change)
   double fixed_rate_hz = 0;           // > 0: every class at this rate (benchmarks, photon)
   float position_threshold_m = 0.0005f;   // selective sync thresholds

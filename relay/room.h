@@ -34,6 +34,11 @@ struct Entity {
   uint32_t flags = 0;            // schema::EntityFlags
   uint32_t version = 1;          // bumped on every accepted state change
   double changed_at = 0;         // relay time of the last accepted change (resting detection)
+  // Relay time a user last interacted with it: grab, release, or a physics event naming it
+  // (replication's ambient class). -inf-like until then.
+  double interacted_at = -1e9;
+  // Open Enter events (trigger overlaps, reported contacts) naming it, not yet exited.
+  uint32_t touching = 0;
   EntityState state;
   std::vector<uint8_t> spawn;    // the ControlMessage{Spawn} as received, re-sent to joiners
 };

@@ -78,8 +78,8 @@ TEST(PhysicsWorker, KillMinusNineFailsOverWithinASecondKeepingEveryEntityContinu
   ASSERT_TRUE(world.RunUntil([&] { return world.relay().PhysicsWorkerOf("w") != 0; }, 3.0));
   world.RunFor(1.5);
   for (uint32_t id : balls) {
-    // 12 Hz (the normal class rate) for 1.5 s.
-    ASSERT_GT(trace.samples[id].size(), 10u) << "the worker did not simulate ball " << id;
+    // Nobody touches the balls: the ambient class, 6 Hz by default, for 1.5 s (about 9).
+    ASSERT_GT(trace.samples[id].size(), 6u) << "the worker did not simulate ball " << id;
     EXPECT_GT(trace.samples[id].back().second.x, 0.3f);
   }
 

@@ -138,5 +138,61 @@ TEST(Replication, PaperModeSendsOnlySignificantFields) {
   EXPECT_EQ(room.b->FindEntity(id)->state.position.x, 0.02f);
 }
 
+namespace ambient {
+
+ColliderSpec TriggerBox(Vec3f half_extents) {
+  ColliderSpec c = BoxCollider(half_extents);
+  c.is_trigger = true;
+  return c;
+}
+
+// Two balls roll on PhyS's ground, nobody touching the first; the second rolls inside a hand's
+// trigger the whole time. The untouched ball is ambient (6 Hz by default), the touched one
+// normal (12 Hz); once the trigger is gone the second drops to ambient after the linger time.
+TEST(Replication, UntouchedPhysSEntitiesGoAtTheAmbientRateTouchedOnesAtTheNormalRate) {
+  ReplicationConfig r;  // defaults: normal 12 Hz, ambient 6 Hz, linger 2 s
+  ASSERT_LT(r.ambient_hz, r.normal_hz);
+  Room2 room(r);
+  const uint32_t offloaded = static_cast<uint32_t>(schema::EntityFlags::Offloaded);
+  const uint32_t hand_flag = static_cast<uint32_t>(schema::EntityFlags::Hand);
+  SpawnDesc ground{.position = {0, -0.5f, 0}, .flags = offloaded};
+  ground.colliders.push_back(BoxCollider({50, 0.5f, 50}));
+  ASSERT_TRUE(room.a->Spawn(ground).ok());
+  std::vector<uint32_t> balls;
+  for (int i = 0; i < 2; ++i) {
+    SpawnDesc ball{.position = {0, 0.1f, 3.0f * i}, .flags = offloaded};
+    ball.rigid_body = RigidBodySpec{};
+    ball.rigid_body->linear_velocity = {0.5f, 0, 0};  // rolls along +x for the whole test
+    ball.colliders.push_back(SphereCollider(0.1f));
+    balls.push_back(*room.a->Spawn(ball));
+  }
+  // A kinematic hand whose trigger covers the second ball's whole path (x 0..10 at z 3).
+  SpawnDesc hand{.position = {5, 0.1f, 3}, .flags = offloaded | hand_flag};
+  hand.rigid_body = RigidBodySpec{};
+  hand.rigid_body->kinematic = true;
+  hand.rigid_body->mass = 0;
+  hand.colliders.push_back(TriggerBox({6, 0.5f, 0.5f}));
+  auto hand_id = room.a->Spawn(hand);
+  ASSERT_TRUE(hand_id.ok());
+  // Past the linger time of anything the spawns stirred up.
+  room.world.RunFor(r.interaction_linger_s + 0.5);
+  room.counter.updates.clear();
+  room.world.RunFor(3.0);
+  const double untouched = room.counter.updates[balls[0]] / 3.0;
+  const double touched = room.counter.updates[balls[1]] / 3.0;
+  EXPECT_NEAR(untouched, r.ambient_hz, r.ambient_hz * 0.2);
+  EXPECT_NEAR(touched, r.normal_hz, r.normal_hz * 0.15);
+
+  // The hand leaves (despawned: its trigger exits); after the linger time the ball is ambient.
+  ASSERT_TRUE(room.a->Despawn(*hand_id).ok());
+  room.world.RunFor(r.interaction_linger_s + 0.5);
+  room.counter.updates.clear();
+  room.world.RunFor(3.0);
+  EXPECT_NEAR(room.counter.updates[balls[1]] / 3.0, r.ambient_hz, r.ambient_hz * 0.2);
+  EXPECT_NEAR(room.counter.updates[balls[0]] / 3.0, r.ambient_hz, r.ambient_hz * 0.2);
+}
+
+}  // namespace ambient
+
 }  // namespace
 }  // namespace edgephys::testing
