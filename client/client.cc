@@ -1,5 +1,7 @@
 #include "client/client.h"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cstring>
 
@@ -12,6 +14,13 @@ namespace {
 
 // Most remote entities the table is pre-sized for from a RoomState (it grows past this freely).
 constexpr size_t kMaxReservedEntities = 1 << 16;
+
+// CLOCK_REALTIME in seconds: the clock of the kernel's receive timestamps.
+double RealtimeNow() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return static_cast<double>(now.tv_sec) + now.tv_nsec * 1e-9;
+}
 
 }  // namespace
 
@@ -35,6 +44,7 @@ Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, d
   nonce_ = SecureRandom64();
   state_ = ClientState::kHandshaking;
   handshake_started_ = now;
+  if (config_.record_arrival_times) (void)socket_->EnableArrivalTimes();  // else: read times
   SendHandshake(now);
   return Status::Ok();
 }
@@ -58,8 +68,20 @@ void Client::Update(double now) {
   now_ = now;
   for (int i = 0; i < 4096; ++i) {
     Endpoint from;
-    size_t n = socket_->ReceiveFrom(&from, receive_buffer_);
-    if (n == 0) break;
+    size_t n = 0;
+    if (config_.record_arrival_times) {
+      double arrival = 0;
+      n = socket_->ReceiveFromTimed(&from, receive_buffer_, &arrival);
+      if (n == 0) break;
+      if (arrival <= 0) {
+        arrival = RealtimeNow();
+        ++arrival_time_fallbacks_;
+      }
+      packet_arrival_unix_s_ = arrival;
+    } else {
+      n = socket_->ReceiveFrom(&from, receive_buffer_);
+      if (n == 0) break;
+    }
     if (from != server_ || n > kMaxPacketSize) continue;  // not our relay / oversized
     std::span<const uint8_t> packet(receive_buffer_.data(), n);
     PacketPrefix prefix{};
@@ -346,6 +368,7 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       e.flags = c->flags();
       e.spawned = true;
       if (!e.has_state) {
+        e.arrival_unix_s = packet_arrival_unix_s_;
         const auto* t = c->transform();
         e.state = {e.id,
                    {t->position().x(), t->position().y(), t->position().z()},
@@ -452,6 +475,7 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
     e.state = st;
     e.has_state = true;
     e.state_time_ms = batch_.time_ms;
+    e.arrival_unix_s = packet_arrival_unix_s_;
     if (e.spawned) listener_->OnEntityUpdated(e);
   }
 }

@@ -24,6 +24,8 @@
 // Cost: a received state of a known remote entity costs one hash lookup (plus one in the owned
 // table only for ids in this player's own block) besides decoding and the listener call
 // (bench/client_bench.cc).
+// Latency: with ClientConfig::record_arrival_times each received state carries the time its
+// datagram reached the host (RemoteEntity::arrival_unix_s), unaffected by how late Update() runs.
 #pragma once
 
 #include <cstdint>
@@ -60,6 +62,14 @@ struct ClientConfig {
   double handshake_resend_s = 0.25; // Hello / Connect repeated this often until answered
   double handshake_timeout_s = 5.0; // give up (kFailed) after this long without Accept
   double publish_rate_hz = 30.0;    // owned entities' transforms sent at most this often
+  // Record when each received datagram arrived (RemoteEntity::arrival_unix_s,
+  // Client::packet_arrival_unix_s()), for latency measurements. Off by default. Connect() asks
+  // the socket for arrival times (DatagramSocket::EnableArrivalTimes; a UdpSocket uses the
+  // kernel's receive timestamp, so the time a datagram waited in the socket's queue before
+  // Update() read it is not counted). Where the socket gives none, the time of the read is
+  // used instead and counted in arrival_time_fallbacks(). Cost when on: a recvmsg(2) with a
+  // control message per datagram instead of a recvfrom(2), plus a clock read per fallback.
+  bool record_arrival_times = false;
 };
 
 enum class ClientState {
@@ -81,6 +91,10 @@ struct RemoteEntity {
   bool has_state = false;      // at least one state received after the spawn transform
   EntityState state;           // latest received transform
   uint32_t state_time_ms = 0;  // relay time of that state
+  // When the datagram that carried `state` (or the spawn, until a state arrives) reached this
+  // host: seconds since the Unix epoch, CLOCK_REALTIME. 0 unless
+  // ClientConfig::record_arrival_times (see there for the fallback when the OS gives none).
+  double arrival_unix_s = 0;
   std::vector<Vec3f> nodes;    // soft body particles (PhyS-simulated soft bodies)
 };
 
@@ -196,6 +210,16 @@ class Client final : private ConnectionHandler, private PacketWriter {
   // member states only after it has acknowledged its Joined message, so in a room this stays 0;
   // late payloads from a room just left land here.
   uint64_t state_payloads_outside_room() const { return state_payloads_outside_room_; }
+  // Arrival time (as RemoteEntity::arrival_unix_s: Unix seconds, CLOCK_REALTIME) of the
+  // datagram Update() read last. Inside a listener callback run by Update() it is the datagram
+  // that delivered what the callback reports (for a reliable message: the datagram that
+  // completed it or, after a loss, the resend that let it through in order). 0 before any
+  // datagram or unless ClientConfig::record_arrival_times.
+  double packet_arrival_unix_s() const { return packet_arrival_unix_s_; }
+  // Datagrams whose arrival time is the time of the read, because the socket gave none
+  // (arrival times unsupported, e.g. a simulated network, or no timestamp from the OS). Only
+  // counted with ClientConfig::record_arrival_times.
+  uint64_t arrival_time_fallbacks() const { return arrival_time_fallbacks_; }
 
  private:
   struct OwnedEntity {
@@ -250,6 +274,8 @@ class Client final : private ConnectionHandler, private PacketWriter {
   SoftBodyChunk soft_chunk_;
   uint64_t bytes_state_received_ = 0;
   uint64_t state_payloads_outside_room_ = 0;
+  double packet_arrival_unix_s_ = 0;
+  uint64_t arrival_time_fallbacks_ = 0;
 };
 
 }  // namespace edgephys

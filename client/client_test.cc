@@ -5,14 +5,17 @@
 #include "client/client.h"
 
 #include <gtest/gtest.h>
+#include <time.h>
 
 #include <deque>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "protocol/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
+#include "protocol/udp_socket.h"
 
 namespace edgephys {
 namespace {
@@ -24,8 +27,20 @@ constexpr uint32_t kPlayerId = 1;
 constexpr uint32_t kOwnBase = 65536;        // this client's id block
 constexpr uint32_t kOtherBase = 3 * 65536;  // another player's block
 
+// CLOCK_REALTIME in seconds, the clock of arrival times.
+double RealtimeNow() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return static_cast<double>(now.tv_sec) + now.tv_nsec * 1e-9;
+}
+
 class FakeSocket final : public DatagramSocket {
  public:
+  // How the socket answers EnableArrivalTimes(): not supported (the default of a
+  // DatagramSocket), with `scripted_arrival_unix_s` for every datagram, or by carrying the
+  // client's datagrams over real loopback UDP so that the kernel stamps them.
+  enum class Stamps { kNone, kScripted, kKernel };
+
   explicit FakeSocket(const Endpoint& server) : server_(server) {}
   Status SendTo(const Endpoint&, std::span<const uint8_t> data) override {
     sent.emplace_back(data.begin(), data.end());
@@ -41,11 +56,52 @@ class FakeSocket final : public DatagramSocket {
   }
   Endpoint LocalEndpoint() const override { return Endpoint(); }
 
+  void SetStamps(Stamps stamps) {
+    stamps_ = stamps;
+    if (stamps != Stamps::kKernel) return;
+    const Endpoint loopback(asio::ip::make_address("127.0.0.1"), 0);
+    wire_out_ = std::move(*UdpSocket::Open(loopback));
+    wire_in_ = std::move(*UdpSocket::Open(loopback));
+  }
+  bool EnableArrivalTimes() override {
+    arrival_times_requested = true;
+    if (stamps_ == Stamps::kKernel) return wire_in_->EnableArrivalTimes();
+    return stamps_ == Stamps::kScripted;
+  }
+  size_t ReceiveFromTimed(Endpoint* from, std::span<uint8_t> buffer,
+                          double* arrival_unix_s) override {
+    switch (stamps_) {
+      case Stamps::kNone:
+        return DatagramSocket::ReceiveFromTimed(from, buffer, arrival_unix_s);
+      case Stamps::kScripted:
+        *arrival_unix_s = scripted_arrival_unix_s;
+        return ReceiveFrom(from, buffer);
+      case Stamps::kKernel:
+        break;
+    }
+    for (; !inbox.empty(); inbox.pop_front()) {
+      EXPECT_TRUE(wire_out_->SendTo(wire_in_->LocalEndpoint(), inbox.front()).ok());
+      ++in_flight_;
+    }
+    if (in_flight_ > 0) wire_in_->WaitReadable(5.0);  // loopback; only guards against a stall
+    Endpoint sender;
+    const size_t n = wire_in_->ReceiveFromTimed(&sender, buffer, arrival_unix_s);
+    if (n == 0) return 0;
+    --in_flight_;
+    *from = server_;
+    return n;
+  }
+
   std::deque<Bytes> inbox;
   std::vector<Bytes> sent;
+  bool arrival_times_requested = false;
+  double scripted_arrival_unix_s = 1.6e9;
 
  private:
   Endpoint server_;
+  Stamps stamps_ = Stamps::kNone;
+  std::unique_ptr<UdpSocket> wire_out_, wire_in_;
+  size_t in_flight_ = 0;
 };
 
 using edgephys::testing::CapturingWriter;
@@ -57,15 +113,22 @@ class RecordingListener final : public ClientListener {
   void OnEntityUpdated(const RemoteEntity& e) override {
     updated.push_back(e.id);
     last_x = e.state.position.x;
+    last_arrival_unix_s = e.arrival_unix_s;
+    last_update_read_unix_s = RealtimeNow();
   }
   void OnEntityDespawned(uint32_t id) override { despawned.push_back(id); }
   std::vector<uint32_t> spawned, updated, despawned;
   float last_x = 0;
+  double last_arrival_unix_s = 0;      // RemoteEntity::arrival_unix_s in the last update
+  double last_update_read_unix_s = 0;  // CLOCK_REALTIME when that update was reported
 };
 
 // A client joined to room "r" (own block kOwnBase) through a scripted relay.
 class ClientReceiveTest : public ::testing::Test {
  protected:
+  explicit ClientReceiveTest(const ClientConfig& config = ClientConfig{})
+      : client_(config, &socket_, &listener_) {}
+
   void SetUp() override {
     ASSERT_TRUE(client_.Connect(server_, Bytes(64, 1), now_).ok());
     flatbuffers::FlatBufferBuilder challenge(64);
@@ -142,7 +205,7 @@ class ClientReceiveTest : public ::testing::Test {
   FakeSocket socket_{server_};
   RecordingListener listener_;
   double now_ = 0;
-  Client client_{ClientConfig{}, &socket_, &listener_};
+  Client client_;
   Connection relay_{kConnectionId, ConnectionConfig{}, 0};
   NullHandler relay_handler_;
   CapturingWriter relay_out_;
@@ -274,6 +337,92 @@ TEST_F(ClientReceiveTest, ManyEntitiesEachKeepTheirLatestState) {
     EXPECT_EQ(e.state.position.y, 3.0f);
     EXPECT_EQ(e.state_time_ms, 99u);
   }
+}
+
+TEST_F(ClientReceiveTest, ArrivalTimesAreNotRecordedByDefault) {
+  const uint32_t id = kOtherBase + 5;
+  Spawn(id);
+  SendStates({At(id, 2.0f)});
+  ASSERT_NE(client_.FindEntity(id), nullptr);
+  EXPECT_EQ(client_.FindEntity(id)->arrival_unix_s, 0.0);
+  EXPECT_EQ(listener_.last_arrival_unix_s, 0.0);
+  EXPECT_EQ(client_.packet_arrival_unix_s(), 0.0);
+  EXPECT_EQ(client_.arrival_time_fallbacks(), 0u);
+  EXPECT_FALSE(socket_.arrival_times_requested);
+}
+
+// The same scripted relay, with ClientConfig::record_arrival_times and a socket answering
+// arrival times as `kStamps` says.
+template <FakeSocket::Stamps kStamps>
+class ClientArrivalTest : public ClientReceiveTest {
+ protected:
+  ClientArrivalTest() : ClientReceiveTest(Config()) { socket_.SetStamps(kStamps); }
+  static ClientConfig Config() {
+    ClientConfig config;
+    config.record_arrival_times = true;
+    return config;
+  }
+};
+using ClientScriptedArrivalTest = ClientArrivalTest<FakeSocket::Stamps::kScripted>;
+using ClientFallbackArrivalTest = ClientArrivalTest<FakeSocket::Stamps::kNone>;
+using ClientKernelArrivalTest = ClientArrivalTest<FakeSocket::Stamps::kKernel>;
+
+TEST_F(ClientScriptedArrivalTest, AStateCarriesTheArrivalTimeOfItsDatagram) {
+  EXPECT_TRUE(socket_.arrival_times_requested);
+  const uint32_t id = kOtherBase + 5;
+  socket_.scripted_arrival_unix_s = 1.7e9 + 0.25;
+  Spawn(id);
+  ASSERT_NE(client_.FindEntity(id), nullptr);
+  EXPECT_EQ(client_.FindEntity(id)->arrival_unix_s, 1.7e9 + 0.25);  // the spawn's, for now
+
+  socket_.scripted_arrival_unix_s = 1.7e9 + 0.5;
+  SendStates({At(id, 2.0f)});
+  EXPECT_EQ(listener_.updated, std::vector<uint32_t>{id});
+  EXPECT_EQ(listener_.last_arrival_unix_s, 1.7e9 + 0.5);  // visible to the callback
+  EXPECT_EQ(client_.FindEntity(id)->arrival_unix_s, 1.7e9 + 0.5);
+  EXPECT_EQ(client_.packet_arrival_unix_s(), 1.7e9 + 0.5);
+  EXPECT_EQ(client_.arrival_time_fallbacks(), 0u);
+
+  // A later datagram without this entity's state leaves its arrival time alone.
+  socket_.scripted_arrival_unix_s = 1.7e9 + 0.75;
+  Spawn(kOtherBase + 6);
+  EXPECT_EQ(client_.FindEntity(id)->arrival_unix_s, 1.7e9 + 0.5);
+  EXPECT_EQ(client_.packet_arrival_unix_s(), 1.7e9 + 0.75);
+}
+
+TEST_F(ClientFallbackArrivalTest, WithoutSocketSupportTheReadTimeIsUsedAndCounted) {
+  EXPECT_TRUE(socket_.arrival_times_requested);
+  EXPECT_GT(client_.arrival_time_fallbacks(), 0u);  // the handshake and Joined already
+  const uint64_t fallbacks = client_.arrival_time_fallbacks();
+  const uint32_t id = kOtherBase + 5;
+  Spawn(id);
+  const double before = RealtimeNow();
+  SendStates({At(id, 2.0f)});
+  const double after = RealtimeNow();
+  ASSERT_EQ(listener_.updated, std::vector<uint32_t>{id});
+  EXPECT_GE(listener_.last_arrival_unix_s, before);
+  EXPECT_LE(listener_.last_arrival_unix_s, listener_.last_update_read_unix_s);
+  EXPECT_LE(client_.FindEntity(id)->arrival_unix_s, after);
+  EXPECT_GT(client_.arrival_time_fallbacks(), fallbacks);
+}
+
+TEST_F(ClientKernelArrivalTest, AStateOverLoopbackUdpCarriesTheKernelArrivalTime) {
+  EXPECT_TRUE(socket_.arrival_times_requested);
+  const uint32_t id = kOtherBase + 5;
+  Spawn(id);
+  const double before = RealtimeNow();
+  SendStates({At(id, 2.0f)});
+  const double after = RealtimeNow();
+  ASSERT_EQ(listener_.updated, std::vector<uint32_t>{id});
+  const RemoteEntity* e = client_.FindEntity(id);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->state.position.x, 2.0f);
+  // Stamped by the kernel after the relay's send and before the client read it.
+  EXPECT_GE(e->arrival_unix_s, before);
+  EXPECT_LE(e->arrival_unix_s, listener_.last_update_read_unix_s);
+  EXPECT_LE(listener_.last_update_read_unix_s, after);
+  EXPECT_EQ(listener_.last_arrival_unix_s, e->arrival_unix_s);
+  EXPECT_EQ(client_.arrival_time_fallbacks(), 0u);  // every datagram had a kernel timestamp
 }
 
 }  // namespace

@@ -42,6 +42,14 @@ uint64_t UnixNow() {
                                    std::chrono::system_clock::now().time_since_epoch()).count());
 }
 
+// CLOCK_REALTIME in seconds: the clock of the kernel's receive timestamps
+// (RemoteEntity::arrival_unix_s), so publish times taken with it need no conversion.
+double RealtimeNow() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
+}
+
 double ThreadCpuSeconds() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
@@ -107,14 +115,20 @@ class Bot : public ClientListener {
   uint32_t head = 0, left = 0, right = 0, box = 0;
   Vec3f home;
   double next_publish = 0;
-  // Right-hand publish history for latency matching: (time, position).
-  std::array<std::pair<double, Vec3f>, 64> history{};
+  // Right-hand publish history for latency matching.
+  struct Published {
+    double t = 0;       // the bot pass's start (World::Now()), as the SDK latency counts it
+    double unix_s = 0;  // CLOCK_REALTIME at the PublishTransform() call
+    Vec3f position;
+  };
+  std::array<Published, 64> history{};
   size_t history_count = 0;
   // Grab cycle.
   int phase = 0;  // 0 free, 1 reaching, 2 requested, 3 holding
   double phase_at = 0;
   double next_grab = 0;
   double grab_requested_at = -1;
+  double grab_requested_unix_s = 0;  // CLOCK_REALTIME at the Grab() call
   bool hovering = false;
   std::unordered_map<uint32_t, int> spawns_seen;
   std::map<std::pair<uint8_t, uint32_t>, int> events_seen;  // (kind, entity) -> count
@@ -131,6 +145,8 @@ class World {
   std::unordered_map<uint32_t, Bot*> box_owner;
   std::vector<EventRecord> events;  // grab/release as the grabbing bot saw them
   std::vector<double> latencies_ms, grab_latencies_ms;
+  // The same, ending at the kernel's arrival time at the receiver's socket.
+  std::vector<double> arrival_latencies_ms, grab_arrival_latencies_ms;
   uint64_t hand_updates = 0;
   bool measuring = false;
   Clock::time_point start;
@@ -166,10 +182,12 @@ void Bot::OnEntityUpdated(const RemoteEntity& e) {
   ++world_->hand_updates;
   size_t n = std::min(sender.history_count, sender.history.size());
   for (size_t k = 0; k < n; ++k) {
-    const auto& [t, p] = sender.history[k];
+    const Published& sent = sender.history[k];
+    const Vec3f& p = sent.position;
     float dx = p.x - e.state.position.x, dy = p.y - e.state.position.y, dz = p.z - e.state.position.z;
     if (dx * dx + dy * dy + dz * dz < 1.5e-6f) {  // the same pose (within the 1 mm lattice)
-      world_->latencies_ms.push_back((now - t) * 1000.0);
+      world_->latencies_ms.push_back((now - sent.t) * 1000.0);
+      world_->arrival_latencies_ms.push_back((e.arrival_unix_s - sent.unix_s) * 1000.0);
       return;
     }
   }
@@ -188,6 +206,8 @@ void Bot::OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) {
     if (kind == kGrabbed) phase = 3, phase_at = now;
   } else if (kind == kGrabbed && grabber->grab_requested_at > 0 && world_->measuring) {
     world_->grab_latencies_ms.push_back((now - grabber->grab_requested_at) * 1000.0);
+    world_->grab_arrival_latencies_ms.push_back(
+        (client->packet_arrival_unix_s() - grabber->grab_requested_unix_s) * 1000.0);
   }
 }
 
@@ -243,6 +263,7 @@ void Bot::Tick(double now) {
       const RemoteEntity* e = c.FindEntity(box);
       if (e != nullptr) r = {e->state.position.x, e->state.position.y + 0.05f, e->state.position.z};
       if (hovering) {
+        grab_requested_unix_s = RealtimeNow();
         (void)c.Grab(box, right);
         grab_requested_at = now;
         phase = 2, phase_at = now;
@@ -263,8 +284,9 @@ void Bot::Tick(double now) {
       }
       break;
   }
+  const double published_unix_s = RealtimeNow();
   (void)c.PublishTransform(right, r, {});
-  history[history_count++ % history.size()] = {now, r};
+  history[history_count++ % history.size()] = {now, published_unix_s, r};
 }
 
 CcuResult RunOne(const CcuOptions& o, uint32_t users) {
@@ -300,6 +322,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   ClientConfig cc;
   cc.publish_rate_hz = 240;  // the bot paces itself; the SDK adds no batching delay
   cc.handshake_timeout_s = 10;
+  cc.record_arrival_times = true;  // kernel receive timestamps: the arrival latencies
 
   CcuResult result;
   result.users = users;
@@ -390,6 +413,13 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   result.latency_ms_p99 = Percentile(world.latencies_ms, 99);
   result.grab_latency_ms_p50 = Percentile(world.grab_latencies_ms, 50);
   result.grab_latency_ms_p99 = Percentile(world.grab_latencies_ms, 99);
+  result.arrival_latency_ms_p50 = Percentile(world.arrival_latencies_ms, 50);
+  result.arrival_latency_ms_p99 = Percentile(world.arrival_latencies_ms, 99);
+  result.grab_arrival_latency_ms_p50 = Percentile(world.grab_arrival_latencies_ms, 50);
+  result.grab_arrival_latency_ms_p99 = Percentile(world.grab_arrival_latencies_ms, 99);
+  for (auto& b : world.bots) {
+    if (b->client) result.arrival_time_fallbacks += b->client->arrival_time_fallbacks();
+  }
   result.relay_wait_ms_mean = 500.0 / o.tick_rate_hz;
   result.physics_step_ms_p99 = Percentile(step_ms, 99);
   result.bot_pass_ms_p50 = Percentile(loop_ms, 50);
@@ -442,6 +472,11 @@ std::string CcuJson(const CcuOptions& o, const std::vector<CcuResult>& results) 
                           {"latency_user_to_user_ms_p99", r.latency_ms_p99},
                           {"grab_latency_ms_p50", r.grab_latency_ms_p50},
                           {"grab_latency_ms_p99", r.grab_latency_ms_p99},
+                          {"latency_arrival_ms_p50", r.arrival_latency_ms_p50},
+                          {"latency_arrival_ms_p99", r.arrival_latency_ms_p99},
+                          {"grab_latency_arrival_ms_p50", r.grab_arrival_latency_ms_p50},
+                          {"grab_latency_arrival_ms_p99", r.grab_arrival_latency_ms_p99},
+                          {"arrival_time_fallbacks", r.arrival_time_fallbacks},
                           {"latency_relay_wait_ms_mean", r.relay_wait_ms_mean},
                           {"latency_physics_step_ms_p99", r.physics_step_ms_p99},
                           {"bot_pass_ms_p50", r.bot_pass_ms_p50},
@@ -473,20 +508,26 @@ std::string CcuJson(const CcuOptions& o, const std::vector<CcuResult>& results) 
 std::string CcuTable(const std::vector<CcuResult>& results) {
   std::ostringstream out;
   char line[320];
-  std::snprintf(line, sizeof(line), "%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n", "users",
-                "rooms", "connected", "lost", "lat p50", "lat p99", "grab p50", "grab p99", "step p99",
-                "cpu", "B/s/user", "upd ratio");
+  std::snprintf(
+      line, sizeof(line), "%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n",
+      "users", "rooms", "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50",
+      "grab p99", "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio");
   out << line;
   for (const CcuResult& r : results) {
     std::snprintf(line, sizeof(line),
-                  "%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f %9.0f %8.2f\n", r.users,
-                  r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
-                  r.latency_ms_p50, r.latency_ms_p99, r.grab_latency_ms_p50, r.grab_latency_ms_p99,
+                  "%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f "
+                  "%9.0f %8.2f\n",
+                  r.users, r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
+                  r.latency_ms_p50, r.latency_ms_p99, r.arrival_latency_ms_p50,
+                  r.arrival_latency_ms_p99, r.grab_latency_ms_p50, r.grab_latency_ms_p99,
+                  r.grab_arrival_latency_ms_p50, r.grab_arrival_latency_ms_p99,
                   r.physics_step_ms_p99, r.relay_cpu_mean, r.egress_bytes_per_s_per_user,
                   r.expected_update_ratio);
     out << line;
   }
-  out << "(latencies in ms, user to user on loopback; cpu = relay thread CPU / wall)\n";
+  out << "(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
+         "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
+         "thread CPU / wall)\n";
   return out.str();
 }
 

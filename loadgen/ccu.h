@@ -10,8 +10,17 @@
 // relay thread's CPU share. User-to-user latency: each bot watches other bots' right hands;
 // a received pose is matched to the publish time of the same pose on the sender (all in one
 // process and clock), so latency = receive time - publish time; grab latency = the Grab
-// request to the Grabbed event at another user. Reliable loss: every bot checks it received
-// every spawn and grab/release event of the other bots in its room, once each.
+// request to the Grabbed event at another user. Each is measured twice:
+//   * SDK latency (latency_ms_*, grab_latency_ms_*): from the start of the sender's bot pass
+//     to the receiving bot's callback (steady clock). It includes the wait of a datagram in
+//     the receiver's socket until the single bot thread reaches that bot, up to a whole bot
+//     pass: a load-generator artifact a headset, reading its own socket, does not have.
+//   * arrival latency (arrival_latency_ms_*, grab_arrival_latency_ms_*): from the sender's
+//     PublishTransform()/Grab() call to the kernel's receive timestamp of the datagram that
+//     carried the pose/event to the receiver (ClientConfig::record_arrival_times), both on
+//     CLOCK_REALTIME, so no clock conversion. Never above the SDK latency of the same sample.
+// Reliable loss: every bot checks it received every spawn and grab/release event of the other
+// bots in its room, once each.
 #pragma once
 
 #include <cstdint>
@@ -52,6 +61,10 @@ struct CcuResult {
   uint64_t reliable_duplicated = 0;
   double latency_ms_p50 = 0, latency_ms_p99 = 0;   // hand pose, user to user
   double grab_latency_ms_p50 = 0, grab_latency_ms_p99 = 0;
+  double arrival_latency_ms_p50 = 0, arrival_latency_ms_p99 = 0;  // to the receiver's socket
+  double grab_arrival_latency_ms_p50 = 0, grab_arrival_latency_ms_p99 = 0;
+  // Datagrams the bots timed at their read because the kernel gave no timestamp (expected 0).
+  uint64_t arrival_time_fallbacks = 0;
   double relay_wait_ms_mean = 0;   // half a tick: expected relay queueing delay
   double physics_step_ms_p99 = 0;
   // One pass of the load generator over all its bots (receive, decode, publish): a delay the

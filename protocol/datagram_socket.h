@@ -28,6 +28,23 @@ class DatagramSocket {
   // reported with its full size so the caller can drop it as too large. Never blocks.
   virtual size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) = 0;
 
+  // Arrival times, opt-in (off until asked for; the relay never asks). Asks the socket to record
+  // when each datagram arrives; returns true if it will. The default (simulated and in-memory
+  // networks, whose "arrival" is the read) returns false. Call before the socket is shared.
+  virtual bool EnableArrivalTimes() { return false; }
+
+  // As ReceiveFrom(), and sets `*arrival_unix_s` to the time the datagram arrived at this host:
+  // seconds since the Unix epoch on CLOCK_REALTIME (the kernel's software receive timestamp,
+  // ~0.25 us resolution as a double), or to 0 ("unknown") when arrival times are not enabled,
+  // not supported or the OS attached none. Callers that need a time anyway take the time of
+  // the read (ClientConfig::record_arrival_times does, and counts it). `*arrival_unix_s` is
+  // meaningful only when the result is non-zero.
+  virtual size_t ReceiveFromTimed(Endpoint* from, std::span<uint8_t> buffer,
+                                  double* arrival_unix_s) {
+    *arrival_unix_s = 0;
+    return ReceiveFrom(from, buffer);
+  }
+
   // The address peers send to.
   virtual Endpoint LocalEndpoint() const = 0;
 };

@@ -32,6 +32,16 @@ Endpoint Normalize(const Endpoint& endpoint) {
   return endpoint;
 }
 
+// The (normalized) endpoint of a sockaddr the kernel filled in; unspecified if it does not fit.
+Endpoint SenderOf(const sockaddr_storage& address, socklen_t length) {
+  Endpoint sender;
+  if (length <= sender.capacity()) {
+    std::memcpy(sender.data(), &address, length);
+    sender.resize(length);
+  }
+  return Normalize(sender);
+}
+
 }  // namespace
 
 UdpSocket::UdpSocket() : socket_(io_) {}
@@ -105,6 +115,55 @@ size_t UdpSocket::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) {
   return 0;
 }
 
+bool UdpSocket::EnableArrivalTimes() {
+  const int on = 1;
+  arrival_times_ =
+      ::setsockopt(socket_.native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof(on)) == 0;
+  return arrival_times_;
+}
+
+size_t UdpSocket::ReceiveFromTimed(Endpoint* from, std::span<uint8_t> buffer,
+                                   double* arrival_unix_s) {
+  *arrival_unix_s = 0;
+  if (!arrival_times_) return ReceiveFrom(from, buffer);
+  sockaddr_storage address{};
+  iovec vector{buffer.data(), buffer.size()};
+  // Room for the timestamp and a few more control messages should other options add some.
+  alignas(cmsghdr) std::array<uint8_t, CMSG_SPACE(sizeof(timespec)) + 128> control;
+  msghdr header{};
+  header.msg_name = &address;
+  header.msg_iov = &vector;
+  header.msg_iovlen = 1;
+  header.msg_control = control.data();
+  const int fd = socket_.native_handle();
+  // A few attempts, as ReceiveFrom: a pending ICMP error is reported once.
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    header.msg_namelen = sizeof(address);
+    header.msg_controllen = control.size();
+    header.msg_flags = 0;
+    // MSG_TRUNC: the result is the datagram's full length even when it was truncated.
+    const ssize_t got = ::recvmsg(fd, &header, MSG_DONTWAIT | MSG_TRUNC);
+    if (got < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK) return 0;
+      continue;  // EINTR, or e.g. ECONNREFUSED from an earlier send: reported once, try again
+    }
+    *from = SenderOf(address, header.msg_namelen);
+    for (cmsghdr* c = CMSG_FIRSTHDR(&header); c != nullptr; c = CMSG_NXTHDR(&header, c)) {
+      if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS ||
+          c->cmsg_len < CMSG_LEN(sizeof(timespec))) {
+        continue;
+      }
+      timespec stamp{};
+      std::memcpy(&stamp, CMSG_DATA(c), sizeof(stamp));
+      if (stamp.tv_sec > 0) {
+        *arrival_unix_s = static_cast<double>(stamp.tv_sec) + stamp.tv_nsec * 1e-9;
+      }
+    }
+    return static_cast<size_t>(got);
+  }
+  return 0;
+}
+
 size_t UdpSocket::ReceiveBatch(std::span<ReceiveSlot> slots) {
   const size_t n = std::min(slots.size(), kMaxBatch);
   if (n == 0) return 0;
@@ -131,13 +190,7 @@ size_t UdpSocket::ReceiveBatch(std::span<ReceiveSlot> slots) {
       continue;  // e.g. ECONNREFUSED from an earlier send: reported once, try again
     }
     for (int i = 0; i < got; ++i) {
-      Endpoint sender;
-      const socklen_t length = headers[i].msg_hdr.msg_namelen;
-      if (length <= sender.capacity()) {
-        std::memcpy(sender.data(), &addresses[i], length);
-        sender.resize(length);
-      }
-      slots[i].from = Normalize(sender);
+      slots[i].from = SenderOf(addresses[i], headers[i].msg_hdr.msg_namelen);
       slots[i].size = headers[i].msg_len;
     }
     return static_cast<size_t>(got);

@@ -19,9 +19,21 @@
 // serialises datagram sends and receives on one UDP socket). The single calls keep the
 // one-owner rule.
 //
-// Thread-safety: none for SendTo/ReceiveFrom/WaitReadable; one thread owns the socket. See
-// above for the batch calls. Cost: one system call per SendTo/ReceiveFrom/WaitReadable and per
-// kMaxBatch datagrams of a batch call, no allocation.
+// Arrival times (opt-in, off by default; the relay leaves them off): EnableArrivalTimes() turns
+// on SO_TIMESTAMPNS, and ReceiveFromTimed() then reads with recvmsg(2) and returns the kernel's
+// software receive timestamp (CLOCK_REALTIME, taken when the datagram entered the host's
+// receive path, before it waits in the socket's queue). Until enabled, ReceiveFromTimed() is
+// ReceiveFrom() with an unknown (0) arrival time; ReceiveFrom() and the batch calls never
+// report arrival times and behave the same either way (control data is discarded). Cost: one
+// recvmsg(2) and a scan of its control messages per datagram instead of one recvfrom(2), no
+// allocation; while any socket on the host has timestamps on, the kernel stamps every received
+// packet (one clock read each, for every socket). The first socket on a host to ask turns
+// stamping on through deferred kernel work: for a moment after that, the kernel stamps a
+// datagram when it is read instead.
+//
+// Thread-safety: none for SendTo/ReceiveFrom/ReceiveFromTimed/WaitReadable/EnableArrivalTimes;
+// one thread owns the socket. See above for the batch calls. Cost: one system call per
+// SendTo/ReceiveFrom/WaitReadable and per kMaxBatch datagrams of a batch call, no allocation.
 #pragma once
 
 #include <asio/io_context.hpp>
@@ -46,6 +58,10 @@ class UdpSocket final : public DatagramSocket {
   Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override;
   size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override;
   Endpoint LocalEndpoint() const override { return local_; }
+  // SO_TIMESTAMPNS on; false if the OS refuses (arrival times then stay unknown).
+  bool EnableArrivalTimes() override;
+  size_t ReceiveFromTimed(Endpoint* from, std::span<uint8_t> buffer,
+                          double* arrival_unix_s) override;
 
   // Datagrams per recvmmsg/sendmmsg system call.
   static constexpr size_t kMaxBatch = 64;
@@ -91,6 +107,7 @@ class UdpSocket final : public DatagramSocket {
   asio::io_context io_;  // required by Asio's socket; never run
   asio::ip::udp::socket socket_;
   Endpoint local_;
+  bool arrival_times_ = false;  // SO_TIMESTAMPNS on
 };
 
 }  // namespace edgephys

@@ -1,8 +1,11 @@
 #include "protocol/udp_socket.h"
 
 #include <gtest/gtest.h>
+#include <time.h>
 
 #include <array>
+#include <chrono>
+#include <thread>
 #include <vector>
 
 namespace edgephys {
@@ -195,6 +198,104 @@ TEST(UdpSocketTest, BatchReceiveReportsTruncatedFullSize) {
   EXPECT_EQ(slots[0].size, 3000u);
   EXPECT_EQ(slots[0].from, (*a)->LocalEndpoint());
   EXPECT_EQ(buffer[1199], 5);
+}
+
+// CLOCK_REALTIME in seconds, the clock of arrival times.
+double RealtimeNow() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return static_cast<double>(now.tv_sec) + now.tv_nsec * 1e-9;
+}
+
+// As ReceiveWithin, through ReceiveFromTimed.
+size_t ReceiveTimedWithin(UdpSocket& socket, Endpoint* from, std::span<uint8_t> buffer,
+                          double* arrival_unix_s) {
+  for (int i = 0; i < 50; ++i) {
+    if (size_t size = socket.ReceiveFromTimed(from, buffer, arrival_unix_s)) return size;
+    socket.WaitReadable(0.1);
+  }
+  return 0;
+}
+
+TEST(UdpSocketTest, ArrivalTimeLiesBetweenTheSendAndTheRead) {
+  auto a = UdpSocket::Open(At("127.0.0.1", 0));
+  auto b = UdpSocket::Open(At("127.0.0.1", 0));
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_TRUE((*b)->EnableArrivalTimes());
+  // The first socket on a host to ask turns stamping on through deferred kernel work; until it
+  // has run, datagrams are stamped when read. Give it a moment.
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::array<uint8_t, 64> buffer{};
+  for (int round = 0; round < 3; ++round) {
+    const std::vector<uint8_t> ping = {1, 2, static_cast<uint8_t>(round)};
+    const double sent = RealtimeNow();
+    ASSERT_TRUE((*a)->SendTo((*b)->LocalEndpoint(), ping).ok());
+    // Let it wait in the queue, so a read time passed off as the arrival would show.
+    ASSERT_TRUE((*b)->WaitReadable(5.0));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    Endpoint from;
+    double arrival = -1;
+    const size_t size = ReceiveTimedWithin(**b, &from, buffer, &arrival);
+    const double read = RealtimeNow();
+    ASSERT_EQ(size, ping.size());
+    EXPECT_EQ(from, (*a)->LocalEndpoint());
+    EXPECT_EQ(buffer[2], round);
+    EXPECT_GE(arrival, sent);
+    EXPECT_LE(arrival, read - 0.015);  // stamped on arrival, not when read 20 ms later
+  }
+}
+
+TEST(UdpSocketTest, ArrivalTimeIsUnknownUntilEnabledAndReceiveFromIsUnchanged) {
+  auto a = UdpSocket::Open(At("127.0.0.1", 0));
+  auto b = UdpSocket::Open(At("127.0.0.1", 0));
+  ASSERT_TRUE(a.ok() && b.ok());
+  std::array<uint8_t, 2048> buffer{};
+  Endpoint from;
+  double arrival = -1;
+  EXPECT_EQ((*b)->ReceiveFromTimed(&from, buffer, &arrival), 0u);  // nothing pending
+  ASSERT_TRUE((*a)->SendTo((*b)->LocalEndpoint(), std::vector<uint8_t>{7, 7}).ok());
+  ASSERT_EQ(ReceiveTimedWithin(**b, &from, buffer, &arrival), 2u);
+  EXPECT_EQ(arrival, 0.0);  // not enabled: unknown
+  EXPECT_EQ(from, (*a)->LocalEndpoint());
+
+  // With timestamps on, the plain calls read as before (the control data is discarded).
+  ASSERT_TRUE((*b)->EnableArrivalTimes());
+  ASSERT_TRUE((*a)->SendTo((*b)->LocalEndpoint(), std::vector<uint8_t>(3000, 5)).ok());
+  std::array<uint8_t, 1200> small{};
+  EXPECT_EQ(ReceiveWithin(**b, &from, small), 3000u);  // full size of a truncated datagram
+  EXPECT_EQ(from, (*a)->LocalEndpoint());
+  EXPECT_EQ(small[1199], 5);
+  ASSERT_TRUE((*a)->SendTo((*b)->LocalEndpoint(), std::vector<uint8_t>{9}).ok());
+  ASSERT_TRUE((*b)->WaitReadable(5.0));
+  std::array<UdpSocket::ReceiveSlot, 1> slots{};
+  slots[0].buffer = buffer;
+  ASSERT_EQ((*b)->ReceiveBatch(slots), 1u);
+  EXPECT_EQ(slots[0].size, 1u);
+  EXPECT_EQ(slots[0].from, (*a)->LocalEndpoint());
+  EXPECT_EQ(buffer[0], 9);
+
+  // And the timed read reports a truncated datagram's full size too.
+  ASSERT_TRUE((*a)->SendTo((*b)->LocalEndpoint(), std::vector<uint8_t>(3000, 6)).ok());
+  ASSERT_EQ(ReceiveTimedWithin(**b, &from, small, &arrival), 3000u);
+  EXPECT_EQ(small[1199], 6);
+  EXPECT_GT(arrival, 0.0);
+}
+
+TEST(UdpSocketTest, ArrivalTimesOverIPv6) {
+  if (!UdpSocket::Open(At("::1", 0)).ok()) GTEST_SKIP() << "IPv6 loopback unavailable";
+  auto a = UdpSocket::Open(At("::1", 0));
+  auto b = UdpSocket::Open(At("::1", 0));
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_TRUE((*b)->EnableArrivalTimes());
+  const double sent = RealtimeNow();
+  ASSERT_TRUE((*a)->SendTo((*b)->LocalEndpoint(), std::vector<uint8_t>{4}).ok());
+  std::array<uint8_t, 16> buffer{};
+  Endpoint from;
+  double arrival = 0;
+  ASSERT_EQ(ReceiveTimedWithin(**b, &from, buffer, &arrival), 1u);
+  EXPECT_EQ(from, (*a)->LocalEndpoint());
+  EXPECT_GE(arrival, sent);
+  EXPECT_LE(arrival, RealtimeNow());
 }
 
 }  // namespace

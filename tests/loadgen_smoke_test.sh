@@ -44,6 +44,17 @@ echo "sweeps ok"
 [ "$(num '.summary.reliable_lost' ccu.json)" = "0" ] || fail "ccu lost reliable messages"
 [ "$(num '.summary.connected' ccu.json)" = "8" ] || fail "ccu: not every bot joined"
 le 0.001 "$(num '.summary.latency_user_to_user_ms_p99' ccu.json)" || fail "ccu: no latency samples"
+# Arrival latency ends at the kernel's receive timestamp, before the SDK reads the datagram: per
+# sample never above the SDK latency (0.05 ms: steady and realtime clocks may tick at rates a
+# few hundred ppm apart).
+for what in latency grab_latency; do
+  sdk=$(num ".summary.${what}_ms_p99" ccu.json)
+  [ "$what" = latency ] && sdk=$(num '.summary.latency_user_to_user_ms_p99' ccu.json)
+  arrival=$(num ".summary.${what}_arrival_ms_p99" ccu.json)
+  le 0 "$arrival" && le "$arrival" "$(awk -v s="$sdk" 'BEGIN { print s + 0.05 }')" ||
+    fail "ccu: $what arrival p99 $arrival ms outside 0..SDK p99 $sdk ms"
+done
+le 0.001 "$(num '.summary.latency_arrival_ms_p99' ccu.json)" || fail "ccu: no arrival latency samples"
 echo "ccu ok"
 
 # PhyS scenarios: a small multiobject and one bunny run end to end with errors at the lattice.
