@@ -160,10 +160,10 @@ int main(int argc, char** argv) {
   mo->add_option("--position-step", moo.position_step_m, "edgephys quantisation step (m)")->capture_default_str();
   mo->add_option("--rotation-bound", moo.rotation_bound_deg, "edgephys rotation bound (deg)")->capture_default_str();
   mo->add_option("--position-threshold", moo.position_threshold_m,
-                 "Send when the client's copy is off by more than this (m; <0: relay default 0.0005)")
+                 "Send when the client's copy is off by more than this (m; <0: relay default 0.001)")
       ->capture_default_str();
   mo->add_option("--rotation-threshold", moo.rotation_threshold_deg,
-                 "Send when the client's copy is off by more than this (deg; <0: relay default 0.05)")
+                 "Send when the client's copy is off by more than this (deg; <0: relay default 0.1)")
       ->capture_default_str();
   mo->add_option("--ambient-hz", moo.ambient_hz,
                  "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)")

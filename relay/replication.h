@@ -67,8 +67,12 @@ struct ReplicationConfig {
   double interaction_linger_s = 2.0;
   double resting_after_s = 1.0;       // unchanged this long: resting (sent only on change)
   double fixed_rate_hz = 0;           // > 0: every class at this rate (benchmarks, photon)
-  float position_threshold_m = 0.0005f;   // selective sync thresholds
-  float rotation_threshold_deg = 0.05f;
+  // Selective sync thresholds: an entity whose client copy is within these of the truth is
+  // not resent. The defaults equal the quantisation's accuracy (position_step_m,
+  // rotation_bound_deg): finer thresholds cannot bring a client closer than the lattice, and
+  // resend slowly creeping entities for nothing (docs/benchmarks.md, "Ambient rate").
+  float position_threshold_m = 0.001f;
+  float rotation_threshold_deg = 0.1f;
   double bandwidth_budget_bytes_per_s = 0;  // per client; 0 = unlimited
   // Quantisation of the edgephys format (see protocol/quantize.h); sent to clients in Joined.
   float position_step_m = 0.001f;
