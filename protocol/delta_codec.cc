@@ -113,12 +113,21 @@ std::array<int32_t, 3> PredictedComponents(const QuantizationParams& p, const Pr
   return c;
 }
 
-Sample MakeSample(const QuantizationParams& p, const QuantizedState& q, uint32_t time_ms) {
+Sample MakeSample(const QuantizedState& q, const std::array<int32_t, 4>& rot4, uint32_t time_ms) {
   Sample s;
   for (int a = 0; a < 3; ++a) s.pos[a] = static_cast<int32_t>(q.position[a]);
-  s.rot = RotationToInt4(p, q.rotation);
+  s.rot = rot4;
   s.time_ms = time_ms;
   return s;
+}
+
+Sample MakeSample(const QuantizationParams& p, const QuantizedState& q, uint32_t time_ms) {
+  return MakeSample(q, RotationToInt4(p, q.rotation), time_ms);
+}
+
+bool SameLattice(const PreparedState& s, const QuantizationParams& p) {
+  return s.step == p.step && s.rotation_max == p.rotation_max && s.origin[0] == p.origin[0] &&
+         s.origin[1] == p.origin[1] && s.origin[2] == p.origin[2];
 }
 
 History ExtendHistory(const History* base, const Sample& s) {
@@ -218,15 +227,37 @@ void DeltaEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
   writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
 }
 
-bool DeltaEncoder::Add(const EntityState& truth) {
+PreparedState PrepareState(const QuantizationParams& params, const EntityState& truth,
+                           bool with_float) {
+  PreparedState s;
+  s.position_exact = QuantizePosition(params, truth.position, &s.q.position);
+  s.rotation_ok = QuantizeRotation(params, truth.rotation, &s.q.rotation);
+  s.rot4 = RotationToInt4(params, s.q.rotation);
+  if (with_float) {
+    s.position = DequantizePosition(params, s.q.position);
+    s.rotation = DequantizeRotation(params, s.q.rotation);
+    s.has_float = true;
+  }
+  s.step = params.step;
+  for (int a = 0; a < 3; ++a) s.origin[a] = params.origin[a];
+  s.rotation_max = params.rotation_max;
+  return s;
+}
+
+bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) {
   if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
   const uint32_t id = truth.entity_id;
   if (count_ > 0 && id <= last_id_) return false;
   if (count_ >= (size_t{1} << 21) - 1) return false;  // count varint reserve (3 bytes)
 
-  QuantizedState q;
-  const bool pos_exact = QuantizePosition(params_, truth.position, &q.position);
-  const bool rot_ok = QuantizeRotation(params_, truth.rotation, &q.rotation);
+  PreparedState own;
+  if (prepared == nullptr || !SameLattice(*prepared, params_)) {
+    own = PrepareState(params_, truth, /*with_float=*/false);  // dequantised lazily, if asked
+    prepared = &own;
+  }
+  const QuantizedState& q = prepared->q;
+  const bool pos_exact = prepared->position_exact;
+  const bool rot_ok = prepared->rotation_ok;
 
   auto [track_ptr, created] = tracks_.TryEmplace(id);
   Track& track = *track_ptr;
@@ -380,8 +411,12 @@ bool DeltaEncoder::Add(const EntityState& truth) {
   e.sent = false;
   e.counter = counter_;
   e.q = q;
-  e.has_float = false;
-  e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(params_, q, time_ms_));
+  e.has_float = prepared->has_float;
+  if (e.has_float) {
+    e.position = prepared->position;
+    e.rotation = prepared->rotation;
+  }
+  e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(q, prepared->rot4, time_ms_));
   pending_ids_.emplace_back(id, slot);
   payload_used_ = true;
   last_id_ = id;

@@ -82,6 +82,30 @@ struct DeltaEncoderStats {
   uint64_t residual_bits_fixed_width = 0;
 };
 
+// The receiver-independent part of adding one state to a DeltaEncoder: the state quantised,
+// its rotation expanded for prediction and, optionally, what a client reconstructs from it.
+// It is the same for every encoder whose QuantizationParams are equal, so a sender with many
+// receivers prepares each entity version once (PrepareState) and hands it to every receiver's
+// Add, instead of each encoder quantising the same truth again (relay: once per room tick
+// for the entities that changed). Plain value, ~90 bytes; no ownership, no thread-safety
+// needs (read-only once made).
+struct PreparedState {
+  QuantizedState q;
+  std::array<int32_t, 4> rot4{};  // RotationToInt4(q.rotation)
+  bool position_exact = false;    // false: clamped to the bounds or not finite
+  bool rotation_ok = false;       // false: not finite or zero (identity used)
+  bool has_float = false;         // position/rotation below are set
+  Vec3f position;                 // q dequantised (metres)
+  Quatf rotation;
+  // The lattice it was made on; Add ignores a PreparedState made with other parameters.
+  double step = 0;
+  double origin[3] = {0, 0, 0};
+  int32_t rotation_max = 0;
+};
+// Cost ~0.1 us (~0.15 us with `with_float`); no allocation.
+PreparedState PrepareState(const QuantizationParams& params, const EntityState& truth,
+                           bool with_float = true);
+
 // Sender side, one per receiving client. Implements StateEncoder so the relay can fill
 // datagrams dynamically: Begin(buffer of kMaxUnreliablePayload, now_ms); while (Add(...)) ...;
 // size = Finish(); sequence = connection.SendUnreliable(...); OnSent(sequence, now).
@@ -98,7 +122,12 @@ class DeltaEncoder final : public StateEncoder {
   // fit, or if its id is not greater than the previous id in this payload (ids must be added
   // in increasing order; start a new payload otherwise). Out-of-bounds positions are clamped
   // and counted in stats(). Cost O(1); allocates only for an entity never seen before.
-  bool Add(const EntityState& truth) override;
+  bool Add(const EntityState& truth) override { return Add(truth, nullptr); }
+  // Add with the quantisation already done: `prepared` = PrepareState(params(), truth) (it
+  // must describe `truth`; one made with other parameters, or nullptr, is ignored and the
+  // encoder quantises `truth` itself). Saves the quantisation and rotation expansion, and
+  // with has_float the dequantisation NeedsUpdate would otherwise do per receiver.
+  bool Add(const EntityState& truth, const PreparedState* prepared);
   size_t count() const override { return count_; }
   // Completes the payload; returns its size in bytes (0 if nothing was added).
   size_t Finish() override;

@@ -844,6 +844,7 @@ void Relay::TickDueRooms(double now) {
   for (auto& [name, room] : rooms_) {
     if (now < room->next_tick()) continue;
     ++due_rooms;
+    room->PrepareStates();  // once per changed entity, not once per receiver
     for (const auto& [pid, member] : room->members()) {
       auto sit = sessions_.find(member.session);
       if (sit == sessions_.end() || !sit->second->connection().connected()) continue;

@@ -199,7 +199,12 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
   in_payload_.clear();
   for (const Candidate& c : selected_) {
     auto add = [&]() {
-      return paper_ ? paper_->AddFields(c.entity->state, c.fields) : encoder_->Add(c.entity->state);
+      if (paper_ != nullptr) return paper_->AddFields(c.entity->state, c.fields);
+      if (delta_ != nullptr) {  // the room quantised it once for every receiver
+        return delta_->Add(c.entity->state,
+                           c.entity->prepared_valid ? &c.entity->prepared : nullptr);
+      }
+      return encoder_->Add(c.entity->state);
     };
     if (!add()) {
       Flush(now, connection, out, counters);

@@ -1,6 +1,9 @@
 #include "relay/room.h"
 
+#include "relay/replication.h"
+
 #include <algorithm>
+#include <cstring>
 
 namespace edgephys {
 
@@ -66,6 +69,26 @@ void Room::ScheduleNextTick(double now) {
   double interval = 1.0 / std::max(1.0, config_.tick_rate_hz);
   next_tick_ += interval;
   if (next_tick_ < now) next_tick_ = now + interval;  // fell behind: skip, don't burst
+}
+
+void Room::PrepareStates() {
+  if (config_.replication.mode != ReplicationMode::kEdgephys) return;
+  if (!quantization_tried_) {
+    quantization_tried_ = true;
+    auto params = MakeQuantizationParams(QuantizationOf(config_.replication));
+    if (params.ok()) quantization_ = *params;
+  }
+  if (!quantization_) return;
+  for (auto& [id, e] : entities_) {
+    if (e.prepared_valid &&
+        std::memcmp(&e.prepared_of.position, &e.state.position, sizeof(Vec3f)) == 0 &&
+        std::memcmp(&e.prepared_of.rotation, &e.state.rotation, sizeof(Quatf)) == 0) {
+      continue;
+    }
+    e.prepared = PrepareState(*quantization_, e.state);
+    e.prepared_of = e.state;
+    e.prepared_valid = true;
+  }
 }
 
 }  // namespace edgephys

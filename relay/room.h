@@ -6,10 +6,12 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "protocol/delta_codec.h"
 #include "protocol/state_codec.h"
 #include "relay/relay_config.h"
 #include "relay/physics_link.h"
@@ -41,6 +43,11 @@ struct Entity {
   uint32_t touching = 0;
   EntityState state;
   std::vector<uint8_t> spawn;    // the ControlMessage{Spawn} as received, re-sent to joiners
+  // `state` quantised for the edgephys format, shared by every receiver's encoder
+  // (Room::PrepareStates); valid while `prepared_of` equals `state`.
+  bool prepared_valid = false;
+  EntityState prepared_of;
+  PreparedState prepared;
 };
 
 struct Member {
@@ -79,6 +86,12 @@ class Room {
   std::unique_ptr<PhysicsLink> TakePhysics() { return std::move(physics_); }
   uint64_t NextSpawnSeq() { return ++spawn_seq_; }
 
+  // Before a replication tick: quantises every entity whose state changed since the last
+  // call, once for all receivers (edgephys mode only; a no-op otherwise). O(entities), no
+  // allocation after the first call. Not thread-safe: call on the room's thread before the
+  // clients' ticks, which then only read the result.
+  void PrepareStates();
+
   // Tick scheduling: due when now >= next_tick().
   double next_tick() const { return next_tick_; }
   void ScheduleNextTick(double now);
@@ -93,6 +106,8 @@ class Room {
   std::unordered_map<uint32_t, Entity> entities_;
   std::unique_ptr<PhysicsLink> physics_;
   uint64_t spawn_seq_ = 0;
+  std::optional<QuantizationParams> quantization_;  // edgephys rooms, made on first use
+  bool quantization_tried_ = false;
   double next_tick_;
   double empty_since_;
 };
