@@ -362,6 +362,18 @@ class ClientArrivalTest : public ClientReceiveTest {
     config.record_arrival_times = true;
     return config;
   }
+  // Spawns `id`, then delivers one state of it; the realtime clock just before and after.
+  struct Window {
+    double before = 0, after = 0;
+  };
+  Window SpawnAndSendOneState(uint32_t id) {
+    Spawn(id);
+    Window w;
+    w.before = RealtimeNow();
+    SendStates({At(id, 2.0f)});
+    w.after = RealtimeNow();
+    return w;
+  }
 };
 using ClientScriptedArrivalTest = ClientArrivalTest<FakeSocket::Stamps::kScripted>;
 using ClientFallbackArrivalTest = ClientArrivalTest<FakeSocket::Stamps::kNone>;
@@ -395,32 +407,26 @@ TEST_F(ClientFallbackArrivalTest, WithoutSocketSupportTheReadTimeIsUsedAndCounte
   EXPECT_GT(client_.arrival_time_fallbacks(), 0u);  // the handshake and Joined already
   const uint64_t fallbacks = client_.arrival_time_fallbacks();
   const uint32_t id = kOtherBase + 5;
-  Spawn(id);
-  const double before = RealtimeNow();
-  SendStates({At(id, 2.0f)});
-  const double after = RealtimeNow();
+  const Window w = SpawnAndSendOneState(id);
   ASSERT_EQ(listener_.updated, std::vector<uint32_t>{id});
-  EXPECT_GE(listener_.last_arrival_unix_s, before);
+  EXPECT_GE(listener_.last_arrival_unix_s, w.before);
   EXPECT_LE(listener_.last_arrival_unix_s, listener_.last_update_read_unix_s);
-  EXPECT_LE(client_.FindEntity(id)->arrival_unix_s, after);
+  EXPECT_LE(client_.FindEntity(id)->arrival_unix_s, w.after);
   EXPECT_GT(client_.arrival_time_fallbacks(), fallbacks);
 }
 
 TEST_F(ClientKernelArrivalTest, AStateOverLoopbackUdpCarriesTheKernelArrivalTime) {
   EXPECT_TRUE(socket_.arrival_times_requested);
   const uint32_t id = kOtherBase + 5;
-  Spawn(id);
-  const double before = RealtimeNow();
-  SendStates({At(id, 2.0f)});
-  const double after = RealtimeNow();
+  const Window w = SpawnAndSendOneState(id);
   ASSERT_EQ(listener_.updated, std::vector<uint32_t>{id});
   const RemoteEntity* e = client_.FindEntity(id);
   ASSERT_NE(e, nullptr);
   EXPECT_EQ(e->state.position.x, 2.0f);
   // Stamped by the kernel after the relay's send and before the client read it.
-  EXPECT_GE(e->arrival_unix_s, before);
+  EXPECT_GE(e->arrival_unix_s, w.before);
   EXPECT_LE(e->arrival_unix_s, listener_.last_update_read_unix_s);
-  EXPECT_LE(listener_.last_update_read_unix_s, after);
+  EXPECT_LE(listener_.last_update_read_unix_s, w.after);
   EXPECT_EQ(listener_.last_arrival_unix_s, e->arrival_unix_s);
   EXPECT_EQ(client_.arrival_time_fallbacks(), 0u);  // every datagram had a kernel timestamp
 }
