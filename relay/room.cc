@@ -1,9 +1,9 @@
 #include "relay/room.h"
 
-#include "relay/replication.h"
-
 #include <algorithm>
 #include <cstring>
+
+#include "relay/replication.h"
 
 namespace edgephys {
 

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -13,9 +14,8 @@
 
 #include "protocol/delta_codec.h"
 #include "protocol/state_codec.h"
-#include "relay/relay_config.h"
 #include "relay/physics_link.h"
-#include <memory>
+#include "relay/relay_config.h"
 
 namespace edgephys {
 
