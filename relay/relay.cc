@@ -447,6 +447,14 @@ void Relay::OnLeaveRoom(Session& s, double now) {
   std::vector<uint32_t> despawned;
   room.RemoveMember(s.player_id(), &despawned);
   counters_->entities.fetch_sub(static_cast<int64_t>(despawned.size()), std::memory_order_relaxed);
+  // As in OnDespawn: the members who stay drop what they held of the despawned entities
+  // (views, encoder baselines), or it would pile up for as long as they stay, and a later
+  // entity reusing an id would be delta-coded against a baseline their client has dropped.
+  for (const auto& [pid, m] : room.members()) {
+    auto sit = sessions_.find(m.session);
+    if (sit == sessions_.end()) continue;
+    for (uint32_t id : despawned) sit->second->replicator().Forget(id);
+  }
   flatbuffers::FlatBufferBuilder fbb(64);
   for (uint32_t id : despawned) {
     fbb.Clear();
@@ -944,6 +952,13 @@ const ConnectionStats* Relay::FindConnectionStats(uint32_t player_id) const {
     if (s->player_id() == player_id) return &s->connection().stats();
   }
   return nullptr;
+}
+
+size_t Relay::ReplicatedEntityCount(uint32_t player_id) const {
+  for (const auto& [id, s] : sessions_) {
+    if (s->player_id() == player_id) return s->replicator().tracked_entities();
+  }
+  return 0;
 }
 
 }  // namespace edgephys

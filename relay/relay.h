@@ -80,6 +80,11 @@ class Relay {
   size_t room_count() const { return rooms_.size(); }
   size_t session_count() const { return sessions_.size(); }
   const ConnectionStats* FindConnectionStats(uint32_t player_id) const;
+  // How many entities the replication state of `player_id`'s session covers
+  // (ClientReplicator::tracked_entities()); 0 if no such session. At most the entities its
+  // room has had since the session joined that are still there: an entity despawned, by its
+  // owner or with its owner's leaving, is forgotten by every member. O(sessions).
+  size_t ReplicatedEntityCount(uint32_t player_id) const;
   // Connection id of the worker simulating `room`'s PhyS; 0 if embedded or none.
   uint32_t PhysicsWorkerOf(const std::string& room) const;
 

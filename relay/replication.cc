@@ -315,4 +315,8 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   views_.Erase(entity_id);
 }
 
+size_t ClientReplicator::tracked_entities() const {
+  return std::max(views_.size(), soft_views_.size());
+}
+
 }  // namespace edgephys

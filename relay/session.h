@@ -62,6 +62,7 @@ class Session final : public ConnectionHandler, public PacketWriter, public Work
   void set_room(std::string room) { room_ = std::move(room); }
   // What this client has of the joined room's state; reset on every join.
   ClientReplicator& replicator() { return *replicator_; }
+  const ClientReplicator& replicator() const { return *replicator_; }
   // States are sent to a member only once it has acknowledged its Joined message (reliable
   // stream position `end`): before that, a reordered state payload could reach the client
   // before Joined, where it cannot be decoded, although the connection acknowledges it, and
