@@ -613,9 +613,17 @@ void Relay::OnRelease(Session& s, uint32_t entity_id) {
 void Relay::BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a,
                                   uint32_t b) {
   // Whatever an event names is being interacted with: replication takes it out of the
-  // ambient class for ReplicationConfig::interaction_linger_s.
+  // ambient class while a touch is open (Enter without Exit) and for
+  // ReplicationConfig::interaction_linger_s after any event.
+  using K = schema::PhysicsEventKind;
+  const bool enter = kind == K::CollisionEnter || kind == K::TriggerEnter;
+  const bool exit = kind == K::CollisionExit || kind == K::TriggerExit;
   for (uint32_t id : {a, b}) {
-    if (Entity* e = id != 0 ? room.FindEntity(id) : nullptr) e->interacted_at = now_;
+    Entity* e = id != 0 ? room.FindEntity(id) : nullptr;
+    if (e == nullptr) continue;
+    e->interacted_at = now_;
+    if (enter) ++e->touching;
+    if (exit && e->touching > 0) --e->touching;
   }
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreatePhysicsEvent(fbb, kind, a, b));
@@ -693,15 +701,6 @@ void Relay::ApplyPhysics(Room& room, const RoomPhysics::StepOutput& out, double 
         kind = schema::PhysicsEventKind::GuardReset;
         RelayCounters::Inc(counters_->guard_resets);
         break;
-    }
-    // Open touches keep both entities out of replication's ambient class until they part.
-    const bool enter = ev.type == T::kCollisionEnter || ev.type == T::kTriggerEnter;
-    const bool exit = ev.type == T::kCollisionExit || ev.type == T::kTriggerExit;
-    for (uint32_t id : {ev.entity_a, ev.entity_b}) {
-      Entity* e = (enter || exit) ? room.FindEntity(id) : nullptr;
-      if (e == nullptr) continue;
-      if (enter) ++e->touching;
-      if (exit && e->touching > 0) --e->touching;
     }
     BroadcastPhysicsEvent(room, kind, ev.entity_a, ev.entity_b);
   }

@@ -179,16 +179,16 @@ class ShardBlocker {
   std::thread thread_;
 };
 
-// Data datagrams for unknown connections whose ids all route to shard `shard` of `n`; each is
-// rejected (kUnknownConnection) by that shard.
-std::vector<std::vector<uint8_t>> UnknownSessionData(size_t count, size_t shard, size_t n) {
-  std::vector<std::vector<uint8_t>> out;
+// Sends `count` data datagrams from a fresh socket, for unknown connections whose ids all route
+// to shard `shard` of `n`; each is rejected (kUnknownConnection) by that shard.
+void SendUnknownSessionData(const Endpoint& relay, size_t count, size_t shard, size_t n) {
+  auto raw = UdpSocket::Open(At("127.0.0.4", 0));
+  ASSERT_TRUE(raw.ok());
   for (size_t k = 0; k < count; ++k) {
     std::vector<uint8_t> data(kPacketPrefixSize + 8, 0);
     WritePacketPrefix(PacketType::kData, static_cast<uint32_t>(n * (k + 1) + shard), data);
-    out.push_back(std::move(data));
+    ASSERT_TRUE((*raw)->SendTo(relay, data).ok());
   }
-  return out;
 }
 
 uint64_t QueuedOrDropped(const RelayShards& shards, size_t shard) {
@@ -618,15 +618,11 @@ TEST(RelayShards, FullRingDropsAndCountsWhileTheShardIsBusy) {
                      [](RelayConfig&, RelayShardsOptions& options) { options.queue_capacity = 4; });
   RelayShards& shards = world.shards();
   const uint64_t rejected_before = Sum(world.counters().packets_rejected);
-  auto raw = UdpSocket::Open(At("127.0.0.4", 0));
-  ASSERT_TRUE(raw.ok());
   constexpr size_t kSent = 20;
   {
     ShardBlocker blocker(shards, 0);
     ASSERT_TRUE(blocker.started());
-    for (const auto& d : UnknownSessionData(kSent, 0, 2)) {
-      ASSERT_TRUE((*raw)->SendTo(world.relay_endpoint(), d).ok());
-    }
+    ASSERT_NO_FATAL_FAILURE(SendUnknownSessionData(world.relay_endpoint(), kSent, 0, 2));
     ASSERT_TRUE(world.RunUntil([&] { return QueuedOrDropped(shards, 0) == kSent; }, 5.0));
     EXPECT_EQ(shards.stats(0).datagrams_queued, 4u);
     EXPECT_EQ(shards.stats(0).queue_drops, kSent - 4);
@@ -646,14 +642,10 @@ TEST(RelayShards, StopHandlesEverythingQueued) {
       1, [](RelayConfig& config, RelayShardsOptions&) { config.max_datagrams_per_update = 1; });
   RelayShards& shards = world.shards();
   const uint64_t rejected_before = Sum(world.counters().packets_rejected);
-  auto raw = UdpSocket::Open(At("127.0.0.4", 0));
-  ASSERT_TRUE(raw.ok());
   constexpr size_t kSent = 30;
   ShardBlocker blocker(shards, 0);
   ASSERT_TRUE(blocker.started());
-  for (const auto& d : UnknownSessionData(kSent, 0, 1)) {
-    ASSERT_TRUE((*raw)->SendTo(world.relay_endpoint(), d).ok());
-  }
+  ASSERT_NO_FATAL_FAILURE(SendUnknownSessionData(world.relay_endpoint(), kSent, 0, 1));
   ASSERT_TRUE(world.RunUntil([&] { return shards.stats(0).datagrams_queued == kSent; }, 5.0));
   // Stop while the shard is still busy: it finds the whole batch queued when it stops.
   std::thread stopper([&] { shards.Stop(); });
