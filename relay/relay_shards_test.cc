@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -573,10 +574,8 @@ TEST(RelayShards, StopDisconnectsEveryClientCleanly) {
   }
   ASSERT_TRUE(world.RunUntil(
       [&] {
-        for (Client* c : clients) {
-          if (c->state() != ClientState::kConnected) return false;
-        }
-        return true;
+        return std::all_of(clients.begin(), clients.end(),
+                           [](Client* c) { return c->state() == ClientState::kConnected; });
       },
       5.0));
   for (uint32_t i = 0; i < clients.size(); ++i) {
@@ -584,10 +583,7 @@ TEST(RelayShards, StopDisconnectsEveryClientCleanly) {
   }
   ASSERT_TRUE(world.RunUntil(
       [&] {
-        for (Client* c : clients) {
-          if (!c->joined()) return false;
-        }
-        return true;
+        return std::all_of(clients.begin(), clients.end(), [](Client* c) { return c->joined(); });
       },
       5.0));
 
@@ -595,10 +591,8 @@ TEST(RelayShards, StopDisconnectsEveryClientCleanly) {
   world.shards().Stop();  // idempotent
   EXPECT_TRUE(world.RunUntil(
       [&] {
-        for (Client* c : clients) {
-          if (c->state() != ClientState::kDisconnected) return false;
-        }
-        return true;
+        return std::all_of(clients.begin(), clients.end(),
+                           [](Client* c) { return c->state() == ClientState::kDisconnected; });
       },
       5.0));
   for (Client* c : clients) EXPECT_EQ(c->disconnect_reason(), DisconnectReason::kServerShutdown);
@@ -669,10 +663,8 @@ TEST(RelayShards, StatsAndTasksFromOtherThreadsWhileRunningAndStopping) {
   }
   ASSERT_TRUE(world.RunUntil(
       [&] {
-        for (Client* c : clients) {
-          if (c->state() != ClientState::kConnected) return false;
-        }
-        return true;
+        return std::all_of(clients.begin(), clients.end(),
+                           [](Client* c) { return c->state() == ClientState::kConnected; });
       },
       5.0));
 
