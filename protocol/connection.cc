@@ -301,7 +301,7 @@ Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, do
 Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
                                  ConnectionHandler& handler) {
   if (!connected()) return Status(StatusCode::kNotConnected, "connection closed");
-  static constexpr Status kMalformed(StatusCode::kMalformed, "malformed data packet");
+  static const Status kMalformed(StatusCode::kMalformed, "malformed data packet");
   PacketPrefix prefix{};
   DropReason reason{};
   if (!ParsePacketPrefix(packet, &prefix, &reason)) return kMalformed;
