@@ -1,6 +1,7 @@
 #include "relay/physics_link.h"
 
 #include "protocol/handshake.h"
+#include "relay/worker_directory.h"
 
 namespace edgephys {
 namespace {
@@ -23,6 +24,7 @@ RemotePhysicsLink::RemotePhysicsLink(WorkerChannel* channel, uint32_t worker_id,
 }
 
 RemotePhysicsLink::~RemotePhysicsLink() {
+  if (directory_ != nullptr) directory_->Unregister(worker_id_, handle_);
   if (channel_ != nullptr && !broken_) {
     flatbuffers::FlatBufferBuilder fbb(32);
     FinishControl(fbb, schema::CreateWorkerUnassign(fbb, handle_));
@@ -35,7 +37,7 @@ void RemotePhysicsLink::Send(flatbuffers::FlatBufferBuilder& fbb) {
   if (!channel_->SendToWorker({fbb.GetBufferPointer(), fbb.GetSize()})) broken_ = true;
 }
 
-Status RemotePhysicsLink::Add(const schema::Container& c, PhysicsRole role, std::string* detail) {
+Status RemotePhysicsLink::Add(const schema::Container& c, PhysicsRole role) {
   // The same component checks as an embedded world; the structural ones against our ids.
   physics::InvalidReason reason = validator_.Validate(c);
   using R = physics::InvalidReason;
@@ -47,8 +49,9 @@ Status RemotePhysicsLink::Add(const schema::Container& c, PhysicsRole role, std:
     reason = R::kUnknownParent;
   }
   if (reason != R::kNone) {
-    *detail = "physics: invalid components (reason " + std::to_string(static_cast<int>(reason)) + ")";
-    return Status(StatusCode::kInvalidArgument, "invalid physics components");
+    return Status::InvalidArgument(
+        "invalid physics components",
+        "physics: invalid components (reason " + std::to_string(static_cast<int>(reason)) + ")");
   }
   schema::ContainerT copy;
   c.UnPackTo(&copy);

@@ -23,12 +23,15 @@
 
 namespace edgephys {
 
+class WorkerDirectory;
+
 class PhysicsLink {
  public:
   using StepOutput = RoomPhysics::StepOutput;
   virtual ~PhysicsLink() = default;
-  // Validates and adds an entity (same rules embedded or remote); `*detail` on failure.
-  virtual Status Add(const schema::Container& c, PhysicsRole role, std::string* detail) = 0;
+  // Validates and adds an entity (same rules embedded or remote). kInvalidArgument with a
+  // detail naming the problem when the components are refused.
+  virtual Status Add(const schema::Container& c, PhysicsRole role) = 0;
   virtual void Remove(uint32_t id) = 0;
   virtual void Drive(uint32_t id, const EntityState& state) = 0;
   // The answer arrives in a later Advance() output. `force` skips the hover check (failover).
@@ -43,13 +46,18 @@ class PhysicsLink {
   // Connection id of the worker session, 0 for embedded.
   virtual uint32_t worker() const = 0;
   virtual physics::PhysicsCounters counters() const = 0;
+  // The link is being replaced after a failure: send nothing more (not even a goodbye).
+  virtual void Detach() {}
 };
 
 class EmbeddedPhysicsLink final : public PhysicsLink {
  public:
   EmbeddedPhysicsLink(const physics::PhysicsConfig& config, double now) : physics_(config, now) {}
-  Status Add(const schema::Container& c, PhysicsRole role, std::string* detail) override {
-    return physics_.Add(c, role, detail);
+  Status Add(const schema::Container& c, PhysicsRole role) override {
+    std::string detail;
+    Status st = physics_.Add(c, role, &detail);
+    if (st.ok() || detail.empty()) return st;
+    return Status(st.code(), st.message(), std::move(detail));
   }
   void Remove(uint32_t id) override { physics_.Remove(id); }
   void Drive(uint32_t id, const EntityState& s) override { physics_.Drive(id, s); }
@@ -84,7 +92,7 @@ class RemotePhysicsLink final : public PhysicsLink {
                     const physics::PhysicsConfig& config, double now);
   ~RemotePhysicsLink() override;
 
-  Status Add(const schema::Container& c, PhysicsRole role, std::string* detail) override;
+  Status Add(const schema::Container& c, PhysicsRole role) override;
   void Remove(uint32_t id) override;
   void Drive(uint32_t id, const EntityState& state) override;
   void RequestGrab(uint32_t entity, uint32_t hand, bool force) override;
@@ -99,12 +107,15 @@ class RemotePhysicsLink final : public PhysicsLink {
   void ReceiveResult(const schema::WorkerResult& result, double now);
   void ReceiveStates(std::span<const uint8_t> payload, double now);
   // The worker is gone: stop sending.
-  void Detach() { channel_ = nullptr; }
+  void Detach() override { channel_ = nullptr; }
   uint32_t handle() const { return handle_; }
+  // The directory that routes this link's messages (unregistered on destruction); may be null.
+  void set_directory(WorkerDirectory* directory) { directory_ = directory; }
 
  private:
   void Send(flatbuffers::FlatBufferBuilder& fbb);
   WorkerChannel* channel_;
+  WorkerDirectory* directory_ = nullptr;
   uint32_t worker_id_;
   uint32_t handle_;
   physics::PhysicsWorld validator_;  // empty: checks components, never simulates

@@ -1,6 +1,11 @@
-// Relay: the edgephys server. Admits clients through the handshake (protocol/handshake.h)
-// with join tokens, hosts rooms, keeps every entity's owner and latest state, and fans state
-// out to each room every tick.
+// Relay: the edgephys server's front. It owns the socket, admits clients through the
+// handshake (protocol/handshake.h) with join tokens, keeps their Sessions and dispatches
+// datagrams to them, and drives the rooms: each RoomHost (relay/room_host.h) holds one room's
+// rules and state; the WorkerDirectory (relay/worker_directory.h) places rooms' PhyS.
+//
+// Data flow of one state update: socket -> Relay::HandleDatagram -> Session (connection) ->
+// RoomHost::ApplyStates; on the room's tick, RoomHost::BeginTick picks the receivers and each
+// Session's replicator writes its datagrams to the socket.
 //
 // I/O and time are injected: the relay reads and writes datagrams only through the
 // DatagramSocket it is given, and does work only inside Update(now). The process wrapper
@@ -28,16 +33,15 @@
 #include "protocol/datagram_socket.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
-#include "protocol/state_codec.h"
 #include "relay/physics_pool.h"
 #include "relay/rate_limit.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
-#include "relay/room.h"
+#include "relay/room_host.h"
+#include "relay/session.h"
+#include "relay/worker_directory.h"
 
 namespace edgephys {
-
-class Session;
 
 // How a Relay runs as one of several shards over one socket (relay/relay_shards.h). The
 // defaults are a standalone relay, which behaves exactly as without them.
@@ -55,21 +59,23 @@ struct RelayShardOptions {
   bool shared_counters = false;
 };
 
-class Relay {
+class Relay final : private SessionHost {
  public:
   // `socket` and `counters` are not owned and must outlive the relay.
   Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters,
         const RelayShardOptions& shard = {});
-  ~Relay();
+  ~Relay() override;
   Relay(const Relay&) = delete;
   Relay& operator=(const Relay&) = delete;
 
   // Receives and handles every pending datagram (up to config.max_datagrams_per_update),
-  // updates connections (resends, keep-alives, timeouts), ticks due rooms and closes idle
-  // ones. `now` is seconds on a monotonic clock; `unix_now_s` is wall time for token expiry.
+  // steps PhyS, updates connections (resends, keep-alives, timeouts), ticks due rooms and
+  // closes idle ones. `now` is seconds on a monotonic clock; `unix_now_s` is wall time for
+  // token expiry.
   void Update(double now, uint64_t unix_now_s);
 
-  // Operator API: creates (or reconfigures an empty) room. kAlreadyExists if occupied.
+  // Operator API: creates (or reconfigures an empty) room. kInvalidArgument for a bad name or
+  // config, kAlreadyExists if the room has members or entities.
   Status CreateRoom(const std::string& name, const RoomConfig& config, double now);
 
   // Disconnects every client with kServerShutdown.
@@ -89,47 +95,41 @@ class Relay {
   uint32_t PhysicsWorkerOf(const std::string& room) const;
 
  private:
-  friend class Session;
+  // Admission: the handshake and the socket.
   void HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
                       uint64_t unix_now_s);
   void HandleHello(const Endpoint& from, std::span<const uint8_t> data, double now);
   void HandleConnect(const Endpoint& from, std::span<const uint8_t> data, double now,
                      uint64_t unix_now_s);
+  // Makes the session of an admitted Connect and answers Accept.
+  void Admit(const Endpoint& from, const JoinToken& token, double now);
   void SendReject(const Endpoint& to, uint16_t reason, size_t request_size);
   // Sends a reply to an address that has not completed the handshake, refusing (and
   // counting) any reply larger than the datagram that provoked it.
   void SendUnverified(const Endpoint& to, std::span<const uint8_t> reply, size_t request_size);
-  void Send(const Endpoint& to, std::span<const uint8_t> data);
 
-  // Session -> relay callbacks.
-  void OnJoinRoom(Session& s, std::string_view room, double now);
-  void OnLeaveRoom(Session& s, double now);
-  void OnSpawn(Session& s, std::span<const uint8_t> message, const schema::Spawn* spawn);
-  void OnDespawn(Session& s, uint32_t entity_id);
-  void OnGrab(Session& s, uint32_t entity_id, uint32_t hand_id);
-  void OnRelease(Session& s, uint32_t entity_id);
-  void BroadcastPhysicsEvent(Room& room, schema::PhysicsEventKind kind, uint32_t a, uint32_t b);
+  // SessionHost: what sessions ask of the relay.
+  void OnJoinRoom(Session& s, std::string_view room, double now) override;
+  void OnLeaveRoom(Session& s, double now) override;
+  void OnWorkerHello(Session& s) override;
+  void OnWorkerResult(Session& s, const schema::WorkerResult& result) override;
+  void OnWorkerStates(Session& s, std::span<const uint8_t> payload) override;
+  void Transmit(const Endpoint& to, std::span<const uint8_t> data) override;
+
+  // Services every connection (resends, keep-alives, timeouts), removes the closed ones, and
+  // with `sample_rtt` records every connection's RTT.
+  void UpdateSessions(double now, bool sample_rtt);
+  void RemoveSession(uint32_t connection_id, double now);
   // Steps every room's PhyS (embedded worlds in parallel on the pool; remote links collect
   // what their worker sent), failing over unhealthy links first, then applies the results.
   void StepAllPhysics(double now);
-  // Folds one room's PhyS output into its entities and broadcasts its events.
-  void ApplyPhysics(Room& room, const RoomPhysics::StepOutput& output, double now);
-  // A PhyS link on the least loaded worker (not `exclude_worker`), else embedded.
-  std::unique_ptr<PhysicsLink> MakePhysicsLink(uint32_t exclude_worker, double now);
-  // Rebuilds the room's PhyS on a new link from the containers, states and velocities held.
-  void FailOver(Room& room, double now);
-  void OnWorkerHello(Session& s);
-  void OnWorkerResult(Session& s, const schema::WorkerResult& result);
-  void OnWorkerStates(Session& s, std::span<const uint8_t> payload);
-  void OnStates(Session& s, std::span<const uint8_t> payload);
-  void SendError(Session& s, uint16_t reason, uint32_t entity_id, std::string_view detail);
-
-  void RemoveSession(uint32_t connection_id, double now);
-  // Runs the replication tick of every due room, clients in parallel on the pool.
+  // Runs the replication tick of every due room, receivers in parallel on the pool.
   void TickDueRooms(double now);
-  void BroadcastReliable(Room& room, std::span<const uint8_t> message, uint32_t except_player);
   void CloseIdleRooms(double now);
-  Room* GetOrCreateRoom(const std::string& name, double now);
+  RoomHost& GetOrCreateRoom(const std::string& name, double now);
+  RoomHostEnv room_env() { return RoomHostEnv{&config_.limits, counters_, &workers_}; }
+  // Publishes the rooms, clients and (once a second) PhyS gauges.
+  void PublishGauges(bool physics);
   // Sets a gauge to `value` (shared counters: adds the change since the last publication).
   void PublishGauge(RelayCounters::Gauge& gauge, int64_t* published, int64_t value);
 
@@ -141,19 +141,21 @@ class Relay {
   RelayCounters* counters_;
   CookieJar cookies_;
   ReplayGuard replay_guard_;
-  std::map<std::string, std::unique_ptr<Room>> rooms_;
+  // Declared before the rooms: remote links (held by rooms) unregister from it when destroyed.
+  WorkerDirectory workers_;
+  std::map<std::string, std::unique_ptr<RoomHost>> rooms_;
   std::unordered_map<uint32_t, std::unique_ptr<Session>> sessions_;  // by connection id
   std::map<Endpoint, uint32_t> session_by_endpoint_;
   std::vector<uint8_t> receive_buffer_;
-  StateBatch batch_;
-  std::vector<RoomPhysics::StepOutput> step_outputs_;  // one per room with physics
-  std::vector<Room*> physics_rooms_;
+  std::vector<PhysicsLink::StepOutput> step_outputs_;  // one per room with physics
+  std::vector<RoomHost*> physics_rooms_;
+  std::vector<PhysicsLink*> physics_links_;
   struct TickJob {
-    Room* room;
-    Session* session;
+    const EntityTable* entities;
+    MemberLink* member;
   };
   std::vector<TickJob> tick_jobs_;
-  uint32_t next_room_handle_ = 0;
+  std::vector<MemberLink*> receivers_;
   double now_ = 0;
   double last_rtt_sample_ = 0;
   std::vector<uint32_t> removal_scratch_;

@@ -10,7 +10,7 @@ namespace edgephys {
 Room::Room(std::string name, const RoomConfig& config, double now)
     : name_(std::move(name)), config_(config), next_tick_(now), empty_since_(now) {}
 
-uint32_t Room::AddMember(uint32_t player_id, uint32_t session) {
+uint32_t Room::AddMember(uint32_t player_id, MemberLink* link) {
   if (members_.size() >= config_.capacity) return 0;
   // Lowest free slot: not a member's, and not the id block of entities that outlived their
   // owner (Persistent ones pass to the room but keep their ids). Slot 0 is the room's own.
@@ -21,7 +21,7 @@ uint32_t Room::AddMember(uint32_t player_id, uint32_t session) {
   uint32_t slot = 1;
   while (slot < kEntityIdBlock && used[slot]) ++slot;
   if (slot >= kEntityIdBlock) return 0;
-  members_[player_id] = Member{player_id, slot, session, 0};
+  members_[player_id] = Member{player_id, slot, link, 0, {}};
   return slot;
 }
 

@@ -1,7 +1,10 @@
-// Room: the relay's single point of truth for one shared scene: who is in it and every
-// entity's owner, spawn description and latest state. Owned by one thread (the relay's);
-// no locking. Entities of players who leave are despawned unless flagged Persistent, in which
-// case the room takes them over (owner 0), so a session outlives its users.
+// Room: the data of one shared scene, the relay's single point of truth for it: who is in it
+// and every entity's owner, spawn description and latest state, its PhyS link and its tick
+// schedule. The rules that change it (admission to the room, authority, physics output,
+// fan-out) live in RoomHost (relay/room_host.h), which owns the Room.
+// Thread-safety: one thread (the relay's); no locking. Entities of players who leave are
+// despawned unless flagged Persistent, in which case the room takes them over (owner 0), so a
+// session outlives its users.
 #pragma once
 
 #include <cstdint>
@@ -14,48 +17,11 @@
 
 #include "protocol/delta_codec.h"
 #include "protocol/state_codec.h"
+#include "relay/entity.h"
 #include "relay/physics_link.h"
 #include "relay/relay_config.h"
 
 namespace edgephys {
-
-inline constexpr uint32_t kEntityIdBlock = 1u << 16;  // ids per player slot
-
-struct Entity {
-  uint32_t id = 0;
-  uint32_t owner = 0;            // player id; 0 = the room or PhyS (see physics)
-  uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones)
-  PhysicsRole physics = PhysicsRole::kNone;
-  uint32_t held_by = 0;          // hand entity holding it (grabbed), 0 if none
-  std::vector<Vec3f> nodes;      // soft body particles (PhyS-simulated soft bodies)
-  uint32_t nodes_version = 0;    // bumped when `nodes` change
-  Vec3f linear_velocity;         // last reported by PhyS (restored on failover)
-  Vec3f angular_velocity;
-  uint64_t spawn_seq = 0;        // order of arrival in the room (parents before children)
-  uint32_t grab_requester = 0;   // player whose grab request is pending
-  uint32_t flags = 0;            // schema::EntityFlags
-  uint32_t version = 1;          // bumped on every accepted state change
-  double changed_at = 0;         // relay time of the last accepted change (resting detection)
-  // Relay time a user last interacted with it: grab, release, or a physics event naming it
-  // (replication's ambient class). -inf-like until then.
-  double interacted_at = -1e9;
-  // Open Enter events (trigger overlaps, reported contacts) naming it, not yet exited.
-  uint32_t touching = 0;
-  EntityState state;
-  std::vector<uint8_t> spawn;    // the ControlMessage{Spawn} as received, re-sent to joiners
-  // `state` quantised for the edgephys format, shared by every receiver's encoder
-  // (Room::PrepareStates); valid while `prepared_of` equals `state`.
-  bool prepared_valid = false;
-  EntityState prepared_of;
-  PreparedState prepared;
-};
-
-struct Member {
-  uint32_t player_id = 0;
-  uint32_t slot = 0;             // 1..capacity; entity ids slot<<16 .. +65535 are the player's
-  uint32_t session = 0;          // connection id of the player's session
-  uint32_t entity_count = 0;
-};
 
 class Room {
  public:
@@ -66,8 +32,9 @@ class Room {
   bool empty() const { return members_.empty(); }
   size_t size() const { return members_.size(); }
 
-  // Adds a player; returns its slot, or 0 when the room is full.
-  uint32_t AddMember(uint32_t player_id, uint32_t session);
+  // Adds a player reached through `link` (not owned; valid until RemoveMember); returns its
+  // slot, or 0 when the room is full.
+  uint32_t AddMember(uint32_t player_id, MemberLink* link);
   // Removes a player. Its entities (those it owns, and PhyS-owned ones it created) are
   // despawned (ids appended to `despawned`) unless Persistent, which pass to the room.
   void RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned);
@@ -78,7 +45,7 @@ class Room {
   // Inserts a new entity (the caller validated ownership and id range).
   Entity& AddEntity(Entity entity);
   void RemoveEntity(uint32_t id);
-  const std::unordered_map<uint32_t, Entity>& entities() const { return entities_; }
+  const EntityTable& entities() const { return entities_; }
 
   // PhyS for this room (embedded or on a worker); null until the first physics entity.
   PhysicsLink* physics() const { return physics_.get(); }
@@ -103,7 +70,7 @@ class Room {
   std::string name_;
   RoomConfig config_;
   std::map<uint32_t, Member> members_;  // by player id
-  std::unordered_map<uint32_t, Entity> entities_;
+  EntityTable entities_;
   std::unique_ptr<PhysicsLink> physics_;
   uint64_t spawn_seq_ = 0;
   std::optional<QuantizationParams> quantization_;  // edgephys rooms, made on first use

@@ -1,15 +1,17 @@
 #include "relay/session.h"
 
 #include "protocol/handshake.h"
-#include "relay/relay.h"
+#include "relay/drop_log.h"
+#include "relay/room_host.h"
 
 namespace edgephys {
 
-Session::Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id,
-                 uint32_t player_id, uint32_t permissions, std::string token_room,
-                 uint64_t token_nonce, const ConnectionConfig& config,
+Session::Session(SessionHost* host, RelayCounters* counters, const Endpoint& endpoint,
+                 uint32_t connection_id, uint32_t player_id, uint32_t permissions,
+                 std::string token_room, uint64_t token_nonce, const ConnectionConfig& config,
                  const AbuseLimits& limits, double now)
-    : relay_(relay),
+    : host_(host),
+      counters_(counters),
       endpoint_(endpoint),
       connection_(connection_id, config, now),
       player_id_(player_id),
@@ -23,50 +25,45 @@ Session::Session(Relay* relay, const Endpoint& endpoint, uint32_t connection_id,
       connected_at_(now) {}
 
 void Session::OnReliableMessage(std::span<const uint8_t> message) {
-  RelayCounters::Inc(relay_->counters_->reliable_messages_received);
+  using schema::Body;
+  using schema::RejectReason;
+  RelayCounters::Inc(counters_->reliable_messages_received);
   const schema::ControlMessage* msg = VerifyControlMessage(message);
-  if (msg == nullptr) {
-    relay_->SendError(*this, static_cast<uint16_t>(schema::RejectReason::InvalidMessage), 0,
-                      "message failed verification");
-    return;
-  }
+  if (msg == nullptr) return SendError(RejectReason::InvalidMessage, 0, "message failed verification");
   switch (msg->body_type()) {
-    case schema::Body::JoinRoom: {
+    case Body::JoinRoom: {
       const auto* join = msg->body_as_JoinRoom();
       std::string_view room = join->room() ? join->room()->string_view() : std::string_view();
-      relay_->OnJoinRoom(*this, room, now_);
-      break;
+      return host_->OnJoinRoom(*this, room, now_);
     }
-    case schema::Body::LeaveRoom:
-      relay_->OnLeaveRoom(*this, now_);
-      break;
-    case schema::Body::Spawn:
-      relay_->OnSpawn(*this, message, msg->body_as_Spawn());
-      break;
-    case schema::Body::Despawn:
-      relay_->OnDespawn(*this, msg->body_as_Despawn()->entity_id());
-      break;
-    case schema::Body::Grab:
-      relay_->OnGrab(*this, msg->body_as_Grab()->entity_id(), msg->body_as_Grab()->hand_id());
-      break;
-    case schema::Body::Release:
-      relay_->OnRelease(*this, msg->body_as_Release()->entity_id());
-      break;
-    case schema::Body::WorkerHello:
-      relay_->OnWorkerHello(*this);
-      break;
-    case schema::Body::WorkerResult:
-      relay_->OnWorkerResult(*this, *msg->body_as_WorkerResult());
-      break;
-    default:
-      relay_->SendError(*this, static_cast<uint16_t>(schema::RejectReason::InvalidMessage), 0,
-                        "unexpected message type");
-      break;
+    case Body::LeaveRoom: return host_->OnLeaveRoom(*this, now_);
+    case Body::WorkerHello: return host_->OnWorkerHello(*this);
+    case Body::WorkerResult: return host_->OnWorkerResult(*this, *msg->body_as_WorkerResult());
+    case Body::Spawn:
+    case Body::Despawn:
+    case Body::Grab:
+    case Body::Release: break;
+    default: return SendError(RejectReason::InvalidMessage, 0, "unexpected message type");
+  }
+  // Requests about the joined room's entities.
+  uint32_t entity = 0;
+  if (msg->body_type() == Body::Despawn) entity = msg->body_as_Despawn()->entity_id();
+  if (msg->body_type() == Body::Grab) entity = msg->body_as_Grab()->entity_id();
+  if (msg->body_type() == Body::Release) entity = msg->body_as_Release()->entity_id();
+  if (room_ == nullptr) return SendError(RejectReason::NotJoined, entity, "join a room first");
+  switch (msg->body_type()) {
+    case Body::Spawn: return room_->Spawn(*this, message, *msg->body_as_Spawn(), now_);
+    case Body::Despawn: return room_->Despawn(*this, entity);
+    case Body::Grab: return room_->Grab(*this, entity, msg->body_as_Grab()->hand_id());
+    case Body::Release: return room_->Release(*this, entity, now_);
+    default: return;
   }
 }
 
 void Session::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
-  relay_->OnStates(*this, payload);
+  if (is_worker_) return host_->OnWorkerStates(*this, payload);
+  if (room_ == nullptr) return counters_->RejectUpdate(DropReason::kNotJoined);
+  room_->ApplyStates(*this, payload, now_);
 }
 
 void Session::OnPacketAcked(uint16_t sequence) {
@@ -74,13 +71,56 @@ void Session::OnPacketAcked(uint16_t sequence) {
 }
 
 void Session::WritePacket(std::span<const uint8_t> packet) {
-  if (!buffering_) return relay_->Send(endpoint_, packet);
+  if (!buffering_) return host_->Transmit(endpoint_, packet);
   if (outbox_size_ == outbox_.size()) outbox_.emplace_back();
   outbox_[outbox_size_++].assign(packet.begin(), packet.end());
 }
 
-void Session::FlushOutbox() {
-  for (size_t i = 0; i < outbox_size_; ++i) relay_->Send(endpoint_, outbox_[i]);
+bool Session::SendReliable(std::span<const uint8_t> message) {
+  if (connection_.SendReliable(message).ok()) return true;
+  connection_.Disconnect(DisconnectReason::kReliableOverflow, *this);
+  return false;
+}
+
+void Session::SendError(schema::RejectReason reason, uint32_t entity_id, std::string_view detail) {
+  counters_->RejectRequest(static_cast<uint16_t>(reason));
+  DropLogOfThisThread().Note("request rejected", schema::EnumNameRejectReason(reason), endpoint_,
+                             now_);
+  flatbuffers::FlatBufferBuilder fbb(128);
+  FinishControl(fbb, schema::CreateError(fbb, reason, entity_id,
+                                         fbb.CreateString(detail.data(), detail.size())));
+  (void)SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+}
+
+void Session::DropPayload(DropReason reason) {
+  counters_->RejectPacket(reason);
+  DropLogOfThisThread().Note("state payload dropped", DropReasonName(reason), endpoint_, now_);
+}
+
+void Session::DropUpdate(DropReason reason) {
+  counters_->RejectUpdate(reason);
+  DropLogOfThisThread().Note("entity update dropped", DropReasonName(reason), endpoint_, now_);
+}
+
+void Session::StartReplication(const ReplicationConfig& config) {
+  replicator_ = std::make_unique<ClientReplicator>(config);
+  states_after_reliable_ = connection_.reliable_queued_end();
+}
+
+bool Session::ReadyForStates() const {
+  return connection_.connected() && replicator_ != nullptr &&
+         connection_.reliable_acked_end() >= states_after_reliable_;
+}
+
+void Session::Replicate(const EntityTable& entities, double now, RelayCounters& counters,
+                        bool buffered) {
+  buffering_ = buffered;
+  replicator_->Tick(entities, player_id_, now, connection_, *this, counters);
+}
+
+void Session::FlushReplication() {
+  buffering_ = false;
+  for (size_t i = 0; i < outbox_size_; ++i) host_->Transmit(endpoint_, outbox_[i]);
   outbox_size_ = 0;
 }
 

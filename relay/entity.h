@@ -1,0 +1,61 @@
+// The relay's view of what a room holds: entities (every entity's owner, spawn description and
+// latest state) and members (who is in the room and through which link they are reached).
+// Plain data, owned by a Room; the rules that change them live in RoomHost (relay/room_host.h).
+#pragma once
+
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "physics_backend/room_physics.h"
+#include "protocol/delta_codec.h"
+#include "protocol/state_codec.h"
+
+namespace edgephys {
+
+class MemberLink;
+
+inline constexpr uint32_t kEntityIdBlock = 1u << 16;  // ids per player slot
+
+struct Entity {
+  uint32_t id = 0;
+  uint32_t owner = 0;            // player id; 0 = the room or PhyS (see physics)
+  uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones)
+  PhysicsRole physics = PhysicsRole::kNone;
+  uint32_t held_by = 0;          // hand entity holding it (grabbed), 0 if none
+  std::vector<Vec3f> nodes;      // soft body particles (PhyS-simulated soft bodies)
+  uint32_t nodes_version = 0;    // bumped when `nodes` change
+  Vec3f linear_velocity;         // last reported by PhyS (restored on failover)
+  Vec3f angular_velocity;
+  uint64_t spawn_seq = 0;        // order of arrival in the room (parents before children)
+  uint32_t grab_requester = 0;   // player whose grab request is pending
+  uint32_t flags = 0;            // schema::EntityFlags
+  uint32_t version = 1;          // bumped on every accepted state change
+  double changed_at = 0;         // relay time of the last accepted change (resting detection)
+  // Relay time a user last interacted with it: grab, release, or a physics event naming it
+  // (replication's ambient class). -inf-like until then.
+  double interacted_at = -1e9;
+  // Open Enter events (trigger overlaps, reported contacts) naming it, not yet exited.
+  uint32_t touching = 0;
+  EntityState state;
+  std::vector<uint8_t> spawn;    // the ControlMessage{Spawn} as received, re-sent to joiners
+  // `state` quantised for the edgephys format, shared by every receiver's encoder
+  // (Room::PrepareStates); valid while `prepared_of` equals `state`.
+  bool prepared_valid = false;
+  EntityState prepared_of;
+  PreparedState prepared;
+};
+
+using EntityTable = std::unordered_map<uint32_t, Entity>;
+
+struct Member {
+  uint32_t player_id = 0;
+  uint32_t slot = 0;             // 1..capacity; entity ids slot<<16 .. +65535 are the player's
+  MemberLink* link = nullptr;    // how the room reaches the player (its session); not owned
+  uint32_t entity_count = 0;
+  // States that arrived for the player's own, not yet spawned entities (the spawn travels on
+  // the reliable channel and may arrive later). Bounded; applied when the spawn arrives.
+  std::unordered_map<uint32_t, EntityState> early_states;
+};
+
+}  // namespace edgephys

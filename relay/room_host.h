@@ -1,0 +1,115 @@
+// RoomHost: one room's behaviour. It owns the Room (the data) and applies the room's rules:
+// membership (join, leave, late join: the state a joiner is sent), entity authority (who may
+// spawn, despawn, move and grab what), PhyS output and failover, and fan-out (reliable
+// broadcasts and the replication tick's receivers). It reaches members only through
+// MemberLink and PhyS only through PhysicsLink/PhysicsPlacement, so its rules are tested
+// without sockets (relay/room_host_test.cc).
+//
+// Requests a rule refuses are answered on the requester's link with Error{reason} and counted
+// (MemberLink::SendError); untrusted state updates that fail a check are dropped and counted
+// (MemberLink::DropUpdate), never asserted on.
+//
+// Thread-safety: one thread (the relay's) for every method; during a replication tick the
+// relay may run MemberLink::Replicate for the receivers BeginTick returned in parallel, which
+// only read the room's entities. Cost: each method is O(members) for its broadcasts plus the
+// work named on it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "relay/member_link.h"
+#include "relay/relay_config.h"
+#include "relay/relay_counters.h"
+#include "relay/room.h"
+#include "relay/worker_directory.h"
+
+namespace edgephys {
+
+// What a room needs from the relay that hosts it. Not owned; all must outlive the room.
+struct RoomHostEnv {
+  const AbuseLimits* limits = nullptr;
+  RelayCounters* counters = nullptr;
+  PhysicsPlacement* placement = nullptr;  // where the room's PhyS is created
+};
+
+class RoomHost {
+ public:
+  RoomHost(std::string name, const RoomConfig& config, const RoomHostEnv& env, double now);
+  RoomHost(const RoomHost&) = delete;
+  RoomHost& operator=(const RoomHost&) = delete;
+
+  const Room& room() const { return room_; }
+  const std::string& name() const { return room_.name(); }
+  // Members or entities: an operator may not replace the room.
+  bool in_use() const { return !room_.empty() || !room_.entities().empty(); }
+  // Empty for at least the room's idle TTL.
+  bool IdleExpired(double now) const;
+  // The link of a member, null if `player_id` is not in the room.
+  MemberLink* FindMember(uint32_t player_id) const;
+
+  // --- Membership -------------------------------------------------------------------------
+  // Admits `link`'s player: queues Joined (its slot's entity id block, the state format and
+  // quantisation), RoomState and one Spawn per existing entity on its reliable channel, starts
+  // its replication, and tells the other members PlayerJoined. False (Error{RoomFull} sent)
+  // when the room is full. The player must not be a member already (the relay replaces an
+  // older session of the same player first). O(entities + members).
+  bool Join(MemberLink& link, double now);
+  // Removes the player if `link` is its current link (else nothing). Its non-persistent
+  // entities are despawned for everyone (Despawn each, and every remaining member forgets
+  // them); persistent ones pass to the room (owner 0). Then PlayerLeft. O(entities x members).
+  void Leave(MemberLink& link, double now);
+
+  // --- Requests of a member (refused ones: Error{reason} on `link`) ------------------------
+  // A spawn: `message` is the whole verified ControlMessage{Spawn}. Checks size, rate,
+  // permission, id block, owner, duplicate id, the player's entity limit and the transform;
+  // physics components go to PhyS (created on first use). Broadcast to the others (to all,
+  // with owner 0, when PhyS simulates it).
+  void Spawn(MemberLink& link, std::span<const uint8_t> message, const schema::Spawn& spawn,
+             double now);
+  // Its owner (or the creator of a PhyS-owned entity) removes it for everyone.
+  void Despawn(MemberLink& link, uint32_t entity_id);
+  // A grab of a PhyS-simulated entity by the member's hand; answered after a physics step
+  // (Grabbed to all, or Error{GrabRefused} to the requester).
+  void Grab(MemberLink& link, uint32_t entity_id, uint32_t hand_id);
+  // Releases what the member's hand holds; Released to all.
+  void Release(MemberLink& link, uint32_t entity_id, double now);
+  // An unreliable state payload from the member: each state is applied if the member owns the
+  // entity and it is valid (early states of its own unspawned entities are held, bounded).
+  // O(states).
+  void ApplyStates(MemberLink& link, std::span<const uint8_t> payload, double now);
+
+  // --- PhyS -------------------------------------------------------------------------------
+  // The room's physics link, after failing it over if unhealthy; null without physics.
+  PhysicsLink* PreparePhysics(double now);
+  // Folds a step's output into the entities and broadcasts its events and grab answers.
+  void ApplyPhysics(const PhysicsLink::StepOutput& output, double now);
+  // Rebuilds PhyS on a new link (another worker than the failed one, or embedded) from the
+  // containers, states and velocities the room holds; grabs are re-established.
+  void FailOver(double now);
+  // Connection id of the worker simulating the room, 0 if embedded or none.
+  uint32_t physics_worker() const;
+
+  // --- Fan-out ----------------------------------------------------------------------------
+  bool TickDue(double now) const { return now >= room_.next_tick(); }
+  // Starts a replication tick: quantises changed entities once for all receivers, schedules
+  // the next tick and appends the members ready for states to `receivers`, who are then
+  // replicated (MemberLink::Replicate) over room().entities().
+  void BeginTick(double now, std::vector<MemberLink*>* receivers);
+  // Queues `message` on every member's reliable channel but `except_player`'s (0: none).
+  void BroadcastReliable(std::span<const uint8_t> message, uint32_t except_player);
+
+ private:
+  void BroadcastPhysicsEvent(schema::PhysicsEventKind kind, uint32_t a, uint32_t b, double now);
+  void BroadcastDespawn(uint32_t entity_id, uint32_t except_player);
+  void SendJoinState(MemberLink& link, uint32_t slot);
+
+  Room room_;
+  RoomHostEnv env_;
+  StateBatch batch_;  // ApplyStates' decode buffer, reused
+};
+
+}  // namespace edgephys
