@@ -70,6 +70,7 @@ class btBroadphaseInterface;
 class btCollisionConfiguration;
 class btCollisionDispatcher;
 class btCollisionObject;
+class btCollisionShape;
 class btConstraintSolver;
 class btDiscreteDynamicsWorld;
 class btRigidBody;
@@ -78,6 +79,10 @@ class btSoftBodyWorldInfo;
 class btTypedConstraint;
 
 namespace edgephys::physics {
+
+namespace internal {
+struct BodyShapes;  // physics_world_internal.h
+}  // namespace internal
 
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
@@ -264,7 +269,7 @@ class PhysicsWorld {
   btSoftBody* SoftBodyForTesting(uint32_t id) const;
   btDiscreteDynamicsWorld* BulletWorldForTesting() const { return world_.get(); }
 
-  struct Entity;  // defined in physics_world.cc
+  struct Entity;  // defined in physics_world_internal.h
 
  private:
   struct PairKey {
@@ -275,16 +280,26 @@ class PhysicsWorld {
   };
   struct JointRecord;
 
+  // physics_world.cc
   Entity* Find(uint32_t id) const;
   void MarkDirty(Entity* e);
   void PushEvent(const PhysicsEvent& ev);
   void ApplyCommands();
-  void RunGuard();
-  void RunSoftGuard(Entity* e);
-  void DiffContacts();
   void RemoveJointsOf(uint32_t id);
   void ReportTree(Entity* e, std::vector<EntityState>* moved);
+  // AddEntity's steps after validation (body_builder.cc).
+  std::unique_ptr<Entity> NewEntity(const schema::Container& c);
+  void AddSoftBody(Entity* e, const schema::Container& c);
+  void AddRigidParts(Entity* e, const schema::Container& c);
+  void AddRigidBody(Entity* e, const schema::Container& c, const internal::BodyShapes& shapes);
+  void AddTrigger(Entity* e, btCollisionShape* shape);
+  void AddJoints(Entity* e, const schema::Container& c);
+  // stability_guard.cc
+  void RunGuard();
+  void RunSoftGuard(Entity* e);
   void ResetRigid(Entity* e, GuardCause cause);
+  // contact_tracker.cc
+  void DiffContacts();
 
   PhysicsConfig config_;
   std::unique_ptr<btCollisionConfiguration> collision_config_;
