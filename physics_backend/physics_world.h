@@ -27,9 +27,9 @@
 //     bounding-box approximation). Transform scale multiplies dimensions, offsets and vertices
 //     (spheres/capsule radii use the largest scale component).
 //   - Triangle meshes are exact (btBvhTriangleMeshShape) on static and kinematic entities. On
-//     dynamic entities they are replaced by the convex hull of their vertices: GImpact would keep
-//     concavity but costs one to two orders of magnitude more per contact; a client that needs
-//     concave dynamic bodies should send a convex decomposition (several ConvexHull colliders).
+//     dynamic entities they are replaced by the convex hull of their vertices; a client that
+//     needs concave dynamic bodies should send a convex decomposition (several ConvexHull
+//     colliders).
 //   - Triggers (is_trigger): a separate non-responding collision object following the entity, so
 //     an entity may mix solid and trigger colliders (e.g. a hand). Triggers report
 //     kTriggerEnter/Exit against dynamic bodies only (static and kinematic bodies share Bullet's
@@ -70,6 +70,7 @@ class btBroadphaseInterface;
 class btCollisionConfiguration;
 class btCollisionDispatcher;
 class btCollisionObject;
+class btCollisionShape;
 class btConstraintSolver;
 class btDiscreteDynamicsWorld;
 class btRigidBody;
@@ -79,14 +80,15 @@ class btTypedConstraint;
 
 namespace edgephys::physics {
 
+namespace internal {
+struct BodyShapes;  // physics_world_internal.h
+}  // namespace internal
+
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
   // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
-  // across them). 4 (240 Hz internally) is what keeps a 10-box stack standing (< 1 cm over 60 s)
-  // with 10 solver iterations: at 1 the sequential-impulse solver cannot carry the load up the
-  // stack within a step, the stack compresses ~2 cm, rocks and drifts 0.11 m (see
-  // physics_accuracy_test.cc). Cost grows with substeps (MultiObject, 2,000 boxes, 2-core VM:
-  // ~32 ms at 1, ~54 ms at 4 per step), so the default stays 1; rooms with tall stacks set 4.
+  // across them). Cost: every substep is a full Bullet step, so Step() grows with substeps.
+  // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy and stability").
   int substeps = 1;
   int solver_iterations = 10;         // sequential impulse iterations (per substep)
   int max_substeps = 4;               // Advance(): most fixed steps per call (backlog dropped)
@@ -100,10 +102,8 @@ struct PhysicsConfig {
   float ccd_motion_fraction = 0.5f;
   float ccd_swept_radius_fraction = 0.9f;
   bool sleeping = true;               // false: bodies never deactivate
-  // Below both for Bullet's 2 s deactivation time, the body (its island) sleeps. Bullet's own
-  // defaults (0.8 m/s, 1.0 rad/s) let a settled stack sleep before solver noise makes it creep
-  // (physics_accuracy_test), but also freeze slow damped oscillations early (a spring bob
-  // sleeps 6% off its equilibrium, physics_world_test); 0.1 keeps those accurate.
+  // Below both for Bullet's 2 s deactivation time, the body (its island) sleeps. Higher values
+  // let settled stacks sleep sooner but freeze slow damped motion before it settles.
   float sleep_linear_threshold = 0.1f;   // m/s
   float sleep_angular_threshold = 0.1f;  // rad/s
   float world_half_extent = 1000.0f;  // world bounds: axis-aligned cube, metres from the origin
@@ -264,7 +264,7 @@ class PhysicsWorld {
   btSoftBody* SoftBodyForTesting(uint32_t id) const;
   btDiscreteDynamicsWorld* BulletWorldForTesting() const { return world_.get(); }
 
-  struct Entity;  // defined in physics_world.cc
+  struct Entity;  // defined in physics_world_internal.h
 
  private:
   struct PairKey {
@@ -275,16 +275,26 @@ class PhysicsWorld {
   };
   struct JointRecord;
 
+  // physics_world.cc
   Entity* Find(uint32_t id) const;
   void MarkDirty(Entity* e);
   void PushEvent(const PhysicsEvent& ev);
   void ApplyCommands();
-  void RunGuard();
-  void RunSoftGuard(Entity* e);
-  void DiffContacts();
   void RemoveJointsOf(uint32_t id);
   void ReportTree(Entity* e, std::vector<EntityState>* moved);
+  // AddEntity's steps after validation (body_builder.cc).
+  std::unique_ptr<Entity> NewEntity(const schema::Container& c);
+  void AddSoftBody(Entity* e, const schema::Container& c);
+  void AddRigidParts(Entity* e, const schema::Container& c);
+  void AddRigidBody(Entity* e, const schema::Container& c, const internal::BodyShapes& shapes);
+  void AddTrigger(Entity* e, btCollisionShape* shape);
+  void AddJoints(Entity* e, const schema::Container& c);
+  // stability_guard.cc
+  void RunGuard();
+  void RunSoftGuard(Entity* e);
   void ResetRigid(Entity* e, GuardCause cause);
+  // contact_tracker.cc
+  void DiffContacts();
 
   PhysicsConfig config_;
   std::unique_ptr<btCollisionConfiguration> collision_config_;
