@@ -1,7 +1,6 @@
 #include "relay/physics_link.h"
 
 #include "protocol/handshake.h"
-#include "relay/worker_directory.h"
 
 namespace edgephys {
 namespace {
@@ -24,7 +23,7 @@ RemotePhysicsLink::RemotePhysicsLink(WorkerChannel* channel, uint32_t worker_id,
 }
 
 RemotePhysicsLink::~RemotePhysicsLink() {
-  if (directory_ != nullptr) directory_->Unregister(worker_id_, handle_);
+  if (registry_ != nullptr) registry_->Unregister(worker_id_, handle_);
   if (channel_ != nullptr && !broken_) {
     flatbuffers::FlatBufferBuilder fbb(32);
     FinishControl(fbb, schema::CreateWorkerUnassign(fbb, handle_));

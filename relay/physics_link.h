@@ -23,7 +23,13 @@
 
 namespace edgephys {
 
-class WorkerDirectory;
+// Where a RemotePhysicsLink is registered for routing (the relay's WorkerDirectory); told when
+// the link goes.
+class PhysicsLinkRegistry {
+ public:
+  virtual ~PhysicsLinkRegistry() = default;
+  virtual void Unregister(uint32_t worker_id, uint32_t handle) = 0;
+};
 
 class PhysicsLink {
  public:
@@ -109,13 +115,13 @@ class RemotePhysicsLink final : public PhysicsLink {
   // The worker is gone: stop sending.
   void Detach() override { channel_ = nullptr; }
   uint32_t handle() const { return handle_; }
-  // The directory that routes this link's messages (unregistered on destruction); may be null.
-  void set_directory(WorkerDirectory* directory) { directory_ = directory; }
+  // The registry that routes this link's messages (told on destruction); may be null.
+  void set_registry(PhysicsLinkRegistry* registry) { registry_ = registry; }
 
  private:
   void Send(flatbuffers::FlatBufferBuilder& fbb);
   WorkerChannel* channel_;
-  WorkerDirectory* directory_ = nullptr;
+  PhysicsLinkRegistry* registry_ = nullptr;
   uint32_t worker_id_;
   uint32_t handle_;
   physics::PhysicsWorld validator_;  // empty: checks components, never simulates

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "relay/room.h"
+#include "relay/entity.h"
 
 namespace edgephys {
 namespace {

@@ -85,7 +85,8 @@ QuantizationConfig QuantizationOf(const ReplicationConfig& config);
 
 class ClientReplicator {
  public:
-  // `config` must be valid (see ValidateReplicationConfig).
+  // An edgephys `config` whose quantisation MakeQuantizationParams refuses falls back to
+  // format 1 (exact floats).
   explicit ClientReplicator(const ReplicationConfig& config);
   ~ClientReplicator();
 

@@ -8,7 +8,7 @@ namespace edgephys {
 
 WorkerDirectory::~WorkerDirectory() {
   // Links outliving the directory would call Unregister on a dead object: make them forget us.
-  for (auto& [key, link] : links_) link->set_directory(nullptr);
+  for (auto& [key, link] : links_) link->set_registry(nullptr);
 }
 
 void WorkerDirectory::Attach(uint32_t worker_id, WorkerChannel* channel) {
@@ -38,7 +38,7 @@ std::unique_ptr<PhysicsLink> WorkerDirectory::Place(uint32_t exclude_worker, dou
   uint32_t handle = ++next_handle_;
   spdlog::info("PhyS: room handle {} on worker {:08x}", handle, best);
   auto link = std::make_unique<RemotePhysicsLink>(workers_.at(best), best, handle, config_, now);
-  link->set_directory(this);
+  link->set_registry(this);
   links_[Key(best, handle)] = link.get();
   return link;
 }

@@ -28,7 +28,7 @@ class PhysicsPlacement {
   virtual std::unique_ptr<PhysicsLink> Place(uint32_t exclude_worker, double now) = 0;
 };
 
-class WorkerDirectory final : public PhysicsPlacement {
+class WorkerDirectory final : public PhysicsPlacement, public PhysicsLinkRegistry {
  public:
   explicit WorkerDirectory(const physics::PhysicsConfig& config) : config_(config) {}
   ~WorkerDirectory() override;
@@ -49,8 +49,8 @@ class WorkerDirectory final : public PhysicsPlacement {
   bool RouteResult(uint32_t worker_id, const schema::WorkerResult& result, double now);
   bool RouteStates(uint32_t worker_id, std::span<const uint8_t> payload, double now);
 
-  // Called by RemotePhysicsLink's destructor.
-  void Unregister(uint32_t worker_id, uint32_t handle);
+  // PhysicsLinkRegistry: called by a placed RemotePhysicsLink's destructor.
+  void Unregister(uint32_t worker_id, uint32_t handle) override;
 
  private:
   static uint64_t Key(uint32_t worker, uint32_t handle) {
