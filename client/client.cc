@@ -180,7 +180,7 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   EntityState st{0, desc.position, desc.rotation};
   if (!IsValidState(st)) return Status(StatusCode::kInvalidArgument, "transform not finite/unit");
   uint32_t id = 0;
-  while (next_local_id_ < kEntityIdBlockSize) {
+  while (next_local_id_ < kEntityIdBlock) {
     uint32_t candidate = entity_id_base_ + next_local_id_++;
     if (owned_.count(candidate) == 0) {
       id = candidate;
@@ -190,19 +190,9 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   if (id == 0) return Status(StatusCode::kResourceExhausted, "entity id block used up");
   st.entity_id = id;
 
-  EntitySpec spec;
+  EntitySpec spec = desc;
   spec.id = id;
-  spec.parent_id = desc.parent;
   spec.owner = player_id_;
-  spec.flags = desc.flags;
-  spec.position = desc.position;
-  spec.rotation = desc.rotation;
-  spec.scale = desc.scale;
-  spec.name = desc.name;
-  spec.rigid_body = desc.rigid_body;
-  spec.colliders = desc.colliders;
-  spec.joints = desc.joints;
-  spec.soft_body = desc.soft_body;
   flatbuffers::FlatBufferBuilder fbb(512);
   auto container = AddContainer(fbb, spec);
   FinishControl(fbb, schema::CreateSpawn(fbb, container));
@@ -464,7 +454,7 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
   for (const EntityState& st : batch_.states) {
     const uint32_t id = st.entity_id;
     if (!IsValidState(st)) continue;
-    if (id - entity_id_base_ < kEntityIdBlockSize && owned_.count(id) != 0) continue;
+    if (id - entity_id_base_ < kEntityIdBlock && owned_.count(id) != 0) continue;
     auto it = entities_.find(id);
     if (it == entities_.end()) {
       if (despawned_.count(id) != 0) continue;

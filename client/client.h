@@ -13,8 +13,8 @@
 //   client.PublishTransform(*id, position, rotation);        // any time; sent at publish rate
 //   for (auto& [id, e] : client.entities()) render(e.state); // or use the listener callbacks
 //
-// Entities: each player owns a block of 65,536 entity ids (from Joined). Spawn() picks the next
-// free id in that block. Only the owner may move or despawn an entity; the relay drops (and
+// Entities: each player owns a block of kEntityIdBlock entity ids (protocol/types.h; the base
+// comes with Joined). Spawn() picks the next free id in that block. Only the owner may move or despawn an entity; the relay drops (and
 // counts) anything else. State reaches others on the unreliable channel, converging under loss:
 // the SDK re-sends an entity's latest state until the relay acknowledges it.
 //
@@ -48,11 +48,9 @@
 #include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
+#include "protocol/types.h"
 
 namespace edgephys {
-
-// Ids in a player's entity id block (Joined.entity_id_base .. + kEntityIdBlockSize - 1).
-inline constexpr uint32_t kEntityIdBlockSize = 1 << 16;
 
 // Largest soft body (particles) a client accepts from the relay.
 inline constexpr uint32_t kMaxSoftBodyNodes = 1 << 16;
@@ -129,24 +127,16 @@ class ClientListener {
   }
 };
 
-// What Spawn() sends: the entity's transform, hierarchy and flags and — the paper's
-// dissection — its physics components. With the Offloaded flag, a dynamic rigid body or a
-// soft body is handed to PhyS: the relay simulates it and it becomes PhyS-owned (this client
-// receives its state like everyone else and may still despawn, grab and release it). Without
-// Offloaded, colliders and bodies are mirrored into PhyS as kinematic bodies that follow this
-// client's PublishTransform(), so local physics pushes PhyS-owned objects.
-struct SpawnDesc {
-  Vec3f position;
-  Quatf rotation;
-  Vec3f scale{1, 1, 1};
-  uint32_t parent = 0;
-  uint32_t flags = 0;          // schema::EntityFlags bits (Persistent, Offloaded, Hand, ...)
-  std::string name;
-  std::optional<RigidBodySpec> rigid_body;
-  std::vector<ColliderSpec> colliders;
-  std::vector<JointSpec> joints;
-  std::optional<SoftBodySpec> soft_body;
-};
+// What Spawn() sends: an EntitySpec (protocol/container_builder.h) — the entity's transform,
+// hierarchy (parent_id) and flags (schema::EntityFlags: Persistent, Offloaded, Hand, ...) and,
+// the paper's dissection, its physics components. Spawn() ignores `id` and `owner`: it picks the
+// id from this player's block and the owner is this player.
+// With the Offloaded flag, a dynamic rigid body or a soft body is handed to PhyS: the relay
+// simulates it and it becomes PhyS-owned (this client receives its state like everyone else and
+// may still despawn, grab and release it). Without Offloaded, colliders and bodies are mirrored
+// into PhyS as kinematic bodies that follow this client's PublishTransform(), so local physics
+// pushes PhyS-owned objects.
+using SpawnDesc = EntitySpec;
 
 class Client final : private ConnectionHandler, private PacketWriter {
  public:

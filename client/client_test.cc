@@ -24,8 +24,8 @@ using Bytes = std::vector<uint8_t>;
 
 constexpr uint32_t kConnectionId = 0x77;
 constexpr uint32_t kPlayerId = 1;
-constexpr uint32_t kOwnBase = 65536;        // this client's id block
-constexpr uint32_t kOtherBase = 3 * 65536;  // another player's block
+constexpr uint32_t kOwnBase = kEntityIdBlock;      // this client's id block (slot 1)
+constexpr uint32_t kOtherBase = 3 * kEntityIdBlock;  // another player's block (slot 3)
 
 // CLOCK_REALTIME in seconds, the clock of arrival times.
 double RealtimeNow() {
@@ -256,7 +256,7 @@ TEST_F(ClientReceiveTest, OwnEntitiesAreNotListedButOthersInOurBlockAre) {
   Result<uint32_t> own = client_.Spawn({.position = {0, 1, 0}});
   ASSERT_TRUE(own.ok());
   ASSERT_GE(*own, kOwnBase);
-  ASSERT_LT(*own, kOwnBase + kEntityIdBlockSize);
+  ASSERT_LT(*own, kOwnBase + kEntityIdBlock);
   // A PhyS-owned (offloaded) entity has an id from our block but is not ours to publish.
   const uint32_t offloaded = kOwnBase + 500;
   Spawn(offloaded);

@@ -52,7 +52,7 @@
 
 namespace edgephys {
 
-inline constexpr uint8_t kDeltaStateFormat = 2;
+inline constexpr uint8_t kDeltaStateFormat = static_cast<uint8_t>(StateFormat::kQuantizedDelta);
 // States kept per entity on both ends (protocol constant: both ends must agree).
 inline constexpr size_t kDeltaBaselineWindow = 16;
 // Largest distance, in payload counters, between a state and its reference.

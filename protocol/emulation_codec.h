@@ -25,7 +25,8 @@
 
 namespace edgephys {
 
-enum : uint8_t { kFormatPhoton = 3, kFormatPaper = 4 };
+inline constexpr uint8_t kFormatPhoton = static_cast<uint8_t>(StateFormat::kPhoton);
+inline constexpr uint8_t kFormatPaper = static_cast<uint8_t>(StateFormat::kPaper);
 inline constexpr uint8_t kFieldPosition = 1u << 0;
 inline constexpr uint8_t kFieldRotation = 1u << 1;
 

@@ -18,29 +18,28 @@
 #include <vector>
 
 #include "protocol/status.h"
+#include "protocol/types.h"
 
 namespace edgephys {
-
-struct Vec3f {
-  float x = 0, y = 0, z = 0;
-};
-struct Quatf {
-  float x = 0, y = 0, z = 0, w = 1;
-};
-
-struct EntityState {
-  uint32_t entity_id = 0;
-  Vec3f position;   // metres, room frame
-  Quatf rotation;   // unit quaternion
-};
 
 // True if every component is finite, positions are within +-1e6 m and the rotation has unit
 // length within 1e-3. Relays drop (and count) states that fail this.
 bool IsValidState(const EntityState& state);
 
-// kQuantizedDelta (format 2, protocol/delta_codec.h) is stateful: it is decoded only by a
-// DeltaDecoder owned by the stream's receiver, never by DecodeStateBatch.
-enum class StateFormat : uint8_t { kFloat = 1, kQuantizedDelta = 2 };
+// The first byte of every state payload on the unreliable channel. One list, so that no two
+// formats share an id (the PhyS worker link's own formats, 6 and up, are in
+// physics_backend/worker_protocol.h).
+// kQuantizedDelta (protocol/delta_codec.h) is stateful: it is decoded only by a DeltaDecoder
+// owned by the stream's receiver, never by DecodeStateBatch. kPhoton and kPaper are the
+// benchmark emulations (protocol/emulation_codec.h); kSoftBody carries soft-body particles
+// (protocol/soft_body_codec.h).
+enum class StateFormat : uint8_t {
+  kFloat = 1,
+  kQuantizedDelta = 2,
+  kPhoton = 3,
+  kPaper = 4,
+  kSoftBody = 5,
+};
 
 // Writes entity states into datagram payloads. Usage per payload:
 //   encoder.Begin(buffer, time_ms); while (encoder.Add(state)) {...}; size = encoder.Finish();

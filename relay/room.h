@@ -19,8 +19,6 @@
 
 namespace edgephys {
 
-inline constexpr uint32_t kEntityIdBlock = 1u << 16;  // ids per player slot
-
 struct Entity {
   uint32_t id = 0;
   uint32_t owner = 0;            // player id; 0 = the room or PhyS (see physics)
