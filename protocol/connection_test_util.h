@@ -126,7 +126,7 @@ class Peer : public PacketWriter {
   void WritePacket(std::span<const uint8_t> packet) override {
     EXPECT_LE(packet.size(), kMaxPacketSize);
     handler.NoteSent(packet);
-    if (!mute) sim.SendTo(remote_, packet);
+    if (!mute) (void)sim.SendTo(remote_, packet);  // NetworkSimulator::SendTo is always Ok
   }
 
   void Receive(double now) {

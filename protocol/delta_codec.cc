@@ -584,7 +584,7 @@ DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities
 void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
 
 Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed(StatusCode::kMalformed, "malformed format-2 state payload");
+  const Status malformed = Status::Malformed("malformed format-2 state payload");
   auto fail = [&]() {
     ++stats_.malformed;
     return malformed;

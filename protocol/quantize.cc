@@ -26,7 +26,7 @@ double RotationErrorBoundRad(int32_t rotation_max) {
 }
 
 Result<QuantizationParams> MakeQuantizationParams(const QuantizationConfig& c) {
-  const Status bad(StatusCode::kInvalidArgument, "bad quantization config");
+  const Status bad = Status::InvalidArgument("bad quantization config");
   QuantizationParams p;
   p.config = c;
   const float mins[3] = {c.bounds_min.x, c.bounds_min.y, c.bounds_min.z};

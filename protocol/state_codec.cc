@@ -94,10 +94,10 @@ size_t FloatStateEncoder::Finish() {
 }
 
 Status DecodeStateBatch(std::span<const uint8_t> payload, StateBatch* batch) {
-  const Status malformed(StatusCode::kMalformed, "malformed state payload");
+  const Status malformed = Status::Malformed("malformed state payload");
   batch->states.clear();
   if (!payload.empty() && payload[0] == static_cast<uint8_t>(StateFormat::kQuantizedDelta)) {
-    return Status(StatusCode::kInvalidArgument, "format 2 payload needs a DeltaDecoder");
+    return Status::InvalidArgument("format 2 payload needs a DeltaDecoder");
   }
   if (payload.size() < 6 || payload[0] != static_cast<uint8_t>(StateFormat::kFloat)) {
     return malformed;
