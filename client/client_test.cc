@@ -12,7 +12,7 @@
 #include <memory>
 #include <vector>
 
-#include "protocol/connection_doubles.h"
+#include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "protocol/udp_socket.h"

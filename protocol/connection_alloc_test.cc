@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <new>
 
-#include "protocol/allocation_counter_test_util.h"
+#include "protocol/testing/allocation_counter_test_util.h"
 #include "protocol/connection.h"
 
 namespace edgephys {

@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "protocol/connection_test_util.h"
+#include "protocol/testing/connection_test_util.h"
 
 namespace edgephys {
 namespace {
