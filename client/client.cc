@@ -329,7 +329,8 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       entity_id_base_ = j->entity_id_base();
       next_local_id_ = 1;
       delta_decoder_.reset();
-      position_step_m_ = j->position_step_m() > 0 ? j->position_step_m() : 0.001f;
+      position_step_m_ =
+          j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
       if (j->state_format() == kDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();

@@ -260,7 +260,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   StateBatch batch_;
   FloatStateEncoder encoder_;
   std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
-  float position_step_m_ = 0.001f;               // the room's quantisation step
+  float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
   SoftBodyChunk soft_chunk_;
   uint64_t bytes_state_received_ = 0;
   uint64_t state_payloads_outside_room_ = 0;

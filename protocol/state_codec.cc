@@ -54,12 +54,7 @@ size_t GetVarint32(std::span<const uint8_t> in, uint32_t* value) {
   return 0;
 }
 
-void FloatStateEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
-  out_ = out;
-  pos_ = kHeaderSize;
-  count_ = 0;
-  time_ms_ = time_ms;
-}
+FloatStateEncoder::FloatStateEncoder() : ByteStateEncoder(kHeaderSize) {}
 
 bool FloatStateEncoder::Add(const EntityState& s) {
   uint8_t id[5];

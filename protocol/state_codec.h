@@ -56,19 +56,34 @@ class StateEncoder {
   virtual size_t Finish() = 0;
 };
 
-// Format 1 encoder.
-class FloatStateEncoder final : public StateEncoder {
+// What the byte-aligned encoders (formats 1, 3 and 4) share: Begin() reserves a fixed-size
+// header that Finish() fills in, and Add() appends after it.
+class ByteStateEncoder : public StateEncoder {
  public:
-  void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
-  bool Add(const EntityState& state) override;
-  size_t count() const override { return count_; }
-  size_t Finish() override;
+  void Begin(std::span<uint8_t> out, uint32_t time_ms) final {
+    out_ = out;
+    pos_ = header_size_;
+    count_ = 0;
+    time_ms_ = time_ms;
+  }
+  size_t count() const final { return count_; }
 
- private:
-  std::span<uint8_t> out_;
-  size_t pos_ = 0;
-  size_t count_ = 0;
-  uint32_t time_ms_ = 0;
+ protected:
+  explicit ByteStateEncoder(size_t header_size) : header_size_(header_size) {}
+
+  size_t header_size_;      // bytes reserved at the start of the payload
+  std::span<uint8_t> out_;  // the payload being written (not owned)
+  size_t pos_ = 0;          // bytes of out_ used, header included
+  size_t count_ = 0;        // states added since Begin()
+  uint32_t time_ms_ = 0;    // the payload's sender time
+};
+
+// Format 1 encoder.
+class FloatStateEncoder final : public ByteStateEncoder {
+ public:
+  FloatStateEncoder();
+  bool Add(const EntityState& state) override;
+  size_t Finish() override;
 };
 
 struct StateBatch {
