@@ -14,9 +14,10 @@
 //   for (auto& [id, e] : client.entities()) render(e.state); // or use the listener callbacks
 //
 // Entities: each player owns a block of kEntityIdBlock entity ids (protocol/types.h; the base
-// comes with Joined). Spawn() picks the next free id in that block. Only the owner may move or despawn an entity; the relay drops (and
-// counts) anything else. State reaches others on the unreliable channel, converging under loss:
-// the SDK re-sends an entity's latest state until the relay acknowledges it.
+// comes with Joined). Spawn() picks the next free id in that block. Only the owner may move or
+// despawn an entity; the relay drops (and counts) anything else. State reaches others on the
+// unreliable channel, converging under loss: the SDK re-sends an entity's latest state until
+// the relay acknowledges it.
 //
 // Thread-safety: none; use a Client from one thread. Listener callbacks run inside Update()
 // and the public methods, on that thread; they must not call Update() re-entrantly.

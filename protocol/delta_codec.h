@@ -34,8 +34,8 @@
 // decoder ~2 KiB per entity. No allocation per packet in steady state (new entities and the
 // first packets of a stream grow containers once).
 // Cost: O(1) per entity: the encoder quantises and predicts at the orders in use (all three
-// orders on one record in 4, for the adaptive parameters); the decoder predicts once. Timings:
-// bench/codec_bench.cc.
+// orders on one record in 4, for the adaptive parameters); the decoder predicts each field
+// once, at the order the payload names. Timings: bench/codec_bench.cc.
 #pragma once
 
 #include <array>

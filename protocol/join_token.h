@@ -39,7 +39,6 @@ struct JoinToken {
   uint64_t nonce = 0;        // random; a relay accepts each nonce once (replay protection)
 };
 
-
 // Signs `token` with `secret`. Fails (kInvalidArgument) on an empty secret, a zero player id,
 // or a room name outside 1..kMaxRoomNameSize bytes.
 Result<std::vector<uint8_t>> SignJoinToken(const JoinToken& token, std::string_view secret);
