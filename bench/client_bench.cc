@@ -20,7 +20,7 @@
 #include "client/client.h"
 #include "client/snapshot_buffer.h"
 #include "protocol/byte_io.h"
-#include "protocol/connection_doubles.h"
+#include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 

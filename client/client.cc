@@ -37,14 +37,16 @@ Client::~Client() = default;
 
 Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, double now) {
   if (state_ != ClientState::kIdle) {
-    return Status(StatusCode::kInvalidArgument, "Connect() called twice");
+    return Status::InvalidArgument("Connect() called twice");
   }
   server_ = server;
   token_.assign(token.begin(), token.end());
   nonce_ = SecureRandom64();
   state_ = ClientState::kHandshaking;
   handshake_started_ = now;
-  if (config_.record_arrival_times) (void)socket_->EnableArrivalTimes();  // else: read times
+  // false (no arrival times from this socket) is handled per datagram: Update() takes the time
+  // of the read instead and counts it in arrival_time_fallbacks().
+  if (config_.record_arrival_times) (void)socket_->EnableArrivalTimes();
   SendHandshake(now);
   return Status::Ok();
 }
@@ -55,11 +57,13 @@ void Client::SendHandshake(double now) {
   if (cookie_.empty()) {
     FinishControl(fbb, schema::CreateHello(fbb, nonce_));
     auto packet = BuildHandshakePacket(PacketType::kHello, fbb, kMinHelloPacketSize);
+    // A lost Hello is like a lost datagram: Update() sends it again after handshake_resend_s.
     (void)socket_->SendTo(server_, packet);
   } else {
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie_),
                                              fbb.CreateVector(token_), nonce_));
     auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
+    // As for Hello: resent until answered.
     (void)socket_->SendTo(server_, packet);
   }
 }
@@ -89,6 +93,8 @@ void Client::Update(double now) {
     if (!ParsePacketPrefix(packet, &prefix, &reason)) continue;
     if (prefix.type == PacketType::kData || prefix.type == PacketType::kDisconnect) {
       if (connection_ && prefix.connection_id == connection_->id() && connection_->connected()) {
+        // An error either drops this one datagram (malformed, duplicate: nothing to undo) or
+        // ends the connection, which the connected() check below reports.
         (void)connection_->ProcessPacket(packet, now, *this);
       }
     } else {
@@ -148,14 +154,14 @@ void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) 
 }
 
 Status Client::JoinRoom(std::string_view room) {
-  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   flatbuffers::FlatBufferBuilder fbb(128);
   FinishControl(fbb, schema::CreateJoinRoom(fbb, fbb.CreateString(room.data(), room.size())));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
 Status Client::LeaveRoom() {
-  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateLeaveRoom(fbb));
   Status st = connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
@@ -175,39 +181,29 @@ void Client::ResetRoom() {
 
 Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   if (state_ != ClientState::kConnected || !joined_) {
-    return Status(StatusCode::kNotConnected, "join a room first");
+    return Status::NotConnected("join a room first");
   }
   EntityState st{0, desc.position, desc.rotation};
-  if (!IsValidState(st)) return Status(StatusCode::kInvalidArgument, "transform not finite/unit");
+  if (!IsValidState(st)) return Status::InvalidArgument("transform not finite/unit");
   uint32_t id = 0;
-  while (next_local_id_ < kEntityIdBlockSize) {
+  while (next_local_id_ < kEntityIdBlock) {
     uint32_t candidate = entity_id_base_ + next_local_id_++;
     if (owned_.count(candidate) == 0) {
       id = candidate;
       break;
     }
   }
-  if (id == 0) return Status(StatusCode::kResourceExhausted, "entity id block used up");
+  if (id == 0) return Status::ResourceExhausted("entity id block used up");
   st.entity_id = id;
 
-  EntitySpec spec;
+  EntitySpec spec = desc;
   spec.id = id;
-  spec.parent_id = desc.parent;
   spec.owner = player_id_;
-  spec.flags = desc.flags;
-  spec.position = desc.position;
-  spec.rotation = desc.rotation;
-  spec.scale = desc.scale;
-  spec.name = desc.name;
-  spec.rigid_body = desc.rigid_body;
-  spec.colliders = desc.colliders;
-  spec.joints = desc.joints;
-  spec.soft_body = desc.soft_body;
   flatbuffers::FlatBufferBuilder fbb(512);
   auto container = AddContainer(fbb, spec);
   FinishControl(fbb, schema::CreateSpawn(fbb, container));
   if (fbb.GetSize() > config_.connection.max_message_size) {
-    return Status(StatusCode::kTooLarge, "container larger than the reliable message limit");
+    return Status::TooLarge("container larger than the reliable message limit");
   }
   Status sent = connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
   if (!sent.ok()) return sent;
@@ -224,7 +220,7 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
 }
 
 Status Client::Despawn(uint32_t entity_id) {
-  if (owned_.erase(entity_id) == 0) return Status(StatusCode::kNotFound, "not an owned entity");
+  if (owned_.erase(entity_id) == 0) return Status::NotFound("not an owned entity");
   tracker_.Forget(entity_id);
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
@@ -232,14 +228,14 @@ Status Client::Despawn(uint32_t entity_id) {
 }
 
 Status Client::Grab(uint32_t entity_id, uint32_t hand_id) {
-  if (state_ != ClientState::kConnected || !joined_) return Status(StatusCode::kNotConnected, "not joined");
+  if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateGrab(fbb, entity_id, hand_id));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
 Status Client::Release(uint32_t entity_id) {
-  if (state_ != ClientState::kConnected || !joined_) return Status(StatusCode::kNotConnected, "not joined");
+  if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateRelease(fbb, entity_id));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
@@ -247,9 +243,9 @@ Status Client::Release(uint32_t entity_id) {
 
 Status Client::PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation) {
   auto it = owned_.find(entity_id);
-  if (it == owned_.end()) return Status(StatusCode::kNotFound, "not an owned entity");
+  if (it == owned_.end()) return Status::NotFound("not an owned entity");
   EntityState st{entity_id, position, rotation};
-  if (!IsValidState(st)) return Status(StatusCode::kInvalidArgument, "transform not finite/unit");
+  if (!IsValidState(st)) return Status::InvalidArgument("transform not finite/unit");
   it->second.state = st;
   ++it->second.version;
   return Status::Ok();
@@ -283,7 +279,7 @@ void Client::Publish(double now) {
 }
 
 Status Client::SendStateUnchecked(const EntityState& state, double now) {
-  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   FloatStateEncoder encoder;
   encoder.Begin(payload_buffer_, static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0)));
   encoder.Add(state);
@@ -292,12 +288,12 @@ Status Client::SendStateUnchecked(const EntityState& state, double now) {
 }
 
 Status Client::SendUnreliableRaw(std::span<const uint8_t> payload, double now) {
-  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   return connection_->SendUnreliable(payload, now, *this).status();
 }
 
 Status Client::SendReliableUnchecked(std::span<const uint8_t> message) {
-  if (state_ != ClientState::kConnected) return Status(StatusCode::kNotConnected, "not connected");
+  if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   return connection_->SendReliable(message);
 }
 
@@ -333,7 +329,8 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       entity_id_base_ = j->entity_id_base();
       next_local_id_ = 1;
       delta_decoder_.reset();
-      position_step_m_ = j->position_step_m() > 0 ? j->position_step_m() : 0.001f;
+      position_step_m_ =
+          j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
       if (j->state_format() == kDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
@@ -415,7 +412,7 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
 }
 
 Status Client::DecodeStates(std::span<const uint8_t> payload) {
-  if (payload.empty()) return Status(StatusCode::kMalformed, "empty state payload");
+  if (payload.empty()) return Status::Malformed("empty state payload");
   switch (payload[0]) {
     case kFormatPhoton:
     case kFormatPaper:
@@ -427,7 +424,7 @@ Status Client::DecodeStates(std::span<const uint8_t> payload) {
       });
     case kDeltaStateFormat:
       batch_.states.clear();
-      if (!delta_decoder_) return Status(StatusCode::kMalformed, "format 2 without quantisation");
+      if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");
       return delta_decoder_->Decode(payload, &batch_);
     default:
       return DecodeStateBatch(payload, &batch_);
@@ -464,7 +461,7 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
   for (const EntityState& st : batch_.states) {
     const uint32_t id = st.entity_id;
     if (!IsValidState(st)) continue;
-    if (id - entity_id_base_ < kEntityIdBlockSize && owned_.count(id) != 0) continue;
+    if (id - entity_id_base_ < kEntityIdBlock && owned_.count(id) != 0) continue;
     auto it = entities_.find(id);
     if (it == entities_.end()) {
       if (despawned_.count(id) != 0) continue;
@@ -482,6 +479,10 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
 
 void Client::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
 
-void Client::WritePacket(std::span<const uint8_t> packet) { (void)socket_->SendTo(server_, packet); }
+void Client::WritePacket(std::span<const uint8_t> packet) {
+  // A refused send is a lost datagram (DatagramSocket::SendTo); the connection resends what
+  // must arrive.
+  (void)socket_->SendTo(server_, packet);
+}
 
 }  // namespace edgephys

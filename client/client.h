@@ -13,10 +13,11 @@
 //   client.PublishTransform(*id, position, rotation);        // any time; sent at publish rate
 //   for (auto& [id, e] : client.entities()) render(e.state); // or use the listener callbacks
 //
-// Entities: each player owns a block of 65,536 entity ids (from Joined). Spawn() picks the next
-// free id in that block. Only the owner may move or despawn an entity; the relay drops (and
-// counts) anything else. State reaches others on the unreliable channel, converging under loss:
-// the SDK re-sends an entity's latest state until the relay acknowledges it.
+// Entities: each player owns a block of kEntityIdBlock entity ids (protocol/types.h; the base
+// comes with Joined). Spawn() picks the next free id in that block. Only the owner may move or
+// despawn an entity; the relay drops (and counts) anything else. State reaches others on the
+// unreliable channel, converging under loss: the SDK re-sends an entity's latest state until
+// the relay acknowledges it.
 //
 // Thread-safety: none; use a Client from one thread. Listener callbacks run inside Update()
 // and the public methods, on that thread; they must not call Update() re-entrantly.
@@ -48,11 +49,9 @@
 #include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
+#include "protocol/types.h"
 
 namespace edgephys {
-
-// Ids in a player's entity id block (Joined.entity_id_base .. + kEntityIdBlockSize - 1).
-inline constexpr uint32_t kEntityIdBlockSize = 1 << 16;
 
 // Largest soft body (particles) a client accepts from the relay.
 inline constexpr uint32_t kMaxSoftBodyNodes = 1 << 16;
@@ -129,24 +128,16 @@ class ClientListener {
   }
 };
 
-// What Spawn() sends: the entity's transform, hierarchy and flags and — the paper's
-// dissection — its physics components. With the Offloaded flag, a dynamic rigid body or a
-// soft body is handed to PhyS: the relay simulates it and it becomes PhyS-owned (this client
-// receives its state like everyone else and may still despawn, grab and release it). Without
-// Offloaded, colliders and bodies are mirrored into PhyS as kinematic bodies that follow this
-// client's PublishTransform(), so local physics pushes PhyS-owned objects.
-struct SpawnDesc {
-  Vec3f position;
-  Quatf rotation;
-  Vec3f scale{1, 1, 1};
-  uint32_t parent = 0;
-  uint32_t flags = 0;          // schema::EntityFlags bits (Persistent, Offloaded, Hand, ...)
-  std::string name;
-  std::optional<RigidBodySpec> rigid_body;
-  std::vector<ColliderSpec> colliders;
-  std::vector<JointSpec> joints;
-  std::optional<SoftBodySpec> soft_body;
-};
+// What Spawn() sends: an EntitySpec (protocol/container_builder.h) — the entity's transform,
+// hierarchy (parent_id) and flags (schema::EntityFlags: Persistent, Offloaded, Hand, ...) and,
+// the paper's dissection, its physics components. Spawn() ignores `id` and `owner`: it picks the
+// id from this player's block and the owner is this player.
+// With the Offloaded flag, a dynamic rigid body or a soft body is handed to PhyS: the relay
+// simulates it and it becomes PhyS-owned (this client receives its state like everyone else and
+// may still despawn, grab and release it). Without Offloaded, colliders and bodies are mirrored
+// into PhyS as kinematic bodies that follow this client's PublishTransform(), so local physics
+// pushes PhyS-owned objects.
+using SpawnDesc = EntitySpec;
 
 class Client final : private ConnectionHandler, private PacketWriter {
  public:
@@ -270,7 +261,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   StateBatch batch_;
   FloatStateEncoder encoder_;
   std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
-  float position_step_m_ = 0.001f;               // the room's quantisation step
+  float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
   SoftBodyChunk soft_chunk_;
   uint64_t bytes_state_received_ = 0;
   uint64_t state_payloads_outside_room_ = 0;

@@ -12,7 +12,7 @@
 #include <memory>
 #include <vector>
 
-#include "protocol/connection_doubles.h"
+#include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "protocol/udp_socket.h"
@@ -24,8 +24,8 @@ using Bytes = std::vector<uint8_t>;
 
 constexpr uint32_t kConnectionId = 0x77;
 constexpr uint32_t kPlayerId = 1;
-constexpr uint32_t kOwnBase = 65536;        // this client's id block
-constexpr uint32_t kOtherBase = 3 * 65536;  // another player's block
+constexpr uint32_t kOwnBase = kEntityIdBlock;      // this client's id block (slot 1)
+constexpr uint32_t kOtherBase = 3 * kEntityIdBlock;  // another player's block (slot 3)
 
 // CLOCK_REALTIME in seconds, the clock of arrival times.
 double RealtimeNow() {
@@ -194,6 +194,7 @@ class ClientReceiveTest : public ::testing::Test {
       for (const Bytes& p : relay_out_.packets) socket_.inbox.push_back(p);
       socket_.sent.clear();
       client_.Update(now_);
+      // The scripted relay only needs the client's acks; the tests check the client's side.
       for (const Bytes& p : socket_.sent) (void)relay_.ProcessPacket(p, now_, relay_handler_);
       if (relay_out_.packets.empty() && socket_.inbox.empty() && round > 1) break;
     }
@@ -256,7 +257,7 @@ TEST_F(ClientReceiveTest, OwnEntitiesAreNotListedButOthersInOurBlockAre) {
   Result<uint32_t> own = client_.Spawn({.position = {0, 1, 0}});
   ASSERT_TRUE(own.ok());
   ASSERT_GE(*own, kOwnBase);
-  ASSERT_LT(*own, kOwnBase + kEntityIdBlockSize);
+  ASSERT_LT(*own, kOwnBase + kEntityIdBlock);
   // A PhyS-owned (offloaded) entity has an id from our block but is not ours to publish.
   const uint32_t offloaded = kOwnBase + 500;
   Spawn(offloaded);

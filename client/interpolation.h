@@ -1,7 +1,8 @@
-// Pose interpolation between buffered snapshots (DESIGN.md, "Replication", item 7). The paper
-// smooths received transforms with a dual-quaternion interpolator; this file offers it (both the
+// Pose interpolation between buffered snapshots (client/snapshot_buffer.h). The paper smooths
+// received transforms with a dual-quaternion interpolator; this file offers it (both the
 // normalised linear blend, DLB, and screw linear interpolation, ScLERP) beside lerp+slerp, cubic
-// Hermite, and hold-last, so that their accuracy can be measured side by side.
+// Hermite, and hold-last, so that their accuracy can be measured side by side
+// (docs/benchmarks.md, "Interpolation: error vs send rate").
 //
 //   Pose pose = Sample(buffer, buffer.RenderTime(now), Interpolator::kDualQuatSclerp);
 //
@@ -36,8 +37,7 @@
 // Thread-safety: all functions are pure (the buffer is only read); call them from any thread as
 // long as nobody modifies the buffer concurrently.
 // Cost: Sample() is O(log capacity) to find the segment plus a constant number of quaternion
-// products and trig calls (a few hundred ns; bench/interpolation_bench.cc measures it). No
-// allocation.
+// products and trig calls (timings: bench/interpolation_bench.cc). No allocation.
 #pragma once
 
 #include <Eigen/Geometry>

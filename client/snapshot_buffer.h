@@ -1,8 +1,8 @@
-// Client-side jitter buffer for one remote entity's received states (DESIGN.md, "Replication",
-// item 7). It keeps the most recent snapshots in sender-time order, estimates the offset between
-// the local clock and the sender's clock, and runs an adaptive playout clock: the render time
-// trails the estimated sender "now" by a delay that follows the observed send interval and
-// arrival jitter. client/interpolation.h samples a pose from the buffer at that render time.
+// Client-side jitter buffer for one remote entity's received states. It keeps the most recent
+// snapshots in sender-time order, estimates the offset between the local clock and the
+// sender's clock, and runs an adaptive playout clock: the render time trails the estimated
+// sender "now" by a delay that follows the observed send interval and arrival jitter.
+// client/interpolation.h samples a pose from the buffer at that render time.
 //
 // Usage (one buffer per remote entity; `now` is the local monotonic clock in seconds):
 //

@@ -10,9 +10,8 @@
 // and written with an Exp-Golomb code of order k: u + 2^k has n = bit_width(u + 2^k) bits;
 // write n - k - 1 zero bits, one 1 bit, then the low n - 1 bits of u + 2^k. Cost
 // 2 * (n - k) - 1 + k bits. k adapts per packet (the format-2 encoder picks it from the
-// residuals it has recently coded). Measured alternative (per-packet fixed bit width = widest
-// residual in the packet): see DeltaEncoderStats and delta_codec_test's acceptance test; on
-// the acceptance motion Exp-Golomb with adaptive k is smaller because of rare outliers.
+// residuals it has recently coded). DeltaEncoderStats counts what a per-packet fixed bit width
+// would have cost instead.
 //
 // Safety: neither class ever touches memory outside its span. A write that does not fit fails
 // (returns false, nothing written) and sets overflow(); a read past the end fails (returns

@@ -273,7 +273,7 @@ Connection::Connection(uint32_t connection_id, const ConnectionConfig& config, d
 Connection::~Connection() { delete impl_; }
 
 Status Connection::SendReliable(std::span<const uint8_t> message) {
-  if (!connected()) return Status(StatusCode::kNotConnected, "connection closed");
+  if (!connected()) return Status::NotConnected("connection closed");
   Status status = impl_->sender.Queue(message);
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();
   return status;
@@ -284,10 +284,10 @@ uint64_t Connection::reliable_acked_end() const { return impl_->sender.acked_end
 
 Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, double now,
                                             PacketWriter& out) {
-  if (!connected()) return Status(StatusCode::kNotConnected, "connection closed");
-  if (payload.empty()) return Status(StatusCode::kInvalidArgument, "empty unreliable payload");
+  if (!connected()) return Status::NotConnected("connection closed");
+  if (payload.empty()) return Status::InvalidArgument("empty unreliable payload");
   if (payload.size() > kMaxUnreliablePayload) {
-    return Status(StatusCode::kTooLarge, "unreliable payload exceeds kMaxUnreliablePayload");
+    return Status::TooLarge("unreliable payload exceeds kMaxUnreliablePayload");
   }
   size_t size = impl_->BeginPacket(PacketType::kData);
   uint8_t* p = impl_->scratch.data() + size;
@@ -300,8 +300,8 @@ Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, do
 
 Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
                                  ConnectionHandler& handler) {
-  if (!connected()) return Status(StatusCode::kNotConnected, "connection closed");
-  static const Status kMalformed(StatusCode::kMalformed, "malformed data packet");
+  if (!connected()) return Status::NotConnected("connection closed");
+  static const Status kMalformed = Status::Malformed("malformed data packet");
   PacketPrefix prefix{};
   DropReason reason{};
   if (!ParsePacketPrefix(packet, &prefix, &reason)) return kMalformed;
@@ -331,13 +331,13 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   // Parsed and valid. Checks against our state, still without changing it.
   if (impl_->received.IsDuplicate(parsed.sequence)) {
     stats_.duplicates_dropped++;
-    return Status(StatusCode::kAlreadyExists, "duplicate packet");
+    return Status::AlreadyExists("duplicate packet");
   }
   for (size_t i = 0; i < parsed.unit_count; ++i) {
     if (impl_->receiver.Classify(parsed.units[i].id) ==
         ReliableReceiver::Placement::kOutsideWindow) {
       impl_->ProtocolError();
-      return Status(StatusCode::kResourceExhausted, "reliable unit outside the window");
+      return Status::ResourceExhausted("reliable unit outside the window");
     }
   }
 

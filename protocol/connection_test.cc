@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "protocol/connection_test_util.h"
+#include "protocol/testing/connection_test_util.h"
 
 namespace edgephys {
 namespace {
@@ -374,7 +374,8 @@ TEST(ConnectionTest, MalformedPacketsChangeNoState) {
     victim.Update(now, from_victim);
     twin.Update(now, from_twin);
     ASSERT_EQ(from_victim.packets, from_twin.packets) << "step " << step;
-    for (const Bytes& packet : from_twin.packets) sender.ProcessPacket(packet, now, hs);
+    // Only feeds the sender its acks; what it makes of them is not under test here.
+    for (const Bytes& packet : from_twin.packets) (void)sender.ProcessPacket(packet, now, hs);
     ASSERT_TRUE(StatsEqual(victim.stats(), twin.stats()));
     ASSERT_EQ(hv.reliable, ht.reliable);
     ASSERT_EQ(hv.unreliable, ht.unreliable);

@@ -2,11 +2,29 @@
 
 #include <flatbuffers/flatbuffers.h>
 
+#include <optional>
+#include <utility>
+
 namespace edgephys {
 namespace {
 
 schema::Vec3 ToFb(const Vec3f& v) { return schema::Vec3(v.x, v.y, v.z); }
 schema::Quat ToFb(const Quatf& q) { return schema::Quat(q.x, q.y, q.z, q.w); }
+
+// An entity with one collider and, if `mass` is set, a dynamic rigid body of that mass.
+EntitySpec OneCollider(uint32_t id, Vec3f position, Quatf rotation, ColliderSpec collider,
+                       std::optional<float> mass) {
+  EntitySpec e;
+  e.id = id;
+  e.position = position;
+  e.rotation = rotation;
+  if (mass) {
+    e.rigid_body = RigidBodySpec{};
+    e.rigid_body->mass = *mass;
+  }
+  e.colliders.push_back(std::move(collider));
+  return e;
+}
 
 }  // namespace
 
@@ -74,32 +92,15 @@ ColliderSpec SphereCollider(float radius) {
 }
 
 EntitySpec StaticBox(uint32_t id, Vec3f position, Vec3f half_extents, Quatf rotation) {
-  EntitySpec e;
-  e.id = id;
-  e.position = position;
-  e.rotation = rotation;
-  e.colliders.push_back(BoxCollider(half_extents));
-  return e;
+  return OneCollider(id, position, rotation, BoxCollider(half_extents), std::nullopt);
 }
 
 EntitySpec DynamicBox(uint32_t id, Vec3f position, Vec3f half_extents, float mass) {
-  EntitySpec e;
-  e.id = id;
-  e.position = position;
-  e.rigid_body = RigidBodySpec{};
-  e.rigid_body->mass = mass;
-  e.colliders.push_back(BoxCollider(half_extents));
-  return e;
+  return OneCollider(id, position, Quatf{}, BoxCollider(half_extents), mass);
 }
 
 EntitySpec DynamicSphere(uint32_t id, Vec3f position, float radius, float mass) {
-  EntitySpec e;
-  e.id = id;
-  e.position = position;
-  e.rigid_body = RigidBodySpec{};
-  e.rigid_body->mass = mass;
-  e.colliders.push_back(SphereCollider(radius));
-  return e;
+  return OneCollider(id, position, Quatf{}, SphereCollider(radius), mass);
 }
 
 }  // namespace edgephys

@@ -57,14 +57,16 @@ struct SoftBodySpec {
   float damping = 0.0f;          // [0, 1]
 };
 
+// Member order is part of the interface: designated initialisers name the transform first,
+// e.g. SpawnDesc{.position = {0, 1, 0}, .flags = ...} (client/client.h: SpawnDesc is this type).
 struct EntitySpec {
   uint32_t id = 0;
-  uint32_t parent_id = 0;
-  uint32_t owner = 0;
-  uint32_t flags = 0;  // schema::EntityFlags bits
-  Vec3f position;
-  Quatf rotation;
+  uint32_t owner = 0;  // player id; 0: the room (PhyS / orphaned)
+  Vec3f position;      // metres, room frame
+  Quatf rotation;      // unit quaternion
   Vec3f scale{1.0f, 1.0f, 1.0f};
+  uint32_t parent_id = 0;  // 0: none
+  uint32_t flags = 0;      // schema::EntityFlags bits
   std::string name;
   std::optional<RigidBodySpec> rigid_body;
   std::vector<ColliderSpec> colliders;

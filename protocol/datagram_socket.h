@@ -1,6 +1,6 @@
 // DatagramSocket: the one I/O seam of edgephys. The relay, the client SDK and the connection
-// code never touch the OS directly; they are handed a DatagramSocket, so tests can put a
-// NetworkSimulator (network_simulator.h) or an in-process InMemoryNetwork underneath and pump
+// code never touch the OS directly; they are handed a DatagramSocket, so tests can put an
+// in-process InMemoryNetwork or a NetworkSimulator (protocol/testing/) underneath and pump
 // everything deterministically with injected time.
 #pragma once
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numbers>
 
 #include "protocol/byte_io.h"
 
@@ -172,8 +173,8 @@ DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderO
   const double reach = 0.5 * std::sqrt(3.0) * params_.step * 1.01;
   lattice_reach2_ = reach * reach;
   const double bound_rad =
-      params_.config.rotation_error_deg * 1.01 * (3.14159265358979323846 / 180.0);
-  lattice_min_dot_ = std::cos(std::min(bound_rad, 3.14159265358979323846) / 2.0);
+      params_.config.rotation_error_deg * 1.01 * (std::numbers::pi / 180.0);
+  lattice_min_dot_ = std::cos(std::min(bound_rad, std::numbers::pi) / 2.0);
 }
 
 const DeltaEncoder::Entry* DeltaEncoder::NewestAcked(const Track& t) const {
@@ -521,7 +522,7 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   if (rot_threshold_deg != min_dot_for_deg_) {  // the relay passes the same threshold each call
     min_dot_for_deg_ = rot_threshold_deg;
-    min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
+    min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (std::numbers::pi / 360.0));
   }
   const double min_dot = min_dot_;
   // The truth quantised, computed only if a threshold test fails: a state that quantises to
@@ -584,7 +585,7 @@ DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities
 void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
 
 Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed(StatusCode::kMalformed, "malformed format-2 state payload");
+  const Status malformed = Status::Malformed("malformed format-2 state payload");
   auto fail = [&]() {
     ++stats_.malformed;
     return malformed;

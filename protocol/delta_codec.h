@@ -23,18 +23,19 @@
 //
 // INTEGRATION REQUIREMENT: every payload whose packet the receiver acknowledges must be passed
 // to DeltaDecoder::Decode, including payloads older than one already decoded (the decoder
-// sequences per entity and outputs only states newer than what it has output). Connection's
-// unreliable-sequenced channel currently drops such "stale" payloads after acking them; with
-// that behaviour a reordering can break an entity's baseline chain until its next keyframe
-// (bounded by DeltaEncoderOptions::keyframe_refresh_sends). See docs/protocol.md §5b.
+// sequences per entity and outputs only states newer than what it has output). Connection
+// meets it for the packets SendUnreliable() makes (they carry nothing but the payload, and a
+// packet whose only content is a stale payload is not acknowledged: connection.h). A transport
+// that acknowledges a payload it drops breaks that entity's baseline chain until its next
+// keyframe (bounded by DeltaEncoderOptions::keyframe_refresh_sends). See docs/protocol.md §5b.
 //
 // Thread-safety: none; each instance is owned by one thread (the room's thread on the relay).
 // Memory: encoder ~2.3 KiB per (client, entity) plus 128 packet records of reused capacity;
 // decoder ~2 KiB per entity. No allocation per packet in steady state (new entities and the
 // first packets of a stream grow containers once).
-// Cost: O(1) per entity. Measured (bench/codec_bench, Release, one core): encoder ~0.29 us
-// per entity (quantise, predict at the orders in use; all three orders on one record in 4 for
-// the adaptive parameters), decoder ~0.2 us per entity; format 1 is ~0.01 us each way.
+// Cost: O(1) per entity: the encoder quantises and predicts at the orders in use (all three
+// orders on one record in 4, for the adaptive parameters); the decoder predicts each field
+// once, at the order the payload names. Timings: bench/codec_bench.cc.
 #pragma once
 
 #include <array>
@@ -52,7 +53,7 @@
 
 namespace edgephys {
 
-inline constexpr uint8_t kDeltaStateFormat = 2;
+inline constexpr uint8_t kDeltaStateFormat = static_cast<uint8_t>(StateFormat::kQuantizedDelta);
 // States kept per entity on both ends (protocol constant: both ends must agree).
 inline constexpr size_t kDeltaBaselineWindow = 16;
 // Largest distance, in payload counters, between a state and its reference.
@@ -63,7 +64,7 @@ inline constexpr size_t kDeltaHeaderSize = 1 + 4 + 2 + 2;
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by
   // entity id). Bounds how long a broken baseline chain can last (see the header comment);
-  // 0 disables. Cost on the acceptance motion: roughly +9 bytes per refresh.
+  // 0 disables. Cost: each refresh is a keyframe instead of a delta record.
   uint32_t keyframe_refresh_sends = 120;
 };
 
@@ -102,7 +103,8 @@ struct PreparedState {
   double origin[3] = {0, 0, 0};
   int32_t rotation_max = 0;
 };
-// Cost ~0.1 us (~0.15 us with `with_float`); no allocation.
+// Cost: O(1), the quantisation (and with `with_float` the dequantisation) of one state; no
+// allocation.
 PreparedState PrepareState(const QuantizationParams& params, const EntityState& truth,
                            bool with_float = true);
 

@@ -12,8 +12,8 @@
 #include <random>
 #include <vector>
 
-#include "protocol/allocation_counter_test_util.h"
-#include "protocol/codec_test_util.h"
+#include "protocol/testing/allocation_counter_test_util.h"
+#include "protocol/testing/codec_test_util.h"
 #include "protocol/connection.h"
 
 namespace edgephys {

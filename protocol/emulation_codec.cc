@@ -10,12 +10,7 @@ constexpr size_t kPhotonMaxCommands = 255;
 constexpr size_t kPaperHeader = 1 + 4 + 2;
 }  // namespace
 
-void PhotonEmulationEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
-  out_ = out;
-  pos_ = kPhotonHeader;
-  count_ = 0;
-  time_ms_ = time_ms;
-}
+PhotonEmulationEncoder::PhotonEmulationEncoder() : ByteStateEncoder(kPhotonHeader) {}
 
 bool PhotonEmulationEncoder::Add(const EntityState& s) {
   if (count_ >= kPhotonMaxCommands || pos_ + kPhotonMessage > out_.size()) return false;
@@ -50,12 +45,7 @@ size_t PhotonEmulationEncoder::Finish() {
   return pos_;
 }
 
-void PaperEmulationEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
-  out_ = out;
-  pos_ = kPaperHeader;
-  count_ = 0;
-  time_ms_ = time_ms;
-}
+PaperEmulationEncoder::PaperEmulationEncoder() : ByteStateEncoder(kPaperHeader) {}
 
 bool PaperEmulationEncoder::AddFields(const EntityState& s, uint8_t mask) {
   mask &= kFieldPosition | kFieldRotation;

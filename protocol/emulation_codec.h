@@ -25,39 +25,28 @@
 
 namespace edgephys {
 
-enum : uint8_t { kFormatPhoton = 3, kFormatPaper = 4 };
+inline constexpr uint8_t kFormatPhoton = static_cast<uint8_t>(StateFormat::kPhoton);
+inline constexpr uint8_t kFormatPaper = static_cast<uint8_t>(StateFormat::kPaper);
 inline constexpr uint8_t kFieldPosition = 1u << 0;
 inline constexpr uint8_t kFieldRotation = 1u << 1;
 
-class PhotonEmulationEncoder final : public StateEncoder {
+class PhotonEmulationEncoder final : public ByteStateEncoder {
  public:
-  void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
+  PhotonEmulationEncoder();
   bool Add(const EntityState& state) override;
-  size_t count() const override { return count_; }
   size_t Finish() override;
 
  private:
-  std::span<uint8_t> out_;
-  size_t pos_ = 0;
-  size_t count_ = 0;
-  uint32_t time_ms_ = 0;
-  uint32_t sequence_ = 0;
+  uint32_t sequence_ = 0;  // command sequence, continues across payloads
 };
 
-class PaperEmulationEncoder final : public StateEncoder {
+class PaperEmulationEncoder final : public ByteStateEncoder {
  public:
-  void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
+  PaperEmulationEncoder();
   bool Add(const EntityState& state) override { return AddFields(state, kFieldPosition | kFieldRotation); }
   // Adds only the fields in `mask` (the scheduler's significance test decides).
   bool AddFields(const EntityState& state, uint8_t mask);
-  size_t count() const override { return count_; }
   size_t Finish() override;
-
- private:
-  std::span<uint8_t> out_;
-  size_t pos_ = 0;
-  size_t count_ = 0;
-  uint32_t time_ms_ = 0;
 };
 
 // Decodes format 3 or 4 into `batch` (states appended after clearing). For format 4 an entity

@@ -7,7 +7,7 @@ namespace edgephys {
 
 template <typename Lookup>
 Status DecodeEmulationBatch(std::span<const uint8_t> payload, StateBatch* batch, Lookup&& previous) {
-  const Status malformed(StatusCode::kMalformed, "malformed emulation payload");
+  const Status malformed = Status::Malformed("malformed emulation payload");
   batch->states.clear();
   if (payload.empty()) return malformed;
   if (payload[0] == kFormatPhoton) {

@@ -5,7 +5,7 @@
 namespace edgephys {
 
 Result<Endpoint> ParseEndpoint(std::string_view text) {
-  const Status bad(StatusCode::kInvalidArgument, "expected host:port, [v6]:port or :port");
+  const Status bad = Status::InvalidArgument("expected host:port, [v6]:port or :port");
   size_t colon = text.rfind(':');
   if (colon == std::string_view::npos) return bad;
   std::string_view host = text.substr(0, colon);

@@ -5,6 +5,8 @@
 #include <random>
 #include <unordered_map>
 
+#include "protocol/types.h"
+
 namespace edgephys {
 namespace {
 
@@ -23,7 +25,7 @@ TEST(FlatIdMap, MatchesUnorderedMapUnderRandomOperations) {
     auto draw = [&]() -> uint32_t {
       switch (rng() % 4) {
         case 0: return rng() % 64;                      // a dense block from 0
-        case 1: return (1u << 16) + rng() % 512;        // another block
+        case 1: return kEntityIdBlock + rng() % 512;    // another block (slot 1)
         case 2: return rng() % 2 ? 0u : 0xFFFFFFFFu;    // the extremes
         default: return static_cast<uint32_t>(rng());   // anywhere
       }

@@ -1,4 +1,4 @@
-#include "protocol/in_memory_network.h"
+#include "protocol/testing/in_memory_network.h"
 
 #include <gtest/gtest.h>
 

@@ -5,6 +5,7 @@
 #include <openssl/hmac.h>
 
 #include <array>
+#include <string>
 
 #include "protocol/byte_io.h"
 
@@ -13,6 +14,9 @@ namespace {
 
 constexpr uint8_t kTokenVersion = 1;
 constexpr size_t kFixedSize = 1 + 4 + 4 + 8 + 8 + 1;
+// VerifyJoinToken's two failure messages; IsExpiredToken tells them apart.
+constexpr std::string_view kBadTokenMessage = "bad token";
+constexpr std::string_view kExpiredTokenMessage = "expired token";
 
 std::array<uint8_t, kJoinTokenMacSize> Mac(std::string_view secret,
                                            std::span<const uint8_t> data) {
@@ -37,10 +41,10 @@ int DecodeChar(char c) {
 }  // namespace
 
 Result<std::vector<uint8_t>> SignJoinToken(const JoinToken& token, std::string_view secret) {
-  if (secret.empty()) return Status(StatusCode::kInvalidArgument, "empty secret");
-  if (token.player_id == 0) return Status(StatusCode::kInvalidArgument, "player id 0");
+  if (secret.empty()) return Status::InvalidArgument("empty secret");
+  if (token.player_id == 0) return Status::InvalidArgument("player id 0");
   if (token.room.empty() || token.room.size() > kMaxRoomNameSize) {
-    return Status(StatusCode::kInvalidArgument, "room name must be 1..64 bytes");
+    return Status::InvalidArgument("room name must be 1..64 bytes");
   }
   std::vector<uint8_t> out(kFixedSize + token.room.size() + kJoinTokenMacSize);
   uint8_t* p = out.data();
@@ -58,9 +62,8 @@ Result<std::vector<uint8_t>> SignJoinToken(const JoinToken& token, std::string_v
 }
 
 Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_view secret,
-                                  uint64_t now_unix_s, TokenError* error) {
-  *error = TokenError::kBad;
-  const Status bad(StatusCode::kUnauthenticated, "bad token");
+                                  uint64_t now_unix_s) {
+  const Status bad = Status::Unauthenticated(kBadTokenMessage);
   if (secret.empty() || bytes.size() < kFixedSize + 1 + kJoinTokenMacSize ||
       bytes.size() > kMaxJoinTokenSize || bytes[0] != kTokenVersion) {
     return bad;
@@ -82,10 +85,22 @@ Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_vi
   token.room.assign(reinterpret_cast<const char*>(bytes.data() + kFixedSize), room_size);
   if (token.player_id == 0) return bad;
   if (token.expiry_unix_s <= now_unix_s) {
-    *error = TokenError::kExpired;
-    return Status(StatusCode::kUnauthenticated, "expired token");
+    return Status::Unauthenticated(kExpiredTokenMessage,
+                                   "expiry " + std::to_string(token.expiry_unix_s) +
+                                       " <= now " + std::to_string(now_unix_s) + " (unix s)");
   }
-  *error = TokenError::kNone;
+  return token;
+}
+
+bool IsExpiredToken(const Status& status) {
+  return status.IsUnauthenticated() && status.message() == kExpiredTokenMessage;
+}
+
+Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_view secret,
+                                  uint64_t now_unix_s, TokenError* error) {
+  Result<JoinToken> token = VerifyJoinToken(bytes, secret, now_unix_s);
+  *error = token.ok() ? TokenError::kNone
+                      : (IsExpiredToken(token.status()) ? TokenError::kExpired : TokenError::kBad);
   return token;
 }
 
@@ -131,14 +146,14 @@ std::string Base64UrlEncode(std::span<const uint8_t> bytes) {
 
 Result<std::vector<uint8_t>> Base64UrlDecode(std::string_view text) {
   while (!text.empty() && text.back() == '=') text.remove_suffix(1);
-  if (text.size() % 4 == 1) return Status(StatusCode::kMalformed, "bad base64url length");
+  if (text.size() % 4 == 1) return Status::Malformed("bad base64url length");
   std::vector<uint8_t> out;
   out.reserve(text.size() * 3 / 4);
   uint32_t acc = 0;
   int bits = 0;
   for (char c : text) {
     int v = DecodeChar(c);
-    if (v < 0) return Status(StatusCode::kMalformed, "bad base64url character");
+    if (v < 0) return Status::Malformed("bad base64url character");
     acc = (acc << 6) | static_cast<uint32_t>(v);
     bits += 6;
     if (bits >= 8) {
@@ -151,9 +166,9 @@ Result<std::vector<uint8_t>> Base64UrlDecode(std::string_view text) {
 
 Status ReplayGuard::Admit(uint64_t nonce, uint64_t expiry_unix_s, uint64_t now_unix_s) {
   if (now_unix_s >= last_prune_s_ + 10 || seen_.size() >= capacity_) Prune(now_unix_s);
-  if (seen_.count(nonce) != 0) return Status(StatusCode::kAlreadyExists, "replayed token");
+  if (seen_.count(nonce) != 0) return Status::AlreadyExists("replayed token");
   if (seen_.size() >= capacity_) {
-    return Status(StatusCode::kResourceExhausted, "replay guard full");
+    return Status::ResourceExhausted("replay guard full");
   }
   seen_.emplace(nonce, expiry_unix_s);
   return Status::Ok();

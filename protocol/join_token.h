@@ -39,15 +39,23 @@ struct JoinToken {
   uint64_t nonce = 0;        // random; a relay accepts each nonce once (replay protection)
 };
 
-// Why a token was refused; maps onto schema RejectReason BadToken / ExpiredToken.
-enum class TokenError { kNone, kBad, kExpired };
-
 // Signs `token` with `secret`. Fails (kInvalidArgument) on an empty secret, a zero player id,
 // or a room name outside 1..kMaxRoomNameSize bytes.
 Result<std::vector<uint8_t>> SignJoinToken(const JoinToken& token, std::string_view secret);
 
 // Checks layout, MAC (constant time) and expiry against `now_unix_s`. Untrusted input: any
-// bytes give a result, never a crash. On failure sets `*error` and returns kUnauthenticated.
+// bytes give a result, never a crash. Every failure is kUnauthenticated: IsExpiredToken() is
+// true for a well-formed, correctly signed token whose expiry is <= `now_unix_s` (schema
+// RejectReason ExpiredToken; the detail names both times), false for anything else (BadToken).
+Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_view secret,
+                                  uint64_t now_unix_s);
+// True if `status` is VerifyJoinToken's "expired token" failure.
+bool IsExpiredToken(const Status& status);
+
+// Why a token was refused; maps onto schema RejectReason BadToken / ExpiredToken.
+enum class TokenError { kNone, kBad, kExpired };
+// Transitional form for callers not yet converted (relay/relay.cc, tests/fuzz): the same
+// result, and `*error` set from it (kNone on success). Prefer the form above.
 Result<JoinToken> VerifyJoinToken(std::span<const uint8_t> bytes, std::string_view secret,
                                   uint64_t now_unix_s, TokenError* error);
 

@@ -81,6 +81,39 @@ TEST(JoinToken, WrongSecretExpiryAndEveryFlippedBitAreRejected) {
   }
 }
 
+TEST(JoinToken, StatusTellsExpiredFromBadTokens) {
+  auto bytes = *SignJoinToken(Sample(), "s3cret");
+  auto ok = VerifyJoinToken(bytes, "s3cret", 1'900'000'000);
+  ASSERT_TRUE(ok.ok());
+  EXPECT_FALSE(IsExpiredToken(ok.status()));
+
+  auto expired = VerifyJoinToken(bytes, "s3cret", 2'000'000'000);
+  ASSERT_FALSE(expired.ok());
+  EXPECT_TRUE(expired.status().IsUnauthenticated());
+  EXPECT_TRUE(IsExpiredToken(expired.status()));
+  EXPECT_NE(expired.status().detail().find("2000000000"), std::string_view::npos);
+
+  auto bad = VerifyJoinToken(bytes, "other", 0);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_TRUE(bad.status().IsUnauthenticated());
+  EXPECT_FALSE(IsExpiredToken(bad.status()));
+  // An expired token signed with another secret is bad, not expired: the MAC is checked first.
+  EXPECT_FALSE(IsExpiredToken(VerifyJoinToken(bytes, "other", 2'000'000'000).status()));
+
+  // The TokenError form agrees with the Status form.
+  for (uint64_t now : {uint64_t{0}, uint64_t{2'000'000'000}}) {
+    for (std::string_view secret : {"s3cret", "other"}) {
+      TokenError err = TokenError::kNone;
+      auto with_error = VerifyJoinToken(bytes, secret, now, &err);
+      auto plain = VerifyJoinToken(bytes, secret, now);
+      EXPECT_EQ(with_error.ok(), plain.ok());
+      EXPECT_EQ(err, plain.ok() ? TokenError::kNone
+                                : IsExpiredToken(plain.status()) ? TokenError::kExpired
+                                                                 : TokenError::kBad);
+    }
+  }
+}
+
 TEST(JoinToken, RefusesToSignInvalidTokens) {
   JoinToken t = Sample();
   EXPECT_FALSE(SignJoinToken(t, "").ok());

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace edgephys {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr uint32_t kMaxLatticeIndex = (1u << 30) - 1;
 
 int BitsFor(uint64_t max_value) {
@@ -21,12 +21,12 @@ double RotationErrorBoundRad(int32_t rotation_max) {
   const double s = 1.0 / (std::sqrt(2.0) * rotation_max);
   const double d = std::sqrt(3.0) * s / 2.0;
   const double r = std::sqrt(3.0) / 2.0 + d;
-  if (r >= 1.0) return kPi;
+  if (r >= 1.0) return std::numbers::pi;
   return 2.0 * d / std::sqrt(1.0 - r * r);
 }
 
 Result<QuantizationParams> MakeQuantizationParams(const QuantizationConfig& c) {
-  const Status bad(StatusCode::kInvalidArgument, "bad quantization config");
+  const Status bad = Status::InvalidArgument("bad quantization config");
   QuantizationParams p;
   p.config = c;
   const float mins[3] = {c.bounds_min.x, c.bounds_min.y, c.bounds_min.z};
@@ -43,7 +43,7 @@ Result<QuantizationParams> MakeQuantizationParams(const QuantizationConfig& c) {
   }
   const double bound_deg = c.rotation_error_deg;
   if (!std::isfinite(bound_deg) || bound_deg < 1e-4 || bound_deg > 10.0) return bad;
-  const double bound = bound_deg * kPi / 180.0 * (1.0 - 1e-4);
+  const double bound = bound_deg * std::numbers::pi / 180.0 * (1.0 - 1e-4);
   int32_t m = std::max<int32_t>(1, static_cast<int32_t>(std::ceil(std::sqrt(6.0) / bound)));
   while (RotationErrorBoundRad(m) > bound) ++m;
   p.rotation_max = m;

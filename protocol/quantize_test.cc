@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "protocol/codec_test_util.h"
+#include "protocol/testing/codec_test_util.h"
 
 namespace edgephys {
 namespace {

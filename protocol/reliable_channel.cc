@@ -15,12 +15,12 @@ ReliableSender::ReliableSender(size_t max_message_size, size_t max_pending_bytes
 }
 
 Status ReliableSender::Queue(std::span<const uint8_t> message) {
-  if (message.empty()) return Status(StatusCode::kInvalidArgument, "empty reliable message");
+  if (message.empty()) return Status::InvalidArgument("empty reliable message");
   if (message.size() > max_message_size_) {
-    return Status(StatusCode::kTooLarge, "reliable message exceeds max_message_size");
+    return Status::TooLarge("reliable message exceeds max_message_size");
   }
   if (pending_bytes_ + message.size() > max_pending_bytes_) {
-    return Status(StatusCode::kQueueFull, "reliable queue full");
+    return Status::QueueFull("reliable queue full");
   }
   Compact();
   uint64_t offset = bytes_base_ + bytes_.size();
@@ -111,7 +111,7 @@ Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler
       ++*duplicates;
       return Status::Ok();
     case Placement::kOutsideWindow:
-      return Status(StatusCode::kResourceExhausted, "reliable unit outside the window");
+      return Status::ResourceExhausted("reliable unit outside the window");
     case Placement::kInWindow:
       break;
   }
@@ -138,7 +138,7 @@ Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler
 Status ReliableReceiver::Append(std::span<const uint8_t> data, bool last,
                                 ConnectionHandler& handler, uint64_t* delivered) {
   if (message_.size() + data.size() > max_message_size_) {
-    return Status(StatusCode::kTooLarge, "reliable message exceeds max_message_size");
+    return Status::TooLarge("reliable message exceeds max_message_size");
   }
   message_.insert(message_.end(), data.begin(), data.end());
   ++next_id_;

@@ -50,7 +50,7 @@ size_t EncodeSoftBodyChunk(uint32_t time_ms, uint32_t entity_id, std::span<const
 
 Status DecodeSoftBodyChunk(std::span<const uint8_t> payload, float step_m, uint32_t max_total,
                            SoftBodyChunk* out) {
-  const Status malformed(StatusCode::kMalformed, "malformed soft body payload");
+  const Status malformed = Status::Malformed("malformed soft body payload");
   if (payload.size() < 5 || payload[0] != kSoftBodyFormat) return malformed;
   out->time_ms = LoadU32LE(payload.data() + 1);
   size_t pos = 5;

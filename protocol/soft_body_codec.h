@@ -18,7 +18,7 @@
 
 namespace edgephys {
 
-inline constexpr uint8_t kSoftBodyFormat = 5;
+inline constexpr uint8_t kSoftBodyFormat = static_cast<uint8_t>(StateFormat::kSoftBody);
 
 // Encodes particles [first, first + n) of `nodes` (as many as fit in `out`, n >= 1 unless
 // `out` is too small for any) and returns the payload size; `*encoded` is set to n.

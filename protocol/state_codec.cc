@@ -54,12 +54,7 @@ size_t GetVarint32(std::span<const uint8_t> in, uint32_t* value) {
   return 0;
 }
 
-void FloatStateEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
-  out_ = out;
-  pos_ = kHeaderSize;
-  count_ = 0;
-  time_ms_ = time_ms;
-}
+FloatStateEncoder::FloatStateEncoder() : ByteStateEncoder(kHeaderSize) {}
 
 bool FloatStateEncoder::Add(const EntityState& s) {
   uint8_t id[5];
@@ -94,10 +89,10 @@ size_t FloatStateEncoder::Finish() {
 }
 
 Status DecodeStateBatch(std::span<const uint8_t> payload, StateBatch* batch) {
-  const Status malformed(StatusCode::kMalformed, "malformed state payload");
+  const Status malformed = Status::Malformed("malformed state payload");
   batch->states.clear();
   if (!payload.empty() && payload[0] == static_cast<uint8_t>(StateFormat::kQuantizedDelta)) {
-    return Status(StatusCode::kInvalidArgument, "format 2 payload needs a DeltaDecoder");
+    return Status::InvalidArgument("format 2 payload needs a DeltaDecoder");
   }
   if (payload.size() < 6 || payload[0] != static_cast<uint8_t>(StateFormat::kFloat)) {
     return malformed;

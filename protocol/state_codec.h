@@ -18,29 +18,28 @@
 #include <vector>
 
 #include "protocol/status.h"
+#include "protocol/types.h"
 
 namespace edgephys {
-
-struct Vec3f {
-  float x = 0, y = 0, z = 0;
-};
-struct Quatf {
-  float x = 0, y = 0, z = 0, w = 1;
-};
-
-struct EntityState {
-  uint32_t entity_id = 0;
-  Vec3f position;   // metres, room frame
-  Quatf rotation;   // unit quaternion
-};
 
 // True if every component is finite, positions are within +-1e6 m and the rotation has unit
 // length within 1e-3. Relays drop (and count) states that fail this.
 bool IsValidState(const EntityState& state);
 
-// kQuantizedDelta (format 2, protocol/delta_codec.h) is stateful: it is decoded only by a
-// DeltaDecoder owned by the stream's receiver, never by DecodeStateBatch.
-enum class StateFormat : uint8_t { kFloat = 1, kQuantizedDelta = 2 };
+// The first byte of every state payload on the unreliable channel. One list, so that no two
+// formats share an id (the PhyS worker link's own formats, 6 and up, are in
+// physics_backend/worker_protocol.h).
+// kQuantizedDelta (protocol/delta_codec.h) is stateful: it is decoded only by a DeltaDecoder
+// owned by the stream's receiver, never by DecodeStateBatch. kPhoton and kPaper are the
+// benchmark emulations (protocol/emulation_codec.h); kSoftBody carries soft-body particles
+// (protocol/soft_body_codec.h).
+enum class StateFormat : uint8_t {
+  kFloat = 1,
+  kQuantizedDelta = 2,
+  kPhoton = 3,
+  kPaper = 4,
+  kSoftBody = 5,
+};
 
 // Writes entity states into datagram payloads. Usage per payload:
 //   encoder.Begin(buffer, time_ms); while (encoder.Add(state)) {...}; size = encoder.Finish();
@@ -57,19 +56,34 @@ class StateEncoder {
   virtual size_t Finish() = 0;
 };
 
-// Format 1 encoder.
-class FloatStateEncoder final : public StateEncoder {
+// What the byte-aligned encoders (formats 1, 3 and 4) share: Begin() reserves a fixed-size
+// header that Finish() fills in, and Add() appends after it.
+class ByteStateEncoder : public StateEncoder {
  public:
-  void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
-  bool Add(const EntityState& state) override;
-  size_t count() const override { return count_; }
-  size_t Finish() override;
+  void Begin(std::span<uint8_t> out, uint32_t time_ms) final {
+    out_ = out;
+    pos_ = header_size_;
+    count_ = 0;
+    time_ms_ = time_ms;
+  }
+  size_t count() const final { return count_; }
 
- private:
-  std::span<uint8_t> out_;
-  size_t pos_ = 0;
-  size_t count_ = 0;
-  uint32_t time_ms_ = 0;
+ protected:
+  explicit ByteStateEncoder(size_t header_size) : header_size_(header_size) {}
+
+  size_t header_size_;      // bytes reserved at the start of the payload
+  std::span<uint8_t> out_;  // the payload being written (not owned)
+  size_t pos_ = 0;          // bytes of out_ used, header included
+  size_t count_ = 0;        // states added since Begin()
+  uint32_t time_ms_ = 0;    // the payload's sender time
+};
+
+// Format 1 encoder.
+class FloatStateEncoder final : public ByteStateEncoder {
+ public:
+  FloatStateEncoder();
+  bool Add(const EntityState& state) override;
+  size_t Finish() override;
 };
 
 struct StateBatch {

@@ -56,7 +56,7 @@ Result<std::unique_ptr<UdpSocket>> UdpSocket::Open(const Endpoint& bind) {
   asio::ip::udp::socket& s = socket->socket_;
   asio::error_code ec;
   s.open(bind.protocol(), ec);
-  if (ec) return Status(StatusCode::kIoError, "cannot open UDP socket");
+  if (ec) return Status::IoError("cannot open UDP socket");
   if (bind.address().is_v6() && bind.address().is_unspecified()) {
     s.set_option(asio::ip::v6_only(false), ec);  // dual-stack where the OS allows it
   }
@@ -64,11 +64,11 @@ Result<std::unique_ptr<UdpSocket>> UdpSocket::Open(const Endpoint& bind) {
   s.set_option(asio::socket_base::send_buffer_size(kSocketBufferBytes), ec);
   ec.clear();
   s.bind(bind, ec);
-  if (ec) return Status(StatusCode::kIoError, "cannot bind UDP socket");
+  if (ec) return Status::IoError("cannot bind UDP socket");
   s.non_blocking(true, ec);
-  if (ec) return Status(StatusCode::kIoError, "cannot make UDP socket non-blocking");
+  if (ec) return Status::IoError("cannot make UDP socket non-blocking");
   socket->local_ = s.local_endpoint(ec);
-  if (ec) return Status(StatusCode::kIoError, "cannot read UDP socket address");
+  if (ec) return Status::IoError("cannot read UDP socket address");
   return socket;
 }
 
@@ -80,7 +80,7 @@ Status UdpSocket::Destination(const Endpoint& to, Endpoint* destination) const {
   } else if (local_.address().is_v4() && to.address().is_v6()) {
     *destination = Normalize(to);
     if (destination->address().is_v6()) {
-      return Status(StatusCode::kInvalidArgument, "IPv6 destination from an IPv4 socket");
+      return Status::InvalidArgument("IPv6 destination from an IPv4 socket");
     }
   }
   return Status::Ok();
@@ -88,12 +88,12 @@ Status UdpSocket::Destination(const Endpoint& to, Endpoint* destination) const {
 
 Status UdpSocket::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
   if (data.size() > kMaxUdpPayload)
-    return Status(StatusCode::kInvalidArgument, "datagram too large");
+    return Status::InvalidArgument("datagram too large");
   Endpoint destination;
   if (Status st = Destination(to, &destination); !st.ok()) return st;
   asio::error_code ec;
   socket_.send_to(asio::buffer(data.data(), data.size()), destination, 0, ec);
-  if (ec) return Status(StatusCode::kIoError, "UDP send failed");
+  if (ec) return Status::IoError("UDP send failed");
   return Status::Ok();
 }
 

@@ -15,7 +15,6 @@ namespace edgephys {
 
 class MemberLink;
 
-inline constexpr uint32_t kEntityIdBlock = 1u << 16;  // ids per player slot
 
 struct Entity {
   uint32_t id = 0;

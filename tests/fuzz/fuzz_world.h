@@ -18,7 +18,7 @@
 
 #include "client/client.h"
 #include "protocol/handshake.h"
-#include "protocol/in_memory_network.h"
+#include "protocol/testing/in_memory_network.h"
 #include "protocol/join_token.h"
 #include "relay/relay.h"
 

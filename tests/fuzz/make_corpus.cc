@@ -101,13 +101,13 @@ constexpr uint32_t kHand = static_cast<uint32_t>(schema::EntityFlags::Hand);
 
 // Entities of player `owner` in id block `slot`.
 EntitySpec Ground(uint32_t slot, uint32_t owner) {
-  EntitySpec s = StaticBox(slot * 65536 + 1, {0, -0.5f, 0}, {10, 0.5f, 10});
+  EntitySpec s = StaticBox(slot * kEntityIdBlock + 1, {0, -0.5f, 0}, {10, 0.5f, 10});
   s.owner = owner;
   s.flags = kOffloaded;
   return s;
 }
 EntitySpec Cube(uint32_t slot, uint32_t owner) {
-  EntitySpec s = DynamicBox(slot * 65536 + 2, {0, 0.3f, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
+  EntitySpec s = DynamicBox(slot * kEntityIdBlock + 2, {0, 0.3f, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
   s.owner = owner;
   s.flags = kOffloaded | kInteractable;
   s.name = "cube";
@@ -115,7 +115,7 @@ EntitySpec Cube(uint32_t slot, uint32_t owner) {
 }
 EntitySpec HandSpec(uint32_t slot, uint32_t owner) {
   EntitySpec s;
-  s.id = slot * 65536 + 3;
+  s.id = slot * kEntityIdBlock + 3;
   s.owner = owner;
   s.flags = kOffloaded | kHand;
   s.position = {0, 0.3f, 0};
@@ -129,7 +129,7 @@ EntitySpec HandSpec(uint32_t slot, uint32_t owner) {
 }
 EntitySpec Plain(uint32_t slot, uint32_t owner) {
   EntitySpec s;
-  s.id = slot * 65536 + 4;
+  s.id = slot * kEntityIdBlock + 4;
   s.owner = owner;
   s.position = {1, 2, 3};
   s.name = "plain";
@@ -137,7 +137,7 @@ EntitySpec Plain(uint32_t slot, uint32_t owner) {
 }
 EntitySpec Soft(uint32_t slot, uint32_t owner) {
   EntitySpec s;
-  s.id = slot * 65536 + 5;
+  s.id = slot * kEntityIdBlock + 5;
   s.owner = owner;
   s.flags = kOffloaded;
   s.position = {0, 1, 0};
@@ -151,12 +151,12 @@ EntitySpec Soft(uint32_t slot, uint32_t owner) {
   return s;
 }
 EntitySpec Jointed(uint32_t slot, uint32_t owner) {
-  EntitySpec s = DynamicSphere(slot * 65536 + 6, {0.5f, 1, 0}, 0.1f, 0.5f);
+  EntitySpec s = DynamicSphere(slot * kEntityIdBlock + 6, {0.5f, 1, 0}, 0.1f, 0.5f);
   s.owner = owner;
   s.flags = kOffloaded;
   JointSpec j;
   j.kind = schema::JointKind::Fixed;
-  j.connected_entity = slot * 65536 + 2;
+  j.connected_entity = slot * kEntityIdBlock + 2;
   s.joints.push_back(j);
   return s;
 }

@@ -160,7 +160,7 @@ std::vector<uint8_t> JoinedMessage(uint8_t format) {
   schema::JoinedBuilder jb(fbb);
   jb.add_room(room);
   jb.add_player_id(FakeRelay::kPlayer);
-  jb.add_entity_id_base(65536);
+  jb.add_entity_id_base(kEntityIdBlock);  // slot 1
   jb.add_tick_rate_hz(30);
   jb.add_state_format(format);
   jb.add_position_step_m(0.001f);

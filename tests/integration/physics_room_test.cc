@@ -68,7 +68,7 @@ TEST(PhysicsRoom, OffloadedSceneIsSimulatedSharedPushedGrabbedAndStoppedByAWall)
   SpawnDesc parent{.position = {0, 0, 0}, .flags = F(EntityFlags::Offloaded), .name = "table"};
   auto ground_id = a.Spawn(ground), wall_id = a.Spawn(wall), parent_id = a.Spawn(parent);
   ASSERT_TRUE(ground_id.ok() && wall_id.ok() && parent_id.ok());
-  SpawnDesc cube{.position = {0, 2, 0}, .parent = *parent_id,
+  SpawnDesc cube{.position = {0, 2, 0}, .parent_id = *parent_id,
                  .flags = F(EntityFlags::Offloaded) | F(EntityFlags::Interactable) |
                           F(EntityFlags::ReportContacts),
                  .name = "cube"};

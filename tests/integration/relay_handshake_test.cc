@@ -224,7 +224,7 @@ TEST(RelayHostileInput, ThousandsOfRandomAndMutatedPacketsNeverBreakTheRelay) {
     flatbuffers::FlatBufferBuilder fbb;
     schema::Transform t(schema::Vec3(1, 2, 3), schema::Quat(0, 0, 0, 1), schema::Vec3(1, 1, 1));
     schema::ContainerBuilder cb(fbb);
-    cb.add_entity_id(static_cast<uint32_t>(2 * 65536 + i));
+    cb.add_entity_id(2 * kEntityIdBlock + static_cast<uint32_t>(i));
     cb.add_owner(2);
     cb.add_transform(&t);
     auto container = cb.Finish();
@@ -310,7 +310,7 @@ TEST(RelayHostileInput, NanAndUnknownEntityUpdatesAreCountedDrops) {
   EntityState bad_rotation{*id, {0, 0, 0}, {0, 0, 0, 3}};
   // An id in another player's block: unknown to the room and not this sender's to spawn.
   // (Unknown ids in the sender's own block are held briefly: the spawn may be in flight.)
-  EntityState unknown{*id + 5 * 65536, {0, 0, 0}, {0, 0, 0, 1}};
+  EntityState unknown{*id + 5 * kEntityIdBlock, {0, 0, 0}, {0, 0, 0, 1}};
   ASSERT_TRUE(a.SendStateUnchecked(nan_state, world.Now()).ok());
   world.RunFor(0.02);
   ASSERT_TRUE(a.SendStateUnchecked(bad_rotation, world.Now()).ok());

@@ -6,8 +6,8 @@
 #include <memory>
 #include <vector>
 
-#include "protocol/in_memory_network.h"
-#include "protocol/network_simulator.h"
+#include "protocol/testing/in_memory_network.h"
+#include "protocol/testing/network_simulator.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {

@@ -9,9 +9,10 @@
 // kernel's CLOCK_REALTIME): time is cut into cycles of --period seconds starting at --start-at.
 // In the first half of cycle c the owner moves its entities (entity k circles around (k,2,3+c));
 // in the second half it holds entity k at exactly (k, 2, 3 + c), identity rotation. The owner
-// spawns its --entities kinematic entities first (local ids 1..N, so entity id % 65536 == k),
-// then, with --physics (default), an Offloaded static ground and an Offloaded ball resting on
-// it, which put the room on PhyS (a remote edgephys-phys worker when one is attached).
+// spawns its --entities kinematic entities first (local ids 1..N, so
+// entity id % kEntityIdBlock == k), then, with --physics (default), an Offloaded static ground
+// and an Offloaded ball resting on it, which put the room on PhyS (a remote edgephys-phys
+// worker when one is attached).
 //
 // The observer checks every hold: it has converged when all N owner entities are within
 // --tolerance metres of (k, 2, 3 + c) before the hold ends. At the end each role prints one
@@ -49,7 +50,6 @@ double UnixNowS() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-constexpr uint32_t kEntityBlock = 65536;
 constexpr double kPi = 3.14159265358979323846;
 
 struct Schedule {
@@ -187,7 +187,7 @@ int main(int argc, char** argv) {
   auto owner_entities = [&](std::vector<const RemoteEntity*>* out) {
     out->assign(entities, nullptr);
     for (const auto& [id, e] : client.entities()) {
-      uint32_t k = id % kEntityBlock;
+      uint32_t k = id % kEntityIdBlock;
       if (e.owner != 0 && e.owner != player && k >= 1 && k <= entities && e.spawned) out->at(k - 1) = &e;
     }
   };

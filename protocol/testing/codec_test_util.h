@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "protocol/state_codec.h"
@@ -25,7 +26,7 @@ inline double RotationErrorDeg(const Quatf& a, const Quatf& b) {
   const double rz = aw * b.z + ax * b.y - ay * b.x + az * b.w;
   const double rw = aw * b.w - ax * b.x - ay * b.y - az * b.z;
   const double v = std::sqrt(rx * rx + ry * ry + rz * rz);
-  return 2.0 * std::atan2(v, std::fabs(rw)) * 180.0 / 3.14159265358979323846;
+  return 2.0 * std::atan2(v, std::fabs(rw)) * 180.0 / std::numbers::pi;
 }
 
 inline double PositionError(const Vec3f& a, const Vec3f& b) {

@@ -1,4 +1,4 @@
-#include "protocol/network_simulator.h"
+#include "protocol/testing/network_simulator.h"
 
 #include <algorithm>
 

@@ -1,7 +1,7 @@
 // InMemoryNetwork: an in-process stand-in for UDP. Sockets created from one network deliver
-// into each other's receive queues at once, so a test (or a loadgen run) can pump a relay and
-// many clients in one thread, deterministically, without touching the OS. Put a
-// NetworkSimulator on top of a socket to add loss, latency and reordering.
+// into each other's receive queues at once, so a test can pump a relay and many clients in one
+// thread, deterministically, without touching the OS. Put a NetworkSimulator on top of a socket
+// to add loss, latency and reordering. Test support: edgephys::protocol_testing.
 //
 // Addressing: a datagram goes to the socket bound to exactly its destination endpoint, or,
 // failing that, to a socket bound to the unspecified address (0.0.0.0 or ::) of the same

@@ -1,6 +1,6 @@
 // NetworkSimulator: a DatagramSocket decorator that makes the network worse on purpose, for
-// tests and load generation: loss, duplication, latency with jitter, and reordering, all
-// deterministic for a given seed and driven by injected time.
+// tests: loss, duplication, latency with jitter, and reordering, all deterministic for a given
+// seed and driven by injected time. Test support: edgephys::protocol_testing.
 //
 // SendTo() decides the fate of each datagram at once (drawing from a std::mt19937_64 seeded
 // with NetworkConditions::seed) and queues every copy that survives with a delay; Update(now)

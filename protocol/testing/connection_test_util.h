@@ -12,8 +12,8 @@
 
 #include "protocol/byte_io.h"
 #include "protocol/connection.h"
-#include "protocol/in_memory_network.h"
-#include "protocol/network_simulator.h"
+#include "protocol/testing/in_memory_network.h"
+#include "protocol/testing/network_simulator.h"
 #include "protocol/sequence.h"
 
 namespace edgephys::testing {
@@ -126,7 +126,7 @@ class Peer : public PacketWriter {
   void WritePacket(std::span<const uint8_t> packet) override {
     EXPECT_LE(packet.size(), kMaxPacketSize);
     handler.NoteSent(packet);
-    if (!mute) sim.SendTo(remote_, packet);
+    if (!mute) (void)sim.SendTo(remote_, packet);  // NetworkSimulator::SendTo is always Ok
   }
 
   void Receive(double now) {
