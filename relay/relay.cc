@@ -203,11 +203,10 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
   if (connect->token() != nullptr) {
     token_bytes = std::span<const uint8_t>(connect->token()->data(), connect->token()->size());
   }
-  TokenError token_error;
-  Result<JoinToken> token = VerifyJoinToken(token_bytes, config_.secret, unix_now_s, &token_error);
+  Result<JoinToken> token = VerifyJoinToken(token_bytes, config_.secret, unix_now_s);
   if (!token.ok()) {
-    RejectReason r = token_error == TokenError::kExpired ? RejectReason::ExpiredToken
-                                                         : RejectReason::BadToken;
+    RejectReason r = IsExpiredToken(token.status()) ? RejectReason::ExpiredToken
+                                                    : RejectReason::BadToken;
     Log().Note("connect rejected", schema::EnumNameRejectReason(r), from, now);
     return SendReject(from, Code(r), data.size());
   }
