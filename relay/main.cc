@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "metrics/metrics_exporter.h"
+#include "protocol/batched_socket.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -113,6 +114,10 @@ int main(int argc, char** argv) {
                  "as before; N>1 adds a receive thread; see docs/operations.md)")
       ->capture_default_str()
       ->check(CLI::Range(size_t{1}, RelayShards::kMaxShards));
+  bool batching = true;
+  app.add_flag("!--no-batching", batching,
+               "One thread: send and receive datagram by datagram instead of with "
+               "sendmmsg/recvmmsg batches (for comparison)");
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
@@ -195,7 +200,11 @@ int main(int argc, char** argv) {
     (*shards)->Stop();
     return 0;
   }
-  Relay relay(config, socket->get(), &counters);
+  // One thread: datagrams move in recvmmsg/sendmmsg batches; the relay flushes its sends at
+  // the end of every Update.
+  BatchedSocket batched(socket->get());
+  DatagramSocket* relay_socket = batching ? static_cast<DatagramSocket*>(&batched) : socket->get();
+  Relay relay(config, relay_socket, &counters);
   spdlog::info("edgephys-relay listening on udp {}", FormatEndpoint((*socket)->LocalEndpoint()));
 
   std::signal(SIGINT, OnSignal);

@@ -83,7 +83,13 @@ void Relay::Update(double now, uint64_t unix_now_s) {
   UpdateSessions(now, once_a_second);
   TickDueRooms(now);
   CloseIdleRooms(now);
+  FlushSends();
   PublishGauges(once_a_second);
+}
+
+void Relay::FlushSends() {
+  // A batching socket sends what this update queued; datagrams the OS refused are lost.
+  RelayCounters::Inc(counters_->send_errors, socket_->Flush());
 }
 
 void Relay::UpdateSessions(double now, bool sample_rtt) {
@@ -453,6 +459,7 @@ void Relay::CloseIdleRooms(double now) {
 void Relay::Shutdown() {
   for (auto& [id, s] : sessions_) s->connection().Disconnect(DisconnectReason::kServerShutdown, *s);
   while (!sessions_.empty()) RemoveSession(sessions_.begin()->first, now_);
+  FlushSends();
   if (shard_.shared_counters) PublishGauge(counters_->clients, &published_clients_, 0);
 }
 

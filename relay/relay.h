@@ -126,6 +126,8 @@ class Relay final : private SessionHost {
   // Runs the replication tick of every due room, receivers in parallel on the pool.
   void TickDueRooms(double now);
   void CloseIdleRooms(double now);
+  // Hands a batching socket's queued datagrams to the OS (DatagramSocket::Flush).
+  void FlushSends();
   RoomHost& GetOrCreateRoom(const std::string& name, double now);
   RoomHostEnv room_env() { return RoomHostEnv{&config_.limits, counters_, &workers_}; }
   // Publishes the rooms, clients and (once a second) PhyS gauges.

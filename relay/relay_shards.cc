@@ -80,7 +80,7 @@ class ShardSocket final : public DatagramSocket {
     if (data.size() > 65507) return Status(StatusCode::kInvalidArgument, "datagram too large");
     pending_.push_back({to, arena_.size(), data.size()});
     arena_.insert(arena_.end(), data.begin(), data.end());
-    if (pending_.size() >= UdpSocket::kMaxBatch) Flush();
+    if (pending_.size() >= UdpSocket::kMaxBatch) (void)Flush();
     return Status::Ok();
   }
 
@@ -96,9 +96,10 @@ class ShardSocket final : public DatagramSocket {
 
   Endpoint LocalEndpoint() const override { return socket_->LocalEndpoint(); }
 
-  // Sends everything queued since the last flush (one sendmmsg per 64 datagrams).
-  void Flush() {
-    if (pending_.empty()) return;
+  // Sends everything queued since the last flush (one sendmmsg per 64 datagrams). Refused
+  // datagrams are counted here (send_errors), so it returns 0 to the relay's FlushSends.
+  size_t Flush() override {
+    if (pending_.empty()) return 0;
     outgoing_.clear();
     for (const Pending& p : pending_) {
       outgoing_.push_back({p.to, std::span<const uint8_t>(arena_.data() + p.offset, p.size)});
@@ -111,6 +112,7 @@ class ShardSocket final : public DatagramSocket {
     send_batches.fetch_add(1, std::memory_order_relaxed);
     pending_.clear();
     arena_.clear();
+    return 0;
   }
 
   SpscRing<QueuedDatagram>& ring() { return ring_; }
@@ -327,7 +329,7 @@ void RelayShards::ShardLoop(Shard& shard) {
       if (final) shard.accepting_tasks = false;
     }
     for (auto& task : tasks) task(relay, Now());
-    shard.socket.Flush();
+    (void)shard.socket.Flush();
   };
   const double wait_s = std::clamp(options_.idle_wait_s, 0.0001, 0.1);
   timespec timeout{};
@@ -336,7 +338,7 @@ void RelayShards::ShardLoop(Shard& shard) {
   while (!shard.stop.load(std::memory_order_acquire)) {
     if (shard.has_tasks.load(std::memory_order_acquire)) run_tasks(false);
     relay.Update(Now(), UnixNow());
-    shard.socket.Flush();
+    (void)shard.socket.Flush();
     shard.updates.fetch_add(1, std::memory_order_relaxed);
     shard.rooms.store(relay.room_count(), std::memory_order_relaxed);
     shard.sessions.store(relay.session_count(), std::memory_order_relaxed);
@@ -366,7 +368,7 @@ void RelayShards::ShardLoop(Shard& shard) {
     if (shard.socket.ring().Empty()) break;
   }
   relay.Shutdown();
-  shard.socket.Flush();
+  (void)shard.socket.Flush();
   shard.rooms.store(relay.room_count(), std::memory_order_relaxed);
   shard.sessions.store(relay.session_count(), std::memory_order_relaxed);
 }
