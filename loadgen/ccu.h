@@ -79,8 +79,5 @@ struct CcuResult {
 };
 
 std::vector<CcuResult> RunCcu(const CcuOptions& options);
-std::string CcuJson(const CcuOptions& options, const std::vector<CcuResult>& results);
-std::string CcuTable(const std::vector<CcuResult>& results);
-bool WriteCcuCharts(const std::vector<CcuResult>& results, const std::string& prefix);
 
 }  // namespace edgephys::loadgen

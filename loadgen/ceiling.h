@@ -87,9 +87,5 @@ struct CeilingSummary {  // medians over repetitions, per io_threads value
 std::vector<CeilingRepetition> RunCeiling(const CeilingOptions& options);
 std::vector<CeilingSummary> SummarizeCeiling(const CeilingOptions& options,
                                              const std::vector<CeilingRepetition>& reps);
-std::string CeilingTable(const std::vector<CeilingSummary>& summary,
-                         const std::vector<CeilingRepetition>& reps);
-std::string CeilingJson(const CeilingOptions& options, const std::vector<CeilingRepetition>& reps,
-                        const std::vector<CeilingSummary>& summary);
 
 }  // namespace edgephys::loadgen

@@ -35,8 +35,12 @@
 #include <vector>
 
 #include "loadgen/motion.h"
+#include "protocol/connection.h"
 
 namespace edgephys::loadgen {
+
+// Connection header + unreliable chunk header counted per packet (21 bytes).
+inline constexpr size_t kPacketHeaderBytes = kMaxPacketSize - kMaxUnreliablePayload;
 
 struct CodecSweepOptions {
   std::vector<double> steps_m = {0.0005, 0.001, 0.002, 0.005};
@@ -75,14 +79,5 @@ struct CodecSweepResult {
 };
 
 std::vector<CodecSweepResult> RunCodecSweep(const CodecSweepOptions& options);
-
-std::string CodecSweepJson(const CodecSweepOptions& options,
-                           const std::vector<CodecSweepResult>& results);
-std::string CodecSweepTable(const std::vector<CodecSweepResult>& results);
-// Writes <prefix>.dat and <prefix>_position / <prefix>_rotation .png/.svg (bandwidth vs max
-// error, one series per swept dimension, points labelled by the value, the default
-// configuration circled once) with their .gp scripts.
-bool WriteCodecSweepCharts(const CodecSweepOptions& options,
-                           const std::vector<CodecSweepResult>& results, const std::string& prefix);
 
 }  // namespace edgephys::loadgen

@@ -69,9 +69,4 @@ struct SoftBodyResult {
 std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& options);
 double PaperBunnyMbitPerS(uint32_t bunnies);
 
-std::string SoftBodyJson(const SoftBodyOptions& options, const std::vector<SoftBodyResult>& results);
-std::string SoftBodyTable(const std::vector<SoftBodyResult>& results);
-// <prefix>.dat, <prefix>_egress and <prefix>_steptime (.gp, .png, .svg).
-bool WriteSoftBodyCharts(const std::vector<SoftBodyResult>& results, const std::string& prefix);
-
 }  // namespace edgephys::loadgen
