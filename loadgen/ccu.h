@@ -1,4 +1,4 @@
-// ccu: concurrent users against one relay with embedded PhyS (issue #5's scenario).
+// ccu: concurrent users against one relay with embedded PhyS.
 //
 // Bots join gradually (--users over --ramp seconds), spread over --rooms rooms. Each bot owns a
 // head (Avatar, kinematic, no collider), two hands (Hand, kinematic, with trigger spheres:

@@ -6,8 +6,9 @@
 //      Relay driven as edgephys-relay drives it; N>1: RelayShards) on 127.0.0.1. Bots (the
 //      client SDK, all on the calling thread) connect, join --rooms rooms, spawn entities and
 //      publish moving poses; the relay sends every moving entity to every other member of its
-//      room each tick (ReplicationConfig::fixed_rate_hz = the tick rate). After a warm-up, the relay's counters are read over the measured
-//      window: packets/s = (received + sent) / s, bytes/s likewise (UDP payload bytes).
+//      room each tick (ReplicationConfig::fixed_rate_hz = the tick rate). After a warm-up, the
+//      relay's counters are read over the measured window: packets/s = (received + sent) / s,
+//      bytes/s likewise (UDP payload bytes).
 //   2. iperf3 -s -1 and iperf3 -u -c 127.0.0.1 -b 0 -l L -t T --json on loopback, L = the
 //      relay's mean datagram size in this repetition (or --iperf-length). The ceiling is what
 //      the iperf3 server received: (packets - lost) / s and received bytes / s.

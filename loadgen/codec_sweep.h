@@ -23,11 +23,10 @@
 //
 // The motion: like relay-compare (loadgen/motion.h, 1.5 m/s, 90 deg/s), except that a fraction
 // `slow_fraction` of the objects (default a quarter, spread evenly over the ids) only creeps
-// (`slow_motion`, default 5 mm/s and 0.5 deg/s): with everything moving at 1.5 m/s every object
-// changes by ~125 mm per tick and the thresholds never skip anything; creeping objects are where
-// selective sync saves bytes and costs accuracy. --slow-fraction 0 gives the plain motion.
+// (`slow_motion`, default 5 mm/s and 0.5 deg/s): the creeping objects are the ones whose changes
+// can stay under the thresholds. --slow-fraction 0 gives the plain motion.
 //
-// Cost: objects * rate * (warmup + duration) encodes + decodes per configuration (~1 us each).
+// Cost: objects * rate * (warmup + duration) encodes + decodes per configuration.
 #pragma once
 
 #include <cstdint>

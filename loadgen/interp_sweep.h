@@ -21,7 +21,7 @@
 // and the fraction of frames rendered past the newest snapshot (extrapolated or held).
 //
 // Cost: objects * (warmup + duration) * render_hz frames per (network, rate), each with one
-// Sample() per interpolator (~0.3 us); the default run takes well under a second.
+// Sample() per interpolator.
 #pragma once
 
 #include <cstdint>
