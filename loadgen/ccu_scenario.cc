@@ -6,6 +6,11 @@
 #include "loadgen/scenario.h"
 
 namespace edgephys::loadgen {
+
+// The JSON of a sample: one field per member, named as the member (nlohmann::json sorts keys).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CcuSample, t, users, egress_bytes_per_s, ingress_bytes_per_s,
+                                   updates_per_s, resends_per_s, relay_cpu, physics_step_ms)
+
 namespace {
 
 nlohmann::json Summary(const CcuResult& r) {
@@ -36,12 +41,7 @@ nlohmann::json Summary(const CcuResult& r) {
 
 nlohmann::json Series(const CcuResult& r) {
   nlohmann::json a = nlohmann::json::array();
-  for (const CcuSample& s : r.series) {
-    a.push_back({{"t", s.t}, {"users", s.users}, {"egress_bytes_per_s", s.egress_bytes_per_s},
-                 {"ingress_bytes_per_s", s.ingress_bytes_per_s}, {"updates_per_s", s.updates_per_s},
-                 {"resends_per_s", s.resends_per_s}, {"relay_cpu", s.relay_cpu},
-                 {"physics_step_ms", s.physics_step_ms}});
-  }
+  for (const CcuSample& s : r.series) a.push_back(s);
   return a;
 }
 

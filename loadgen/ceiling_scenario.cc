@@ -6,6 +6,20 @@
 #include "loadgen/scenario.h"
 
 namespace edgephys::loadgen {
+
+// The JSON of a relay run and of an iperf3 run: one field per member, named as the member
+// (nlohmann::json sorts keys).
+// The options a report echoes, named as the members (with the machine's thread count added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CeilingOptions, io_threads, clients, rooms, entities_per_client,
+                                   publish_hz, tick_rate_hz, warmup_s, duration_s, iperf_seconds,
+                                   iperf_length, repeat)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CeilingRelayRun, io_threads, clients_joined, seconds,
+                                   packets_per_s, bytes_per_s, rx_packets_per_s, tx_packets_per_s,
+                                   mean_datagram_bytes, relay_cpu_cores, bots_cpu_cores, drops,
+                                   rejected)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CeilingIperf, ran, error, length, seconds, sent_packets_per_s,
+                                   packets_per_s, bytes_per_s, lost_percent)
+
 namespace {
 
 // Every repetition and the medians over them.
@@ -18,18 +32,8 @@ nlohmann::json Json(const CeilingOptions& o, const CeilingResults& results) {
   const auto& [reps, summary] = results;
   nlohmann::json j;
   j["scenario"] = "ceiling";
-  j["options"] = {{"io_threads", o.io_threads},
-                  {"clients", o.clients},
-                  {"rooms", o.rooms},
-                  {"entities_per_client", o.entities_per_client},
-                  {"publish_hz", o.publish_hz},
-                  {"tick_rate_hz", o.tick_rate_hz},
-                  {"warmup_s", o.warmup_s},
-                  {"duration_s", o.duration_s},
-                  {"iperf_seconds", o.iperf_seconds},
-                  {"iperf_length", o.iperf_length},
-                  {"repeat", o.repeat},
-                  {"hardware_concurrency", std::thread::hardware_concurrency()}};
+  j["options"] = o;
+  j["options"]["hardware_concurrency"] = std::thread::hardware_concurrency();
   j["summary"] = nlohmann::json::array();
   for (const CeilingSummary& s : summary) {
     j["summary"].push_back({{"io_threads", s.io_threads},
@@ -47,31 +51,7 @@ nlohmann::json Json(const CeilingOptions& o, const CeilingResults& results) {
   }
   j["repetitions"] = nlohmann::json::array();
   for (const CeilingRepetition& r : reps) {
-    nlohmann::json rep;
-    rep["relay"] = nlohmann::json::array();
-    for (const CeilingRelayRun& run : r.relay) {
-      rep["relay"].push_back({{"io_threads", run.io_threads},
-                              {"clients_joined", run.clients_joined},
-                              {"seconds", run.seconds},
-                              {"packets_per_s", run.packets_per_s},
-                              {"rx_packets_per_s", run.rx_packets_per_s},
-                              {"tx_packets_per_s", run.tx_packets_per_s},
-                              {"bytes_per_s", run.bytes_per_s},
-                              {"mean_datagram_bytes", run.mean_datagram_bytes},
-                              {"relay_cpu_cores", run.relay_cpu_cores},
-                              {"bots_cpu_cores", run.bots_cpu_cores},
-                              {"drops", run.drops},
-                              {"rejected", run.rejected}});
-    }
-    rep["iperf3"] = {{"ran", r.iperf.ran},
-                     {"error", r.iperf.error},
-                     {"length", r.iperf.length},
-                     {"seconds", r.iperf.seconds},
-                     {"sent_packets_per_s", r.iperf.sent_packets_per_s},
-                     {"packets_per_s", r.iperf.packets_per_s},
-                     {"bytes_per_s", r.iperf.bytes_per_s},
-                     {"lost_percent", r.iperf.lost_percent}};
-    j["repetitions"].push_back(rep);
+    j["repetitions"].push_back({{"relay", r.relay}, {"iperf3", r.iperf}});
   }
   return j;
 }

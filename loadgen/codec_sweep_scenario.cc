@@ -8,6 +8,23 @@
 #include "loadgen/scenario.h"
 
 namespace edgephys::loadgen {
+
+// The JSON of a result: one field per member, named as the member (nlohmann::json sorts keys).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CodecSweepResult, dimension, value, position_step_m,
+                                   rotation_bound_deg, position_threshold_m,
+                                   rotation_threshold_deg, bytes_per_s_per_receiver,
+                                   payload_bytes_per_s, packets_per_s, updates_per_s,
+                                   bytes_per_update, keyframe_frac, pos_err_max_m, pos_err_p99_m,
+                                   rot_err_max_deg, rot_err_p99_deg, update_pos_err_max_m,
+                                   update_rot_err_max_deg, unresolved_references, samples)
+
+// The options a report echoes, named as the members (with the motion's, the slow motion's
+// speed and spin and the packet sizes added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CodecSweepOptions, objects, rate_hz, duration_s, warmup_s, loss,
+                                   slow_fraction, default_position_step_m,
+                                   default_rotation_bound_deg, default_threshold_m,
+                                   rotation_threshold_deg_per_m)
+
 namespace {
 
 std::string LabelOf(const CodecSweepResult& r) {
@@ -25,46 +42,13 @@ std::string LabelOf(const CodecSweepResult& r) {
 nlohmann::json Json(const CodecSweepOptions& o, const std::vector<CodecSweepResult>& results) {
   nlohmann::json j;
   j["scenario"] = "codec-sweep";
-  j["options"] = {{"objects", o.objects},
-                  {"rate_hz", o.rate_hz},
-                  {"duration_s", o.duration_s},
-                  {"warmup_s", o.warmup_s},
-                  {"loss", o.loss},
-                  {"speed_mps", o.motion.speed_mps},
-                  {"spin_dps", o.motion.spin_dps},
-                  {"seed", o.motion.seed},
-                  {"slow_fraction", o.slow_fraction},
-                  {"slow_speed_mps", o.slow_motion.speed_mps},
-                  {"slow_spin_dps", o.slow_motion.spin_dps},
-                  {"default_position_step_m", o.default_position_step_m},
-                  {"default_rotation_bound_deg", o.default_rotation_bound_deg},
-                  {"default_threshold_m", o.default_threshold_m},
-                  {"rotation_threshold_deg_per_m", o.rotation_threshold_deg_per_m},
-                  {"packet_header_bytes", kPacketHeaderBytes},
-                  {"max_payload_bytes", kMaxUnreliablePayload}};
-  j["results"] = nlohmann::json::array();
-  for (const auto& r : results) {
-    j["results"].push_back({{"dimension", r.dimension},
-                            {"value", r.value},
-                            {"position_step_m", r.position_step_m},
-                            {"rotation_bound_deg", r.rotation_bound_deg},
-                            {"position_threshold_m", r.position_threshold_m},
-                            {"rotation_threshold_deg", r.rotation_threshold_deg},
-                            {"bytes_per_s_per_receiver", r.bytes_per_s_per_receiver},
-                            {"payload_bytes_per_s", r.payload_bytes_per_s},
-                            {"packets_per_s", r.packets_per_s},
-                            {"updates_per_s", r.updates_per_s},
-                            {"bytes_per_update", r.bytes_per_update},
-                            {"keyframe_frac", r.keyframe_frac},
-                            {"pos_err_max_m", r.pos_err_max_m},
-                            {"pos_err_p99_m", r.pos_err_p99_m},
-                            {"rot_err_max_deg", r.rot_err_max_deg},
-                            {"rot_err_p99_deg", r.rot_err_p99_deg},
-                            {"update_pos_err_max_m", r.update_pos_err_max_m},
-                            {"update_rot_err_max_deg", r.update_rot_err_max_deg},
-                            {"unresolved_references", r.unresolved_references},
-                            {"samples", r.samples}});
-  }
+  j["options"] = o;
+  j["options"].update(o.motion);
+  j["options"].update({{"slow_speed_mps", o.slow_motion.speed_mps},
+                       {"slow_spin_dps", o.slow_motion.spin_dps},
+                       {"packet_header_bytes", kPacketHeaderBytes},
+                       {"max_payload_bytes", kMaxUnreliablePayload}});
+  j["results"] = results;
   return j;
 }
 

@@ -8,6 +8,14 @@
 #include "loadgen/scenario.h"
 
 namespace edgephys::loadgen {
+
+// The JSON of a result: one field per member, named as the member (nlohmann::json sorts keys).
+// The interpolator is added by name.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(InterpSweepResult, network, rate_hz, pos_err_max_m,
+                                   pos_err_p99_m, pos_err_mean_m, rot_err_max_deg,
+                                   rot_err_p99_deg, rot_err_mean_deg, display_delay_ms,
+                                   buffer_delay_ms, extrapolated_frac, snapshots_lost_frac, frames)
+
 namespace {
 
 std::string NetworkTitle(const NetworkCondition& n) {
@@ -45,34 +53,21 @@ nlohmann::json Json(const InterpSweepOptions& o, const std::vector<InterpSweepRe
                     {"jitter_ms", n.jitter_s * 1000},
                     {"loss", n.loss}});
   }
-  j["options"] = {{"rates_hz", o.rates_hz},
-                  {"duration_s", o.duration_s},
-                  {"warmup_s", o.warmup_s},
-                  {"render_hz", o.render_hz},
-                  {"objects", o.objects},
-                  {"speed_mps", o.motion.speed_mps},
-                  {"spin_dps", o.motion.spin_dps},
-                  {"seed", o.motion.seed},
-                  {"quantize", o.quantize},
-                  {"position_step_m", o.quantize ? o.position_step_m : 0.0f},
-                  {"rotation_bound_deg", o.quantize ? o.rotation_bound_deg : 0.0f},
-                  {"networks", nets}};
+  j["options"] = o.motion;
+  j["options"].update({{"rates_hz", o.rates_hz},
+                       {"duration_s", o.duration_s},
+                       {"warmup_s", o.warmup_s},
+                       {"render_hz", o.render_hz},
+                       {"objects", o.objects},
+                       {"quantize", o.quantize},
+                       {"position_step_m", o.quantize ? o.position_step_m : 0.0f},
+                       {"rotation_bound_deg", o.quantize ? o.rotation_bound_deg : 0.0f},
+                       {"networks", nets}});
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
-    j["results"].push_back({{"network", r.network},
-                            {"rate_hz", r.rate_hz},
-                            {"interpolator", InterpolatorName(r.interpolator)},
-                            {"pos_err_max_m", r.pos_err_max_m},
-                            {"pos_err_p99_m", r.pos_err_p99_m},
-                            {"pos_err_mean_m", r.pos_err_mean_m},
-                            {"rot_err_max_deg", r.rot_err_max_deg},
-                            {"rot_err_p99_deg", r.rot_err_p99_deg},
-                            {"rot_err_mean_deg", r.rot_err_mean_deg},
-                            {"display_delay_ms", r.display_delay_ms},
-                            {"buffer_delay_ms", r.buffer_delay_ms},
-                            {"extrapolated_frac", r.extrapolated_frac},
-                            {"snapshots_lost_frac", r.snapshots_lost_frac},
-                            {"frames", r.frames}});
+    nlohmann::json e = r;
+    e["interpolator"] = InterpolatorName(r.interpolator);
+    j["results"].push_back(e);
   }
   return j;
 }

@@ -7,33 +7,24 @@
 #include "loadgen/scenario.h"
 
 namespace edgephys::loadgen {
+
+// The options a report echoes, named as the members (with the relay's tick rate and mode
+// added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_speed, stirrer_reach,
+                                   stirrer_center_y, layers, position_threshold_m,
+                                   rotation_threshold_deg, stirrer_half_height, sleep_threshold,
+                                   moving_speed_mps, bench_warmup_steps, bench_steps, bench_max_s,
+                                   receivers, duration_s, relay_settle_steps, relay_max_substeps,
+                                   position_step_m, rotation_bound_deg)
+
 namespace {
 
 // Options echoed; per size the standalone figures if they ran, the relay figures if it ran.
 nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectResult>& results) {
   nlohmann::json j;
   j["scenario"] = "multiobject";
-  j["options"] = {{"seed", o.seed},
-                  {"stirrer_angular_speed", o.stirrer_angular_speed},
-                  {"stirrer_reach", o.stirrer_reach},
-                  {"stirrer_center_y", o.stirrer_center_y},
-                  {"layers", o.layers},
-                  {"position_threshold_m", o.position_threshold_m},
-                  {"rotation_threshold_deg", o.rotation_threshold_deg},
-                  {"stirrer_half_height", o.stirrer_half_height},
-                  {"sleep_threshold", o.sleep_threshold},
-                  {"moving_speed_mps", o.moving_speed_mps},
-                  {"bench_warmup_steps", o.bench_warmup_steps},
-                  {"bench_steps", o.bench_steps},
-                  {"bench_max_s", o.bench_max_s},
-                  {"receivers", o.receivers},
-                  {"duration_s", o.duration_s},
-                  {"relay_settle_steps", o.relay_settle_steps},
-                  {"relay_max_substeps", o.relay_max_substeps},
-                  {"position_step_m", o.position_step_m},
-                  {"rotation_bound_deg", o.rotation_bound_deg},
-                  {"tick_rate_hz", 60},
-                  {"mode", "edgephys"}};
+  j["options"] = o;
+  j["options"].update({{"tick_rate_hz", 60}, {"mode", "edgephys"}});
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
     nlohmann::json e = {{"objects", r.objects}};

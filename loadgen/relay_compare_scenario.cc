@@ -6,33 +6,33 @@
 #include "loadgen/scenario.h"
 
 namespace edgephys::loadgen {
+
+// The JSON of a result: one field per member, named as the member (nlohmann::json sorts keys).
+// The mode is added by name.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RelayCompareResult, objects, rate_hz,
+                                   egress_bytes_per_s_per_receiver,
+                                   socket_bytes_per_s_per_receiver, updates_per_s_per_receiver,
+                                   bytes_per_update, pos_err_max_m, pos_err_p99_m,
+                                   rot_err_max_deg, rot_err_p99_deg, paper_bytes_per_s, samples)
+
 namespace {
 
 // {"scenario":"relay-compare","options":{...},"results":[...]}.
 nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompareResult>& results) {
   nlohmann::json j;
   j["scenario"] = "relay-compare";
-  j["options"] = {{"rate_hz", o.rate_hz},         {"duration_s", o.duration_s},
-                  {"receivers", o.receivers},     {"speed_mps", o.motion.speed_mps},
-                  {"spin_dps", o.motion.spin_dps}, {"seed", o.motion.seed},
-                  {"position_step_m", o.position_step_m},
-                  {"rotation_bound_deg", o.rotation_bound_deg}};
+  j["options"] = o.motion;
+  j["options"].update({{"rate_hz", o.rate_hz},
+                       {"duration_s", o.duration_s},
+                       {"receivers", o.receivers},
+                       {"position_step_m", o.position_step_m},
+                       {"rotation_bound_deg", o.rotation_bound_deg}});
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
-    j["results"].push_back({{"mode", std::string(ReplicationModeName(r.mode))},
-                            {"objects", r.objects},
-                            {"rate_hz", r.rate_hz},
-                            {"egress_bytes_per_s_per_receiver", r.egress_bytes_per_s_per_receiver},
-                            {"socket_bytes_per_s_per_receiver", r.socket_bytes_per_s_per_receiver},
-                            {"updates_per_s_per_receiver", r.updates_per_s_per_receiver},
-                            {"bytes_per_update", r.bytes_per_update},
-                            {"pos_err_max_m", r.pos_err_max_m},
-                            {"pos_err_p99_m", r.pos_err_p99_m},
-                            {"rot_err_max_deg", r.rot_err_max_deg},
-                            {"rot_err_p99_deg", r.rot_err_p99_deg},
-                            {"paper_bytes_per_s", r.paper_bytes_per_s},
-                            {"ratio_to_paper", RatioOr0(r.egress_bytes_per_s_per_receiver, r.paper_bytes_per_s)},
-                            {"samples", r.samples}});
+    nlohmann::json e = r;
+    e["mode"] = std::string(ReplicationModeName(r.mode));
+    e["ratio_to_paper"] = RatioOr0(r.egress_bytes_per_s_per_receiver, r.paper_bytes_per_s);
+    j["results"].push_back(e);
   }
   return j;
 }

@@ -109,6 +109,9 @@ Report MakeReport(const Options& o, Results results,
 // a / b, or 0 where b is not positive (a ratio to a paper figure the paper does not have).
 inline double RatioOr0(double a, double b) { return b > 0 ? a / b : 0.0; }
 
+// The JSON of a Motion's parameters: speed_mps, spin_dps and seed.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MotionParams, speed_mps, spin_dps, seed)
+
 // --speed, --spin and --seed of the objects' Motion (loadgen/motion.h).
 void AddMotionOptions(CLI::App& cmd, MotionParams* motion, const char* seed_help);
 

@@ -8,44 +8,33 @@
 #include "loadgen/softbody.h"
 
 namespace edgephys::loadgen {
+
+// The JSON of a result: one field per member, named as the member (nlohmann::json sorts keys).
+// The options a report echoes, named as the members (with the particle target, the relay's tick
+// rate and mode added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyOptions, poke_period_s, bench_warmup_steps, bench_steps,
+                                   receivers, duration_s, relay_settle_steps, position_step_m)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyResult, bunnies, particles, step_ms_median,
+                                   step_ms_p99, bench_steps, relay_ok,
+                                   egress_mbit_per_s_per_client, socket_mbit_per_s_per_client,
+                                   paper_mbit_per_s, soft_updates_per_s_per_client,
+                                   relay_step_ms_mean, sim_speed, deformation_min_m,
+                                   deformation_max_m, node_err_max_m, node_err_p99_m,
+                                   node_err_sent_max_m, node_err_sent_p99_m, error_samples)
+
 namespace {
 
 nlohmann::json Json(const SoftBodyOptions& o, const std::vector<SoftBodyResult>& results) {
   nlohmann::json j;
   j["scenario"] = "softbody";
-  j["options"] = {{"particles_per_bunny_target", o.particles},
-                  {"poke_period_s", o.poke_period_s},
-                  {"bench_warmup_steps", o.bench_warmup_steps},
-                  {"bench_steps", o.bench_steps},
-                  {"receivers", o.receivers},
-                  {"duration_s", o.duration_s},
-                  {"relay_settle_steps", o.relay_settle_steps},
-                  {"position_step_m", o.position_step_m},
-                  {"tick_rate_hz", 60},
-                  {"mode", "edgephys"}};
+  j["options"] = o;
+  j["options"].update(
+      {{"particles_per_bunny_target", o.particles}, {"tick_rate_hz", 60}, {"mode", "edgephys"}});
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
-    j["results"].push_back({{"bunnies", r.bunnies},
-                            {"particles", r.particles},
-                            {"step_ms_median", r.step_ms_median},
-                            {"step_ms_p99", r.step_ms_p99},
-                            {"bench_steps", r.bench_steps},
-                            {"relay_ok", r.relay_ok},
-                            {"egress_mbit_per_s_per_client", r.egress_mbit_per_s_per_client},
-                            {"socket_mbit_per_s_per_client", r.socket_mbit_per_s_per_client},
-                            {"paper_mbit_per_s", r.paper_mbit_per_s},
-                            {"egress_ratio_to_paper",
-                             RatioOr0(r.egress_mbit_per_s_per_client, r.paper_mbit_per_s)},
-                            {"soft_updates_per_s_per_client", r.soft_updates_per_s_per_client},
-                            {"relay_step_ms_mean", r.relay_step_ms_mean},
-                            {"sim_speed", r.sim_speed},
-                            {"deformation_min_m", r.deformation_min_m},
-                            {"deformation_max_m", r.deformation_max_m},
-                            {"node_err_max_m", r.node_err_max_m},
-                            {"node_err_p99_m", r.node_err_p99_m},
-                            {"node_err_sent_max_m", r.node_err_sent_max_m},
-                            {"node_err_sent_p99_m", r.node_err_sent_p99_m},
-                            {"error_samples", r.error_samples}});
+    nlohmann::json e = r;
+    e["egress_ratio_to_paper"] = RatioOr0(r.egress_mbit_per_s_per_client, r.paper_mbit_per_s);
+    j["results"].push_back(e);
   }
   return j;
 }
