@@ -41,6 +41,7 @@ struct CcuOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a "series" sample.
 struct CcuSample {
   double t = 0;
   uint32_t users = 0;

@@ -27,6 +27,7 @@
 
 namespace edgephys::loadgen {
 
+// The members --json echoes under "options" appear there under their own names.
 struct CeilingOptions {
   std::vector<size_t> io_threads = {1, 2};
   uint32_t clients = 256;
@@ -43,6 +44,7 @@ struct CeilingOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a "repetitions"[].relay run.
 struct CeilingRelayRun {
   size_t io_threads = 1;
   uint32_t clients_joined = 0;
@@ -58,6 +60,7 @@ struct CeilingRelayRun {
   uint64_t rejected = 0;  // packets_rejected (all reasons) in the window
 };
 
+// Member names are the --json field names of "repetitions"[].iperf3.
 struct CeilingIperf {
   bool ran = false;
   std::string error;  // why not, if !ran

@@ -41,6 +41,7 @@ namespace edgephys::loadgen {
 // Connection header + unreliable chunk header counted per packet (21 bytes).
 inline constexpr size_t kPacketHeaderBytes = kMaxPacketSize - kMaxUnreliablePayload;
 
+// The members --json echoes under "options" appear there under their own names.
 struct CodecSweepOptions {
   std::vector<double> steps_m = {0.0005, 0.001, 0.002, 0.005};
   std::vector<double> rotation_bounds_deg = {0.05, 0.1, 0.2, 0.5};
@@ -59,6 +60,7 @@ struct CodecSweepOptions {
   MotionParams slow_motion{0.005, 0.5, 1};  // seed taken from `motion`
 };
 
+// Member names are the --json field names of a result.
 struct CodecSweepResult {
   std::string dimension;  // "step", "rotation_bound" or "threshold"
   double value = 0;       // the swept parameter's value (m or deg)

@@ -57,6 +57,7 @@ struct InterpSweepOptions {
   float rotation_bound_deg = 0.1f;
 };
 
+// Member names are the --json field names of a result.
 struct InterpSweepResult {
   std::string network;
   double rate_hz = 0;

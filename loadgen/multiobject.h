@@ -36,6 +36,7 @@
 
 namespace edgephys::loadgen {
 
+// The members --json echoes under "options" appear there under their own names.
 struct MultiObjectOptions {
   std::vector<uint32_t> objects = {500, 1000, 2000, 5000, 10000};
   uint32_t seed = 1;

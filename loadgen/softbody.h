@@ -28,6 +28,7 @@
 
 namespace edgephys::loadgen {
 
+// The members --json echoes under "options" appear there under their own names.
 struct SoftBodyOptions {
   std::vector<uint32_t> bunnies = {1, 3};
   int particles = 500;             // target per bunny (MakeBunnySoftBody: within ~10%)
@@ -46,6 +47,7 @@ struct SoftBodyOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a result.
 struct SoftBodyResult {
   uint32_t bunnies = 0;
   uint32_t particles = 0;                   // all bunnies
