@@ -9,18 +9,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <memory>
-#include <nlohmann/json.hpp>
-#include <sstream>
 #include <thread>
 #include <unordered_map>
 
 #include "client/client.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/motion.h"
-#include "loadgen/report.h"
 #include "loadgen/stats.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -453,113 +449,6 @@ std::vector<CcuResult> RunCcu(const CcuOptions& options) {
   std::vector<CcuResult> results;
   for (uint32_t users : options.users) results.push_back(RunOne(options, users));
   return results;
-}
-
-std::string CcuJson(const CcuOptions& o, const std::vector<CcuResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "ccu";
-  j["options"] = {{"rooms", o.rooms}, {"ramp_s", o.ramp_s}, {"duration_s", o.duration_s},
-                  {"relay_threads", o.relay_threads},
-                  {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
-  auto summary = [](const CcuResult& r) {
-    return nlohmann::json{{"users", r.users},
-                          {"rooms", r.rooms},
-                          {"connected", r.connected},
-                          {"reliable_expected", r.reliable_expected},
-                          {"reliable_lost", r.reliable_lost},
-                          {"reliable_duplicated", r.reliable_duplicated},
-                          {"latency_user_to_user_ms_p50", r.latency_ms_p50},
-                          {"latency_user_to_user_ms_p99", r.latency_ms_p99},
-                          {"grab_latency_ms_p50", r.grab_latency_ms_p50},
-                          {"grab_latency_ms_p99", r.grab_latency_ms_p99},
-                          {"latency_arrival_ms_p50", r.arrival_latency_ms_p50},
-                          {"latency_arrival_ms_p99", r.arrival_latency_ms_p99},
-                          {"grab_latency_arrival_ms_p50", r.grab_arrival_latency_ms_p50},
-                          {"grab_latency_arrival_ms_p99", r.grab_arrival_latency_ms_p99},
-                          {"arrival_time_fallbacks", r.arrival_time_fallbacks},
-                          {"latency_relay_wait_ms_mean", r.relay_wait_ms_mean},
-                          {"latency_physics_step_ms_p99", r.physics_step_ms_p99},
-                          {"bot_pass_ms_p50", r.bot_pass_ms_p50},
-                          {"bot_pass_ms_p99", r.bot_pass_ms_p99},
-                          {"latency_interpolation_ms", r.interpolation_delay_ms},
-                          {"relay_cpu_mean", r.relay_cpu_mean},
-                          {"egress_bytes_per_s_per_user", r.egress_bytes_per_s_per_user},
-                          {"hand_update_ratio", r.expected_update_ratio}};
-  };
-  auto series = [](const CcuResult& r) {
-    nlohmann::json a = nlohmann::json::array();
-    for (const CcuSample& s : r.series) {
-      a.push_back({{"t", s.t}, {"users", s.users}, {"egress_bytes_per_s", s.egress_bytes_per_s},
-                   {"ingress_bytes_per_s", s.ingress_bytes_per_s}, {"updates_per_s", s.updates_per_s},
-                   {"resends_per_s", s.resends_per_s}, {"relay_cpu", s.relay_cpu},
-                   {"physics_step_ms", s.physics_step_ms}});
-    }
-    return a;
-  };
-  if (results.size() == 1) {
-    j["summary"] = summary(results[0]);
-    j["series"] = series(results[0]);
-  }
-  j["runs"] = nlohmann::json::array();
-  for (const CcuResult& r : results) j["runs"].push_back({{"summary", summary(r)}, {"series", series(r)}});
-  return j.dump(2);
-}
-
-std::string CcuTable(const std::vector<CcuResult>& results) {
-  std::ostringstream out;
-  char line[320];
-  std::snprintf(
-      line, sizeof(line), "%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n",
-      "users", "rooms", "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50",
-      "grab p99", "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio");
-  out << line;
-  for (const CcuResult& r : results) {
-    std::snprintf(line, sizeof(line),
-                  "%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f "
-                  "%9.0f %8.2f\n",
-                  r.users, r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
-                  r.latency_ms_p50, r.latency_ms_p99, r.arrival_latency_ms_p50,
-                  r.arrival_latency_ms_p99, r.grab_latency_ms_p50, r.grab_latency_ms_p99,
-                  r.grab_arrival_latency_ms_p50, r.grab_arrival_latency_ms_p99,
-                  r.physics_step_ms_p99, r.relay_cpu_mean, r.egress_bytes_per_s_per_user,
-                  r.expected_update_ratio);
-    out << line;
-  }
-  out << "(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
-         "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
-         "thread CPU / wall)\n";
-  return out.str();
-}
-
-bool WriteCcuCharts(const std::vector<CcuResult>& results, const std::string& prefix) {
-  std::ofstream dat(prefix + ".dat");
-  if (!dat) return false;
-  for (const CcuResult& r : results) {
-    dat << "# users " << r.users << "\n# t users egress_KBps ingress_KBps updates_per_s cpu step_ms\n";
-    for (const CcuSample& s : r.series) {
-      dat << s.t << " " << s.users << " " << s.egress_bytes_per_s / 1000 << " "
-          << s.ingress_bytes_per_s / 1000 << " " << s.updates_per_s << " " << s.relay_cpu << " "
-          << s.physics_step_ms << "\n";
-    }
-    dat << "\n\n";
-  }
-  dat.close();
-  for (const char* ext : {"png", "svg"}) {
-    std::ofstream gp(prefix + "." + ext + ".gp");
-    gp << "set terminal " << (std::string(ext) == "png" ? "pngcairo" : "svg") << " size 900,560\n"
-       << "set output '" << prefix << "." << ext << "'\nset title 'ccu: relay load over time'\n"
-       << "set xlabel 'time (s)'\nset ylabel 'users, KB/s'\nset y2label 'relay CPU (cores)'\n"
-       << "set y2tics\nset grid\nset key top left\nplot ";
-    for (size_t i = 0; i < results.size(); ++i) {
-      gp << "'" << prefix << ".dat' index " << i << " using 1:2 with lines title 'users (" << results[i].users
-         << ")', '' index " << i << " using 1:3 with lines title 'egress KB/s', '' index " << i
-         << " using 1:6 axes x1y2 with lines title 'relay cpu'" << (i + 1 < results.size() ? ", " : "\n");
-    }
-    gp.close();
-    std::string cmd = "command -v gnuplot >/dev/null && gnuplot '" + prefix + "." + ext + ".gp' 2>/dev/null";
-    (void)std::system(cmd.c_str());
-  }
-  return true;
 }
 
 }  // namespace edgephys::loadgen

@@ -1,4 +1,4 @@
-// ccu: concurrent users against one relay with embedded PhyS (issue #5's scenario).
+// ccu: concurrent users against one relay with embedded PhyS.
 //
 // Bots join gradually (--users over --ramp seconds), spread over --rooms rooms. Each bot owns a
 // head (Avatar, kinematic, no collider), two hands (Hand, kinematic, with trigger spheres:
@@ -41,6 +41,7 @@ struct CcuOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a "series" sample.
 struct CcuSample {
   double t = 0;
   uint32_t users = 0;
@@ -79,8 +80,5 @@ struct CcuResult {
 };
 
 std::vector<CcuResult> RunCcu(const CcuOptions& options);
-std::string CcuJson(const CcuOptions& options, const std::vector<CcuResult>& results);
-std::string CcuTable(const std::vector<CcuResult>& results);
-bool WriteCcuCharts(const std::vector<CcuResult>& results, const std::string& prefix);
 
 }  // namespace edgephys::loadgen

@@ -6,8 +6,9 @@
 //      Relay driven as edgephys-relay drives it; N>1: RelayShards) on 127.0.0.1. Bots (the
 //      client SDK, all on the calling thread) connect, join --rooms rooms, spawn entities and
 //      publish moving poses; the relay sends every moving entity to every other member of its
-//      room each tick (ReplicationConfig::fixed_rate_hz = the tick rate). After a warm-up, the relay's counters are read over the measured
-//      window: packets/s = (received + sent) / s, bytes/s likewise (UDP payload bytes).
+//      room each tick (ReplicationConfig::fixed_rate_hz = the tick rate). After a warm-up, the
+//      relay's counters are read over the measured window: packets/s = (received + sent) / s,
+//      bytes/s likewise (UDP payload bytes).
 //   2. iperf3 -s -1 and iperf3 -u -c 127.0.0.1 -b 0 -l L -t T --json on loopback, L = the
 //      relay's mean datagram size in this repetition (or --iperf-length). The ceiling is what
 //      the iperf3 server received: (packets - lost) / s and received bytes / s.
@@ -26,6 +27,7 @@
 
 namespace edgephys::loadgen {
 
+// The members --json echoes under "options" appear there under their own names.
 struct CeilingOptions {
   std::vector<size_t> io_threads = {1, 2};
   uint32_t clients = 256;
@@ -42,6 +44,7 @@ struct CeilingOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a "repetitions"[].relay run.
 struct CeilingRelayRun {
   size_t io_threads = 1;
   uint32_t clients_joined = 0;
@@ -57,6 +60,7 @@ struct CeilingRelayRun {
   uint64_t rejected = 0;  // packets_rejected (all reasons) in the window
 };
 
+// Member names are the --json field names of "repetitions"[].iperf3.
 struct CeilingIperf {
   bool ran = false;
   std::string error;  // why not, if !ran
@@ -87,9 +91,5 @@ struct CeilingSummary {  // medians over repetitions, per io_threads value
 std::vector<CeilingRepetition> RunCeiling(const CeilingOptions& options);
 std::vector<CeilingSummary> SummarizeCeiling(const CeilingOptions& options,
                                              const std::vector<CeilingRepetition>& reps);
-std::string CeilingTable(const std::vector<CeilingSummary>& summary,
-                         const std::vector<CeilingRepetition>& reps);
-std::string CeilingJson(const CeilingOptions& options, const std::vector<CeilingRepetition>& reps,
-                        const std::vector<CeilingSummary>& summary);
 
 }  // namespace edgephys::loadgen

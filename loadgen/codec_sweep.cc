@@ -3,38 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "client/interpolation.h"
-#include "loadgen/interp_sweep.h"
 #include "loadgen/stats.h"
-#include "protocol/connection.h"
 #include "protocol/delta_codec.h"
 #include "protocol/quantize.h"
 
 namespace edgephys::loadgen {
 namespace {
 
-// Connection header + unreliable chunk header of one packet (21 bytes).
-constexpr size_t kPacketHeaders = kMaxPacketSize - kMaxUnreliablePayload;
-
-// SplitMix64 (platform-independent, like interp_sweep.cc).
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : state_(seed) {}
-  double Uniform() {
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return static_cast<double>(z >> 11) * (1.0 / 9007199254740992.0);
-  }
-
- private:
-  uint64_t state_;
-};
 
 struct Config {
   std::string dimension;
@@ -83,7 +60,7 @@ CodecSweepResult RunOne(const CodecSweepOptions& o, const Config& c) {
   std::vector<uint16_t> acks_next_tick, acks_now;
   std::vector<uint8_t> buffer(kMaxUnreliablePayload);
   StateBatch batch;
-  Rng rng(o.motion.seed * 0x9E3779B97F4A7C15ull + 17);
+  SplitMix64 rng(o.motion.seed * 0x9E3779B97F4A7C15ull + 17);
 
   const float pos_thr = static_cast<float>(r.position_threshold_m);
   const float rot_thr = static_cast<float>(r.rotation_threshold_deg);
@@ -123,7 +100,7 @@ CodecSweepResult RunOne(const CodecSweepOptions& o, const Config& c) {
       const uint16_t seq = sequence++;
       encoder.OnSent(seq, now);
       if (measuring) {
-        bytes += size + kPacketHeaders;
+        bytes += size + kPacketHeaderBytes;
         payload_bytes += size;
         ++packets;
       }
@@ -190,18 +167,6 @@ CodecSweepResult RunOne(const CodecSweepOptions& o, const Config& c) {
   return r;
 }
 
-std::string LabelOf(const CodecSweepResult& r) {
-  char text[64];
-  if (r.dimension == "step") {
-    std::snprintf(text, sizeof(text), "%gmm", r.value * 1000);
-  } else if (r.dimension == "rotation_bound") {
-    std::snprintf(text, sizeof(text), "%gdeg", r.value);
-  } else {
-    std::snprintf(text, sizeof(text), "thr%gmm", r.value * 1000);
-  }
-  return text;
-}
-
 }  // namespace
 
 std::vector<CodecSweepResult> RunCodecSweep(const CodecSweepOptions& o) {
@@ -214,149 +179,6 @@ std::vector<CodecSweepResult> RunCodecSweep(const CodecSweepOptions& o) {
   std::vector<CodecSweepResult> results;
   for (const Config& c : configs) results.push_back(RunOne(o, c));
   return results;
-}
-
-std::string CodecSweepJson(const CodecSweepOptions& o,
-                           const std::vector<CodecSweepResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "codec-sweep";
-  j["options"] = {{"objects", o.objects},
-                  {"rate_hz", o.rate_hz},
-                  {"duration_s", o.duration_s},
-                  {"warmup_s", o.warmup_s},
-                  {"loss", o.loss},
-                  {"speed_mps", o.motion.speed_mps},
-                  {"spin_dps", o.motion.spin_dps},
-                  {"seed", o.motion.seed},
-                  {"slow_fraction", o.slow_fraction},
-                  {"slow_speed_mps", o.slow_motion.speed_mps},
-                  {"slow_spin_dps", o.slow_motion.spin_dps},
-                  {"default_position_step_m", o.default_position_step_m},
-                  {"default_rotation_bound_deg", o.default_rotation_bound_deg},
-                  {"default_threshold_m", o.default_threshold_m},
-                  {"rotation_threshold_deg_per_m", o.rotation_threshold_deg_per_m},
-                  {"packet_header_bytes", kPacketHeaders},
-                  {"max_payload_bytes", kMaxUnreliablePayload}};
-  j["results"] = nlohmann::json::array();
-  for (const auto& r : results) {
-    j["results"].push_back({{"dimension", r.dimension},
-                            {"value", r.value},
-                            {"position_step_m", r.position_step_m},
-                            {"rotation_bound_deg", r.rotation_bound_deg},
-                            {"position_threshold_m", r.position_threshold_m},
-                            {"rotation_threshold_deg", r.rotation_threshold_deg},
-                            {"bytes_per_s_per_receiver", r.bytes_per_s_per_receiver},
-                            {"payload_bytes_per_s", r.payload_bytes_per_s},
-                            {"packets_per_s", r.packets_per_s},
-                            {"updates_per_s", r.updates_per_s},
-                            {"bytes_per_update", r.bytes_per_update},
-                            {"keyframe_frac", r.keyframe_frac},
-                            {"pos_err_max_m", r.pos_err_max_m},
-                            {"pos_err_p99_m", r.pos_err_p99_m},
-                            {"rot_err_max_deg", r.rot_err_max_deg},
-                            {"rot_err_p99_deg", r.rot_err_p99_deg},
-                            {"update_pos_err_max_m", r.update_pos_err_max_m},
-                            {"update_rot_err_max_deg", r.update_rot_err_max_deg},
-                            {"unresolved_references", r.unresolved_references},
-                            {"samples", r.samples}});
-  }
-  return j.dump(2);
-}
-
-std::string CodecSweepTable(const std::vector<CodecSweepResult>& results) {
-  std::ostringstream out;
-  char line[256];
-  std::snprintf(line, sizeof(line), "%-14s %9s %8s %8s %9s %9s %8s %7s %6s %8s %8s %8s %8s\n",
-                "dimension", "value", "step mm", "bound", "thr mm", "KB/s", "upd/s", "B/upd",
-                "key%", "pos max", "pos p99", "rot max", "rot p99");
-  out << line;
-  for (const auto& r : results) {
-    std::snprintf(line, sizeof(line),
-                  "%-14s %9s %8.2f %8.3f %9.2f %9.2f %8.1f %7.2f %5.1f%% %8.3f %8.3f %8.4f %8.4f\n",
-                  r.dimension.c_str(), LabelOf(r).c_str(), r.position_step_m * 1000,
-                  r.rotation_bound_deg, r.position_threshold_m * 1000,
-                  r.bytes_per_s_per_receiver / 1000, r.updates_per_s, r.bytes_per_update,
-                  r.keyframe_frac * 100, r.pos_err_max_m * 1000, r.pos_err_p99_m * 1000,
-                  r.rot_err_max_deg, r.rot_err_p99_deg);
-    out << line;
-  }
-  out << "(KB = 1000 bytes, incl. 21 header bytes per packet; B/upd incl. headers; pos in mm, rot in "
-         "deg: the receiver's state of every object at every tick vs the float truth)\n";
-  return out.str();
-}
-
-bool WriteCodecSweepCharts(const CodecSweepOptions& o, const std::vector<CodecSweepResult>& results,
-                           const std::string& prefix) {
-  std::ofstream dat(prefix + ".dat");
-  if (!dat) return false;
-  std::vector<std::string> dimensions;
-  for (const auto& r : results) {
-    if (std::find(dimensions.begin(), dimensions.end(), r.dimension) == dimensions.end()) {
-      dimensions.push_back(r.dimension);
-    }
-  }
-  // The default configuration is in every dimension: label it once (its own last block).
-  auto is_default = [&](const CodecSweepResult& r) {
-    return r.position_step_m == o.default_position_step_m &&
-           r.rotation_bound_deg == o.default_rotation_bound_deg &&
-           r.position_threshold_m == o.default_threshold_m;
-  };
-  auto row = [&](const CodecSweepResult& r, const std::string& label) {
-    dat << r.bytes_per_s_per_receiver / 1000 << " " << r.pos_err_max_m * 1000 << " "
-        << r.rot_err_max_deg << " " << r.pos_err_p99_m * 1000 << " " << r.rot_err_p99_deg
-        << " \"" << label << "\"\n";
-  };
-  for (const auto& d : dimensions) {
-    dat << "# dimension " << d << "\n# kBps pos_max_mm rot_max_deg pos_p99_mm rot_p99_deg label\n";
-    for (const auto& r : results) {
-      if (r.dimension == d) row(r, is_default(r) ? "" : LabelOf(r));
-    }
-    dat << "\n\n";
-  }
-  const CodecSweepResult* default_result = nullptr;
-  for (const auto& r : results) {
-    if (is_default(r)) default_result = &r;
-  }
-  if (default_result) {
-    dat << "# defaults\n";
-    row(*default_result, "defaults");
-    dat << "\n\n";
-  }
-  dat.close();
-  if (!dat) return false;
-  auto title_of = [](const std::string& d) {
-    return d == "step" ? std::string("position step")
-           : d == "rotation_bound" ? std::string("rotation bound")
-                                   : std::string("selective-sync threshold");
-  };
-  struct Chart {
-    const char* name;
-    const char* ylabel;
-    int column;
-  };
-  for (const Chart& c : {Chart{"position", "max position error (mm)", 2},
-                         Chart{"rotation", "max rotation error (deg)", 3}}) {
-    std::ostringstream gp;
-    gp << "set title 'Format 2: bandwidth vs max " << c.name
-       << " error (one parameter varied at a time)'\n"
-       << "set xlabel 'KB/s per receiver (incl. packet headers)'\nset ylabel '" << c.ylabel
-       << "'\nset format y '%g'\nset grid\nset key top right\n"
-          "set autoscale fix\nset offsets graph 0.08, graph 0.08, graph 0.15, graph 0.1\nplot ";
-    for (size_t i = 0; i < dimensions.size(); ++i) {
-      gp << (i ? ", " : "") << "'" << prefix << ".dat' index " << i << " using 1:" << c.column
-         << " with linespoints lw 2 pt 7 lc " << i + 1 << " title '" << title_of(dimensions[i])
-         << "', '' index " << i << " using 1:" << c.column << ":6 with labels offset char 0,"
-         << (i % 2 ? "-1" : "1") << " tc lt " << i + 1 << " notitle";
-    }
-    if (default_result) {
-      gp << ", '' index " << dimensions.size() << " using 1:" << c.column
-         << " with points pt 6 ps 2.5 lc rgb 'black' notitle, '' index " << dimensions.size()
-         << " using 1:" << c.column << ":6 with labels offset char 0,-1.6 notitle";
-    }
-    gp << "\n";
-    if (!WriteGnuplotChart(prefix, c.name, gp.str())) return false;
-  }
-  return true;
 }
 
 }  // namespace edgephys::loadgen

@@ -23,11 +23,10 @@
 //
 // The motion: like relay-compare (loadgen/motion.h, 1.5 m/s, 90 deg/s), except that a fraction
 // `slow_fraction` of the objects (default a quarter, spread evenly over the ids) only creeps
-// (`slow_motion`, default 5 mm/s and 0.5 deg/s): with everything moving at 1.5 m/s every object
-// changes by ~125 mm per tick and the thresholds never skip anything; creeping objects are where
-// selective sync saves bytes and costs accuracy. --slow-fraction 0 gives the plain motion.
+// (`slow_motion`, default 5 mm/s and 0.5 deg/s): the creeping objects are the ones whose changes
+// can stay under the thresholds. --slow-fraction 0 gives the plain motion.
 //
-// Cost: objects * rate * (warmup + duration) encodes + decodes per configuration (~1 us each).
+// Cost: objects * rate * (warmup + duration) encodes + decodes per configuration.
 #pragma once
 
 #include <cstdint>
@@ -35,9 +34,14 @@
 #include <vector>
 
 #include "loadgen/motion.h"
+#include "protocol/connection.h"
 
 namespace edgephys::loadgen {
 
+// Connection header + unreliable chunk header counted per packet (21 bytes).
+inline constexpr size_t kPacketHeaderBytes = kMaxPacketSize - kMaxUnreliablePayload;
+
+// The members --json echoes under "options" appear there under their own names.
 struct CodecSweepOptions {
   std::vector<double> steps_m = {0.0005, 0.001, 0.002, 0.005};
   std::vector<double> rotation_bounds_deg = {0.05, 0.1, 0.2, 0.5};
@@ -56,6 +60,7 @@ struct CodecSweepOptions {
   MotionParams slow_motion{0.005, 0.5, 1};  // seed taken from `motion`
 };
 
+// Member names are the --json field names of a result.
 struct CodecSweepResult {
   std::string dimension;  // "step", "rotation_bound" or "threshold"
   double value = 0;       // the swept parameter's value (m or deg)
@@ -75,14 +80,5 @@ struct CodecSweepResult {
 };
 
 std::vector<CodecSweepResult> RunCodecSweep(const CodecSweepOptions& options);
-
-std::string CodecSweepJson(const CodecSweepOptions& options,
-                           const std::vector<CodecSweepResult>& results);
-std::string CodecSweepTable(const std::vector<CodecSweepResult>& results);
-// Writes <prefix>.dat and <prefix>_position / <prefix>_rotation .png/.svg (bandwidth vs max
-// error, one series per swept dimension, points labelled by the value, the default
-// configuration circled once) with their .gp scripts.
-bool WriteCodecSweepCharts(const CodecSweepOptions& options,
-                           const std::vector<CodecSweepResult>& results, const std::string& prefix);
 
 }  // namespace edgephys::loadgen

@@ -21,7 +21,7 @@
 // and the fraction of frames rendered past the newest snapshot (extrapolated or held).
 //
 // Cost: objects * (warmup + duration) * render_hz frames per (network, rate), each with one
-// Sample() per interpolator (~0.3 us); the default run takes well under a second.
+// Sample() per interpolator.
 #pragma once
 
 #include <cstdint>
@@ -57,6 +57,7 @@ struct InterpSweepOptions {
   float rotation_bound_deg = 0.1f;
 };
 
+// Member names are the --json field names of a result.
 struct InterpSweepResult {
   std::string network;
   double rate_hz = 0;
@@ -75,21 +76,5 @@ bool ParseInterpolator(const std::string& name, Interpolator* out);
 
 // One result per (network, rate, interpolator), in that nesting order.
 std::vector<InterpSweepResult> RunInterpSweep(const InterpSweepOptions& options);
-
-std::string InterpSweepJson(const InterpSweepOptions& options,
-                            const std::vector<InterpSweepResult>& results);
-std::string InterpSweepTable(const std::vector<InterpSweepResult>& results);
-// Writes <prefix>.dat and, per network condition, <prefix>_<network>.png/.svg (p99 position
-// error vs send rate, one line per interpolator, log y) with their .gp scripts. Charts are
-// rendered only if gnuplot is on PATH. Returns false if a file could not be written.
-bool WriteInterpSweepCharts(const InterpSweepOptions& options,
-                            const std::vector<InterpSweepResult>& results,
-                            const std::string& prefix);
-
-// Shared by the sweeps: writes <prefix>_<name>.{png,svg}.gp with `body` (the plot commands,
-// without terminal/output) and runs gnuplot on them if available (pngcairo, falling back to
-// png). `width`/`height` in pixels. Returns false if a script could not be written.
-bool WriteGnuplotChart(const std::string& prefix, const std::string& name,
-                       const std::string& body, int width = 800, int height = 500);
 
 }  // namespace edgephys::loadgen

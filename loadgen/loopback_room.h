@@ -103,9 +103,6 @@ void RunPhysicsSteps(LoopbackRoom& world, uint64_t steps, double max_s, Round&& 
   }
 }
 
-// Counted observations of RelayCounters::physics_step_seconds (all buckets).
-uint64_t HistogramCount(const AtomicHistogram<10>& h);
-
 double Dist(const Vec3f& a, const Vec3f& b);
 inline double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();

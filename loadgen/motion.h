@@ -13,6 +13,7 @@
 
 namespace edgephys::loadgen {
 
+// Echoed under --json "options" (relay-compare, interp-sweep, codec-sweep) under these names.
 struct MotionParams {
   double speed_mps = 1.5;
   double spin_dps = 90;

@@ -36,6 +36,7 @@
 
 namespace edgephys::loadgen {
 
+// The members --json echoes under "options" appear there under their own names.
 struct MultiObjectOptions {
   std::vector<uint32_t> objects = {500, 1000, 2000, 5000, 10000};
   uint32_t seed = 1;
@@ -106,16 +107,5 @@ std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& options)
 
 // The paper's PhyS throughput for Obj_N, Mb/s (0 where the paper has none).
 double PaperObjMbitPerS(uint32_t objects);
-
-std::string MultiObjectJson(const MultiObjectOptions& options,
-                            const std::vector<MultiObjectResult>& results);
-std::string MultiObjectTable(const std::vector<MultiObjectResult>& results);
-// <prefix>.dat, <prefix>_steptime / _egress / _error (.gp, .png, .svg; images only if gnuplot
-// is on PATH). False if a file could not be written.
-bool WriteMultiObjectCharts(const std::vector<MultiObjectResult>& results, const std::string& prefix);
-
-// Shared with softbody: writes <prefix>_<name>.{png,svg} (and their .gp scripts) from a gnuplot
-// body (everything after `set output`). False if a script could not be written.
-bool WriteGnuplotChart(const std::string& prefix, const std::string& name, const std::string& body);
 
 }  // namespace edgephys::loadgen

@@ -34,6 +34,7 @@ struct RelayCompareOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a result.
 struct RelayCompareResult {
   ReplicationMode mode;
   uint32_t objects = 0;

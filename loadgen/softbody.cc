@@ -4,13 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <nlohmann/json.hpp>
-#include <sstream>
 #include <thread>
 #include <unordered_map>
 
-#include "loadgen/multiobject.h"
+#include "loadgen/loopback_room.h"
 #include "loadgen/stats.h"
 #include "physics_backend/scenes.h"
 
@@ -406,103 +403,6 @@ std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& o) {
     results.push_back(r);
   }
   return results;
-}
-
-std::string SoftBodyJson(const SoftBodyOptions& o, const std::vector<SoftBodyResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "softbody";
-  j["options"] = {{"particles_per_bunny_target", o.particles},
-                  {"poke_period_s", o.poke_period_s},
-                  {"bench_warmup_steps", o.bench_warmup_steps},
-                  {"bench_steps", o.bench_steps},
-                  {"receivers", o.receivers},
-                  {"duration_s", o.duration_s},
-                  {"relay_settle_steps", o.relay_settle_steps},
-                  {"position_step_m", o.position_step_m},
-                  {"tick_rate_hz", 60},
-                  {"mode", "edgephys"}};
-  j["results"] = nlohmann::json::array();
-  for (const auto& r : results) {
-    j["results"].push_back(
-        {{"bunnies", r.bunnies},
-         {"particles", r.particles},
-         {"step_ms_median", r.step_ms_median},
-         {"step_ms_p99", r.step_ms_p99},
-         {"bench_steps", r.bench_steps},
-         {"relay_ok", r.relay_ok},
-         {"egress_mbit_per_s_per_client", r.egress_mbit_per_s_per_client},
-         {"socket_mbit_per_s_per_client", r.socket_mbit_per_s_per_client},
-         {"paper_mbit_per_s", r.paper_mbit_per_s},
-         {"egress_ratio_to_paper",
-          r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0},
-         {"soft_updates_per_s_per_client", r.soft_updates_per_s_per_client},
-         {"relay_step_ms_mean", r.relay_step_ms_mean},
-         {"sim_speed", r.sim_speed},
-         {"deformation_min_m", r.deformation_min_m},
-         {"deformation_max_m", r.deformation_max_m},
-         {"node_err_max_m", r.node_err_max_m},
-         {"node_err_p99_m", r.node_err_p99_m},
-         {"node_err_sent_max_m", r.node_err_sent_max_m},
-         {"node_err_sent_p99_m", r.node_err_sent_p99_m},
-         {"error_samples", r.error_samples}});
-  }
-  return j.dump(2);
-}
-
-std::string SoftBodyTable(const std::vector<SoftBodyResult>& results) {
-  std::ostringstream out;
-  char line[512];
-  std::snprintf(line, sizeof(line), "%7s %9s | %8s %8s | %8s %5s %7s %6s %6s %7s %11s %8s %8s %8s\n",
-                "bunnies", "particles", "PhyS med", "PhyS p99", "relay ms", "sim x", "Mb/s", "paper",
-                "ratio", "chunk/s", "deform mm", "err max", "err p99", "sent max");
-  out << line;
-  for (const auto& r : results) {
-    char deform[32];
-    std::snprintf(deform, sizeof(deform), "%.0f-%.0f", r.deformation_min_m * 1000, r.deformation_max_m * 1000);
-    std::snprintf(line, sizeof(line),
-                  "%7u %9u | %8.2f %8.2f | %8.2f %5.2f %7.3f %6.2f %6.3f %7.1f %11s %8.2f %8.2f %8.3f\n",
-                  r.bunnies, r.particles, r.step_ms_median, r.step_ms_p99, r.relay_step_ms_mean,
-                  r.sim_speed, r.egress_mbit_per_s_per_client, r.paper_mbit_per_s,
-                  r.paper_mbit_per_s > 0 ? r.egress_mbit_per_s_per_client / r.paper_mbit_per_s : 0.0,
-                  r.soft_updates_per_s_per_client, deform, r.node_err_max_m * 1000,
-                  r.node_err_p99_m * 1000, r.node_err_sent_max_m * 1000);
-    out << line;
-  }
-  out << "(PhyS med/p99: standalone step ms; relay ms: relay's mean PhyS step; Mb/s: relay egress per\n"
-         " receiver, 10^6 bit/s; paper: Bunny_N; deform: bunny 0's largest spring length change from\n"
-         " rest, min-max over the window; err: receiver's particles vs the relay's at the same moment,\n"
-         " max over particles (mm); sent max: vs the particles the relay sent (mm))\n";
-  return out.str();
-}
-
-bool WriteSoftBodyCharts(const std::vector<SoftBodyResult>& results, const std::string& prefix) {
-  {
-    std::ofstream dat(prefix + ".dat");
-    if (!dat) return false;
-    dat << "# bunnies mbit paper_mbit step_med step_p99 relay_step_ms err_max_mm sent_max_mm\n";
-    for (const auto& r : results) {
-      dat << r.bunnies << " " << r.egress_mbit_per_s_per_client << " " << r.paper_mbit_per_s << " "
-          << r.step_ms_median << " " << r.step_ms_p99 << " " << r.relay_step_ms_mean << " "
-          << r.node_err_max_m * 1000 << " " << r.node_err_sent_max_m * 1000 << "\n";
-    }
-  }
-  const std::string d = "'" + prefix + ".dat'";
-  std::ostringstream eg;
-  eg << "set title 'Soft bodies: PhyS egress per client vs the paper (1 mm particle step)'\n"
-        "set xlabel 'bunnies (~500 particles each)'\nset ylabel 'Mb/s per client'\nset grid\n"
-        "set key top left\nset style data histograms\nset style histogram clustered gap 1\n"
-        "set style fill solid 0.7 border -1\nset yrange [0:*]\n"
-        "plot " << d << " using 2:xtic(1) title 'edgephys (measured)', "
-     << d << " using ($3>0?$3:1/0):xtic(1) title 'paper'\n";
-  std::ostringstream st;
-  st << "set title 'Soft bodies: PhyS step time'\n"
-        "set xlabel 'bunnies (~500 particles each)'\nset ylabel 'ms per step'\nset grid\n"
-        "set key top left\nset style data histograms\nset style histogram clustered gap 1\n"
-        "set style fill solid 0.7 border -1\nset yrange [0:*]\n"
-        "plot " << d << " using 4:xtic(1) title 'median (standalone)', "
-     << d << " using 5:xtic(1) title 'p99 (standalone)', "
-     << d << " using 6:xtic(1) title 'relay mean'\n";
-  return WriteGnuplotChart(prefix, "egress", eg.str()) && WriteGnuplotChart(prefix, "steptime", st.str());
 }
 
 }  // namespace edgephys::loadgen

@@ -28,6 +28,7 @@
 
 namespace edgephys::loadgen {
 
+// The members --json echoes under "options" appear there under their own names.
 struct SoftBodyOptions {
   std::vector<uint32_t> bunnies = {1, 3};
   int particles = 500;             // target per bunny (MakeBunnySoftBody: within ~10%)
@@ -46,6 +47,7 @@ struct SoftBodyOptions {
   bool progress = true;
 };
 
+// Member names are the --json field names of a result.
 struct SoftBodyResult {
   uint32_t bunnies = 0;
   uint32_t particles = 0;                   // all bunnies
@@ -68,10 +70,5 @@ struct SoftBodyResult {
 
 std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& options);
 double PaperBunnyMbitPerS(uint32_t bunnies);
-
-std::string SoftBodyJson(const SoftBodyOptions& options, const std::vector<SoftBodyResult>& results);
-std::string SoftBodyTable(const std::vector<SoftBodyResult>& results);
-// <prefix>.dat, <prefix>_egress and <prefix>_steptime (.gp, .png, .svg).
-bool WriteSoftBodyCharts(const std::vector<SoftBodyResult>& results, const std::string& prefix);
 
 }  // namespace edgephys::loadgen

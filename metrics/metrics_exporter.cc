@@ -13,9 +13,11 @@
 #include <cstddef>
 #include <exception>
 #include <limits>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
+#include <variant>
 #include <vector>
 
 #include "edgephys/schema/control_generated.h"
@@ -74,199 +76,217 @@ prometheus::MetricFamily Family(std::string name, std::string help, prometheus::
   return family;
 }
 
-prometheus::MetricFamily GaugeFamily(std::string name, std::string help,
-                                     const RelayCounters::Gauge& gauge) {
-  prometheus::MetricFamily family =
-      Family(std::move(name), std::move(help), prometheus::MetricType::Gauge);
-  prometheus::ClientMetric metric;
-  metric.gauge.value = Load(gauge);
-  family.metric.push_back(std::move(metric));
-  return family;
-}
-
+// The families a relay exports, one kind of source each.
+struct GaugeSource {
+  static constexpr prometheus::MetricType kType = prometheus::MetricType::Gauge;
+  RelayCounters::Gauge RelayCounters::*field;
+};
 // prometheus-cpp 1.0's text serializer writes the family name verbatim for counters (it adds no
-// suffix), so `name` carries the one `_total` itself.
-prometheus::MetricFamily CounterFamily(std::string name, std::string help,
-                                       const RelayCounters::Counter& counter) {
-  prometheus::MetricFamily family =
-      Family(std::move(name), std::move(help), prometheus::MetricType::Counter);
-  prometheus::ClientMetric metric;
-  metric.counter.value = Load(counter);
-  family.metric.push_back(std::move(metric));
-  return family;
+// suffix), so a counter's name carries the one `_total` itself.
+struct CounterSource {
+  static constexpr prometheus::MetricType kType = prometheus::MetricType::Counter;
+  RelayCounters::Counter RelayCounters::*field;
+};
+// One series per non-empty label; labels()[i] names counters(c)[i] (label name "reason").
+struct ReasonCountersSource {
+  static constexpr prometheus::MetricType kType = prometheus::MetricType::Counter;
+  std::span<const RelayCounters::Counter> (*counters)(const RelayCounters&);
+  const std::vector<std::string>& (*labels)();
+};
+using Histogram = decltype(RelayCounters::rtt_seconds);
+struct HistogramSource {
+  static constexpr prometheus::MetricType kType = prometheus::MetricType::Histogram;
+  Histogram RelayCounters::*field;
+};
+using Source = std::variant<GaugeSource, CounterSource, ReasonCountersSource, HistogramSource>;
+
+struct FamilySpec {
+  const char* name;
+  const char* help;
+  Source source;
+};
+
+template <auto kField>
+std::span<const RelayCounters::Counter> CountersOf(const RelayCounters& c) {
+  return c.*kField;
 }
 
-// One series per entry of `labels` that is non-empty; labels[i] names counters[i].
-template <size_t N>
-prometheus::MetricFamily LabeledCounterFamily(std::string name, std::string help,
-                                              const std::array<RelayCounters::Counter, N>& counters,
-                                              const std::vector<std::string>& labels) {
-  prometheus::MetricFamily family =
-      Family(std::move(name), std::move(help), prometheus::MetricType::Counter);
-  for (size_t i = 0; i < N && i < labels.size(); ++i) {
+// Label per DropReason. Two series with one label set would make the whole scrape invalid:
+// should DropReasonName() ever lag behind the enum (empty or repeated name), keep the
+// exposition valid with a numbered label; metrics_test flags the mismatch.
+const std::vector<std::string>& DropLabels() {
+  static const std::vector<std::string> labels = [] {
+    std::vector<std::string> out;
+    for (size_t i = 0; i < kDropReasonCount; ++i) {
+      std::string name(DropReasonName(static_cast<DropReason>(i)));
+      if (name.empty() || std::find(out.begin(), out.end(), name) != out.end()) {
+        name = "drop_reason_" + std::to_string(i);
+      }
+      out.push_back(std::move(name));
+    }
+    return out;
+  }();
+  return labels;
+}
+
+// Labels per schema enum value in snake_case; "none" is not a reason: its empty label skips the
+// series.
+template <typename Enum, size_t kCount>
+const std::vector<std::string>& SchemaReasonLabels(const char* (*enum_name)(Enum)) {
+  static const std::vector<std::string> labels = [&] {
+    std::vector<std::string> out;
+    for (size_t i = 0; i < kCount; ++i) {
+      const auto reason = static_cast<Enum>(i);
+      out.push_back(reason == Enum::None ? std::string() : SnakeCase(enum_name(reason)));
+    }
+    return out;
+  }();
+  return labels;
+}
+const std::vector<std::string>& RejectLabels() {
+  return SchemaReasonLabels<schema::RejectReason, kRejectReasonCount>(
+      schema::EnumNameRejectReason);
+}
+const std::vector<std::string>& DisconnectLabels() {
+  return SchemaReasonLabels<schema::DisconnectReason, kDisconnectReasonCount>(
+      schema::EnumNameDisconnectReason);
+}
+
+using C = RelayCounters;
+// Exported in this order, after edgephys_build_info.
+const FamilySpec kFamilies[] = {
+    {"edgephys_rooms", "Rooms currently open.", GaugeSource{&C::rooms}},
+    {"edgephys_clients", "Clients currently connected.", GaugeSource{&C::clients}},
+    {"edgephys_entities", "Entities currently replicated.", GaugeSource{&C::entities}},
+    {"edgephys_packets_received_total", "UDP datagrams received.",
+     CounterSource{&C::packets_received}},
+    {"edgephys_packets_sent_total", "UDP datagrams sent.", CounterSource{&C::packets_sent}},
+    {"edgephys_bytes_received_total", "UDP payload bytes received.",
+     CounterSource{&C::bytes_received}},
+    {"edgephys_bytes_sent_total", "UDP payload bytes sent.", CounterSource{&C::bytes_sent}},
+    {"edgephys_entity_updates_sent_total", "Entity states written into outgoing packets.",
+     CounterSource{&C::entity_updates_sent}},
+    {"edgephys_entity_updates_received_total", "Entity states accepted from their owners.",
+     CounterSource{&C::entity_updates_received}},
+    {"edgephys_reliable_resends_total", "Reliable units sent more than once.",
+     CounterSource{&C::reliable_resends}},
+    {"edgephys_reliable_messages_received_total",
+     "Whole reliable messages received from clients.",
+     CounterSource{&C::reliable_messages_received}},
+    {"edgephys_connections_accepted_total", "Connections that completed the handshake.",
+     CounterSource{&C::connections_accepted}},
+    {"edgephys_send_errors_total", "Datagrams the socket refused to send.",
+     CounterSource{&C::send_errors}},
+    {"edgephys_io_queue_drops_total",
+     "Datagrams dropped because their I/O thread's queue was full.",
+     CounterSource{&C::io_queue_drops}},
+    {"edgephys_packets_rejected_total", "Incoming datagrams dropped, by reason.",
+     ReasonCountersSource{CountersOf<&C::packets_rejected>, DropLabels}},
+    {"edgephys_entity_updates_rejected_total",
+     "Entity updates dropped inside accepted packets, by reason.",
+     ReasonCountersSource{CountersOf<&C::updates_rejected>, DropLabels}},
+    {"edgephys_requests_rejected_total",
+     "Connect, join and command requests refused to clients, by reason.",
+     ReasonCountersSource{CountersOf<&C::requests_rejected>, RejectLabels}},
+    {"edgephys_disconnects_total", "Connections ended, by reason.",
+     ReasonCountersSource{CountersOf<&C::disconnects>, DisconnectLabels}},
+    {"edgephys_rtt_seconds", "Connection round-trip time samples, in seconds.",
+     HistogramSource{&C::rtt_seconds}},
+    {"edgephys_tick_duration_seconds", "Wall time of one room tick, in seconds.",
+     HistogramSource{&C::tick_seconds}},
+    {"edgephys_physics_bodies", "Rigid bodies in PhyS worlds (all rooms).",
+     GaugeSource{&C::physics_bodies}},
+    {"edgephys_physics_sleeping_bodies", "Dynamic bodies asleep in PhyS worlds (all rooms).",
+     GaugeSource{&C::physics_sleeping_bodies}},
+    {"edgephys_physics_workers", "Remote edgephys-phys workers attached.",
+     GaugeSource{&C::physics_workers}},
+    {"edgephys_physics_steps_total", "Fixed PhyS steps run (all rooms).",
+     CounterSource{&C::physics_steps}},
+    {"edgephys_physics_guard_resets_total", "Bodies restored by the stability guard.",
+     CounterSource{&C::guard_resets}},
+    {"edgephys_physics_failovers_total", "Rooms restored on another worker or embedded.",
+     CounterSource{&C::physics_failovers}},
+    {"edgephys_physics_step_seconds", "Wall time of one PhyS step, in seconds.",
+     HistogramSource{&C::physics_step_seconds}},
+};
+
+void AddMetrics(const GaugeSource& s, const RelayCounters& c, prometheus::MetricFamily* family) {
+  prometheus::ClientMetric metric;
+  metric.gauge.value = Load(c.*s.field);
+  family->metric.push_back(std::move(metric));
+}
+
+void AddMetrics(const CounterSource& s, const RelayCounters& c, prometheus::MetricFamily* family) {
+  prometheus::ClientMetric metric;
+  metric.counter.value = Load(c.*s.field);
+  family->metric.push_back(std::move(metric));
+}
+
+void AddMetrics(const ReasonCountersSource& s, const RelayCounters& c,
+                prometheus::MetricFamily* family) {
+  const std::span<const RelayCounters::Counter> counters = s.counters(c);
+  const std::vector<std::string>& labels = s.labels();
+  for (size_t i = 0; i < counters.size() && i < labels.size(); ++i) {
     if (labels[i].empty()) continue;
     prometheus::ClientMetric metric;
     metric.label.push_back({"reason", labels[i]});
     metric.counter.value = Load(counters[i]);
-    family.metric.push_back(std::move(metric));
+    family->metric.push_back(std::move(metric));
   }
-  return family;
 }
 
 // AtomicHistogram keeps non-cumulative buckets; Prometheus wants cumulative ones plus +Inf.
 // _count is derived from the buckets so it always equals the +Inf bucket.
-template <size_t N>
-prometheus::MetricFamily HistogramFamily(std::string name, std::string help,
-                                         const AtomicHistogram<N>& histogram) {
-  prometheus::MetricFamily family =
-      Family(std::move(name), std::move(help), prometheus::MetricType::Histogram);
+void AddMetrics(const HistogramSource& s, const RelayCounters& c,
+                prometheus::MetricFamily* family) {
+  const Histogram& histogram = c.*s.field;
+  const size_t n = histogram.bounds().size();
   prometheus::ClientMetric metric;
-  metric.histogram.bucket.reserve(N + 1);
+  metric.histogram.bucket.reserve(n + 1);
   uint64_t cumulative = 0;
-  for (size_t i = 0; i <= N; ++i) {
+  for (size_t i = 0; i <= n; ++i) {
     cumulative += histogram.bucket(i);
     prometheus::ClientMetric::Bucket bucket;
     bucket.cumulative_count = cumulative;
-    bucket.upper_bound =
-        i < N ? histogram.bounds()[i] : std::numeric_limits<double>::infinity();
+    bucket.upper_bound = i < n ? histogram.bounds()[i] : std::numeric_limits<double>::infinity();
     metric.histogram.bucket.push_back(bucket);
   }
   metric.histogram.sample_count = cumulative;
   metric.histogram.sample_sum = histogram.sum();
-  family.metric.push_back(std::move(metric));
-  return family;
+  family->metric.push_back(std::move(metric));
 }
 
 class RelayCollectable : public prometheus::Collectable {
  public:
-  explicit RelayCollectable(const RelayCounters* counters) : counters_(counters) {
-    drop_labels_.reserve(kDropReasonCount);
-    for (size_t i = 0; i < kDropReasonCount; ++i) {
-      std::string name(DropReasonName(static_cast<DropReason>(i)));
-      // Two series with one label set would make the whole scrape invalid. Should
-      // DropReasonName() ever lag behind the enum (empty or repeated name), keep the exposition
-      // valid with a numbered label; metrics_test flags the mismatch.
-      if (name.empty() ||
-          std::find(drop_labels_.begin(), drop_labels_.end(), name) != drop_labels_.end()) {
-        name = "drop_reason_" + std::to_string(i);
-      }
-      drop_labels_.push_back(std::move(name));
-    }
-    reject_labels_.reserve(kRejectReasonCount);
-    for (size_t i = 0; i < kRejectReasonCount; ++i) {
-      const auto reason = static_cast<schema::RejectReason>(i);
-      // "none" is not a rejection; an empty label skips the series.
-      reject_labels_.push_back(reason == schema::RejectReason::None
-                                   ? std::string()
-                                   : SnakeCase(schema::EnumNameRejectReason(reason)));
-    }
-    disconnect_labels_.reserve(kDisconnectReasonCount);
-    for (size_t i = 0; i < kDisconnectReasonCount; ++i) {
-      const auto reason = static_cast<schema::DisconnectReason>(i);
-      disconnect_labels_.push_back(reason == schema::DisconnectReason::None
-                                       ? std::string()
-                                       : SnakeCase(schema::EnumNameDisconnectReason(reason)));
-    }
-  }
+  explicit RelayCollectable(const RelayCounters* counters) : counters_(counters) {}
 
   std::vector<prometheus::MetricFamily> Collect() const override {
-    const RelayCounters& c = *counters_;
     std::vector<prometheus::MetricFamily> families;
-    families.reserve(24);
+    families.reserve(std::size(kFamilies) + 1);
 
-    {
-      prometheus::MetricFamily info =
-          Family("edgephys_build_info", "edgephys build information; the value is always 1.",
-                 prometheus::MetricType::Gauge);
-      prometheus::ClientMetric metric;
-      metric.label.push_back({"version", EDGEPHYS_VERSION});
-      metric.gauge.value = 1;
-      info.metric.push_back(std::move(metric));
-      families.push_back(std::move(info));
+    prometheus::MetricFamily info =
+        Family("edgephys_build_info", "edgephys build information; the value is always 1.",
+               prometheus::MetricType::Gauge);
+    prometheus::ClientMetric metric;
+    metric.label.push_back({"version", EDGEPHYS_VERSION});
+    metric.gauge.value = 1;
+    info.metric.push_back(std::move(metric));
+    families.push_back(std::move(info));
+
+    for (const FamilySpec& spec : kFamilies) {
+      families.push_back(std::visit(
+          [&](const auto& source) {
+            prometheus::MetricFamily family = Family(spec.name, spec.help, source.kType);
+            AddMetrics(source, *counters_, &family);
+            return family;
+          },
+          spec.source));
     }
-
-    families.push_back(GaugeFamily("edgephys_rooms", "Rooms currently open.", c.rooms));
-    families.push_back(
-        GaugeFamily("edgephys_clients", "Clients currently connected.", c.clients));
-    families.push_back(GaugeFamily("edgephys_entities", "Entities currently replicated.",
-                                   c.entities));
-
-    families.push_back(CounterFamily("edgephys_packets_received_total",
-                                     "UDP datagrams received.", c.packets_received));
-    families.push_back(CounterFamily("edgephys_packets_sent_total", "UDP datagrams sent.",
-                                     c.packets_sent));
-    families.push_back(CounterFamily("edgephys_bytes_received_total",
-                                     "UDP payload bytes received.", c.bytes_received));
-    families.push_back(
-        CounterFamily("edgephys_bytes_sent_total", "UDP payload bytes sent.", c.bytes_sent));
-    families.push_back(CounterFamily("edgephys_entity_updates_sent_total",
-                                     "Entity states written into outgoing packets.",
-                                     c.entity_updates_sent));
-    families.push_back(CounterFamily("edgephys_entity_updates_received_total",
-                                     "Entity states accepted from their owners.",
-                                     c.entity_updates_received));
-    families.push_back(CounterFamily("edgephys_reliable_resends_total",
-                                     "Reliable units sent more than once.",
-                                     c.reliable_resends));
-    families.push_back(CounterFamily("edgephys_reliable_messages_received_total",
-                                     "Whole reliable messages received from clients.",
-                                     c.reliable_messages_received));
-    families.push_back(CounterFamily("edgephys_connections_accepted_total",
-                                     "Connections that completed the handshake.",
-                                     c.connections_accepted));
-    families.push_back(CounterFamily("edgephys_send_errors_total",
-                                     "Datagrams the socket refused to send.", c.send_errors));
-    families.push_back(CounterFamily("edgephys_io_queue_drops_total",
-                                     "Datagrams dropped because their I/O thread's queue was full.",
-                                     c.io_queue_drops));
-
-    families.push_back(LabeledCounterFamily("edgephys_packets_rejected_total",
-                                            "Incoming datagrams dropped, by reason.",
-                                            c.packets_rejected, drop_labels_));
-    families.push_back(LabeledCounterFamily(
-        "edgephys_entity_updates_rejected_total",
-        "Entity updates dropped inside accepted packets, by reason.", c.updates_rejected,
-        drop_labels_));
-    families.push_back(LabeledCounterFamily(
-        "edgephys_requests_rejected_total",
-        "Connect, join and command requests refused to clients, by reason.",
-        c.requests_rejected, reject_labels_));
-    families.push_back(LabeledCounterFamily("edgephys_disconnects_total",
-                                            "Connections ended, by reason.", c.disconnects,
-                                            disconnect_labels_));
-
-    families.push_back(HistogramFamily("edgephys_rtt_seconds",
-                                       "Connection round-trip time samples, in seconds.",
-                                       c.rtt_seconds));
-    families.push_back(HistogramFamily("edgephys_tick_duration_seconds",
-                                       "Wall time of one room tick, in seconds.",
-                                       c.tick_seconds));
-
-    families.push_back(GaugeFamily("edgephys_physics_bodies",
-                                   "Rigid bodies in PhyS worlds (all rooms).", c.physics_bodies));
-    families.push_back(GaugeFamily("edgephys_physics_sleeping_bodies",
-                                   "Dynamic bodies asleep in PhyS worlds (all rooms).",
-                                   c.physics_sleeping_bodies));
-    families.push_back(GaugeFamily("edgephys_physics_workers",
-                                   "Remote edgephys-phys workers attached.", c.physics_workers));
-    families.push_back(CounterFamily("edgephys_physics_steps_total",
-                                     "Fixed PhyS steps run (all rooms).", c.physics_steps));
-    families.push_back(CounterFamily("edgephys_physics_guard_resets_total",
-                                     "Bodies restored by the stability guard.", c.guard_resets));
-    families.push_back(CounterFamily("edgephys_physics_failovers_total",
-                                     "Rooms restored on another worker or embedded.",
-                                     c.physics_failovers));
-    families.push_back(HistogramFamily("edgephys_physics_step_seconds",
-                                       "Wall time of one PhyS step, in seconds.",
-                                       c.physics_step_seconds));
     return families;
   }
 
  private:
   const RelayCounters* counters_;  // not owned
-  std::vector<std::string> drop_labels_;
-  std::vector<std::string> reject_labels_;      // empty string: not exported
-  std::vector<std::string> disconnect_labels_;  // empty string: not exported
 };
 
 }  // namespace

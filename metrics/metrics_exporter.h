@@ -6,8 +6,10 @@
 // HTTP server's own threads, and builds the metric families on the fly. A scrape therefore
 // costs the relay nothing but cache traffic, and there is no per-metric registration.
 //
-// Exported metrics (all prefixed edgephys_, see metrics_exporter.cc for the HELP texts):
-//   gauges     rooms, clients, entities, build_info{version}
+// Exported metrics (all prefixed edgephys_; names, HELP texts and sources in the kFamilies table
+// of metrics_exporter.cc):
+//   gauges     rooms, clients, entities, build_info{version}, physics_bodies,
+//              physics_sleeping_bodies, physics_workers
 //   counters   packets_received_total, packets_sent_total, bytes_received_total,
 //              bytes_sent_total, entity_updates_sent_total, entity_updates_received_total,
 //              reliable_resends_total, reliable_messages_received_total,
@@ -15,8 +17,9 @@
 //              packets_rejected_total{reason}, entity_updates_rejected_total{reason}
 //                (reason = DropReasonName(), every reason exported, also at 0),
 //              requests_rejected_total{reason}  (schema RejectReason in snake_case, no "none"),
-//              disconnects_total{reason}        (DisconnectReason in snake_case, no "none")
-//   histograms rtt_seconds, tick_duration_seconds
+//              disconnects_total{reason}        (DisconnectReason in snake_case, no "none"),
+//              physics_steps_total, physics_guard_resets_total, physics_failovers_total
+//   histograms rtt_seconds, tick_duration_seconds, physics_step_seconds
 //
 // Consistency: one scrape is not an atomic snapshot of all counters (the relay keeps
 // writing while it is read). Within a histogram, _count always equals the +Inf bucket and the

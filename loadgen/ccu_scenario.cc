@@ -1,0 +1,145 @@
+// ccu as a Scenario: options, validation and the report (JSON, table, charts).
+#include <CLI/CLI.hpp>
+#include <sstream>
+
+#include "loadgen/ccu.h"
+#include "loadgen/scenario.h"
+
+namespace edgephys::loadgen {
+
+// The JSON of a sample: one field per member, named as the member (nlohmann::json sorts keys).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CcuSample, t, users, egress_bytes_per_s, ingress_bytes_per_s,
+                                   updates_per_s, resends_per_s, relay_cpu, physics_step_ms)
+
+namespace {
+
+nlohmann::json Summary(const CcuResult& r) {
+  return {{"users", r.users},
+          {"rooms", r.rooms},
+          {"connected", r.connected},
+          {"reliable_expected", r.reliable_expected},
+          {"reliable_lost", r.reliable_lost},
+          {"reliable_duplicated", r.reliable_duplicated},
+          {"latency_user_to_user_ms_p50", r.latency_ms_p50},
+          {"latency_user_to_user_ms_p99", r.latency_ms_p99},
+          {"grab_latency_ms_p50", r.grab_latency_ms_p50},
+          {"grab_latency_ms_p99", r.grab_latency_ms_p99},
+          {"latency_arrival_ms_p50", r.arrival_latency_ms_p50},
+          {"latency_arrival_ms_p99", r.arrival_latency_ms_p99},
+          {"grab_latency_arrival_ms_p50", r.grab_arrival_latency_ms_p50},
+          {"grab_latency_arrival_ms_p99", r.grab_arrival_latency_ms_p99},
+          {"arrival_time_fallbacks", r.arrival_time_fallbacks},
+          {"latency_relay_wait_ms_mean", r.relay_wait_ms_mean},
+          {"latency_physics_step_ms_p99", r.physics_step_ms_p99},
+          {"bot_pass_ms_p50", r.bot_pass_ms_p50},
+          {"bot_pass_ms_p99", r.bot_pass_ms_p99},
+          {"latency_interpolation_ms", r.interpolation_delay_ms},
+          {"relay_cpu_mean", r.relay_cpu_mean},
+          {"egress_bytes_per_s_per_user", r.egress_bytes_per_s_per_user},
+          {"hand_update_ratio", r.expected_update_ratio}};
+}
+
+nlohmann::json Series(const CcuResult& r) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const CcuSample& s : r.series) a.push_back(s);
+  return a;
+}
+
+// One run: "summary" and "series" at the top level too (what single-count tools read).
+nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) {
+  nlohmann::json j;
+  j["scenario"] = "ccu";
+  j["options"] = {{"rooms", o.rooms}, {"ramp_s", o.ramp_s}, {"duration_s", o.duration_s},
+                  {"relay_threads", o.relay_threads},
+                  {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
+  if (results.size() == 1) {
+    j["summary"] = Summary(results[0]);
+    j["series"] = Series(results[0]);
+  }
+  j["runs"] = nlohmann::json::array();
+  for (const CcuResult& r : results) j["runs"].push_back({{"summary", Summary(r)}, {"series", Series(r)}});
+  return j;
+}
+
+void FillTable(const CcuOptions&, const std::vector<CcuResult>& results, Table* t) {
+  t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n", "users", "rooms",
+          "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50", "grab p99",
+          "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio");
+  for (const CcuResult& r : results) {
+    t->Line("%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f "
+            "%9.0f %8.2f\n",
+            r.users, r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
+            r.latency_ms_p50, r.latency_ms_p99, r.arrival_latency_ms_p50, r.arrival_latency_ms_p99,
+            r.grab_latency_ms_p50, r.grab_latency_ms_p99, r.grab_arrival_latency_ms_p50,
+            r.grab_arrival_latency_ms_p99, r.physics_step_ms_p99, r.relay_cpu_mean,
+            r.egress_bytes_per_s_per_user, r.expected_update_ratio);
+  }
+  t->Text("(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
+          "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
+          "thread CPU / wall)\n");
+}
+
+// <prefix>.dat (one index block per run) and the chart <prefix>.png / .svg: users, egress and
+// relay CPU over time.
+ChartSet Charts(const CcuOptions&, const std::vector<CcuResult>& results, const std::string& prefix) {
+  std::ostringstream dat;
+  for (const CcuResult& r : results) {
+    dat << "# users " << r.users << "\n# t users egress_KBps ingress_KBps updates_per_s cpu step_ms\n";
+    for (const CcuSample& s : r.series) {
+      dat << s.t << " " << s.users << " " << s.egress_bytes_per_s / 1000 << " "
+          << s.ingress_bytes_per_s / 1000 << " " << s.updates_per_s << " " << s.relay_cpu << " "
+          << s.physics_step_ms << "\n";
+    }
+    dat << "\n\n";
+  }
+  std::ostringstream gp;
+  gp << "set title 'ccu: relay load over time'\n"
+     << "set xlabel 'time (s)'\nset ylabel 'users, KB/s'\nset y2label 'relay CPU (cores)'\n"
+     << "set y2tics\nset grid\nset key top left\nplot ";
+  for (size_t i = 0; i < results.size(); ++i) {
+    gp << "'" << prefix << ".dat' index " << i << " using 1:2 with lines title 'users ("
+       << results[i].users << ")', '' index " << i << " using 1:3 with lines title 'egress KB/s', '' index "
+       << i << " using 1:6 axes x1y2 with lines title 'relay cpu'"
+       << (i + 1 < results.size() ? ", " : "\n");
+  }
+  return {dat.str(), {{.stem = prefix, .body = gp.str()}}};
+}
+
+class CcuScenario final : public Scenario {
+ public:
+  CcuScenario() : Scenario("ccu", "Concurrent users: bots with hands and grabbed objects", "ccu") {
+    SetProgressFlag(&o_.progress);
+  }
+
+  void AddOptions(CLI::App& cmd) override {
+    cmd.add_option("--users", users_, "User counts (comma separated; one run each)");
+    cmd.add_option("--rooms", o_.rooms, "Rooms the users spread over");
+    cmd.add_option("--ramp", o_.ramp_s, "Seconds over which users join");
+    cmd.add_option("--duration", o_.duration_s, "Measured seconds after the ramp");
+    cmd.add_option("--tick-rate", o_.tick_rate_hz, "Relay room tick rate");
+    cmd.add_option("--relay-threads", o_.relay_threads,
+                   "Relay threads for ticks and PhyS (1: the relay keeps to one core; the bots use "
+                   "the other)");
+  }
+
+  std::string Validate() override {
+    if (!ParseList(users_, &o_.users) || o_.rooms == 0 || o_.duration_s <= 0) {
+      return "--users must be a list of counts; --rooms and --duration positive";
+    }
+    return "";
+  }
+
+  std::optional<Report> Run() override {
+    return MakeReport(o_, RunCcu(o_), Json, FillTable, Charts);
+  }
+
+ private:
+  CcuOptions o_;
+  std::string users_ = "100";
+};
+
+}  // namespace
+
+std::unique_ptr<Scenario> MakeCcuScenario() { return std::make_unique<CcuScenario>(); }
+
+}  // namespace edgephys::loadgen

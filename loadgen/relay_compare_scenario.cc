@@ -1,0 +1,158 @@
+// relay-compare as a Scenario: options, validation and the report (JSON, table, charts).
+#include <CLI/CLI.hpp>
+#include <sstream>
+
+#include "loadgen/relay_compare.h"
+#include "loadgen/scenario.h"
+
+namespace edgephys::loadgen {
+
+// The JSON of a result: one field per member, named as the member (nlohmann::json sorts keys).
+// The mode is added by name.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RelayCompareResult, objects, rate_hz,
+                                   egress_bytes_per_s_per_receiver,
+                                   socket_bytes_per_s_per_receiver, updates_per_s_per_receiver,
+                                   bytes_per_update, pos_err_max_m, pos_err_p99_m,
+                                   rot_err_max_deg, rot_err_p99_deg, paper_bytes_per_s, samples)
+
+namespace {
+
+// {"scenario":"relay-compare","options":{...},"results":[...]}.
+nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompareResult>& results) {
+  nlohmann::json j;
+  j["scenario"] = "relay-compare";
+  j["options"] = o.motion;
+  j["options"].update({{"rate_hz", o.rate_hz},
+                       {"duration_s", o.duration_s},
+                       {"receivers", o.receivers},
+                       {"position_step_m", o.position_step_m},
+                       {"rotation_bound_deg", o.rotation_bound_deg}});
+  j["results"] = nlohmann::json::array();
+  for (const auto& r : results) {
+    nlohmann::json e = r;
+    e["mode"] = std::string(ReplicationModeName(r.mode));
+    e["ratio_to_paper"] = RatioOr0(r.egress_bytes_per_s_per_receiver, r.paper_bytes_per_s);
+    j["results"].push_back(e);
+  }
+  return j;
+}
+
+// Beside the paper's columns.
+void FillTable(const RelayCompareOptions&, const std::vector<RelayCompareResult>& results,
+               Table* t) {
+  t->Line("%-9s %7s %11s %11s %9s %7s %9s %7s %9s %9s %9s %9s\n", "mode", "objects",
+          "KB/s relay", "KB/s sock", "paper KB/s", "ratio", "upd/s", "B/upd", "pos max mm",
+          "pos p99", "rot max", "rot p99");
+  for (const auto& r : results) {
+    t->Line("%-9s %7u %11.2f %11.2f %9.2f %7.3f %9.1f %7.2f %9.3f %9.3f %9.4f %9.4f\n",
+            std::string(ReplicationModeName(r.mode)).c_str(), r.objects,
+            r.egress_bytes_per_s_per_receiver / 1000, r.socket_bytes_per_s_per_receiver / 1000,
+            r.paper_bytes_per_s / 1000,
+            RatioOr0(r.egress_bytes_per_s_per_receiver, r.paper_bytes_per_s), r.updates_per_s_per_receiver,
+            r.bytes_per_update, r.pos_err_max_m * 1000, r.pos_err_p99_m * 1000, r.rot_err_max_deg,
+            r.rot_err_p99_deg);
+  }
+  t->Text("(KB = 1000 bytes; paper KB/s: the paper's relay column for paper/edgephys, Photon for "
+          "photon)\n");
+}
+
+// <prefix>.dat (one index block per mode present), <prefix>_bandwidth and <prefix>_error.
+ChartSet Charts(const RelayCompareOptions&, const std::vector<RelayCompareResult>& results,
+                const std::string& prefix) {
+  ChartSet set;
+  std::ostringstream dat;
+  std::vector<std::string> present;
+  for (const char* m : {"photon", "paper", "edgephys", "float"}) {
+    bool any = false;
+    for (const auto& r : results) {
+      if (ReplicationModeName(r.mode) != m) continue;
+      if (!any) dat << "# mode " << m << "\n# objects kBps_relay kBps_paper pos_max_mm rot_max_deg\n";
+      any = true;
+      dat << r.objects << " " << r.egress_bytes_per_s_per_receiver / 1000 << " "
+          << r.paper_bytes_per_s / 1000 << " " << r.pos_err_max_m * 1000 << " "
+          << r.rot_err_max_deg << "\n";
+    }
+    if (any) {
+      dat << "\n\n";
+      present.push_back(m);
+    }
+  }
+  set.data = dat.str();
+  const std::string d = "'" + prefix + ".dat'";
+  // Block i's columns `using` as a plot element titled `title`.
+  auto series = [&](size_t i, const char* using_, const std::string& title) {
+    return d + " index " + std::to_string(i) + " using " + using_ + " title '" + title + "'";
+  };
+  std::ostringstream bw;
+  bw << "set title 'Relay egress per receiver vs objects (12 sends/s per object)'\n"
+        "set xlabel 'objects'\nset ylabel 'KB/s per receiver'\nset logscale xy\nset key top left\n"
+        "set grid\nplot ";
+  for (size_t i = 0; i < present.size(); ++i) {
+    bw << series(i, "1:2 with linespoints", present[i] + " (measured)") << ", ";
+  }
+  bw << d << " index 0 using 1:3 with points pt 6 ps 1.5 title 'paper: Photon', ";
+  bw << d << " index 1 using 1:3 with points pt 8 ps 1.5 title 'paper: relay'\n";
+  set.charts.push_back({.stem = prefix + "_bandwidth", .body = bw.str()});
+  std::ostringstream err;
+  err << "set title 'Bandwidth vs accuracy (max error of the last received state)'\n"
+         "set xlabel 'KB/s per receiver'\nset ylabel 'max position error (mm)'\nset logscale x\n"
+         "set y2label 'max rotation error (deg)'\nset y2tics\nset grid\nset key top right\nplot ";
+  for (size_t i = 0; i < present.size(); ++i) {
+    err << series(i, "2:4 with linespoints", present[i] + " position") << ", "
+        << series(i, "2:5 axes x1y2 with points", present[i] + " rotation")
+        << (i + 1 < present.size() ? ", " : "\n");
+  }
+  set.charts.push_back({.stem = prefix + "_error", .body = err.str()});
+  return set;
+}
+
+class RelayCompareScenario final : public Scenario {
+ public:
+  RelayCompareScenario()
+      : Scenario("relay-compare", "The paper's relay bandwidth experiment", "relay_compare") {
+    SetProgressFlag(&o_.progress);
+  }
+
+  void AddOptions(CLI::App& cmd) override {
+    cmd.add_option("--objects", objects_, "Object counts (comma separated)");
+    cmd.add_option("--modes", modes_, "Modes: photon,paper,edgephys,float");
+    cmd.add_option("--rate", o_.rate_hz, "Sends per second per object");
+    cmd.add_option("--duration", o_.duration_s, "Measured seconds per mode and size");
+    cmd.add_option("--warmup", o_.warmup_s, "Seconds before measuring");
+    cmd.add_option("--receivers", o_.receivers, "Receiving clients");
+    AddMotionOptions(cmd, &o_.motion, "Motion seed");
+    cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
+    cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "edgephys rotation bound (deg)");
+    cmd.add_option("--position-threshold", o_.position_threshold_m, "Selective sync threshold (m)");
+    cmd.add_option("--rotation-threshold", o_.rotation_threshold_deg,
+                   "Selective sync threshold (deg)");
+  }
+
+  std::string Validate() override {
+    if (!ParseList(objects_, &o_.objects)) return "--objects: expected a comma-separated list of counts";
+    std::string unknown;
+    if (!ParseNames(modes_, ParseReplicationMode, &o_.modes, &unknown)) {
+      return "--modes: unknown mode '" + unknown + "'";
+    }
+    if (o_.rate_hz <= 0 || o_.duration_s <= 0 || o_.receivers == 0) {
+      return "--rate, --duration and --receivers must be positive";
+    }
+    return "";
+  }
+
+  std::optional<Report> Run() override {
+    return MakeReport(o_, RunRelayCompare(o_), Json, FillTable, Charts);
+  }
+
+ private:
+  RelayCompareOptions o_;
+  std::string objects_ = "32,64,128,256,512", modes_ = "photon,paper,edgephys";
+};
+
+}  // namespace
+
+std::unique_ptr<Scenario> MakeRelayCompareScenario() {
+  return std::make_unique<RelayCompareScenario>();
+}
+
+}  // namespace edgephys::loadgen
