@@ -1,4 +1,4 @@
-// PhysicsWorld: one Bullet world for one room (PhyS, DESIGN.md "PhyS"). It builds Bullet objects
+// PhysicsWorld: one Bullet world for one room (PhyS). It builds Bullet objects
 // from the dissected containers (schema/container.fbs), advances the simulation in fixed steps,
 // reports moved entities, collision/trigger events and stability-guard resets.
 //

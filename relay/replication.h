@@ -1,4 +1,5 @@
-// Replication: what the relay sends one client each tick, and how (DESIGN.md "Replication").
+// Replication: what the relay sends one client each tick, and how (docs/protocol.md, state
+// formats; docs/benchmarks.md, what it costs and saves).
 //
 // Per client, per tick, ClientReplicator
 //  1. picks candidates: entities the client does not own that are due by their priority
