@@ -12,6 +12,7 @@
 namespace edgephys {
 namespace {
 
+using testing_util::FloatSlack;
 using testing_util::PositionError;
 using testing_util::RandomRotation;
 using testing_util::RotationErrorDeg;
