@@ -12,17 +12,7 @@
 namespace edgephys {
 namespace {
 
-using testing_util::FloatSlack;
-using testing_util::PositionError;
-using testing_util::RandomRotation;
-using testing_util::RotationErrorDeg;
-using testing_util::ExpectWithinBounds;
-using testing_util::kPacketOverhead;
-using testing_util::kPi;
-using testing_util::RunStream;
-using testing_util::SimConfig;
-using testing_util::SimResult;
-using testing_util::TestMotion;
+using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
 TEST(DeltaCodec, RandomTransformsRoundTripWithinBoundsForSeveralConfigs) {
   std::mt19937_64 rng(17);

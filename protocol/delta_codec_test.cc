@@ -20,20 +20,8 @@
 namespace edgephys {
 namespace {
 
-using testing_util::FloatSlack;
-using testing_util::g_allocations;
-using testing_util::g_counting;
-using testing_util::PositionError;
-using testing_util::RandomRotation;
-using testing_util::RotationErrorDeg;
+using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
-using testing_util::ExpectWithinBounds;
-using testing_util::kPacketOverhead;
-using testing_util::kPi;
-using testing_util::RunStream;
-using testing_util::SimConfig;
-using testing_util::SimResult;
-using testing_util::TestMotion;
 
 TEST(DeltaCodec, UnknownBaselineIsRejectedCleanly) {
   auto params = MakeQuantizationParams(QuantizationConfig{});
