@@ -259,6 +259,21 @@ class RelayCollectable : public prometheus::Collectable {
     families.push_back(HistogramFamily("edgephys_physics_step_seconds",
                                        "Wall time of one PhyS step, in seconds.",
                                        c.physics_step_seconds));
+
+    // Self-contained (a double gauge, not a RelayCounters::Gauge): RelayCounters::
+    // PhysicsRealtimeFactor(), the slowest room's PhyS real-time factor.
+    {
+      prometheus::MetricFamily rtf;
+      rtf.name = "edgephys_physics_realtime_factor";
+      rtf.help =
+          "Simulated seconds per wall-clock second of the slowest room's embedded PhyS over its "
+          "last ~1 s (below 1: that room simulates slower than real time); 1 without such a room.";
+      rtf.type = prometheus::MetricType::Gauge;
+      prometheus::ClientMetric metric;
+      metric.gauge.value = c.PhysicsRealtimeFactor();
+      rtf.metric.push_back(std::move(metric));
+      families.push_back(std::move(rtf));
+    }
     return families;
   }
 
