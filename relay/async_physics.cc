@@ -238,6 +238,7 @@ void AsyncPhysicsRoom::Close() {
     std::lock_guard<std::mutex> lock(mu_);
     closed_ = true;
     inbox_.clear();
+    drive_run_ = 0;
     if (!scheduled_) schedule = scheduled_ = true;
   }
   // Idle: a physics thread frees it. Queued or running: the thread that has it frees it.
