@@ -98,7 +98,13 @@ struct HistogramSource {
   static constexpr prometheus::MetricType kType = prometheus::MetricType::Histogram;
   Histogram RelayCounters::*field;
 };
-using Source = std::variant<GaugeSource, CounterSource, ReasonCountersSource, HistogramSource>;
+// A gauge computed from the counters (not a stored field), e.g. a minimum across shards.
+struct ComputedGaugeSource {
+  static constexpr prometheus::MetricType kType = prometheus::MetricType::Gauge;
+  double (RelayCounters::*compute)() const;
+};
+using Source = std::variant<GaugeSource, CounterSource, ReasonCountersSource, HistogramSource,
+                            ComputedGaugeSource>;
 
 struct FamilySpec {
   const char* name;
@@ -208,11 +214,22 @@ const FamilySpec kFamilies[] = {
      CounterSource{&C::physics_failovers}},
     {"edgephys_physics_step_seconds", "Wall time of one PhyS step, in seconds.",
      HistogramSource{&C::physics_step_seconds}},
+    {"edgephys_physics_realtime_factor",
+     "Simulated seconds per wall-clock second of the slowest room's embedded PhyS over its "
+     "last ~1 s (below 1: that room simulates slower than real time); 1 without such a room.",
+     ComputedGaugeSource{&C::PhysicsRealtimeFactor}},
 };
 
 void AddMetrics(const GaugeSource& s, const RelayCounters& c, prometheus::MetricFamily* family) {
   prometheus::ClientMetric metric;
   metric.gauge.value = Load(c.*s.field);
+  family->metric.push_back(std::move(metric));
+}
+
+void AddMetrics(const ComputedGaugeSource& s, const RelayCounters& c,
+                prometheus::MetricFamily* family) {
+  prometheus::ClientMetric metric;
+  metric.gauge.value = (c.*s.compute)();
   family->metric.push_back(std::move(metric));
 }
 

@@ -12,6 +12,126 @@ schema::Pose ToPose(uint32_t id, const EntityState& s) {
 
 }  // namespace
 
+// --- EmbeddedPhysicsLink -----------------------------------------------------------------------
+
+EmbeddedPhysicsLink::EmbeddedPhysicsLink(const physics::PhysicsConfig& config, double now)
+    : config_(config),
+      physics_(std::make_unique<RoomPhysics>(config, now)),
+      clock_{now, 0.0},
+      admission_(config),
+      meter_(now) {}
+
+EmbeddedPhysicsLink::~EmbeddedPhysicsLink() {
+  if (room_ != nullptr) room_->Close();
+}
+
+void EmbeddedPhysicsLink::RunOn(AsyncPhysicsPool* pool) {
+  if (room_ != nullptr || pool == nullptr) return;
+  counters_ = physics_->counters();
+  room_ = pool->Adopt(std::move(physics_), config_, clock_);
+}
+
+Status EmbeddedPhysicsLink::Add(const schema::Container& c, PhysicsRole role) {
+  if (room_ != nullptr) {
+    PhysicsCommand command;
+    Status st = admission_.Admit(c, role, &command);
+    if (st.ok()) room_->Post(std::move(command));
+    return st;
+  }
+  std::string detail;
+  Status st = physics_->Add(c, role, &detail);
+  if (st.ok()) admission_.Added(c, role);
+  if (st.ok() || detail.empty()) return st;
+  return Status(st.code(), st.message(), std::move(detail));
+}
+
+void EmbeddedPhysicsLink::Remove(uint32_t id) {
+  if (room_ == nullptr) {
+    physics_->Remove(id);
+    admission_.Removed(id);
+    return;
+  }
+  if (admission_.RoleOf(id) == PhysicsRole::kNone) return;  // not in the world
+  admission_.Removed(id);
+  PhysicsCommand command;
+  command.kind = PhysicsCommand::Kind::kRemove;
+  command.id = id;
+  room_->Post(std::move(command));
+}
+
+void EmbeddedPhysicsLink::Drive(uint32_t id, const EntityState& s) {
+  if (room_ == nullptr) return physics_->Drive(id, s);
+  if (admission_.RoleOf(id) != PhysicsRole::kMirrored) return;  // the world ignores it
+  PhysicsCommand command;
+  command.kind = PhysicsCommand::Kind::kDrive;
+  command.id = id;
+  command.state = s;
+  room_->Post(std::move(command));
+}
+
+void EmbeddedPhysicsLink::RequestGrab(uint32_t entity, uint32_t hand, bool force) {
+  if (room_ == nullptr) return physics_->RequestGrab(entity, hand, !force);
+  PhysicsCommand command;
+  command.kind = PhysicsCommand::Kind::kGrab;
+  command.id = entity;
+  command.hand = hand;
+  command.force = force;
+  room_->Post(std::move(command));
+}
+
+void EmbeddedPhysicsLink::Release(uint32_t entity) {
+  if (room_ == nullptr) {
+    (void)physics_->Release(entity);
+    return;
+  }
+  PhysicsCommand command;
+  command.kind = PhysicsCommand::Kind::kRelease;
+  command.id = entity;
+  room_->Post(std::move(command));
+}
+
+void EmbeddedPhysicsLink::Restore(uint32_t id, const EntityState& s, const Vec3f& l,
+                                  const Vec3f& a) {
+  if (room_ == nullptr) return physics_->Restore(id, s, l, a);
+  PhysicsCommand command;
+  command.kind = PhysicsCommand::Kind::kRestore;
+  command.id = id;
+  command.state = s;
+  command.linear = l;
+  command.angular = a;
+  room_->Post(std::move(command));
+}
+
+void EmbeddedPhysicsLink::Advance(double now, StepOutput* out) {
+  if (room_ == nullptr) {
+    physics_->Advance(now, out);
+    clock_.Record(now, out->steps, config_.fixed_dt);
+  } else {
+    out->Clear();
+    room_->Advance(now, &finished_, &used_, &counters_);
+    merge_index_.clear();
+    for (size_t i = 0; i < finished_.size(); ++i) {
+      if (i == 0) {
+        std::swap(*out, *finished_[0]);  // the common case: one output, no copy
+      } else {
+        MergeStepOutput(out, finished_[i].get(), &merge_index_);
+      }
+      used_.push_back(std::move(finished_[i]));
+    }
+    finished_.clear();
+  }
+  meter_.Record(now, out->steps * static_cast<double>(config_.fixed_dt));
+}
+
+physics::PhysicsCounters EmbeddedPhysicsLink::counters() const {
+  if (room_ == nullptr) return physics_->counters();
+  physics::PhysicsCounters c = counters_;
+  c.rejected_containers += admission_.rejected();
+  return c;
+}
+
+// --- RemotePhysicsLink -------------------------------------------------------------------------
+
 RemotePhysicsLink::RemotePhysicsLink(WorkerChannel* channel, uint32_t worker_id,
                                      uint32_t room_handle, const physics::PhysicsConfig& config,
                                      double now)

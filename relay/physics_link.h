@@ -1,18 +1,24 @@
 // PhysicsLink: where a room's PhyS runs, as the relay sees it. Two implementations:
-//  * EmbeddedPhysicsLink: a RoomPhysics in the relay process (the default).
+//  * EmbeddedPhysicsLink: a RoomPhysics in the relay process (the default). Synchronous until
+//    RunOn(pool): then the world steps on the pool's physics threads (relay/async_physics.h)
+//    and the relay's thread only hands commands over and picks finished steps up.
 //  * RemotePhysicsLink: a room handle on an attached edgephys-phys worker; commands go out as
 //    Worker* control messages, results come back asynchronously (ReceiveResult/ReceiveStates)
 //    and are handed out by the next Advance().
 // The relay keeps every entity's container, latest state and velocities, so when a worker
 // dies or stalls it rebuilds the room on another link without losing an entity (failover).
 //
-// Thread-safety: none; the relay's thread. Cost: embedded Advance() is the physics step;
-// remote calls serialise a small message each.
+// Thread-safety: every method from the relay's thread. Cost: embedded synchronous Advance()
+// is the physics step; asynchronous Advance() takes a mutex and merges finished outputs
+// (O(moved bodies) only when several finished since the last call); Add() copies and checks
+// the container; remote calls serialise a small message each.
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -20,6 +26,7 @@
 #include "physics_backend/room_physics.h"
 #include "physics_backend/worker_protocol.h"
 #include "protocol/connection.h"
+#include "relay/async_physics.h"
 
 namespace edgephys {
 
@@ -54,33 +61,53 @@ class PhysicsLink {
   virtual physics::PhysicsCounters counters() const = 0;
   // The link is being replaced after a failure: send nothing more (not even a goodbye).
   virtual void Detach() {}
+  // Simulated seconds per second of the relay's clock over the last completed window of about
+  // a second (RealtimeMeter): 1 keeps up, below 1 the room simulates slower than real time.
+  // NaN while unknown (no window completed yet; remote links, whose steps are not counted).
+  virtual double realtime_factor() const { return std::numeric_limits<double>::quiet_NaN(); }
+  // Embedded links: from now on the world steps on `pool`'s threads and Advance() never waits
+  // for a step. `pool` must outlive the link. No-op for remote links and when already there.
+  virtual void RunOn(AsyncPhysicsPool* pool) { (void)pool; }
 };
 
 class EmbeddedPhysicsLink final : public PhysicsLink {
  public:
-  EmbeddedPhysicsLink(const physics::PhysicsConfig& config, double now) : physics_(config, now) {}
-  Status Add(const schema::Container& c, PhysicsRole role) override {
-    std::string detail;
-    Status st = physics_.Add(c, role, &detail);
-    if (st.ok() || detail.empty()) return st;
-    return Status(st.code(), st.message(), std::move(detail));
-  }
-  void Remove(uint32_t id) override { physics_.Remove(id); }
-  void Drive(uint32_t id, const EntityState& s) override { physics_.Drive(id, s); }
-  void RequestGrab(uint32_t entity, uint32_t hand, bool force) override {
-    physics_.RequestGrab(entity, hand, !force);
-  }
-  void Release(uint32_t entity) override { (void)physics_.Release(entity); }
-  void Restore(uint32_t id, const EntityState& s, const Vec3f& l, const Vec3f& a) override {
-    physics_.Restore(id, s, l, a);
-  }
-  void Advance(double now, StepOutput* out) override { physics_.Advance(now, out); }
+  EmbeddedPhysicsLink(const physics::PhysicsConfig& config, double now);
+  // Asynchronous: the room is closed without waiting; a physics thread frees it (after the
+  // step it may be running).
+  ~EmbeddedPhysicsLink() override;
+  EmbeddedPhysicsLink(const EmbeddedPhysicsLink&) = delete;
+  EmbeddedPhysicsLink& operator=(const EmbeddedPhysicsLink&) = delete;
+
+  // Synchronous: RoomPhysics' calls. Asynchronous: Add is decided at once (PhysicsAdmission),
+  // the commands are queued in order and applied before the next step.
+  Status Add(const schema::Container& c, PhysicsRole role) override;
+  void Remove(uint32_t id) override;
+  void Drive(uint32_t id, const EntityState& s) override;
+  void RequestGrab(uint32_t entity, uint32_t hand, bool force) override;
+  void Release(uint32_t entity) override;
+  void Restore(uint32_t id, const EntityState& s, const Vec3f& l, const Vec3f& a) override;
+  // Synchronous: runs the steps due by `now`. Asynchronous: the steps finished since the last
+  // call, merged into one output (MergeStepOutput; empty if none), and `now` as the new target.
+  void Advance(double now, StepOutput* out) override;
   bool Healthy(double) const override { return true; }
   uint32_t worker() const override { return 0; }
-  physics::PhysicsCounters counters() const override { return physics_.counters(); }
+  // Asynchronous: as of the last step finished before the last Advance().
+  physics::PhysicsCounters counters() const override;
+  double realtime_factor() const override { return meter_.value(); }
+  void RunOn(AsyncPhysicsPool* pool) override;
+  bool asynchronous() const { return room_ != nullptr; }
 
  private:
-  RoomPhysics physics_;
+  const physics::PhysicsConfig config_;
+  std::unique_ptr<RoomPhysics> physics_;  // synchronous; null once on a pool
+  StepClock clock_;                       // synchronous: physics_'s step bookkeeping
+  PhysicsAdmission admission_;            // the world's entities, as the relay knows them
+  AsyncPhysicsRoom* room_ = nullptr;      // asynchronous: the pool's (closed when destroyed)
+  AsyncPhysicsRoom::Outputs finished_, used_;
+  std::unordered_map<uint32_t, size_t> merge_index_;
+  physics::PhysicsCounters counters_{};   // asynchronous: the last copy
+  RealtimeMeter meter_;
 };
 
 // Sends reliable control messages to a worker; implemented by the relay's worker session.

@@ -1,12 +1,21 @@
 #include "relay/physics_pool.h"
 
+#include "relay/async_physics.h"
+
 namespace edgephys {
 
 PhysicsPool::PhysicsPool(size_t threads) {
   for (size_t i = 1; i < threads; ++i) workers_.emplace_back([this] { WorkerLoop(); });
 }
 
+AsyncPhysicsPool* PhysicsPool::async_physics() {
+  if (workers_.empty()) return nullptr;
+  if (async_ == nullptr) async_ = std::make_unique<AsyncPhysicsPool>(workers_.size());
+  return async_.get();
+}
+
 PhysicsPool::~PhysicsPool() {
+  async_.reset();  // stops and joins the physics threads
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;

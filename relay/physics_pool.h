@@ -1,21 +1,30 @@
-// PhysicsPool: steps the rooms' embedded PhyS worlds in parallel, fork-join, once per relay
-// update. Each world is touched by exactly one thread per Run() and by the relay's thread
-// only between runs, so Bullet (built without BT_THREADSAFE) needs no locking; the pool's
-// mutex is taken twice per Run(), never per packet.
+// PhysicsPool: the relay's helper threads. Two kinds:
+//  * Fork-join (Run): the relay's replication ticks, receivers in parallel, once per update;
+//    with synchronous PhyS (one thread in all) also the embedded worlds' steps. The pool's
+//    mutex is taken twice per Run(), never per packet.
+//  * Asynchronous PhyS (async_physics()): threads() - 1 physics threads, started on first use,
+//    that step embedded worlds off the relay's loop (relay/async_physics.h). With threads() == 1
+//    there are none: PhyS steps synchronously on the relay's thread, deterministically (tests
+//    with a fake clock, fuzzing).
+// A world is touched by one thread at a time either way, so Bullet (built without
+// BT_THREADSAFE) needs no locking.
 //
-// Thread-safety: Run() from one thread at a time (the relay's). Cost: a wake-up of the pool
-// threads per Run(); work is split dynamically (an atomic index).
+// Thread-safety: Run() and async_physics() from one thread at a time (the relay's). Cost: a
+// wake-up of the pool threads per Run(); work is split dynamically (an atomic index).
 #pragma once
 
 #include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
 
 namespace edgephys {
+
+class AsyncPhysicsPool;
 
 class PhysicsPool {
  public:
@@ -28,6 +37,10 @@ class PhysicsPool {
   // Calls fn(i) for every i in [0, n), spread over the pool; returns when all are done.
   void Run(size_t n, const std::function<void(size_t)>& fn);
   size_t threads() const { return workers_.size() + 1; }
+  // The asynchronous PhyS threads (threads() - 1 of them, started on the first call); null when
+  // threads() == 1 (PhyS is then stepped synchronously). Every link running on them must be
+  // destroyed before this pool.
+  AsyncPhysicsPool* async_physics();
 
  private:
   void WorkerLoop();
@@ -41,6 +54,7 @@ class PhysicsPool {
   size_t busy_ = 0;
   uint64_t generation_ = 0;
   bool stop_ = false;
+  std::unique_ptr<AsyncPhysicsPool> async_;
 };
 
 }  // namespace edgephys

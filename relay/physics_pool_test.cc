@@ -30,7 +30,8 @@ TEST(PhysicsPool, UsesMoreThanOneThreadWhenAsked) {
     int p = peak.load();
     while (c > p && !peak.compare_exchange_weak(p, c)) {
     }
-    for (volatile int spin = 0; spin < 200000; ++spin) {
+    std::atomic<int> spin{0};  // work the optimiser cannot remove
+    while (spin.fetch_add(1, std::memory_order_relaxed) < 200000) {
     }
     concurrent.fetch_sub(1);
   });

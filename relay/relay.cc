@@ -377,20 +377,31 @@ void Relay::OnWorkerStates(Session& s, std::span<const uint8_t> payload) {
 void Relay::StepAllPhysics(double now) {
   physics_rooms_.clear();
   physics_links_.clear();
+  // Embedded PhyS runs on the pool's physics threads (physics_threads > 1): Advance() below
+  // hands `now` over and picks up the steps finished meanwhile, never waiting for one. With
+  // physics_threads == 1 (null) the worlds step here, synchronously, as they always did.
+  AsyncPhysicsPool* async = nullptr;
   for (auto& [name, room] : rooms_) {
     PhysicsLink* link = room->PreparePhysics(now);
     if (link == nullptr) continue;
+    if (async == nullptr) async = physics_pool_.async_physics();
+    if (async != nullptr) link->RunOn(async);  // new or failed-over links: from now on
     physics_rooms_.push_back(room.get());
     physics_links_.push_back(link);
   }
-  if (physics_rooms_.empty()) return;
-  if (step_outputs_.size() < physics_rooms_.size()) step_outputs_.resize(physics_rooms_.size());
-  // Worlds step in parallel (each on one thread); results are applied on this thread.
-  physics_pool_.Run(physics_links_.size(),
-                    [this, now](size_t i) { physics_links_[i]->Advance(now, &step_outputs_[i]); });
-  for (size_t i = 0; i < physics_rooms_.size(); ++i) {
-    physics_rooms_[i]->ApplyPhysics(step_outputs_[i], now);
+  double slowest = std::numeric_limits<double>::quiet_NaN();
+  if (!physics_rooms_.empty()) {
+    if (step_outputs_.size() < physics_rooms_.size()) step_outputs_.resize(physics_rooms_.size());
+    // Asynchronous and remote links return at once; synchronous ones step here.
+    for (size_t i = 0; i < physics_links_.size(); ++i) {
+      physics_links_[i]->Advance(now, &step_outputs_[i]);
+    }
+    for (size_t i = 0; i < physics_rooms_.size(); ++i) {
+      physics_rooms_[i]->ApplyPhysics(step_outputs_[i], now);
+      slowest = std::fmin(slowest, physics_links_[i]->realtime_factor());  // NaN: unknown
+    }
   }
+  counters_->PublishRealtimeFactor(shard_.index, slowest);
 }
 
 void Relay::TickDueRooms(double now) {

@@ -5,9 +5,11 @@
 
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
+#include <limits>
 
 #include "protocol/connection.h"
 #include "protocol/packet.h"
@@ -87,6 +89,16 @@ struct RelayCounters {
   Counter physics_failovers{0};    // rooms restored after a worker died
   AtomicHistogram<10> physics_step_seconds{
       {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.016, 0.025, 0.05}};
+  // Real-time factor of embedded PhyS (PhysicsLink::realtime_factor(): simulated seconds per
+  // second over a room's last completed window of about a second) of the slowest room. Each
+  // relay stores the minimum over its rooms every update in its own slot (its shard index; a
+  // standalone relay slot 0), NaN when it has none measured yet. PhysicsRealtimeFactor() is
+  // the minimum over the slots, 1 when no room has one: edgephys_physics_realtime_factor.
+  static constexpr size_t kRealtimeFactorSlots = 64;  // RelayShards::kMaxShards
+  struct RealtimeFactorSlot {
+    std::atomic<double> value{std::numeric_limits<double>::quiet_NaN()};
+  };
+  std::array<RealtimeFactorSlot, kRealtimeFactorSlots> physics_realtime_factor{};
 
   // Round-trip time samples (seconds), one per connection per second.
   AtomicHistogram<10> rtt_seconds{{0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5}};
@@ -102,6 +114,17 @@ struct RelayCounters {
   void CountDisconnect(DisconnectReason r) {
     size_t i = static_cast<size_t>(r);
     if (i < kDisconnectReasonCount) Inc(disconnects[i]);
+  }
+  void PublishRealtimeFactor(uint32_t slot, double slowest_room) {
+    physics_realtime_factor[slot % kRealtimeFactorSlots].value.store(slowest_room,
+                                                                     std::memory_order_relaxed);
+  }
+  double PhysicsRealtimeFactor() const {
+    double slowest = std::numeric_limits<double>::quiet_NaN();
+    for (const RealtimeFactorSlot& s : physics_realtime_factor) {
+      slowest = std::fmin(slowest, s.value.load(std::memory_order_relaxed));  // NaN: ignored
+    }
+    return std::isnan(slowest) ? 1.0 : slowest;
   }
 };
 

@@ -35,6 +35,9 @@ struct Room2 {
     RelayConfig c = LoopbackWorld::DefaultConfig();
     c.room_defaults.tick_rate_hz = 60;
     c.room_defaults.replication = replication;
+    // The fake clock runs far ahead of real time: PhyS must step in the same update
+    // (synchronously, one thread) for the rates measured on it to be deterministic.
+    c.physics_threads = 1;
     return c;
   }
   // A moves every entity in `ids` at `hz` for `seconds`.
