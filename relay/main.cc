@@ -106,7 +106,8 @@ int main(int argc, char** argv) {
   app.add_option("--join-timeout", lim.join_timeout_s, "Seconds a connection may stay without a room")
       ->capture_default_str();
   app.add_option("--physics-threads", config.physics_threads,
-                 "Threads stepping embedded PhyS worlds (rooms spread over them)")
+                 "Threads for embedded PhyS, the relay's included (1: PhyS on the relay's "
+                 "thread; N > 1: N-1 physics threads off the relay loop)")
       ->capture_default_str();
   size_t io_threads = 1;
   app.add_option("--io-threads", io_threads,

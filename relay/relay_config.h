@@ -42,8 +42,10 @@ struct RelayConfig {
   RoomConfig room_defaults;
   ConnectionConfig connection;
   physics::PhysicsConfig physics;  // each room's embedded PhyS world
-  // Threads stepping embedded PhyS worlds in parallel (rooms spread over them), the relay's
-  // own thread included.
+  // Threads for embedded PhyS and the parallel replication tick, the relay's own thread
+  // included. 1: PhyS steps synchronously on the relay's thread (deterministic; tests). N > 1:
+  // N - 1 physics threads step rooms' worlds off the relay loop (relay/async_physics.h), which
+  // hands commands over and picks finished steps up without ever waiting for one.
   size_t physics_threads = std::max(1u, std::thread::hardware_concurrency());
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
   AbuseLimits limits;
