@@ -35,7 +35,7 @@ PhysicsRole RoomPhysics::RoleOf(const schema::Container& c) {
   return PhysicsRole::kNone;
 }
 
-Status RoomPhysics::Add(const schema::Container& c, PhysicsRole role, std::string* detail) {
+Status RoomPhysics::Add(const schema::Container& c, PhysicsRole role) {
   physics::InvalidReason reason = physics::InvalidReason::kNone;
   Status st;
   if (role == PhysicsRole::kMirrored && IsDynamic(c)) {
@@ -48,15 +48,15 @@ Status RoomPhysics::Add(const schema::Container& c, PhysicsRole role, std::strin
     fbb.Finish(schema::Container::Pack(fbb, &copy));
     st = world_.AddEntity(*flatbuffers::GetRoot<schema::Container>(fbb.GetBufferPointer()), &reason);
   } else if (role == PhysicsRole::kMirrored && c.soft_body() != nullptr) {
-    *detail = "a soft body must be offloaded (Offloaded flag) to be simulated";
-    return Status(StatusCode::kInvalidArgument, "soft body not offloaded");
+    return Status::InvalidArgument("soft body not offloaded",
+                                   "a soft body must be offloaded (Offloaded flag) to be simulated");
   } else {
     st = world_.AddEntity(c, &reason);
   }
   if (!st.ok()) {
-    *detail = "physics: " + std::string(st.message()) + " (reason " +
-              std::to_string(static_cast<int>(reason)) + ")";
-    return Status(StatusCode::kInvalidArgument, "invalid physics components");
+    return Status::InvalidArgument("invalid physics components",
+                                   "physics: " + std::string(st.message()) + " (reason " +
+                                       std::to_string(static_cast<int>(reason)) + ")");
   }
   roles_[c.entity_id()] = role;
   if (c.soft_body() != nullptr) soft_.insert(c.entity_id());
@@ -90,24 +90,20 @@ void RoomPhysics::Drive(uint32_t id, const EntityState& s) {
   }
 }
 
-Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, std::string* detail, bool require_hover) {
+Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, bool require_hover) {
   auto role = roles_.find(entity);
   if (role == roles_.end() || role->second != PhysicsRole::kSimulated) {
-    *detail = "only PhyS-simulated entities can be grabbed";
-    return Status(StatusCode::kPermissionDenied, "not simulated");
+    return Status::PermissionDenied("not simulated", "only PhyS-simulated entities can be grabbed");
   }
   if (auto held = holds_.find(entity); held != holds_.end() && held->second.hand != hand) {
-    *detail = "already held by another hand";
-    return Status(StatusCode::kPermissionDenied, "held");
+    return Status::PermissionDenied("held", "already held by another hand");
   }
   if (require_hover && hovering_.count({hand, entity}) == 0) {
-    *detail = "the hand's trigger does not hover the entity";
-    return Status(StatusCode::kPermissionDenied, "not hovering");
+    return Status::PermissionDenied("not hovering", "the hand's trigger does not hover the entity");
   }
   Status st = world_.Grab(entity, hand);
   if (!st.ok()) {
-    *detail = std::string(st.message());
-    return Status(StatusCode::kPermissionDenied, "refused by PhyS");
+    return Status::PermissionDenied("refused by PhyS", std::string(st.message()));
   }
   EntityState hand_state, entity_state;
   (void)world_.GetState(hand, &hand_state);
@@ -154,7 +150,9 @@ void RoomPhysics::RequestGrab(uint32_t entity, uint32_t hand, bool require_hover
   GrabResult r;
   r.entity = entity;
   r.hand = hand;
-  r.ok = Grab(entity, hand, &r.detail, require_hover).ok();
+  Status st = Grab(entity, hand, require_hover);
+  r.ok = st.ok();
+  if (!st.ok()) r.detail = std::string(st.reason());
   pending_grabs_.push_back(std::move(r));
 }
 

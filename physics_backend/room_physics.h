@@ -38,7 +38,7 @@ class RoomPhysics {
 
   // Adds an entity in its role (kMirrored entities are rebuilt as kinematic bodies). On
   // failure (invalid components) returns kInvalidArgument and explains in `*detail`.
-  Status Add(const schema::Container& c, PhysicsRole role, std::string* detail);
+  Status Add(const schema::Container& c, PhysicsRole role);
   void Remove(uint32_t id);
   bool Has(uint32_t id) const { return roles_.count(id) != 0; }
 
@@ -50,7 +50,7 @@ class RoomPhysics {
   // kFailedPrecondition-like errors (kPermissionDenied) with `*detail` unless the hand's
   // trigger hovers the entity and nobody else holds it.
   // `require_hover` false re-attaches without the trigger check (failover of a held object).
-  Status Grab(uint32_t entity, uint32_t hand, std::string* detail, bool require_hover = true);
+  Status Grab(uint32_t entity, uint32_t hand, bool require_hover = true);
   Status Release(uint32_t entity);
   // The hand holding `entity`, 0 if none.
   uint32_t HolderOf(uint32_t entity) const;

@@ -55,9 +55,9 @@ void PhysicsWorker::OnOtherMessage(const schema::ControlMessage& msg) {
       const auto* m = msg.body_as_WorkerAdd();
       RoomPhysics* room = room_of(m->room());
       if (room == nullptr || m->container() == nullptr) break;
-      std::string detail;
-      if (!room->Add(*m->container(), static_cast<PhysicsRole>(m->role()), &detail).ok()) {
-        spdlog::warn("entity {} not added: {}", m->container()->entity_id(), detail);
+      Status added = room->Add(*m->container(), static_cast<PhysicsRole>(m->role()));
+      if (!added.ok()) {
+        spdlog::warn("entity {} not added: {}", m->container()->entity_id(), added.ToString());
       }
       break;
     }

@@ -249,13 +249,12 @@ void AsyncPhysicsRoom::Apply(PhysicsCommand& c) {
   using K = PhysicsCommand::Kind;
   switch (c.kind) {
     case K::kAdd: {
-      std::string detail;
       const auto* container = flatbuffers::GetRoot<schema::Container>(c.container.data());
-      Status st = physics_->Add(*container, c.role, &detail);
+      Status st = physics_->Add(*container, c.role);
       if (!st.ok()) {
         // The relay validated it against the same rules: a mismatch is a bug, not input.
-        spdlog::error("PhyS: entity {} accepted by the relay was refused by its world: {} {}",
-                      c.id, st.message(), detail);
+        spdlog::error("PhyS: entity {} accepted by the relay was refused by its world: {}", c.id,
+                      st.ToString());
       }
       c.container = flatbuffers::DetachedBuffer();
       break;

@@ -38,11 +38,9 @@ Status EmbeddedPhysicsLink::Add(const schema::Container& c, PhysicsRole role) {
     if (st.ok()) room_->Post(std::move(command));
     return st;
   }
-  std::string detail;
-  Status st = physics_->Add(c, role, &detail);
+  Status st = physics_->Add(c, role);
   if (st.ok()) admission_.Added(c, role);
-  if (st.ok() || detail.empty()) return st;
-  return Status(st.code(), st.message(), std::move(detail));
+  return st;
 }
 
 void EmbeddedPhysicsLink::Remove(uint32_t id) {
