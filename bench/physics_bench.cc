@@ -14,7 +14,7 @@
 
 #include <memory>
 
-#include "physics_backend/scenes.h"
+#include "physics/scenes.h"
 
 namespace edgephys::physics {
 namespace {

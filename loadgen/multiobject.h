@@ -1,7 +1,7 @@
 // multiobject: the paper's MultiObject scenario (PhyS throughput "Obj_N").
 //
 // For every object count N, in one run:
-//  1. Step time, PhyS vs raw Bullet: the scene of physics_backend/scenes.h (N boxes dropped into
+//  1. Step time, PhyS vs raw Bullet: the scene of physics/scenes.h (N boxes dropped into
 //     a walled container, a kinematic paddle stirring them) built twice from the same
 //     parameters and seed — PhysSMultiObjectScene (PhysicsWorld from containers, what the relay
 //     runs, including CollectStates/DrainEvents) and RawBulletMultiObjectScene (the baseline) —

@@ -9,7 +9,7 @@
 
 #include "loadgen/loopback_room.h"
 #include "loadgen/stats.h"
-#include "physics_backend/scenes.h"
+#include "physics/scenes.h"
 
 namespace edgephys::loadgen {
 namespace {

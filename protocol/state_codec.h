@@ -28,7 +28,7 @@ bool IsValidState(const EntityState& state);
 
 // The first byte of every state payload on the unreliable channel. One list, so that no two
 // formats share an id (the PhyS worker link's own formats, 6 and up, are in
-// physics_backend/worker_protocol.h).
+// physics/worker_protocol.h).
 // kQuantizedDelta (protocol/delta_codec.h) is stateful: it is decoded only by a DeltaDecoder
 // owned by the stream's receiver, never by DecodeStateBatch. kPhoton and kPaper are the
 // benchmark emulations (protocol/emulation_codec.h); kSoftBody carries soft-body particles

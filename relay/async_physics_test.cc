@@ -15,7 +15,7 @@
 #include <set>
 #include <thread>
 
-#include "physics_backend/scenes.h"
+#include "physics/scenes.h"
 #include "protocol/container_builder.h"
 #include "relay/physics_link.h"
 

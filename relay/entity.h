@@ -7,7 +7,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "physics_backend/room_physics.h"
+#include "physics/room_physics.h"
 #include "protocol/delta_codec.h"
 #include "protocol/state_codec.h"
 

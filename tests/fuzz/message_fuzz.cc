@@ -20,7 +20,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "physics_backend/worker.h"
+#include "physics/worker.h"
 #include "protocol/delta_codec.h"
 #include "tests/fuzz/fuzz_world.h"
 

@@ -20,7 +20,7 @@
 #include <cstring>
 #include <unordered_map>
 
-#include "physics_backend/worker_protocol.h"
+#include "physics/worker_protocol.h"
 #include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/join_token.h"

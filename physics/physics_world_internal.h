@@ -1,4 +1,4 @@
-// Internal to physics_backend/: what the PhysicsWorld implementation files share. Not for
+// Internal to physics/: what the PhysicsWorld implementation files share. Not for
 // callers of PhysicsWorld (include physics_world.h instead).
 //
 // The implementation is split by concern:
@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "edgephys/schema/container_generated.h"
-#include "physics_backend/physics_world.h"
+#include "physics/physics_world.h"
 
 namespace edgephys::physics {
 namespace internal {

@@ -1,4 +1,4 @@
-#include "physics_backend/scenes.h"
+#include "physics/scenes.h"
 
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // RoomPhysics: PhyS for one room, embedded in the relay — the room's Bullet world
-// (physics_backend/physics_world.h) plus what the relay needs around it: which entities PhyS
+// (physics/physics_world.h) plus what the relay needs around it: which entities PhyS
 // simulates and which it mirrors, trigger hovering for grabs, holding grabbed objects in the
 // hand, and stepping at the fixed rate.
 //
@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "edgephys/schema/container_generated.h"
-#include "physics_backend/physics_world.h"
+#include "physics/physics_world.h"
 #include "protocol/state_codec.h"
 
 namespace edgephys {

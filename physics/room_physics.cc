@@ -1,4 +1,4 @@
-#include "physics_backend/room_physics.h"
+#include "physics/room_physics.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>

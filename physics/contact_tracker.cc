@@ -3,7 +3,7 @@
 // pair, so deterministic). O(contact manifolds + pairs log pairs); the pair vectors are reused.
 #include <algorithm>
 
-#include "physics_backend/physics_world_internal.h"
+#include "physics/physics_world_internal.h"
 
 namespace edgephys::physics {
 namespace {

@@ -14,7 +14,7 @@
 #include <span>
 #include <vector>
 
-#include "physics_backend/room_physics.h"
+#include "physics/room_physics.h"
 #include "protocol/soft_body_codec.h"
 
 namespace edgephys {

@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <limits>
 
-#include "physics_backend/physics_test_util.h"
-#include "physics_backend/scenes.h"
+#include "physics/physics_test_util.h"
+#include "physics/scenes.h"
 
 namespace edgephys::physics {
 namespace {

@@ -1,9 +1,9 @@
-#include "physics_backend/state_hash.h"
+#include "physics/state_hash.h"
 
 #include <gtest/gtest.h>
 
-#include "physics_backend/physics_test_util.h"
-#include "physics_backend/scenes.h"
+#include "physics/physics_test_util.h"
+#include "physics/scenes.h"
 
 namespace edgephys::physics {
 namespace {

@@ -1,4 +1,4 @@
-#include "physics_backend/worker_protocol.h"
+#include "physics/worker_protocol.h"
 
 #include "protocol/byte_io.h"
 

@@ -9,7 +9,7 @@
 #include <csignal>
 #include <thread>
 
-#include "physics_backend/worker.h"
+#include "physics/worker.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"

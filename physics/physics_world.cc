@@ -1,14 +1,14 @@
 // PhysicsWorld's front: the Bullet world's lifetime, AddEntity/RemoveEntity, commands, the
 // fixed step and its output. Validation, body building, the stability guard and contact
 // tracking live in the files listed in physics_world_internal.h.
-#include "physics_backend/physics_world.h"
+#include "physics/physics_world.h"
 
 #include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
 
 #include <algorithm>
 
-#include "physics_backend/physics_world_internal.h"
+#include "physics/physics_world_internal.h"
 
 namespace edgephys::physics {
 

@@ -14,8 +14,8 @@
 #include <memory>
 #include <vector>
 
-#include "physics_backend/container_builder.h"
-#include "physics_backend/physics_world.h"
+#include "physics/container_builder.h"
+#include "physics/physics_world.h"
 
 class btDefaultMotionState;
 

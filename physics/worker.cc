@@ -1,8 +1,8 @@
-#include "physics_backend/worker.h"
+#include "physics/worker.h"
 
 #include <spdlog/spdlog.h>
 
-#include "physics_backend/worker_protocol.h"
+#include "physics/worker_protocol.h"
 #include "protocol/handshake.h"
 
 namespace edgephys {

@@ -1,11 +1,11 @@
-// Helpers shared by the physics_backend tests.
+// Helpers shared by the physics tests.
 #pragma once
 
 #include <cmath>
 #include <vector>
 
-#include "physics_backend/container_builder.h"
-#include "physics_backend/physics_world.h"
+#include "physics/container_builder.h"
+#include "physics/physics_world.h"
 
 namespace edgephys::physics::testing {
 

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "client/client.h"
-#include "physics_backend/room_physics.h"
+#include "physics/room_physics.h"
 
 namespace edgephys {
 

@@ -1,9 +1,9 @@
-#include "physics_backend/state_hash.h"
+#include "physics/state_hash.h"
 
 #include <cstring>
 #include <vector>
 
-#include "physics_backend/physics_world.h"
+#include "physics/physics_world.h"
 
 namespace edgephys::physics {
 namespace {

@@ -1,5 +1,5 @@
 // Behavioural tests of PhysicsWorld: validation, commands, events, hierarchy, joints, guard.
-#include "physics_backend/physics_world.h"
+#include "physics/physics_world.h"
 
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
@@ -8,8 +8,8 @@
 #include <functional>
 #include <limits>
 
-#include "physics_backend/physics_test_util.h"
-#include "physics_backend/state_hash.h"
+#include "physics/physics_test_util.h"
+#include "physics/state_hash.h"
 
 namespace edgephys::physics {
 namespace {

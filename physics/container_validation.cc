@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "physics_backend/physics_world_internal.h"
+#include "physics/physics_world_internal.h"
 
 namespace edgephys::physics {
 namespace internal {
