@@ -31,6 +31,26 @@ bool BitWriter::WriteBits(uint64_t value, int bits) {
   return true;
 }
 
+bool BitWriter::AppendBits(std::span<const uint8_t> src, size_t bits) {
+  if (bits > src.size() * 8) return false;
+  if (bit_pos_ + bits > capacity_bits()) {
+    overflow_ = true;
+    return false;
+  }
+  size_t byte = 0;
+  while (bits > 0) {
+    // Up to 56 bits a step from whole source bytes (the source starts at a byte boundary).
+    const size_t n = bits < 56 ? bits : 56;
+    const size_t nbytes = (n + 7) / 8;
+    uint64_t v = 0;
+    for (size_t i = 0; i < nbytes; ++i) v |= static_cast<uint64_t>(src[byte + i]) << (8 * i);
+    WriteBits(v, static_cast<int>(n));
+    byte += nbytes;
+    bits -= n;
+  }
+  return true;
+}
+
 bool BitWriter::WriteExpGolomb(uint32_t u, int k) {
   const uint64_t v = static_cast<uint64_t>(u) + (uint64_t{1} << k);
   const int n = std::bit_width(v);
