@@ -213,7 +213,8 @@ bool SharedDeltaRoom::Encode(const SharedEntity& e, const SharedBaselineKey& key
 
 bool SharedDeltaRoom::Body(SharedEntity& e, const SharedBaselineKey& key,
                            std::array<uint8_t, kSharedBodyMaxBytes>& scratch,
-                           const uint8_t** bits, size_t* nbits) const {
+                           const uint8_t** bits, size_t* nbits, bool* hit) const {
+  *hit = false;
   if (e.room_ != this || e.cache_tick_ != tick_) return false;
   for (SharedEntity::Slot& s : e.slots_) {
     uint8_t st = s.state.load(std::memory_order_acquire);
@@ -238,8 +239,10 @@ bool SharedDeltaRoom::Body(SharedEntity& e, const SharedBaselineKey& key,
       }
     }
     if (st == kReady && s.key == key) {
-      s.uses.fetch_add(1, std::memory_order_relaxed);
-      stats_.hits.fetch_add(1, std::memory_order_relaxed);
+      // Not a read-modify-write: concurrent users may lose a count (it only weights the
+      // statistics), but the hot path takes no locked instruction.
+      s.uses.store(s.uses.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+      *hit = true;
       *bits = s.body.data();
       *nbits = s.bits;
       return true;
@@ -310,11 +313,12 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity, const PreparedSta
   if (!keyframe) key = base->key;
   const uint8_t* bits = nullptr;
   size_t nbits = 0;
-  if (!room->Body(entity, key, scratch_, &bits, &nbits)) {
+  bool hit = false;
+  if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) {
     if (keyframe) return false;
     keyframe = true;  // the room no longer holds the baseline's versions
     key = SharedBaselineKey{};
-    if (!room->Body(entity, key, scratch_, &bits, &nbits)) return false;
+    if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) return false;
   }
 
   const size_t mark = writer_.bit_position();
@@ -338,6 +342,7 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity, const PreparedSta
   }
 
   ++stats_.entities;
+  if (hit) ++stats_.cache_hits;
   if (keyframe) {
     ++stats_.keyframes;
     if (refresh) ++stats_.refresh_keyframes;

@@ -78,8 +78,9 @@ struct SharedDeltaParams {
 };
 
 struct SharedDeltaRoomStats {
+  // Bodies served from the cache are counted by the streams (SharedDeltaStreamStats::
+  // cache_hits): a room-wide counter would be one contended cache line for every receiver.
   std::atomic<uint64_t> encodes{0};        // bodies encoded into the cache
-  std::atomic<uint64_t> hits{0};           // bodies served from the cache
   std::atomic<uint64_t> uncached{0};       // encoded privately (no free slot)
   std::atomic<uint64_t> missing_versions{0};  // keys whose versions are gone: keyframe instead
 };
@@ -148,12 +149,13 @@ class SharedDeltaRoom {
   bool TickTime(uint32_t t, uint32_t* time_ms) const;
 
   // The record body coding `entity`'s current version against `key` (keyframe if depth 0) for
-  // this tick: from the cache, or encoded and cached (or, without a free slot, encoded into
-  // `scratch`). False if the key's versions (or tick times) are no longer held: send a keyframe.
-  // Thread-safe between BeginTick calls. `*bits` points into the cache or `scratch`.
+  // this tick: from the cache (*hit = true), or encoded and cached (or, without a free slot,
+  // encoded into `scratch`). False if the key's versions (or tick times) are no longer held:
+  // send a keyframe. Thread-safe between BeginTick calls. `*bits` points into the cache or
+  // `scratch`.
   bool Body(SharedEntity& entity, const SharedBaselineKey& key,
             std::array<uint8_t, kSharedBodyMaxBytes>& scratch, const uint8_t** bits,
-            size_t* nbits) const;
+            size_t* nbits, bool* hit) const;
 
   const SharedDeltaRoomStats& stats() const { return stats_; }
 
@@ -186,6 +188,7 @@ struct SharedDeltaStreamStats {
   uint64_t keyframes = 0;
   uint64_t refresh_keyframes = 0;
   uint64_t acks_unmatched = 0;
+  uint64_t cache_hits = 0;  // record bodies appended from the room's cache
 };
 
 // The relay side of one receiver: which versions it was sent and acknowledged, the choice of
