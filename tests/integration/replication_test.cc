@@ -138,13 +138,14 @@ TEST(Replication, PaperModeSendsOnlySignificantFields) {
   EXPECT_EQ(room.b->FindEntity(id)->state.position.x, 0.02f);
 }
 
-// Format 9 (ReplicationConfig::shared_encoding) through the real relay on loopback UDP: two
-// receivers decode every entity within the lattice bound, and the room's body cache served
-// the second receiver.
+// Format 9 (ReplicationConfig::shared_encoding) through the real relay on loopback UDP, with
+// the receivers' ticks on two threads: both decode every entity within the lattice bound, and
+// the room's body cache served them both.
 TEST(Replication, SharedEncodingOnLoopbackDeliversStatesWithinTheBound) {
   RelayConfig config = LoopbackWorld::DefaultConfig();
   config.room_defaults.tick_rate_hz = 60;
   config.room_defaults.replication.shared_encoding = true;
+  config.physics_threads = 2;  // receivers' ticks in parallel: the cache is filled concurrently
   LoopbackWorld world(config);
   Client& a = world.AddClient(MintToken("shared", 1));
   Client& b = world.AddClient(MintToken("shared", 2));
