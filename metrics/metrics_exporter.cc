@@ -202,6 +202,14 @@ class RelayCollectable : public prometheus::Collectable {
     families.push_back(CounterFamily("edgephys_entity_updates_sent_total",
                                      "Entity states written into outgoing packets.",
                                      c.entity_updates_sent));
+    families.push_back(CounterFamily("edgephys_shared_bodies_cached_total",
+                                     "Format-9 entity records whose body came from the room's "
+                                     "per-tick cache (appended, not coded).",
+                                     c.shared_bodies_cached));
+    families.push_back(CounterFamily("edgephys_shared_bodies_coded_total",
+                                     "Format-9 entity records whose body the receiver's tick "
+                                     "coded (first user of the body, or no free cache slot).",
+                                     c.shared_bodies_coded));
     families.push_back(CounterFamily("edgephys_entity_updates_received_total",
                                      "Entity states accepted from their owners.",
                                      c.entity_updates_received));

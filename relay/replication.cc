@@ -256,6 +256,16 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
       for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
     }
     RelayCounters::Inc(counters.entity_updates_sent, in_payload_.size());
+    if (shared_ != nullptr) {
+      const SharedDeltaStreamStats& st = shared_->stats();
+      RelayCounters::Inc(counters.shared_bodies_cached, st.cache_hits - shared_hits_counted_);
+      RelayCounters::Inc(counters.shared_bodies_coded, (st.entities - shared_entities_counted_) -
+                                                           (st.cache_hits - shared_hits_counted_));
+    }
+  }
+  if (shared_ != nullptr) {
+    shared_hits_counted_ = shared_->stats().cache_hits;
+    shared_entities_counted_ = shared_->stats().entities;
   }
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
   if (!in_payload_.empty()) {

@@ -165,6 +165,8 @@ class ClientReplicator {
   PaperEmulationEncoder* paper_ = nullptr;  // encoder_ when mode is kPaper
   DeltaEncoder* delta_ = nullptr;           // encoder_ when mode is kEdgephys (format 2)
   SharedDeltaStream* shared_ = nullptr;     // encoder_ when kEdgephys with shared_encoding
+  uint64_t shared_hits_counted_ = 0;        // shared_'s stats already added to the counters
+  uint64_t shared_entities_counted_ = 0;
   ReplicationTracker tracker_;              // acks for float / emulation modes
   FlatIdMap<View> views_;
   std::vector<Candidate> candidates_;

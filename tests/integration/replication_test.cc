@@ -190,6 +190,11 @@ TEST(Replication, SharedEncodingOnLoopbackDeliversStatesWithinTheBound) {
   // Two receivers, one set of bodies: fewer bodies coded than updates sent.
   EXPECT_LT(st.encodes.load() + st.uncached.load(),
             world.counters().entity_updates_sent.load());
+  // The relay's counters see the same: records appended from the cache and coded ones.
+  EXPECT_GT(world.counters().shared_bodies_cached.load(), 0u);
+  EXPECT_EQ(world.counters().shared_bodies_cached.load() +
+                world.counters().shared_bodies_coded.load(),
+            world.counters().entity_updates_sent.load());
 }
 
 // Format 9 on a lossy, duplicating, reordering simulated network: every receiver converges.
