@@ -27,16 +27,30 @@ bool TickAtOrBefore(uint32_t a, uint32_t b) { return static_cast<int32_t>(a - b)
 // ================================ Room ================================
 
 const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
-  const uint32_t held = std::min<uint32_t>(next_, kSharedVersionWindow);
-  for (uint32_t i = 1; i <= held; ++i) {
-    const Version& v = versions_[(next_ - i) % kSharedVersionWindow];
-    if (TickAtOrBefore(v.tick, tick)) return &v;
+  const size_t size = versions_.size();
+  const uint32_t held = static_cast<uint32_t>(std::min<size_t>(next_, size));
+  // Ticks increase from the oldest held (logical 0) to the newest: binary search for the last
+  // version prepared at or before `tick`.
+  auto at = [&](uint32_t j) -> const Version& {
+    return versions_[static_cast<size_t>((next_ - held + j) % size)];
+  };
+  if (held == 0 || !TickAtOrBefore(at(0).tick, tick)) return nullptr;
+  uint32_t lo = 0, hi = held;  // at(lo) <= tick; at(hi) > tick (or hi == held)
+  while (hi - lo > 1) {
+    const uint32_t mid = lo + (hi - lo) / 2;
+    if (TickAtOrBefore(at(mid).tick, tick)) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
   }
-  return nullptr;
+  return &at(lo);
 }
 
-SharedDeltaRoom::SharedDeltaRoom(const QuantizationParams& params)
-    : q_(params), tick_times_(kSharedTickWindow, 0) {}
+SharedDeltaRoom::SharedDeltaRoom(const QuantizationParams& params, size_t versions_per_entity)
+    : q_(params),
+      versions_per_entity_(std::max<size_t>(versions_per_entity, 4)),
+      tick_times_(kSharedTickWindow, 0) {}
 
 bool SharedDeltaRoom::TickTime(uint32_t t, uint32_t* time_ms) const {
   const uint32_t age = tick_ - t;
@@ -117,9 +131,9 @@ void SharedDeltaRoom::PrepareEntity(SharedEntity& e, const PreparedState& state)
     s.sampled = false;
   }
   e.cache_tick_ = tick_;
-  if (e.versions_.empty()) e.versions_.resize(kSharedVersionWindow);
+  if (e.versions_.empty()) e.versions_.resize(versions_per_entity_);
   if (e.next_ == 0 || !(e.Newest().q == state.q)) {
-    SharedEntity::Version& v = e.versions_[e.next_ % kSharedVersionWindow];
+    SharedEntity::Version& v = e.versions_[static_cast<size_t>(e.next_ % e.versions_.size())];
     v.tick = tick_;
     v.q = state.q;
     v.rot4 = state.rot4;

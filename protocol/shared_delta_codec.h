@@ -24,14 +24,14 @@
 // packet and references the newest acknowledged one (<= kMaxReferenceDistance ticks old), else a
 // keyframe. The client keeps per entity the kDeltaBaselineWindow versions with the highest ticks
 // (the format-2 argument: an acknowledged version is always held). The room keeps per entity
-// the last kSharedVersionWindow versions and the times of the last kSharedTickWindow ticks; a
+// the last SharedVersionWindowFor(tick rate) versions and the times of the last kSharedTickWindow ticks; a
 // key whose versions it no longer holds is sent as a keyframe instead.
 //
 // Thread-safety: SharedDeltaRoom::BeginTick / PrepareEntity on one thread (the room's) before
 // the receivers' ticks; during them, SharedDeltaRoom::Body may be called concurrently from any
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
-// Memory: room ~2.3 KiB per entity (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
+// Memory: room ~4.6 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
 // times); stream ~1.2 KiB per (receiver, entity); decoder ~2 KiB per entity, bounded by
 // max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
@@ -59,8 +59,19 @@ namespace edgephys {
 inline constexpr uint8_t kSharedDeltaStateFormat = 9;
 // format, tick time (ms), tick, params; then a varint count.
 inline constexpr size_t kSharedDeltaHeaderSize = 1 + 4 + 4 + 2;
-// Versions the room keeps per entity, and tick times per room (relay side only).
+// Versions the room keeps per entity (at least; see SharedVersionWindowFor), and tick times
+// per room (relay side only).
 inline constexpr size_t kSharedVersionWindow = 64;
+// Versions per entity for a room ticking at `tick_rate_hz`: two seconds of ticks, as a power
+// of two (an entity that changes every tick still has the versions its receivers' keys name
+// when they are sent at a few Hz, with losses and round trips), at least
+// kSharedVersionWindow, at most 2048. ~36 bytes each: 4.6 KiB per entity at 60 Hz.
+inline size_t SharedVersionWindowFor(double tick_rate_hz) {
+  const double n = tick_rate_hz > 0 ? 2.0 * tick_rate_hz : 0;
+  size_t w = kSharedVersionWindow;
+  while (w < n && w < 2048) w *= 2;
+  return w;
+}
 inline constexpr size_t kSharedTickWindow = 8192;
 // Cached bodies per entity per tick; a receiver whose key finds no slot encodes privately.
 inline constexpr size_t kSharedCacheSlots = 6;
@@ -120,13 +131,15 @@ class SharedEntity {
     int32_t rot_res[3][3] = {};
     bool rot_same[3] = {};
   };
-  const Version& Newest() const { return versions_[(next_ - 1) % kSharedVersionWindow]; }
+  const Version& Newest() const {
+    return versions_[static_cast<size_t>((next_ - 1) % versions_.size())];
+  }
   // The version current at `tick` (the newest prepared at or before it), null if not held.
   const Version* At(uint32_t tick) const;
 
   const SharedDeltaRoom* room_ = nullptr;
-  std::vector<Version> versions_;  // ring of kSharedVersionWindow (allocated on first use)
-  uint32_t next_ = 0;
+  std::vector<Version> versions_;  // ring of the room's window (allocated on first use)
+  uint64_t next_ = 0;  // versions ever recorded
   uint32_t cache_tick_ = 0;
   std::array<Slot, kSharedCacheSlots> slots_;
 };
@@ -134,7 +147,9 @@ class SharedEntity {
 // The room side: tick clock, tick times, coding parameters and the body cache.
 class SharedDeltaRoom {
  public:
-  explicit SharedDeltaRoom(const QuantizationParams& params);
+  // `versions_per_entity`: the window of versions kept per entity (SharedVersionWindowFor).
+  explicit SharedDeltaRoom(const QuantizationParams& params,
+                           size_t versions_per_entity = kSharedVersionWindow);
 
   // Starts tick tick()+1 sampled at `time_ms` (room clock, ms, wraps) and picks this tick's
   // coding parameters from the statistics folded so far. Room thread. O(1).
@@ -168,6 +183,7 @@ class SharedDeltaRoom {
   void ChooseParams();
 
   QuantizationParams q_;
+  size_t versions_per_entity_;
   uint32_t tick_ = 0;
   uint32_t time_ms_ = 0;
   std::vector<uint32_t> tick_times_;  // ring of kSharedTickWindow

@@ -37,8 +37,9 @@ double PosBound(const QuantizationParams& p, const Vec3f& at) {
 
 // The room side of a test: entities with their truth, prepared once per tick.
 struct TestRoom {
+  explicit TestRoom(size_t versions = kSharedVersionWindow) : room(params, versions) {}
   QuantizationParams params = DefaultParams();
-  SharedDeltaRoom room{params};
+  SharedDeltaRoom room;
   std::map<uint32_t, std::unique_ptr<SharedEntity>> shared;
   std::map<uint32_t, EntityState> truth;
   std::map<uint32_t, PreparedState> prepared;
@@ -365,6 +366,51 @@ TEST(SharedDeltaCodec, ParallelReceiversShareTheCacheSafely) {
   uint64_t hits = 0;
   for (auto& x : rx) hits += x->stream.stats().cache_hits;
   EXPECT_GE(hits, (kReceivers - 2u) * kTicks * kEntities);
+}
+
+// A 240 Hz room whose entities change every tick, sent at 6 Hz to receivers spread over every
+// phase: the keys' versions lie up to ~0.5 s back. SharedVersionWindowFor(240) keeps them (no
+// fallback keyframes); the 60 Hz default window of 64 would not.
+TEST(SharedDeltaCodec, HighTickRatesKeepEnoughVersionsForSlowReceivers) {
+  for (size_t window : {kSharedVersionWindow, SharedVersionWindowFor(240)}) {
+    TestRoom r(window);
+    constexpr int kReceivers = 20;
+    std::vector<std::unique_ptr<Receiver>> rx;
+    for (int i = 0; i < kReceivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
+    std::vector<TestMotion> motion;
+    for (uint32_t i = 0; i < 10; ++i) motion.emplace_back(2, i, 1.5, 90.0, 0);
+    std::vector<uint32_t> ids;
+    for (uint32_t id = 1; id <= 10; ++id) ids.push_back(id);
+    std::vector<std::vector<uint16_t>> pending(kReceivers);
+    uint64_t keyframes = 0;
+    for (int tick = 0; tick < 240 * 6; ++tick) {
+      for (uint32_t i = 0; i < 10; ++i) r.Set(i + 1, motion[i].AdvanceTo(tick / 240.0));
+      r.Tick(static_cast<uint32_t>(tick * 1000 / 240));
+      for (int k = 0; k < kReceivers; ++k) {
+        if ((tick + 2 * k) % 40 != 0) continue;  // 6 Hz, phases 2 ticks apart
+        for (uint16_t s : pending[k]) rx[k]->stream.OnPacketAcked(s);
+        pending[k].clear();
+        for (auto& [seq, payload] : rx[k]->Send(r, ids, tick / 240.0)) {
+          ASSERT_TRUE(rx[k]->Receive(payload));
+          pending[k].push_back(seq);
+        }
+      }
+    }
+    for (auto& x : rx) {
+      keyframes += x->stream.stats().keyframes - x->stream.stats().refresh_keyframes;
+      for (uint32_t id : ids) ASSERT_TRUE(x->decoded.count(id));
+    }
+    const uint64_t missing = r.room.stats().missing_versions.load();
+    std::printf("window %zu: %llu missing versions, %llu non-refresh keyframes\n", window,
+                static_cast<unsigned long long>(missing),
+                static_cast<unsigned long long>(keyframes));
+    if (window == kSharedVersionWindow) {
+      EXPECT_GT(missing, 0u);
+    } else {
+      EXPECT_EQ(missing, 0u);
+      EXPECT_EQ(keyframes, static_cast<uint64_t>(kReceivers) * ids.size());  // the first only
+    }
+  }
 }
 
 // More distinct keys than cache slots: the extra receivers encode privately, correctly.

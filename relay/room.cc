@@ -78,7 +78,8 @@ void Room::PrepareStates(double now) {
     auto params = MakeQuantizationParams(QuantizationOf(config_.replication));
     if (params.ok()) quantization_ = *params;
     if (params.ok() && UsesSharedEncoding(config_.replication)) {
-      shared_ = std::make_unique<SharedDeltaRoom>(*params);
+      shared_ = std::make_unique<SharedDeltaRoom>(
+          *params, SharedVersionWindowFor(config_.tick_rate_hz));
     }
   }
   if (!quantization_) return;
