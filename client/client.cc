@@ -329,9 +329,11 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       entity_id_base_ = j->entity_id_base();
       next_local_id_ = 1;
       delta_decoder_.reset();
+      shared_decoder_.reset();
       position_step_m_ =
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
-      if (j->state_format() == kDeltaStateFormat) {
+      if (j->state_format() == kDeltaStateFormat ||
+          j->state_format() == kSharedDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
         q.rotation_error_deg = j->rotation_bound_deg();
@@ -340,7 +342,11 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
           q.bounds_max = {j->bounds_max()->x(), j->bounds_max()->y(), j->bounds_max()->z()};
         }
         auto params = MakeQuantizationParams(q);
-        if (params.ok()) delta_decoder_ = std::make_unique<DeltaDecoder>(*params);
+        if (params.ok() && j->state_format() == kSharedDeltaStateFormat) {
+          shared_decoder_ = std::make_unique<SharedDeltaDecoder>(*params);
+        } else if (params.ok()) {
+          delta_decoder_ = std::make_unique<DeltaDecoder>(*params);
+        }
       }
       listener_->OnJoined(room_, entity_id_base_);
       break;
@@ -378,6 +384,7 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       uint32_t id = msg->body_as_Despawn()->entity_id();
       entities_.erase(id);
       if (delta_decoder_) delta_decoder_->Forget(id);
+      if (shared_decoder_) shared_decoder_->Forget(id);
       despawned_.insert(id);
       listener_->OnEntityDespawned(id);
       break;
@@ -426,6 +433,10 @@ Status Client::DecodeStates(std::span<const uint8_t> payload) {
       batch_.states.clear();
       if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");
       return delta_decoder_->Decode(payload, &batch_);
+    case kSharedDeltaStateFormat:
+      batch_.states.clear();
+      if (!shared_decoder_) return Status(StatusCode::kMalformed, "format 9 without quantisation");
+      return shared_decoder_->Decode(payload, &batch_);
     default:
       return DecodeStateBatch(payload, &batch_);
   }

@@ -44,6 +44,7 @@
 #include "protocol/container_builder.h"
 #include "edgephys/schema/control_generated.h"
 #include "protocol/delta_codec.h"
+#include "protocol/shared_delta_codec.h"
 #include "protocol/datagram_socket.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/soft_body_codec.h"
@@ -261,6 +262,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   StateBatch batch_;
   FloatStateEncoder encoder_;
   std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
+  std::unique_ptr<SharedDeltaDecoder> shared_decoder_;  // rooms using format 9
   float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
   SoftBodyChunk soft_chunk_;
   uint64_t bytes_state_received_ = 0;

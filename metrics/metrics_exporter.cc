@@ -172,6 +172,14 @@ const FamilySpec kFamilies[] = {
     {"edgephys_bytes_sent_total", "UDP payload bytes sent.", CounterSource{&C::bytes_sent}},
     {"edgephys_entity_updates_sent_total", "Entity states written into outgoing packets.",
      CounterSource{&C::entity_updates_sent}},
+    {"edgephys_shared_bodies_cached_total",
+     "Format-9 entity records whose body came from the room's per-tick cache (appended, not "
+     "coded).",
+     CounterSource{&C::shared_bodies_cached}},
+    {"edgephys_shared_bodies_coded_total",
+     "Format-9 entity records whose body the receiver's tick coded (first user of the body, or "
+     "no free cache slot).",
+     CounterSource{&C::shared_bodies_coded}},
     {"edgephys_entity_updates_received_total", "Entity states accepted from their owners.",
      CounterSource{&C::entity_updates_received}},
     {"edgephys_reliable_resends_total", "Reliable units sent more than once.",

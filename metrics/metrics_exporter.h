@@ -12,6 +12,7 @@
 //              physics_sleeping_bodies, physics_workers
 //   counters   packets_received_total, packets_sent_total, bytes_received_total,
 //              bytes_sent_total, entity_updates_sent_total, entity_updates_received_total,
+//              shared_bodies_cached_total, shared_bodies_coded_total (format 9),
 //              reliable_resends_total, reliable_messages_received_total,
 //              connections_accepted_total, send_errors_total, io_queue_drops_total,
 //              packets_rejected_total{reason}, entity_updates_rejected_total{reason}

@@ -1,6 +1,7 @@
 #include "protocol/bit_stream.h"
 
 #include <bit>
+#include <cstring>
 
 namespace edgephys {
 
@@ -17,6 +18,20 @@ bool BitWriter::WriteBits(uint64_t value, int bits) {
     return false;
   }
   if (bits < 64) value &= (uint64_t{1} << bits) - 1;
+  if constexpr (std::endian::native == std::endian::little) {
+    // Fast path: one 64-bit read-modify-write when 8 bytes are available. Bytes past the
+    // written bits are zeroed, as the byte loop would when first touching them.
+    const size_t byte = bit_pos_ >> 3;
+    const int offset = static_cast<int>(bit_pos_ & 7);
+    if (bits <= 56 && byte + 8 <= out_.size()) {
+      uint64_t word;
+      std::memcpy(&word, out_.data() + byte, 8);
+      word = (word & ((uint64_t{1} << offset) - 1)) | (value << offset);
+      std::memcpy(out_.data() + byte, &word, 8);
+      bit_pos_ += static_cast<size_t>(bits);
+      return true;
+    }
+  }
   while (bits > 0) {
     const size_t byte = bit_pos_ >> 3;
     const int offset = static_cast<int>(bit_pos_ & 7);
@@ -27,6 +42,26 @@ bool BitWriter::WriteBits(uint64_t value, int bits) {
     value >>= take;
     bits -= take;
     bit_pos_ += static_cast<size_t>(take);
+  }
+  return true;
+}
+
+bool BitWriter::AppendBits(std::span<const uint8_t> src, size_t bits) {
+  if (bits > src.size() * 8) return false;
+  if (bit_pos_ + bits > capacity_bits()) {
+    overflow_ = true;
+    return false;
+  }
+  size_t byte = 0;
+  while (bits > 0) {
+    // Up to 56 bits a step from whole source bytes (the source starts at a byte boundary).
+    const size_t n = bits < 56 ? bits : 56;
+    const size_t nbytes = (n + 7) / 8;
+    uint64_t v = 0;
+    for (size_t i = 0; i < nbytes; ++i) v |= static_cast<uint64_t>(src[byte + i]) << (8 * i);
+    WriteBits(v, static_cast<int>(n));
+    byte += nbytes;
+    bits -= n;
   }
   return true;
 }

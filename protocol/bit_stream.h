@@ -46,6 +46,11 @@ class BitWriter {
   // Zigzag + order-k Exp-Golomb.
   bool WriteSigned(int32_t v, int k) { return WriteExpGolomb(ZigZag(v), k); }
 
+  // Appends the first `bits` bits of `src` (a stream written LSB-first, e.g. by another
+  // BitWriter) at the current position: records precomputed once and copied into many
+  // streams (format 9). False if it does not fit (nothing written) or `src` is too short.
+  bool AppendBits(std::span<const uint8_t> src, size_t bits);
+
   size_t bit_position() const { return bit_pos_; }
   // Bytes touched so far (ceil(bits / 8)).
   size_t byte_size() const { return (bit_pos_ + 7) / 8; }

@@ -8,12 +8,10 @@
 #include <numbers>
 
 #include "protocol/byte_io.h"
+#include "protocol/delta_prediction.h"
 
 namespace edgephys {
 namespace {
-
-using Sample = DeltaEncoder::Sample;
-using History = DeltaEncoder::History;
 
 constexpr size_t kCountReserve = 3;  // varint count reserved while encoding (< 2^21)
 constexpr size_t kStreamStart = kDeltaHeaderSize + kCountReserve;
@@ -25,16 +23,17 @@ constexpr int kMaxK = 7;
 // only rank the candidate orders and k; sampling cuts most of the encoder's cost).
 constexpr uint64_t kStatsSampleEvery = 4;
 
+}  // namespace
+
+namespace delta_internal {
+
 // ---- Prediction (identical at both ends; integer arithmetic only) ----
 
+namespace {
 int64_t DivRound(int64_t n, int64_t d) {  // d > 0; halves away from zero
   return n >= 0 ? (n + d / 2) / d : -((-n + d / 2) / d);
 }
-
-struct Timing {
-  int order = 0;  // effective order after the availability / gap checks
-  int64_t h = 0, h2 = 0, h1 = 0;
-};
+}  // namespace
 
 Timing MakeTiming(const History& hist, int order, uint32_t time_ms) {
   Timing t;
@@ -48,6 +47,7 @@ Timing MakeTiming(const History& hist, int order, uint32_t time_ms) {
   return t;
 }
 
+namespace {
 // Newton-form polynomial extrapolation through (t2,p2), (t1,p1), (t0,p0) to t0 + h.
 int64_t Extrapolate(int64_t p0, int64_t p1, int64_t p2, const Timing& t) {
   if (t.order == 0) return p0;
@@ -61,12 +61,7 @@ int64_t Extrapolate(int64_t p0, int64_t p1, int64_t p2, const Timing& t) {
   const int64_t den = t.h1 * t.h2 * (t.h1 + t.h2);
   return p0 + DivRound(num, den);
 }
-
-struct Prediction {
-  std::array<uint32_t, 3> pos{};
-  std::array<int64_t, 4> rot{};
-  int largest = 3;  // index of the largest |rot| component (lowest on ties)
-};
+}  // namespace
 
 void PredictPosition(const QuantizationParams& p, const History& hist, const Timing& t,
                      Prediction* out) {
@@ -160,7 +155,9 @@ bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
   return order[0] <= 2 && order[1] <= 2 && (v >> 12) == 0;
 }
 
-}  // namespace
+}  // namespace delta_internal
+
+using namespace delta_internal;  // NOLINT
 
 // ================================ Encoder ================================
 

@@ -4,11 +4,13 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
 #include "physics/room_physics.h"
 #include "protocol/delta_codec.h"
+#include "protocol/shared_delta_codec.h"
 #include "protocol/state_codec.h"
 
 namespace edgephys {
@@ -43,6 +45,9 @@ struct Entity {
   bool prepared_valid = false;
   EntityState prepared_of;
   PreparedState prepared;
+  // Format 9 rooms (ReplicationConfig::shared_encoding): the entity's recent versions and this
+  // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
+  std::shared_ptr<SharedEntity> shared;
 };
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;

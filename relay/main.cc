@@ -72,6 +72,10 @@ int main(int argc, char** argv) {
                  "State encoding: edgephys (quantized delta), float, photon or paper (emulations)")
       ->capture_default_str();
   ReplicationConfig& rep = config.room_defaults.replication;
+  app.add_flag("--shared-encoding", rep.shared_encoding,
+               "edgephys mode: state format 9 (shared delta: each entity delta encoded once per "
+               "room tick for every receiver on the same baseline) instead of format 2; "
+               "experimental, off by default");
   app.add_option("--position-step", rep.position_step_m, "Position quantisation step (m)")
       ->capture_default_str()->check(CLI::Range(1e-5, 1.0));
   app.add_option("--rotation-bound", rep.rotation_bound_deg, "Rotation error bound (deg)")

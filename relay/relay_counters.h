@@ -63,6 +63,11 @@ struct RelayCounters {
   Counter bytes_sent{0};
   Counter entity_updates_sent{0};      // entity states written into outgoing packets
   Counter entity_updates_received{0};  // entity states accepted from owners
+  // Format 9 rooms (ReplicationConfig::shared_encoding): entity records whose body a receiver
+  // appended from the room's per-tick cache, and those it had to code (first user of a body,
+  // or no free cache slot). cached / (cached + coded) is the sharing ratio.
+  Counter shared_bodies_cached{0};
+  Counter shared_bodies_coded{0};
   Counter reliable_resends{0};
   Counter reliable_messages_received{0};
   Counter connections_accepted{0};

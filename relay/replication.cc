@@ -84,6 +84,12 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     }
     case ReplicationMode::kEdgephys: {
       auto params = MakeQuantizationParams(QuantizationOf(config_));
+      if (params.ok() && config_.shared_encoding) {
+        auto shared = std::make_unique<SharedDeltaStream>(*params);
+        shared_ = shared.get();
+        encoder_ = std::move(shared);
+        break;
+      }
       if (params.ok()) {
         auto delta = std::make_unique<DeltaEncoder>(*params);
         delta_ = delta.get();
@@ -166,8 +172,11 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
         break;
       case ReplicationMode::kEdgephys: {
         const DeltaEncoder::UpdateNeed need =
-            delta_->Need(id, e.state, config_.position_threshold_m,
-                         config_.rotation_threshold_deg, now, resend_after);
+            shared_ != nullptr
+                ? shared_->Need(id, e.state, config_.position_threshold_m,
+                                config_.rotation_threshold_deg, now, resend_after)
+                : delta_->Need(id, e.state, config_.position_threshold_m,
+                               config_.rotation_threshold_deg, now, resend_after);
         if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
         want = need == DeltaEncoder::UpdateNeed::kSend;
         break;
@@ -200,6 +209,10 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
   for (const Candidate& c : selected_) {
     auto add = [&]() {
       if (paper_ != nullptr) return paper_->AddFields(c.entity->state, c.fields);
+      if (shared_ != nullptr) {  // the room codes the body once for every receiver
+        return c.entity->shared != nullptr && c.entity->prepared_valid &&
+               shared_->Add(c.id, *c.entity->shared, c.entity->prepared);
+      }
       if (delta_ != nullptr) {  // the room quantised it once for every receiver
         return delta_->Add(c.entity->state,
                            c.entity->prepared_valid ? &c.entity->prepared : nullptr);
@@ -237,10 +250,22 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
   if (seq.ok()) {
     if (delta_ != nullptr) {
       delta_->OnSent(*seq, now);
+    } else if (shared_ != nullptr) {
+      shared_->OnSent(*seq, now);
     } else {
       for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
     }
     RelayCounters::Inc(counters.entity_updates_sent, in_payload_.size());
+    if (shared_ != nullptr) {
+      const SharedDeltaStreamStats& st = shared_->stats();
+      RelayCounters::Inc(counters.shared_bodies_cached, st.cache_hits - shared_hits_counted_);
+      RelayCounters::Inc(counters.shared_bodies_coded, (st.entities - shared_entities_counted_) -
+                                                           (st.cache_hits - shared_hits_counted_));
+    }
+  }
+  if (shared_ != nullptr) {
+    shared_hits_counted_ = shared_->stats().cache_hits;
+    shared_entities_counted_ = shared_->stats().entities;
   }
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
   if (!in_payload_.empty()) {
@@ -303,6 +328,8 @@ void ClientReplicator::OnPacketAcked(uint16_t sequence) {
   }
   if (delta_ != nullptr) {
     delta_->OnPacketAcked(sequence);
+  } else if (shared_ != nullptr) {
+    shared_->OnPacketAcked(sequence);
   } else {
     tracker_.OnAcked(sequence);
   }
@@ -312,6 +339,7 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   tracker_.Forget(entity_id);
   soft_views_.erase(entity_id);
   if (delta_ != nullptr) delta_->Forget(entity_id);
+  if (shared_ != nullptr) shared_->Forget(entity_id);
   views_.Erase(entity_id);
 }
 

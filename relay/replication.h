@@ -15,7 +15,9 @@
 //  3. encodes them into as few datagrams as fit the MTU with the room's encoder.
 //
 // Modes (ReplicationMode): `float` (format 1, exact floats; the foundation format),
-// `edgephys` (format 2, quantized delta against acknowledged baselines), and the baselines
+// `edgephys` (format 2, quantized delta against acknowledged baselines; with
+// ReplicationConfig::shared_encoding format 9, whose bodies the room encodes once per tick for
+// all receivers: Room::PrepareStates, Entity::shared), and the baselines
 // `photon` (format 3) and `paper` (format 4) for side-by-side comparison.
 //
 // Thread-safety: none; owned by the session, used on the room's thread.
@@ -34,6 +36,7 @@
 #include "protocol/emulation_codec.h"
 #include "protocol/flat_id_map.h"
 #include "protocol/replication_tracker.h"
+#include "protocol/shared_delta_codec.h"
 #include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
 #include "relay/relay_counters.h"
@@ -79,7 +82,17 @@ struct ReplicationConfig {
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
   float bounds_half_extent_m = 1000.0f;  // room bounds: a cube centred on the origin
+  // edgephys mode only: send state format 9 ("shared delta", protocol/shared_delta_codec.h)
+  // instead of format 2. The room quantises, predicts and codes each (entity, baseline) delta
+  // once per tick for every receiver on that baseline; each receiver only appends bits. Off by
+  // default until measured at scale; clients learn the format from Joined.
+  bool shared_encoding = false;
 };
+
+// True when rooms with `config` send format 9.
+inline bool UsesSharedEncoding(const ReplicationConfig& config) {
+  return config.mode == ReplicationMode::kEdgephys && config.shared_encoding;
+}
 
 // The quantisation a room with `config` uses (format 2).
 QuantizationConfig QuantizationOf(const ReplicationConfig& config);
@@ -152,7 +165,10 @@ class ClientReplicator {
   ReplicationConfig config_;
   std::unique_ptr<StateEncoder> encoder_;
   PaperEmulationEncoder* paper_ = nullptr;  // encoder_ when mode is kPaper
-  DeltaEncoder* delta_ = nullptr;           // encoder_ when mode is kEdgephys
+  DeltaEncoder* delta_ = nullptr;           // encoder_ when mode is kEdgephys (format 2)
+  SharedDeltaStream* shared_ = nullptr;     // encoder_ when kEdgephys with shared_encoding
+  uint64_t shared_hits_counted_ = 0;        // shared_'s stats already added to the counters
+  uint64_t shared_entities_counted_ = 0;
   ReplicationTracker tracker_;              // acks for float / emulation modes
   FlatIdMap<View> views_;
   std::vector<Candidate> candidates_;

@@ -71,23 +71,31 @@ void Room::ScheduleNextTick(double now) {
   if (next_tick_ < now) next_tick_ = now + interval;  // fell behind: skip, don't burst
 }
 
-void Room::PrepareStates() {
+void Room::PrepareStates(double now) {
   if (config_.replication.mode != ReplicationMode::kEdgephys) return;
   if (!quantization_tried_) {
     quantization_tried_ = true;
     auto params = MakeQuantizationParams(QuantizationOf(config_.replication));
     if (params.ok()) quantization_ = *params;
+    if (params.ok() && UsesSharedEncoding(config_.replication)) {
+      shared_ = std::make_unique<SharedDeltaRoom>(
+          *params, SharedVersionWindowFor(config_.tick_rate_hz));
+    }
   }
   if (!quantization_) return;
+  if (shared_) shared_->BeginTick(static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0)));
   for (auto& [id, e] : entities_) {
-    if (e.prepared_valid &&
-        std::memcmp(&e.prepared_of.position, &e.state.position, sizeof(Vec3f)) == 0 &&
-        std::memcmp(&e.prepared_of.rotation, &e.state.rotation, sizeof(Quatf)) == 0) {
-      continue;
+    if (!e.prepared_valid ||
+        std::memcmp(&e.prepared_of.position, &e.state.position, sizeof(Vec3f)) != 0 ||
+        std::memcmp(&e.prepared_of.rotation, &e.state.rotation, sizeof(Quatf)) != 0) {
+      e.prepared = PrepareState(*quantization_, e.state);
+      e.prepared_of = e.state;
+      e.prepared_valid = true;
     }
-    e.prepared = PrepareState(*quantization_, e.state);
-    e.prepared_of = e.state;
-    e.prepared_valid = true;
+    if (shared_) {
+      if (!e.shared) e.shared = std::make_shared<SharedEntity>();
+      shared_->PrepareEntity(*e.shared, e.prepared);
+    }
   }
 }
 

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "protocol/delta_codec.h"
+#include "protocol/shared_delta_codec.h"
 #include "protocol/state_codec.h"
 #include "relay/entity.h"
 #include "relay/physics_link.h"
@@ -53,11 +54,15 @@ class Room {
   std::unique_ptr<PhysicsLink> TakePhysics() { return std::move(physics_); }
   uint64_t NextSpawnSeq() { return ++spawn_seq_; }
 
-  // Before a replication tick: quantises every entity whose state changed since the last
-  // call, once for all receivers (edgephys mode only; a no-op otherwise). O(entities), no
-  // allocation after the first call. Not thread-safe: call on the room's thread before the
-  // clients' ticks, which then only read the result.
-  void PrepareStates();
+  // Before a replication tick at `now` (seconds): quantises every entity whose state changed
+  // since the last call, once for all receivers (edgephys mode only; a no-op otherwise). With
+  // shared encoding (format 9) also starts the room's tick (SharedDeltaRoom::BeginTick) and
+  // records each entity's version and empties its body cache. O(entities), no allocation
+  // after the first call per entity. Not thread-safe: call on the room's thread before the
+  // clients' ticks, which then only read the result (format 9 bodies are cached thread-safely).
+  void PrepareStates(double now);
+  // Format 9 rooms: the tick clock and body cache; null otherwise (or before the first tick).
+  const SharedDeltaRoom* shared_encoding() const { return shared_.get(); }
 
   // Tick scheduling: due when now >= next_tick().
   double next_tick() const { return next_tick_; }
@@ -75,6 +80,7 @@ class Room {
   uint64_t spawn_seq_ = 0;
   std::optional<QuantizationParams> quantization_;  // edgephys rooms, made on first use
   bool quantization_tried_ = false;
+  std::unique_ptr<SharedDeltaRoom> shared_;  // format 9 rooms
   double next_tick_;
   double empty_since_;
 };

@@ -22,9 +22,10 @@ bool ReportsContacts(const Entity* e) {
 // States held per member for entities whose spawn has not arrived yet.
 constexpr size_t kMaxEarlyStates = 1024;
 
-uint8_t StateFormatOf(ReplicationMode mode) {
-  switch (mode) {
-    case ReplicationMode::kEdgephys: return kDeltaStateFormat;
+uint8_t StateFormatOf(const ReplicationConfig& config) {
+  switch (config.mode) {
+    case ReplicationMode::kEdgephys:
+      return config.shared_encoding ? kSharedDeltaStateFormat : kDeltaStateFormat;
     case ReplicationMode::kPhoton: return kFormatPhoton;
     case ReplicationMode::kPaper: return kFormatPaper;
     case ReplicationMode::kFloat: return 1;
@@ -100,7 +101,7 @@ void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
     jb.add_player_id(link.player_id());
     jb.add_entity_id_base(slot * kEntityIdBlock);
     jb.add_tick_rate_hz(static_cast<uint16_t>(room_.config().tick_rate_hz));
-    jb.add_state_format(StateFormatOf(rc.mode));
+    jb.add_state_format(StateFormatOf(rc));
     jb.add_position_step_m(q.position_step_m);
     jb.add_rotation_bound_deg(q.rotation_error_deg);
     jb.add_bounds_min(&bmin);
@@ -394,7 +395,7 @@ void RoomHost::FailOver(double now) {
 // --- Fan-out ---------------------------------------------------------------------------------
 
 void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
-  room_.PrepareStates();  // once per changed entity, not once per receiver
+  room_.PrepareStates(now);  // once per changed entity, not once per receiver
   for (const auto& [pid, member] : room_.members()) {
     if (member.link->ReadyForStates()) receivers->push_back(member.link);
   }

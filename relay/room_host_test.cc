@@ -502,6 +502,36 @@ TEST_F(RoomHostTest, FailOverRebuildsPhysSElsewhereFromWhatTheRoomHolds) {
   EXPECT_EQ(host_->room().entities().size(), 3u);  // nothing lost
 }
 
+// The state format a room tells its members follows the shared-encoding flag, and a format-9
+// room's tick prepares every entity's shared version (and nothing of the kind otherwise).
+TEST(RoomHostSharedEncoding, JoinedCarriesTheFormatAndBeginTickPreparesSharedVersions) {
+  for (bool shared : {false, true}) {
+    AbuseLimits limits;
+    RelayCounters counters;
+    ScriptedPlacement placement;
+    RoomConfig config;
+    config.replication.shared_encoding = shared;
+    RoomHost host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0);
+    RecordingMember a(7);
+    ASSERT_TRUE(host.Join(a, 0));
+    const auto* joined = a.Of(Body::Joined)[0]->body_as_Joined();
+    EXPECT_EQ(joined->state_format(), shared ? kSharedDeltaStateFormat : kDeltaStateFormat);
+    auto msg = SpawnMessage(LocalBox(host.room().members().at(7).slot * kEntityIdBlock + 1, 7));
+    host.Spawn(a, msg, *schema::GetControlMessage(msg.data())->body_as_Spawn(), 0.5);
+    std::vector<MemberLink*> receivers;
+    host.BeginTick(1.0, &receivers);
+    ASSERT_EQ(host.room().entities().size(), 1u);
+    const Entity& e = host.room().entities().begin()->second;
+    EXPECT_TRUE(e.prepared_valid);
+    EXPECT_EQ(e.shared != nullptr, shared);
+    EXPECT_EQ(host.room().shared_encoding() != nullptr, shared);
+    if (shared) {
+      EXPECT_EQ(e.shared->room(), host.room().shared_encoding());
+      EXPECT_EQ(e.shared->current_tick(), host.room().shared_encoding()->tick());
+    }
+  }
+}
+
 TEST_F(RoomHostTest, BeginTickPicksReadyMembersAndSchedulesTheNextTick) {
   RecordingMember a(1), b(2);
   ASSERT_TRUE(host_->Join(a, 0));

@@ -1,0 +1,139 @@
+// Relay encoding cost per (receiver, entity): format 2 (one DeltaEncoder per receiver, the
+// room's PreparedState shared) against format 9 (the room codes each (entity, key) body once
+// per tick; receivers append bits), with R receivers all sent every entity each tick and a
+// perfect network (acks before the next tick). Counted per iteration: one room tick, i.e. the
+// per-entity preparation plus every receiver's payloads. Reported: ns_per_receiver_entity.
+// Run: build/default/bench/shared_codec_bench --benchmark_min_time=0.3
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "protocol/connection.h"
+#include "protocol/delta_codec.h"
+#include "protocol/shared_delta_codec.h"
+
+namespace edgephys {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kTickHz = 12;  // every receiver gets every entity each tick (a 12 Hz class)
+
+std::vector<std::vector<EntityState>> MakeFrames(int n, int frames) {
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<std::vector<EntityState>> out(frames, std::vector<EntityState>(n));
+  for (int i = 0; i < n; ++i) {
+    const double r = 1.5 + 3 * u(rng), ph = 2 * kPi * u(rng), tilt = u(rng);
+    for (int f = 0; f < frames; ++f) {
+      const double t = f / static_cast<double>(kTickHz);
+      const double a = ph + 1.5 / r * t;
+      EntityState& s = out[f][i];
+      s.entity_id = static_cast<uint32_t>(i + 1);
+      s.position = {static_cast<float>(i % 16 * 4 + r * std::cos(a)), 1.f,
+                    static_cast<float>(i / 16 * 4 + r * std::sin(a))};
+      const double half = 0.5 * (kPi / 2) * t;
+      s.rotation = {static_cast<float>(std::sin(tilt) * std::sin(half)),
+                    static_cast<float>(std::cos(tilt) * std::sin(half)), 0.f,
+                    static_cast<float>(std::cos(half))};
+    }
+  }
+  return out;
+}
+
+void BM_Format2PerReceiver(benchmark::State& state) {
+  const int receivers = static_cast<int>(state.range(0));
+  const int n = static_cast<int>(state.range(1));
+  auto frames = MakeFrames(n, 256);
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  std::vector<std::unique_ptr<DeltaEncoder>> enc;
+  for (int r = 0; r < receivers; ++r) enc.push_back(std::make_unique<DeltaEncoder>(*params));
+  std::vector<uint16_t> seq(receivers, 0);
+  std::vector<PreparedState> prepared(n);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  size_t f = 0, bytes = 0;
+  for (auto _ : state) {
+    const auto& frame = frames[f % frames.size()];
+    const uint32_t time_ms = static_cast<uint32_t>(f * 1000 / kTickHz);
+    const double now = static_cast<double>(f) / kTickHz;
+    ++f;
+    for (int i = 0; i < n; ++i) prepared[i] = PrepareState(*params, frame[i]);
+    for (int r = 0; r < receivers; ++r) {
+      DeltaEncoder& e = *enc[r];
+      int i = 0;
+      while (i < n) {
+        e.Begin(buf, time_ms);
+        while (i < n && e.Add(frame[i], &prepared[i])) ++i;
+        bytes += e.Finish();
+        e.OnSent(seq[r], now);
+        e.OnPacketAcked(seq[r]++);
+      }
+    }
+    benchmark::DoNotOptimize(buf.data());
+  }
+  const double updates = static_cast<double>(state.iterations()) * receivers * n;
+  state.SetItemsProcessed(static_cast<int64_t>(updates));
+  state.counters["ns_per_receiver_entity"] =
+      benchmark::Counter(updates, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["payload_bytes_per_update"] = static_cast<double>(bytes) / updates;
+}
+
+void BM_Format9PerReceiver(benchmark::State& state) {
+  const int receivers = static_cast<int>(state.range(0));
+  const int n = static_cast<int>(state.range(1));
+  auto frames = MakeFrames(n, 256);
+  auto params = MakeQuantizationParams(QuantizationConfig{});
+  SharedDeltaRoom room(*params);
+  std::vector<std::unique_ptr<SharedEntity>> entities;
+  for (int i = 0; i < n; ++i) entities.push_back(std::make_unique<SharedEntity>());
+  std::vector<std::unique_ptr<SharedDeltaStream>> streams;
+  for (int r = 0; r < receivers; ++r) {
+    streams.push_back(std::make_unique<SharedDeltaStream>(*params));
+  }
+  std::vector<uint16_t> seq(receivers, 0);
+  std::vector<PreparedState> prepared(n);
+  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  size_t f = 0, bytes = 0;
+  for (auto _ : state) {
+    const auto& frame = frames[f % frames.size()];
+    const double now = static_cast<double>(f) / kTickHz;
+    room.BeginTick(static_cast<uint32_t>(f * 1000 / kTickHz));
+    ++f;
+    for (int i = 0; i < n; ++i) {
+      prepared[i] = PrepareState(*params, frame[i]);
+      room.PrepareEntity(*entities[i], prepared[i]);
+    }
+    for (int r = 0; r < receivers; ++r) {
+      SharedDeltaStream& s = *streams[r];
+      int i = 0;
+      while (i < n) {
+        s.Begin(buf, 0);
+        while (i < n && s.Add(frame[i].entity_id, *entities[i], prepared[i])) ++i;
+        bytes += s.Finish();
+        s.OnSent(seq[r], now);
+        s.OnPacketAcked(seq[r]++);
+      }
+    }
+    benchmark::DoNotOptimize(buf.data());
+  }
+  const double updates = static_cast<double>(state.iterations()) * receivers * n;
+  state.SetItemsProcessed(static_cast<int64_t>(updates));
+  state.counters["ns_per_receiver_entity"] =
+      benchmark::Counter(updates, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["payload_bytes_per_update"] = static_cast<double>(bytes) / updates;
+  double hits = 0;
+  for (const auto& s : streams) hits += static_cast<double>(s->stats().cache_hits);
+  state.counters["cache_hit_ratio"] =
+      hits / (hits + static_cast<double>(room.stats().encodes.load() + room.stats().uncached.load()));
+}
+
+BENCHMARK(BM_Format2PerReceiver)->Args({1, 200})->Args({100, 200})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Format9PerReceiver)->Args({1, 200})->Args({100, 200})->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace edgephys
+
+BENCHMARK_MAIN();

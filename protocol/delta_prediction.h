@@ -1,0 +1,49 @@
+// Prediction and parameter packing shared by state format 2 (protocol/delta_codec.h) and
+// format 9 (protocol/shared_delta_codec.h): both ends of both formats run exactly this integer
+// arithmetic (docs/protocol.md §5b "Prediction"). Internal to the codecs; not a public API.
+//
+// Thread-safety: pure functions over values. Cost O(1), no allocation.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "protocol/delta_codec.h"
+#include "protocol/quantize.h"
+
+namespace edgephys::delta_internal {
+
+using Sample = DeltaEncoder::Sample;
+using History = DeltaEncoder::History;
+
+struct Timing {
+  int order = 0;  // effective order after the availability / gap checks
+  int64_t h = 0, h2 = 0, h1 = 0;
+};
+// The effective prediction order and time steps for predicting `hist` to `time_ms`.
+Timing MakeTiming(const History& hist, int order, uint32_t time_ms);
+
+struct Prediction {
+  std::array<uint32_t, 3> pos{};
+  std::array<int64_t, 4> rot{};
+  int largest = 3;  // index of the largest |rot| component (lowest on ties)
+};
+void PredictPosition(const QuantizationParams& p, const History& hist, const Timing& t,
+                     Prediction* out);
+void PredictRotation(const QuantizationParams& p, const History& hist, const Timing& t,
+                     Prediction* out);
+// The predicted smallest-three components for dropped index `largest`.
+std::array<int32_t, 3> PredictedComponents(const QuantizationParams& p, const Prediction& pr,
+                                           int largest);
+
+Sample MakeSample(const QuantizedState& q, const std::array<int32_t, 4>& rot4, uint32_t time_ms);
+Sample MakeSample(const QuantizationParams& p, const QuantizedState& q, uint32_t time_ms);
+bool SameLattice(const PreparedState& s, const QuantizationParams& p);
+// (s, base.s0, base.s1), depth base.depth + 1 (max 3); a keyframe's (s, s, s), depth 1.
+History ExtendHistory(const History* base, const Sample& s);
+
+// The 16-bit params field of formats 2 and 9.
+uint16_t PackParams(const int k[2], const bool mask[2], const int order[2]);
+bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]);
+
+}  // namespace edgephys::delta_internal

@@ -1,0 +1,723 @@
+#include "protocol/shared_delta_codec.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "protocol/byte_io.h"
+#include "protocol/delta_prediction.h"
+
+namespace edgephys {
+namespace {
+
+using namespace delta_internal;  // NOLINT
+
+constexpr size_t kCountReserve = 3;  // varint count reserved while encoding (< 2^21)
+constexpr size_t kStreamStart = kSharedDeltaHeaderSize + kCountReserve;
+constexpr size_t kPacketRecords = 128;
+constexpr int kMaxK = 7;
+constexpr uint64_t kStatsSampleEvery = 4;
+constexpr uint8_t kEmpty = 0, kBuilding = 1, kReady = 2;
+
+bool TickAtOrBefore(uint32_t a, uint32_t b) { return static_cast<int32_t>(a - b) <= 0; }
+
+}  // namespace
+
+// ================================ Room ================================
+
+const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
+  const size_t size = versions_.size();
+  const uint32_t held = static_cast<uint32_t>(std::min<size_t>(next_, size));
+  // Ticks increase from the oldest held (logical 0) to the newest: binary search for the last
+  // version prepared at or before `tick`.
+  auto at = [&](uint32_t j) -> const Version& {
+    return versions_[static_cast<size_t>((next_ - held + j) % size)];
+  };
+  if (held == 0 || !TickAtOrBefore(at(0).tick, tick)) return nullptr;
+  uint32_t lo = 0, hi = held;  // at(lo) <= tick; at(hi) > tick (or hi == held)
+  while (hi - lo > 1) {
+    const uint32_t mid = lo + (hi - lo) / 2;
+    if (TickAtOrBefore(at(mid).tick, tick)) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return &at(lo);
+}
+
+SharedDeltaRoom::SharedDeltaRoom(const QuantizationParams& params, size_t versions_per_entity)
+    : q_(params),
+      versions_per_entity_(std::max<size_t>(versions_per_entity, 4)),
+      tick_times_(kSharedTickWindow, 0) {}
+
+bool SharedDeltaRoom::TickTime(uint32_t t, uint32_t* time_ms) const {
+  const uint32_t age = tick_ - t;
+  if (t == 0 || age >= kSharedTickWindow || age >= tick_) return false;
+  *time_ms = tick_times_[t % kSharedTickWindow];
+  return true;
+}
+
+void SharedDeltaRoom::ChooseParams() {
+  for (int f = 0; f < 2; ++f) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int o = 0; o < 3; ++o) {
+      for (int k = 0; k <= kMaxK; ++k) {
+        const double full = full_[f][o][k];
+        const double masked = masked_[f][o][k];
+        if (full <= 0 && masked <= 0) continue;  // no statistics yet
+        if (full < best) {
+          best = full;
+          params_.order[f] = o;
+          params_.k[f] = k;
+          params_.mask[f] = false;
+        }
+        if (masked < best) {
+          best = masked;
+          params_.order[f] = o;
+          params_.k[f] = k;
+          params_.mask[f] = true;
+        }
+      }
+    }
+  }
+}
+
+void SharedDeltaRoom::BeginTick(uint32_t time_ms) {
+  for (int f = 0; f < 2; ++f) {
+    for (int o = 0; o < 3; ++o) {
+      for (int k = 0; k <= kMaxK; ++k) {
+        full_[f][o][k] = 0.5 * full_[f][o][k] + tick_full_[f][o][k];
+        masked_[f][o][k] = 0.5 * masked_[f][o][k] + tick_masked_[f][o][k];
+        tick_full_[f][o][k] = tick_masked_[f][o][k] = 0;
+      }
+    }
+  }
+  ChooseParams();
+  ++tick_;
+  if (tick_ == 0) ++tick_;  // 0 means "none" (wraps after ~2 years at 60 Hz)
+  time_ms_ = time_ms;
+  tick_times_[tick_ % kSharedTickWindow] = time_ms;
+}
+
+void SharedDeltaRoom::PrepareEntity(SharedEntity& e, const PreparedState& state) {
+  e.room_ = this;
+  // Fold last tick's bodies into the statistics (weighted by their users) and empty the cache.
+  for (SharedEntity::Slot& s : e.slots_) {
+    if (s.state.load(std::memory_order_relaxed) == kReady && s.sampled) {
+      const double w = s.uses.load(std::memory_order_relaxed);
+      for (int o = 0; o < 3; ++o) {
+        bool pos_zero = true, rot_zero = s.rot_same[o];
+        for (int a = 0; a < 3; ++a) {
+          pos_zero = pos_zero && s.pos_res[o][a] == 0;
+          rot_zero = rot_zero && s.rot_res[o][a] == 0;
+        }
+        for (int k = 0; k <= kMaxK; ++k) {
+          double pos_bits = 0, rot_bits = s.rot_same[o] ? 1 : 3;
+          for (int a = 0; a < 3; ++a) {
+            pos_bits += ExpGolombBits(ZigZag(s.pos_res[o][a]), k);
+            rot_bits += ExpGolombBits(ZigZag(s.rot_res[o][a]), k);
+          }
+          tick_full_[0][o][k] += w * pos_bits;
+          tick_full_[1][o][k] += w * rot_bits;
+          tick_masked_[0][o][k] += w * (1 + (pos_zero ? 0 : pos_bits));
+          tick_masked_[1][o][k] += w * (1 + (rot_zero ? 0 : rot_bits));
+        }
+      }
+    }
+    s.state.store(kEmpty, std::memory_order_relaxed);
+    s.uses.store(0, std::memory_order_relaxed);
+    s.sampled = false;
+  }
+  e.cache_tick_ = tick_;
+  if (e.versions_.empty()) e.versions_.resize(versions_per_entity_);
+  if (e.next_ == 0 || !(e.Newest().q == state.q)) {
+    SharedEntity::Version& v = e.versions_[static_cast<size_t>(e.next_ % e.versions_.size())];
+    v.tick = tick_;
+    v.q = state.q;
+    v.rot4 = state.rot4;
+    ++e.next_;
+  }
+}
+
+bool SharedDeltaRoom::Encode(const SharedEntity& e, const SharedBaselineKey& key,
+                             SharedEntity::Slot* slot, uint8_t* out, size_t* nbits) const {
+  if (e.next_ == 0) return false;
+  BitWriter w({out, kSharedBodyMaxBytes});
+  const QuantizedState& q = e.Newest().q;
+  bool ok = true;
+  if (key.depth == 0) {
+    for (int a = 0; a < 3; ++a) ok = ok && w.WriteBits(q.position[a], q_.position_bits[a]);
+    ok = ok && w.WriteBits(q.rotation.largest, 2);
+    for (int c = 0; c < 3; ++c) {
+      ok = ok && w.WriteBits(static_cast<uint32_t>(q.rotation.c[c] + q_.rotation_max),
+                             q_.rotation_bits);
+    }
+    *nbits = w.bit_position();
+    return ok;
+  }
+  History h;
+  const uint32_t ticks[3] = {key.ref, key.s1, key.s2};
+  for (int i = 0; i < 3; ++i) {
+    const SharedEntity::Version* v = e.At(ticks[i]);
+    uint32_t t_ms = 0;
+    if (v == nullptr || !TickTime(ticks[i], &t_ms)) {
+      stats_.missing_versions.fetch_add(1, std::memory_order_relaxed);
+      return false;
+    }
+    h.s[i] = MakeSample(v->q, v->rot4, t_ms);
+  }
+  h.depth = std::min<uint8_t>(key.depth, 3);
+  const bool sample =
+      slot != nullptr &&
+      stats_.encodes.load(std::memory_order_relaxed) % kStatsSampleEvery == 0;
+  const int po = params_.order[0], ro = params_.order[1];
+  std::array<int32_t, 3> pos_res[3];
+  std::array<int32_t, 3> rot_res[3];
+  bool pos_zero[3] = {}, rot_zero[3] = {}, rot_same[3] = {};
+  for (int o = 0; o < 3; ++o) {
+    if (!sample && o != po) continue;
+    Prediction pp;
+    PredictPosition(q_, h, MakeTiming(h, o, time_ms_), &pp);
+    pos_zero[o] = true;
+    for (int a = 0; a < 3; ++a) {
+      pos_res[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
+      pos_zero[o] = pos_zero[o] && pos_res[o][a] == 0;
+    }
+  }
+  for (int o = 0; o < 3; ++o) {
+    if (!sample && o != ro) continue;
+    Prediction pr;
+    PredictRotation(q_, h, MakeTiming(h, o, time_ms_), &pr);
+    const int li = q.rotation.largest;
+    const std::array<int32_t, 3> pc = PredictedComponents(q_, pr, li);
+    rot_same[o] = li == pr.largest;
+    rot_zero[o] = rot_same[o];
+    for (int c = 0; c < 3; ++c) {
+      rot_res[o][c] = q.rotation.c[c] - pc[c];
+      rot_zero[o] = rot_zero[o] && rot_res[o][c] == 0;
+    }
+  }
+  if (sample) {
+    slot->sampled = true;
+    for (int o = 0; o < 3; ++o) {
+      slot->rot_same[o] = rot_same[o];
+      for (int a = 0; a < 3; ++a) {
+        slot->pos_res[o][a] = pos_res[o][a];
+        slot->rot_res[o][a] = rot_res[o][a];
+      }
+    }
+  }
+  const bool pos_coded = !params_.mask[0] || !pos_zero[po];
+  const bool rot_coded = !params_.mask[1] || !rot_zero[ro];
+  if (params_.mask[0]) ok = ok && w.WriteBit(pos_coded);
+  if (params_.mask[1]) ok = ok && w.WriteBit(rot_coded);
+  if (pos_coded) {
+    for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(pos_res[po][a], params_.k[0]);
+  }
+  if (rot_coded) {
+    ok = ok && w.WriteBit(rot_same[ro]);
+    if (!rot_same[ro]) ok = ok && w.WriteBits(q.rotation.largest, 2);
+    for (int c = 0; c < 3; ++c) ok = ok && w.WriteSigned(rot_res[ro][c], params_.k[1]);
+  }
+  *nbits = w.bit_position();
+  return ok;
+}
+
+bool SharedDeltaRoom::Body(SharedEntity& e, const SharedBaselineKey& key,
+                           std::array<uint8_t, kSharedBodyMaxBytes>& scratch,
+                           const uint8_t** bits, size_t* nbits, bool* hit) const {
+  *hit = false;
+  if (e.room_ != this || e.cache_tick_ != tick_) return false;
+  for (SharedEntity::Slot& s : e.slots_) {
+    uint8_t st = s.state.load(std::memory_order_acquire);
+    if (st == kEmpty) {
+      if (!s.state.compare_exchange_strong(st, kBuilding, std::memory_order_acq_rel)) {
+        if (st != kReady) continue;  // another thread builds it (maybe our key): go on
+      } else {
+        size_t n = 0;
+        s.sampled = false;
+        if (!Encode(e, key, &s, s.body.data(), &n)) {
+          s.state.store(kEmpty, std::memory_order_release);
+          return false;
+        }
+        s.key = key;
+        s.bits = static_cast<uint16_t>(n);
+        s.uses.store(1, std::memory_order_relaxed);
+        stats_.encodes.fetch_add(1, std::memory_order_relaxed);
+        s.state.store(kReady, std::memory_order_release);
+        *bits = s.body.data();
+        *nbits = n;
+        return true;
+      }
+    }
+    if (st == kReady && s.key == key) {
+      // Not a read-modify-write: concurrent users may lose a count (it only weights the
+      // statistics), but the hot path takes no locked instruction.
+      s.uses.store(s.uses.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+      *hit = true;
+      *bits = s.body.data();
+      *nbits = s.bits;
+      return true;
+    }
+  }
+  size_t n = 0;
+  if (!Encode(e, key, nullptr, scratch.data(), &n)) return false;
+  stats_.uncached.fetch_add(1, std::memory_order_relaxed);
+  *bits = scratch.data();
+  *nbits = n;
+  return true;
+}
+
+// ================================ Stream ================================
+
+SharedDeltaStream::SharedDeltaStream(const QuantizationParams& params,
+                                     const SharedDeltaStreamOptions& options)
+    : params_(params), options_(options), records_(kPacketRecords) {
+  const double reach = 0.5 * std::sqrt(3.0) * params_.step * 1.01;
+  lattice_reach2_ = reach * reach;
+  const double bound_rad =
+      params_.config.rotation_error_deg * 1.01 * (3.14159265358979323846 / 180.0);
+  lattice_min_dot_ = std::cos(std::min(bound_rad, 3.14159265358979323846) / 2.0);
+}
+
+void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
+  phase_ = Phase::kOpen;
+  out_ = out;
+  room_ = nullptr;
+  count_ = 0;
+  last_id_ = 0;
+  prev_distance_ = 1;
+  pending_ids_.clear();
+  if (pending_ids_.capacity() < max_packet_ids_) pending_ids_.reserve(max_packet_ids_);
+  writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
+}
+
+bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity, const PreparedState& prepared) {
+  if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
+  const SharedDeltaRoom* room = entity.room();
+  if (room == nullptr) return false;
+  if (count_ == 0) {
+    room_ = room;
+    tick_ = room->tick();
+  } else if (room != room_ || room->tick() != tick_ || id <= last_id_) {
+    return false;
+  }
+  if (count_ >= (size_t{1} << 21) - 1) return false;
+
+  auto [track_ptr, created] = tracks_.TryEmplace(id);
+  Track& track = *track_ptr;
+  if (created && options_.keyframe_refresh_sends > 0) {
+    track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
+  }
+  const Entry* base = nullptr;
+  if (track.newest_acked != kNoSlot) {
+    const Entry& e = track.ring[track.newest_acked];
+    const uint32_t distance = tick_ - e.key.ref;
+    if (distance >= 1 && distance <= kMaxReferenceDistance) base = &e;
+  }
+  bool keyframe = base == nullptr;
+  bool refresh = false;
+  if (!keyframe && options_.keyframe_refresh_sends > 0 &&
+      track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
+    keyframe = refresh = true;
+  }
+  SharedBaselineKey key;
+  if (!keyframe) key = base->key;
+  const uint8_t* bits = nullptr;
+  size_t nbits = 0;
+  bool hit = false;
+  if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) {
+    if (keyframe) return false;
+    keyframe = true;  // the room no longer holds the baseline's versions
+    key = SharedBaselineKey{};
+    if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) return false;
+  }
+
+  const size_t mark = writer_.bit_position();
+  BitWriter& w = writer_;
+  bool ok = count_ == 0 ? w.WriteExpGolomb(id, 0) : w.WriteExpGolomb(id - last_id_ - 1, 0);
+  uint32_t distance = 0;
+  if (keyframe) {
+    ok = ok && w.WriteExpGolomb(1, 0);
+  } else {
+    distance = tick_ - key.ref;
+    const uint32_t sym =
+        distance == prev_distance_
+            ? 0
+            : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
+    ok = ok && w.WriteExpGolomb(sym, 0);
+  }
+  ok = ok && w.AppendBits({bits, kSharedBodyMaxBytes}, nbits);
+  if (!ok) {
+    writer_.Rewind(mark);
+    return false;
+  }
+
+  ++stats_.entities;
+  if (hit) ++stats_.cache_hits;
+  if (keyframe) {
+    ++stats_.keyframes;
+    if (refresh) ++stats_.refresh_keyframes;
+    if (refresh || track.next > 0) track.sends_since_keyframe = 0;
+  } else {
+    prev_distance_ = distance;
+    ++track.sends_since_keyframe;
+  }
+  const auto slot = static_cast<uint8_t>(track.next % kDeltaBaselineWindow);
+  Entry& e = track.ring[slot];
+  ++track.next;
+  if (track.newest_acked == slot) track.newest_acked = kNoSlot;
+  if (track.newest_sent == slot) track.newest_sent = kNoSlot;
+  e.valid = true;
+  e.acked = false;
+  e.sent = false;
+  e.key = keyframe ? SharedBaselineKey{tick_, tick_, tick_, 1}
+                   : SharedBaselineKey{tick_, key.ref, key.s1,
+                                       static_cast<uint8_t>(std::min(key.depth + 1, 3))};
+  e.q = prepared.q;
+  e.has_float = prepared.has_float;
+  if (e.has_float) {
+    e.position = prepared.position;
+    e.rotation = prepared.rotation;
+  }
+  pending_ids_.emplace_back(id, slot);
+  last_id_ = id;
+  ++count_;
+  return true;
+}
+
+size_t SharedDeltaStream::Finish() {
+  if (phase_ != Phase::kOpen || count_ == 0) return 0;
+  phase_ = Phase::kFinished;
+  uint8_t* p = out_.data();
+  const SharedDeltaParams& prm = room_->params();
+  p[0] = kSharedDeltaStateFormat;
+  StoreU32LE(p + 1, room_->time_ms());
+  StoreU32LE(p + 5, tick_);
+  StoreU16LE(p + 9, PackParams(prm.k, prm.mask, prm.order));
+  uint8_t cnt[5];
+  const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
+  std::memcpy(p + kSharedDeltaHeaderSize, cnt, cnt_size);
+  const size_t body = writer_.byte_size();
+  const size_t dst = kSharedDeltaHeaderSize + cnt_size;
+  std::memmove(p + dst, p + kStreamStart, body);
+  ++stats_.payloads;
+  return dst + body;
+}
+
+void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
+  if (phase_ != Phase::kFinished) return;
+  phase_ = Phase::kSent;
+  PacketRecord& r = records_[packet_sequence % kPacketRecords];
+  r.valid = true;
+  r.sequence = packet_sequence;
+  r.tick = tick_;
+  max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
+  if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);
+  r.ids.assign(pending_ids_.begin(), pending_ids_.end());
+  for (const auto& [id, slot] : r.ids) {
+    Track* track = tracks_.Find(id);
+    if (track == nullptr) continue;
+    Track& t = *track;
+    Entry& e = t.ring[slot];
+    if (!e.valid || e.key.ref != tick_) continue;
+    e.sent = true;
+    e.sent_at = now;
+    if (t.newest_sent == kNoSlot ||
+        static_cast<int32_t>(e.key.ref - t.ring[t.newest_sent].key.ref) > 0) {
+      t.newest_sent = static_cast<int8_t>(slot);
+    }
+  }
+}
+
+void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
+  PacketRecord& r = records_[packet_sequence % kPacketRecords];
+  if (!r.valid || r.sequence != packet_sequence) {
+    ++stats_.acks_unmatched;
+    return;
+  }
+  r.valid = false;
+  for (const auto& [id, slot] : r.ids) {
+    Track* track = tracks_.Find(id);
+    if (track == nullptr) {
+      ++stats_.acks_unmatched;
+      continue;
+    }
+    Track& t = *track;
+    Entry& e = t.ring[slot];
+    if (!e.valid || e.key.ref != r.tick) continue;
+    e.acked = true;
+    if (t.newest_acked == kNoSlot ||
+        static_cast<int32_t>(e.key.ref - t.ring[t.newest_acked].key.ref) > 0) {
+      t.newest_acked = static_cast<int8_t>(slot);
+    }
+  }
+}
+
+void SharedDeltaStream::Forget(uint32_t id) { tracks_.Erase(id); }
+
+SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const EntityState& truth,
+                                                      float pos_threshold_m,
+                                                      float rot_threshold_deg, double now,
+                                                      double resend_after_s) const {
+  const Track* track = tracks_.Find(id);
+  if (track == nullptr) return UpdateNeed::kSend;
+  const Track& t = *track;
+  const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
+  if (rot_threshold_deg != min_dot_for_deg_) {
+    min_dot_for_deg_ = rot_threshold_deg;
+    min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
+  }
+  const double min_dot = min_dot_;
+  std::array<uint32_t, 3> truth_pos{};
+  QuantizedRotation truth_rot;
+  bool have_truth_pos = false, have_truth_rot = false;
+  auto within = [&](const Entry& e) {
+    if (!e.has_float) {
+      e.position = DequantizePosition(params_, e.q.position);
+      e.rotation = DequantizeRotation(params_, e.q.rotation);
+      e.has_float = true;
+    }
+    const double dx = static_cast<double>(e.position.x) - truth.position.x;
+    const double dy = static_cast<double>(e.position.y) - truth.position.y;
+    const double dz = static_cast<double>(e.position.z) - truth.position.z;
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    if (d2 > pos2) {
+      if (d2 > lattice_reach2_) return false;
+      if (!have_truth_pos) {
+        (void)QuantizePosition(params_, truth.position, &truth_pos);
+        have_truth_pos = true;
+      }
+      if (truth_pos != e.q.position) return false;
+    }
+    const Quatf& a = e.rotation;
+    const Quatf& b = truth.rotation;
+    const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
+                       static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
+    if (std::fabs(dot) < min_dot) {
+      if (std::fabs(dot) < lattice_min_dot_) return false;
+      if (!have_truth_rot) {
+        (void)QuantizeRotation(params_, truth.rotation, &truth_rot);
+        have_truth_rot = true;
+      }
+      if (!(truth_rot == e.q.rotation)) return false;
+    }
+    return true;
+  };
+  if (t.newest_acked != kNoSlot && within(t.ring[t.newest_acked])) {
+    return UpdateNeed::kAckedWithin;
+  }
+  if (t.newest_sent != kNoSlot) {
+    const Entry& newest = t.ring[t.newest_sent];
+    if (!newest.acked && now - newest.sent_at < resend_after_s && within(newest)) {
+      return UpdateNeed::kInFlightWithin;
+    }
+  }
+  return UpdateNeed::kSend;
+}
+
+// ================================ Decoder ================================
+
+SharedDeltaDecoder::SharedDeltaDecoder(const QuantizationParams& params, size_t max_entities)
+    : params_(params), max_entities_(max_entities) {}
+
+void SharedDeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
+
+Status SharedDeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
+  const Status malformed(StatusCode::kMalformed, "malformed format-9 state payload");
+  auto fail = [&]() {
+    ++stats_.malformed;
+    return malformed;
+  };
+  if (payload.size() < kSharedDeltaHeaderSize + 1 || payload[0] != kSharedDeltaStateFormat) {
+    return fail();
+  }
+  const uint32_t time_ms = LoadU32LE(payload.data() + 1);
+  const uint32_t tick32 = LoadU32LE(payload.data() + 5);
+  int k[2];
+  bool mask[2];
+  int order[2];
+  if (!UnpackParams(LoadU16LE(payload.data() + 9), k, mask, order)) return fail();
+  uint32_t count = 0;
+  const size_t n = GetVarint32(payload.subspan(kSharedDeltaHeaderSize), &count);
+  if (n == 0 || count == 0) return fail();
+  const std::span<const uint8_t> stream = payload.subspan(kSharedDeltaHeaderSize + n);
+  if (count > stream.size() * 8 / 2) return fail();
+
+  const int64_t tick =
+      have_tick_ ? highest_tick_ +
+                       static_cast<int32_t>(tick32 - static_cast<uint32_t>(highest_tick_))
+                 : (int64_t{1} << 33) + tick32;
+
+  BitReader r(stream);
+  staged_.clear();
+  uint32_t prev_id = 0;
+  uint32_t prev_distance = 1;
+  const int32_t m = params_.rotation_max;
+  for (uint32_t i = 0; i < count; ++i) {
+    Staged s;
+    uint32_t v;
+    if (!r.ReadExpGolomb(0, &v)) return fail();
+    if (i == 0) {
+      s.id = v;
+    } else {
+      if (v >= UINT32_MAX - prev_id) return fail();
+      s.id = prev_id + 1 + v;
+    }
+    prev_id = s.id;
+    uint32_t sym;
+    if (!r.ReadExpGolomb(0, &sym)) return fail();
+    if (sym == 1) {  // keyframe
+      s.keyframe = true;
+      for (int a = 0; a < 3; ++a) {
+        uint64_t x;
+        if (!r.ReadBits(params_.position_bits[a], &x) || x > params_.max_index[a]) return fail();
+        s.q.position[a] = static_cast<uint32_t>(x);
+      }
+      uint64_t li;
+      if (!r.ReadBits(2, &li)) return fail();
+      s.q.rotation.largest = static_cast<uint8_t>(li);
+      for (int c = 0; c < 3; ++c) {
+        uint64_t x;
+        if (!r.ReadBits(params_.rotation_bits, &x) || x > 2 * static_cast<uint64_t>(m)) {
+          return fail();
+        }
+        s.q.rotation.c[c] = static_cast<int32_t>(x) - m;
+      }
+      s.resolved = true;
+      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
+    } else {
+      const int64_t distance =
+          sym == 0 ? prev_distance : static_cast<int64_t>(prev_distance) + UnZigZag(sym - 1);
+      if (distance < 1 || distance > kMaxReferenceDistance) return fail();
+      prev_distance = static_cast<uint32_t>(distance);
+      s.reference = tick - distance;
+      bool pos_coded = true, rot_coded = true;
+      if (mask[0] && !r.ReadBit(&pos_coded)) return fail();
+      if (mask[1] && !r.ReadBit(&rot_coded)) return fail();
+      int32_t pos_res[3] = {0, 0, 0}, rot_res[3] = {0, 0, 0};
+      bool same_index = true;
+      uint64_t index = 0;
+      if (pos_coded) {
+        for (int32_t& x : pos_res) {
+          if (!r.ReadSigned(k[0], &x)) return fail();
+        }
+      }
+      if (rot_coded) {
+        if (!r.ReadBit(&same_index)) return fail();
+        if (!same_index && !r.ReadBits(2, &index)) return fail();
+        for (int32_t& x : rot_res) {
+          if (!r.ReadSigned(k[1], &x)) return fail();
+        }
+      }
+      // Resolve the reference by exact tick, or classify why not (the record is skipped).
+      const Entry* base = nullptr;
+      auto it = tracks_.find(s.id);
+      if (it == tracks_.end()) {
+        s.unresolved_kind = 1;
+      } else {
+        s.track = &it->second;
+        int64_t lo = INT64_MAX, hi = INT64_MIN;
+        for (const Entry& e : it->second.ring) {
+          if (!e.valid) continue;
+          if (e.tick == s.reference) base = &e;
+          lo = std::min(lo, e.tick);
+          hi = std::max(hi, e.tick);
+        }
+        if (base == nullptr) {
+          s.unresolved_kind = lo == INT64_MAX ? 1 : s.reference < lo ? 2 : s.reference > hi ? 3 : 4;
+        }
+      }
+      if (base != nullptr) {
+        const History& h = base->hist;
+        Prediction pp, pr;
+        PredictPosition(params_, h, MakeTiming(h, order[0], time_ms), &pp);
+        PredictRotation(params_, h, MakeTiming(h, order[1], time_ms), &pr);
+        for (int a = 0; a < 3; ++a) {
+          const int64_t x = static_cast<int64_t>(pp.pos[a]) + pos_res[a];
+          if (x < 0 || x > params_.max_index[a]) return fail();
+          s.q.position[a] = static_cast<uint32_t>(x);
+        }
+        const int li = same_index ? pr.largest : static_cast<int>(index);
+        const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
+        s.q.rotation.largest = static_cast<uint8_t>(li);
+        for (int c = 0; c < 3; ++c) {
+          const int64_t x = static_cast<int64_t>(pc[c]) + rot_res[c];
+          if (x < -m || x > m) return fail();
+          s.q.rotation.c[c] = static_cast<int32_t>(x);
+        }
+        s.resolved = true;
+        s.hist = ExtendHistory(&h, MakeSample(params_, s.q, time_ms));
+      }
+    }
+    staged_.push_back(s);
+  }
+  const size_t rest = r.remaining_bits();
+  uint64_t pad = 0;
+  if (rest >= 8 || !r.ReadBits(static_cast<int>(rest), &pad) || pad != 0) return fail();
+
+  // Commit.
+  if (!have_tick_ || tick > highest_tick_) highest_tick_ = tick;
+  have_tick_ = true;
+  ++stats_.payloads;
+  out->time_ms = time_ms;
+  last_references_.clear();
+  for (const Staged& s : staged_) {
+    if (!s.resolved) {
+      ++stats_.unresolved_references;
+      switch (s.unresolved_kind) {
+        case 1: ++stats_.unknown_entity; break;
+        case 2: ++stats_.stale_references; break;
+        case 3: ++stats_.future_references; break;
+        default: ++stats_.missing_references; break;
+      }
+      continue;
+    }
+    Track* track = s.track;
+    if (track == nullptr) {
+      auto it = tracks_.find(s.id);
+      if (it == tracks_.end()) {
+        if (tracks_.size() >= max_entities_) {
+          ++stats_.capacity_dropped;
+          continue;
+        }
+        it = tracks_.try_emplace(s.id).first;
+      }
+      track = &it->second;
+    }
+    Track& t = *track;
+    if (s.keyframe) ++stats_.keyframes;
+    last_references_.push_back({s.id, tick, s.keyframe ? -1 : s.reference});
+    Entry* slot = nullptr;
+    bool duplicate = false;
+    for (Entry& e : t.ring) {
+      if (e.valid && e.tick == tick) duplicate = true;
+      if (!e.valid) {
+        if (slot == nullptr || slot->valid) slot = &e;
+      } else if (slot == nullptr || (slot->valid && e.tick < slot->tick)) {
+        slot = &e;
+      }
+    }
+    if (!duplicate && (!slot->valid || slot->tick < tick)) {
+      slot->valid = true;
+      slot->tick = tick;
+      slot->hist = s.hist;
+    }
+    if (tick > t.newest_output) {
+      t.newest_output = tick;
+      EntityState st;
+      st.entity_id = s.id;
+      st.position = DequantizePosition(params_, s.q.position);
+      st.rotation = DequantizeRotation(params_, s.q.rotation);
+      out->states.push_back(st);
+      ++stats_.entities;
+    } else {
+      ++stats_.stale_skipped;
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace edgephys

@@ -1,0 +1,360 @@
+// State format 9, "shared delta" (docs/protocol.md §5e): format 2's quantised prediction
+// residuals, arranged so that a room encodes each (entity, baseline) delta ONCE per tick for
+// every receiver that holds that baseline; per receiver only selection and bit-appending remain.
+//
+// What changes against format 2 (protocol/delta_codec.h):
+//  * Versions are named by the ROOM TICK (32 bits on the wire) instead of a per-receiver payload
+//    counter: every receiver sent entity e in tick T gets the same state under the same name
+//    (e, T), with the same sample time (the tick's time).
+//  * A delta's prediction input ("baseline key") is the referenced version and the two versions
+//    in its history, all named by ticks. Receivers sent an entity in the same ticks (same send
+//    phase, similar RTT) hold the same keys, so their residuals are identical: the room encodes
+//    the record body once per (entity, key) per tick (SharedEntity's cache) and every such
+//    receiver appends that bit string. Histories heal: two receivers whose chains diverged (a
+//    loss) share keys again three sends later.
+//  * Coding parameters (Exp-Golomb k, mask, order) are the room's, chosen per tick from decayed
+//    statistics of the bodies it encoded (weighted by how many receivers used each), carried in
+//    each payload header (every payload carries records of one tick only).
+//  * The per-record fields that depend on the receiver's payload (id gap, reference distance
+//    relative to the previous record) stay per receiver, coded as in format 2; the cached body
+//    (keyframe body, or mask bits + residuals) follows them and is appended by bit copy.
+//
+// Baselines: per receiver the relay keeps, per entity, the ticks of the last
+// kDeltaBaselineWindow versions it sent (no states: those live once per room), learns acks per
+// packet and references the newest acknowledged one (<= kMaxReferenceDistance ticks old), else a
+// keyframe. The client keeps per entity the kDeltaBaselineWindow versions with the highest ticks
+// (the format-2 argument: an acknowledged version is always held). The room keeps per entity
+// the last SharedVersionWindowFor(tick rate) versions and the times of the last kSharedTickWindow ticks; a
+// key whose versions it no longer holds is sent as a keyframe instead.
+//
+// Thread-safety: SharedDeltaRoom::BeginTick / PrepareEntity on one thread (the room's) before
+// the receivers' ticks; during them, SharedDeltaRoom::Body may be called concurrently from any
+// threads (the cache claims slots with atomics; a body never changes once published).
+// SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
+// Memory: room ~4.6 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
+// times); stream ~1.2 KiB per (receiver, entity); decoder ~2 KiB per entity, bounded by
+// max_entities.
+// Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
+// per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body
+// encode (cache miss) costs about what a format-2 Add does.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <unordered_map>
+#include <vector>
+
+#include "protocol/bit_stream.h"
+#include "protocol/delta_codec.h"
+#include "protocol/flat_id_map.h"
+#include "protocol/quantize.h"
+#include "protocol/state_codec.h"
+#include "protocol/status.h"
+
+namespace edgephys {
+
+inline constexpr uint8_t kSharedDeltaStateFormat = 9;
+// format, tick time (ms), tick, params; then a varint count.
+inline constexpr size_t kSharedDeltaHeaderSize = 1 + 4 + 4 + 2;
+// Versions the room keeps per entity (at least; see SharedVersionWindowFor), and tick times
+// per room (relay side only).
+inline constexpr size_t kSharedVersionWindow = 64;
+// Versions per entity for a room ticking at `tick_rate_hz`: two seconds of ticks, as a power
+// of two (an entity that changes every tick still has the versions its receivers' keys name
+// when they are sent at a few Hz, with losses and round trips), at least
+// kSharedVersionWindow, at most 2048. ~36 bytes each: 4.6 KiB per entity at 60 Hz.
+inline size_t SharedVersionWindowFor(double tick_rate_hz) {
+  const double n = tick_rate_hz > 0 ? 2.0 * tick_rate_hz : 0;
+  size_t w = kSharedVersionWindow;
+  while (w < n && w < 2048) w *= 2;
+  return w;
+}
+inline constexpr size_t kSharedTickWindow = 8192;
+// Cached bodies per entity per tick; a receiver whose key finds no slot encodes privately.
+inline constexpr size_t kSharedCacheSlots = 6;
+inline constexpr size_t kSharedBodyMaxBytes = 48;  // >= the largest body (~350 bits)
+
+// The prediction input of a delta: the referenced version and its history's two older samples
+// (ticks), and the history depth 1..3. depth 0 = keyframe (no reference).
+struct SharedBaselineKey {
+  uint32_t ref = 0, s1 = 0, s2 = 0;
+  uint8_t depth = 0;
+  bool operator==(const SharedBaselineKey&) const = default;
+};
+
+struct SharedDeltaParams {
+  int k[2] = {2, 1};
+  bool mask[2] = {true, true};
+  int order[2] = {2, 2};
+};
+
+struct SharedDeltaRoomStats {
+  // Bodies served from the cache are counted by the streams (SharedDeltaStreamStats::
+  // cache_hits): a room-wide counter would be one contended cache line for every receiver.
+  std::atomic<uint64_t> encodes{0};        // bodies encoded into the cache
+  std::atomic<uint64_t> uncached{0};       // encoded privately (no free slot)
+  std::atomic<uint64_t> missing_versions{0};  // keys whose versions are gone: keyframe instead
+};
+
+class SharedDeltaRoom;
+
+// One entity's room-side state: its recent versions and this tick's cached record bodies.
+// Owned by the room's entity; held by pointer (not copyable: atomics).
+class SharedEntity {
+ public:
+  SharedEntity() = default;
+  SharedEntity(const SharedEntity&) = delete;
+  SharedEntity& operator=(const SharedEntity&) = delete;
+
+  const SharedDeltaRoom* room() const { return room_; }
+  // Tick of the newest version (the current state); 0 before the first PrepareEntity.
+  uint32_t current_tick() const { return versions_.empty() ? 0 : Newest().tick; }
+
+ private:
+  friend class SharedDeltaRoom;
+  struct Version {
+    uint32_t tick = 0;  // the tick it was prepared in (became the entity's state)
+    QuantizedState q;
+    std::array<int32_t, 4> rot4{};
+  };
+  struct Slot {
+    std::atomic<uint8_t> state{0};  // 0 empty, 1 being built, 2 ready
+    std::atomic<uint32_t> uses{0};
+    SharedBaselineKey key;
+    uint16_t bits = 0;
+    bool sampled = false;  // residuals of every order kept for the room's statistics
+    std::array<uint8_t, kSharedBodyMaxBytes> body{};
+    int32_t pos_res[3][3] = {};
+    int32_t rot_res[3][3] = {};
+    bool rot_same[3] = {};
+  };
+  const Version& Newest() const {
+    return versions_[static_cast<size_t>((next_ - 1) % versions_.size())];
+  }
+  // The version current at `tick` (the newest prepared at or before it), null if not held.
+  const Version* At(uint32_t tick) const;
+
+  const SharedDeltaRoom* room_ = nullptr;
+  std::vector<Version> versions_;  // ring of the room's window (allocated on first use)
+  uint64_t next_ = 0;  // versions ever recorded
+  uint32_t cache_tick_ = 0;
+  std::array<Slot, kSharedCacheSlots> slots_;
+};
+
+// The room side: tick clock, tick times, coding parameters and the body cache.
+class SharedDeltaRoom {
+ public:
+  // `versions_per_entity`: the window of versions kept per entity (SharedVersionWindowFor).
+  explicit SharedDeltaRoom(const QuantizationParams& params,
+                           size_t versions_per_entity = kSharedVersionWindow);
+
+  // Starts tick tick()+1 sampled at `time_ms` (room clock, ms, wraps) and picks this tick's
+  // coding parameters from the statistics folded so far. Room thread. O(1).
+  void BeginTick(uint32_t time_ms);
+  // After BeginTick, for every entity of the room: folds the entity's previous-tick cache into
+  // the statistics, empties it, and records `state` as the version of this tick if it differs
+  // from the entity's newest version. Room thread. O(1) (allocates once per entity).
+  void PrepareEntity(SharedEntity& entity, const PreparedState& state);
+
+  uint32_t tick() const { return tick_; }
+  uint32_t time_ms() const { return time_ms_; }
+  const SharedDeltaParams& params() const { return params_; }
+  const QuantizationParams& quantization() const { return q_; }
+  // Time of tick `t` if still held (within kSharedTickWindow ticks and after the first tick).
+  bool TickTime(uint32_t t, uint32_t* time_ms) const;
+
+  // The record body coding `entity`'s current version against `key` (keyframe if depth 0) for
+  // this tick: from the cache (*hit = true), or encoded and cached (or, without a free slot,
+  // encoded into `scratch`). False if the key's versions (or tick times) are no longer held:
+  // send a keyframe. Thread-safe between BeginTick calls. `*bits` points into the cache or
+  // `scratch`.
+  bool Body(SharedEntity& entity, const SharedBaselineKey& key,
+            std::array<uint8_t, kSharedBodyMaxBytes>& scratch, const uint8_t** bits,
+            size_t* nbits, bool* hit) const;
+
+  const SharedDeltaRoomStats& stats() const { return stats_; }
+
+ private:
+  bool Encode(const SharedEntity& e, const SharedBaselineKey& key, SharedEntity::Slot* slot,
+              uint8_t* out, size_t* nbits) const;
+  void ChooseParams();
+
+  QuantizationParams q_;
+  size_t versions_per_entity_;
+  uint32_t tick_ = 0;
+  uint32_t time_ms_ = 0;
+  std::vector<uint32_t> tick_times_;  // ring of kSharedTickWindow
+  SharedDeltaParams params_;
+  // Statistics per field (0 position, 1 rotation), order, k: decayed, and this tick's.
+  double full_[2][3][8] = {};
+  double masked_[2][3][8] = {};
+  double tick_full_[2][3][8] = {};
+  double tick_masked_[2][3][8] = {};
+  mutable SharedDeltaRoomStats stats_;
+};
+
+struct SharedDeltaStreamOptions {
+  // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas).
+  uint32_t keyframe_refresh_sends = 120;
+};
+
+struct SharedDeltaStreamStats {
+  uint64_t payloads = 0;
+  uint64_t entities = 0;
+  uint64_t keyframes = 0;
+  uint64_t refresh_keyframes = 0;
+  uint64_t acks_unmatched = 0;
+  uint64_t cache_hits = 0;  // record bodies appended from the room's cache
+};
+
+// The relay side of one receiver: which versions it was sent and acknowledged, the choice of
+// key per entity, and the payload assembly (per record: id gap, reference symbol, then the
+// room's body appended by bit copy). Usage per payload: Begin(buffer); while (Add(...)) ...;
+// size = Finish(); OnSent(sequence, now). All records of a payload come from one room tick.
+class SharedDeltaStream final : public StateEncoder {
+ public:
+  explicit SharedDeltaStream(const QuantizationParams& params,
+                             const SharedDeltaStreamOptions& options = {});
+
+  void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
+  // Format 9 needs the room's entity: this overload always returns false.
+  bool Add(const EntityState& /*truth*/) override { return false; }
+  // Appends entity `id`'s current version (`entity`, prepared this tick by its room;
+  // `prepared` its current PreparedState, kept for NeedsUpdate). False (nothing written) if it
+  // does not fit, ids are not increasing, or the entity belongs to another room or tick than
+  // the payload's first record.
+  bool Add(uint32_t id, SharedEntity& entity, const PreparedState& prepared);
+  size_t count() const override { return count_; }
+  size_t Finish() override;
+  void OnSent(uint16_t packet_sequence, double now);
+  void OnPacketAcked(uint16_t packet_sequence);
+  void Forget(uint32_t id);
+
+  // Selective synchronisation, exactly as DeltaEncoder::Need.
+  using UpdateNeed = DeltaEncoder::UpdateNeed;
+  UpdateNeed Need(uint32_t id, const EntityState& truth, float pos_threshold_m,
+                  float rot_threshold_deg, double now, double resend_after_s) const;
+
+  const SharedDeltaStreamStats& stats() const { return stats_; }
+
+ private:
+  struct Entry {
+    bool valid = false;
+    bool acked = false;
+    bool sent = false;
+    SharedBaselineKey key;  // key.ref = the tick it was sent in; key as a reference
+    double sent_at = 0;
+    QuantizedState q;
+    mutable bool has_float = false;
+    mutable Vec3f position;
+    mutable Quatf rotation;
+  };
+  static constexpr int8_t kNoSlot = -1;
+  struct Track {
+    std::array<Entry, kDeltaBaselineWindow> ring;
+    uint32_t next = 0;
+    uint32_t sends_since_keyframe = 0;
+    int8_t newest_acked = kNoSlot;
+    int8_t newest_sent = kNoSlot;
+  };
+  struct PacketRecord {
+    bool valid = false;
+    uint16_t sequence = 0;
+    uint32_t tick = 0;
+    std::vector<std::pair<uint32_t, uint8_t>> ids;  // (entity id, ring slot)
+  };
+
+  QuantizationParams params_;
+  SharedDeltaStreamOptions options_;
+  FlatIdMap<Track> tracks_;
+  std::vector<PacketRecord> records_;
+  std::vector<std::pair<uint32_t, uint8_t>> pending_ids_;
+  size_t max_packet_ids_ = 0;
+  double lattice_reach2_ = 0;
+  double lattice_min_dot_ = 1;
+  mutable float min_dot_for_deg_ = -1.f;
+  mutable double min_dot_ = 1;
+  SharedDeltaStreamStats stats_;
+  std::array<uint8_t, kSharedBodyMaxBytes> scratch_{};
+
+  // Current payload.
+  std::span<uint8_t> out_;
+  const SharedDeltaRoom* room_ = nullptr;
+  uint32_t tick_ = 0;
+  enum class Phase { kIdle, kOpen, kFinished, kSent };
+  Phase phase_ = Phase::kIdle;
+  size_t count_ = 0;
+  uint32_t last_id_ = 0;
+  uint32_t prev_distance_ = 1;
+  BitWriter writer_;
+};
+
+struct SharedDeltaDecoderStats {
+  uint64_t payloads = 0;
+  uint64_t malformed = 0;
+  uint64_t entities = 0;
+  uint64_t keyframes = 0;
+  // Records skipped because their reference is not held (never decoded into a guess):
+  uint64_t unresolved_references = 0;  // all of the below
+  uint64_t unknown_entity = 0;         // no version of the entity held
+  uint64_t stale_references = 0;       // older than every version held
+  uint64_t future_references = 0;      // newer than every version held
+  uint64_t missing_references = 0;     // within the held range, but not held
+  uint64_t stale_skipped = 0;          // decoded, but older than the state output
+  uint64_t capacity_dropped = 0;       // keyframes of new entities beyond max_entities
+};
+
+// Receiver side, one per format-9 stream. Untrusted input.
+class SharedDeltaDecoder {
+ public:
+  explicit SharedDeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
+
+  // As DeltaDecoder::Decode: on success sets out->time_ms and APPENDS the states newer than
+  // any output before for their entity. Malformed input: kMalformed, nothing changed.
+  // Records whose reference is not held are skipped and counted by kind.
+  Status Decode(std::span<const uint8_t> payload, StateBatch* out);
+  void Forget(uint32_t id);
+
+  struct Reference {
+    uint32_t id;
+    int64_t tick;
+    int64_t reference;  // -1: keyframe
+  };
+  std::span<const Reference> last_references() const { return last_references_; }
+  const SharedDeltaDecoderStats& stats() const { return stats_; }
+
+ private:
+  struct Entry {
+    bool valid = false;
+    int64_t tick = 0;
+    DeltaEncoder::History hist;
+  };
+  struct Track {
+    std::array<Entry, kDeltaBaselineWindow> ring;
+    int64_t newest_output = INT64_MIN;
+  };
+  struct Staged {
+    bool resolved = false;
+    bool keyframe = false;
+    uint32_t id = 0;
+    int64_t reference = -1;
+    int unresolved_kind = 0;  // 1 unknown entity, 2 stale, 3 future, 4 missing
+    Track* track = nullptr;
+    QuantizedState q;
+    DeltaEncoder::History hist;
+  };
+
+  QuantizationParams params_;
+  size_t max_entities_;
+  std::unordered_map<uint32_t, Track> tracks_;
+  std::vector<Staged> staged_;
+  std::vector<Reference> last_references_;
+  bool have_tick_ = false;
+  int64_t highest_tick_ = 0;
+  SharedDeltaDecoderStats stats_;
+};
+
+}  // namespace edgephys
