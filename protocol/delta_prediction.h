@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 
+#include "protocol/bit_stream.h"
 #include "protocol/delta_codec.h"
 #include "protocol/quantize.h"
 
@@ -45,5 +46,28 @@ History ExtendHistory(const History* base, const Sample& s);
 // The 16-bit params field of formats 2 and 9.
 uint16_t PackParams(const int k[2], const bool mask[2], const int order[2]);
 bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]);
+
+// One entity record of formats 2 and 9 as it stands in the bit stream (the reference not yet
+// resolved): a keyframe's quantised state, or a delta's reference distance and residuals.
+struct RecordFields {
+  uint32_t id = 0;
+  bool keyframe = false;
+  QuantizedState q;            // keyframe only
+  int64_t distance = 0;        // delta only: payload counters (format 2) or ticks (format 9)
+  bool same_index = true;      // delta: the rotation's largest component is the predicted one
+  uint64_t index = 0;          // delta: otherwise, this one
+  int32_t pos_res[3] = {0, 0, 0};
+  int32_t rot_res[3] = {0, 0, 0};
+};
+// Reads record `i` of a payload with coding parameters k/mask (untrusted input): false when
+// malformed (truncated, ids not increasing, values out of range, distance outside
+// 1..kMaxReferenceDistance). `prev_id` and `prev_distance` carry the record-to-record context
+// (start at 0 and 1).
+bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const bool mask[2],
+                uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f);
+// A delta record's state from its reference's history, predicted at `time_ms` with the given
+// orders; false when the result falls outside the lattice (malformed input).
+bool ReconstructDelta(const QuantizationParams& p, const History& h, const int order[2],
+                      uint32_t time_ms, const RecordFields& f, QuantizedState* q);
 
 }  // namespace edgephys::delta_internal

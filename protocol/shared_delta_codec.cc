@@ -555,63 +555,18 @@ Status SharedDeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* 
   staged_.clear();
   uint32_t prev_id = 0;
   uint32_t prev_distance = 1;
-  const int32_t m = params_.rotation_max;
   for (uint32_t i = 0; i < count; ++i) {
     Staged s;
-    uint32_t v;
-    if (!r.ReadExpGolomb(0, &v)) return fail();
-    if (i == 0) {
-      s.id = v;
-    } else {
-      if (v >= UINT32_MAX - prev_id) return fail();
-      s.id = prev_id + 1 + v;
-    }
-    prev_id = s.id;
-    uint32_t sym;
-    if (!r.ReadExpGolomb(0, &sym)) return fail();
-    if (sym == 1) {  // keyframe
+    RecordFields f;
+    if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f)) return fail();
+    s.id = f.id;
+    if (f.keyframe) {
       s.keyframe = true;
-      for (int a = 0; a < 3; ++a) {
-        uint64_t x;
-        if (!r.ReadBits(params_.position_bits[a], &x) || x > params_.max_index[a]) return fail();
-        s.q.position[a] = static_cast<uint32_t>(x);
-      }
-      uint64_t li;
-      if (!r.ReadBits(2, &li)) return fail();
-      s.q.rotation.largest = static_cast<uint8_t>(li);
-      for (int c = 0; c < 3; ++c) {
-        uint64_t x;
-        if (!r.ReadBits(params_.rotation_bits, &x) || x > 2 * static_cast<uint64_t>(m)) {
-          return fail();
-        }
-        s.q.rotation.c[c] = static_cast<int32_t>(x) - m;
-      }
+      s.q = f.q;
       s.resolved = true;
       s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
     } else {
-      const int64_t distance =
-          sym == 0 ? prev_distance : static_cast<int64_t>(prev_distance) + UnZigZag(sym - 1);
-      if (distance < 1 || distance > kMaxReferenceDistance) return fail();
-      prev_distance = static_cast<uint32_t>(distance);
-      s.reference = tick - distance;
-      bool pos_coded = true, rot_coded = true;
-      if (mask[0] && !r.ReadBit(&pos_coded)) return fail();
-      if (mask[1] && !r.ReadBit(&rot_coded)) return fail();
-      int32_t pos_res[3] = {0, 0, 0}, rot_res[3] = {0, 0, 0};
-      bool same_index = true;
-      uint64_t index = 0;
-      if (pos_coded) {
-        for (int32_t& x : pos_res) {
-          if (!r.ReadSigned(k[0], &x)) return fail();
-        }
-      }
-      if (rot_coded) {
-        if (!r.ReadBit(&same_index)) return fail();
-        if (!same_index && !r.ReadBits(2, &index)) return fail();
-        for (int32_t& x : rot_res) {
-          if (!r.ReadSigned(k[1], &x)) return fail();
-        }
-      }
+      s.reference = tick - f.distance;
       // Resolve the reference by exact tick, or classify why not (the record is skipped).
       const Entry* base = nullptr;
       auto it = tracks_.find(s.id);
@@ -631,25 +586,9 @@ Status SharedDeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* 
         }
       }
       if (base != nullptr) {
-        const History& h = base->hist;
-        Prediction pp, pr;
-        PredictPosition(params_, h, MakeTiming(h, order[0], time_ms), &pp);
-        PredictRotation(params_, h, MakeTiming(h, order[1], time_ms), &pr);
-        for (int a = 0; a < 3; ++a) {
-          const int64_t x = static_cast<int64_t>(pp.pos[a]) + pos_res[a];
-          if (x < 0 || x > params_.max_index[a]) return fail();
-          s.q.position[a] = static_cast<uint32_t>(x);
-        }
-        const int li = same_index ? pr.largest : static_cast<int>(index);
-        const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
-        s.q.rotation.largest = static_cast<uint8_t>(li);
-        for (int c = 0; c < 3; ++c) {
-          const int64_t x = static_cast<int64_t>(pc[c]) + rot_res[c];
-          if (x < -m || x > m) return fail();
-          s.q.rotation.c[c] = static_cast<int32_t>(x);
-        }
+        if (!ReconstructDelta(params_, base->hist, order, time_ms, f, &s.q)) return fail();
         s.resolved = true;
-        s.hist = ExtendHistory(&h, MakeSample(params_, s.q, time_ms));
+        s.hist = ExtendHistory(&base->hist, MakeSample(params_, s.q, time_ms));
       }
     }
     staged_.push_back(s);
