@@ -745,29 +745,9 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     Track& t = *track;
     if (s.keyframe) ++stats_.keyframes;
     last_references_.push_back({s.id, counter, s.keyframe ? -1 : s.reference});
-    // Keep the kDeltaBaselineWindow highest counters.
-    Entry* slot = nullptr;
-    bool duplicate = false;
-    for (Entry& e : t.ring) {
-      if (e.valid && e.counter == counter) duplicate = true;
-      if (!e.valid) {
-        if (slot == nullptr || slot->valid) slot = &e;
-      } else if (slot == nullptr || (slot->valid && e.counter < slot->counter)) {
-        slot = &e;
-      }
-    }
-    if (!duplicate && (!slot->valid || slot->counter < counter)) {
-      slot->valid = true;
-      slot->counter = counter;
-      slot->hist = s.hist;
-    }
-    if (counter > t.newest_output) {
-      t.newest_output = counter;
-      EntityState st;
-      st.entity_id = s.id;
-      st.position = DequantizePosition(params_, s.q.position);
-      st.rotation = DequantizeRotation(params_, s.q.rotation);
-      out->states.push_back(st);
+    // Keep the kDeltaBaselineWindow highest counters; output what is newer.
+    StoreVersion(t.ring, &Entry::counter, counter, s.hist);
+    if (OutputIfNewer(params_, s.id, s.q, counter, &t.newest_output, out)) {
       ++stats_.entities;
     } else {
       ++stats_.stale_skipped;

@@ -70,4 +70,40 @@ bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const
 bool ReconstructDelta(const QuantizationParams& p, const History& h, const int order[2],
                       uint32_t time_ms, const RecordFields& f, QuantizedState* q);
 
+// Decoder side, both formats: keeps the ring's highest versions. Stores (`version`, `hist`) in
+// a free entry or over the lowest version held, unless that version is already held or every
+// held one is newer. `field` names the entry's version member.
+template <typename Entry, size_t N>
+void StoreVersion(std::array<Entry, N>& ring, int64_t Entry::*field, int64_t version,
+                  const History& hist) {
+  Entry* slot = nullptr;
+  for (Entry& e : ring) {
+    if (e.valid && e.*field == version) return;  // a duplicate payload
+    if (!e.valid) {
+      if (slot == nullptr || slot->valid) slot = &e;
+    } else if (slot == nullptr || (slot->valid && e.*field < slot->*field)) {
+      slot = &e;
+    }
+  }
+  if (!slot->valid || slot->*field < version) {
+    slot->valid = true;
+    slot->*field = version;
+    slot->hist = hist;
+  }
+}
+
+// Appends entity `id`'s state `q` to `out` if `version` is newer than the newest output for it
+// (`*newest_output`, updated); false when it is not (a stale record).
+inline bool OutputIfNewer(const QuantizationParams& p, uint32_t id, const QuantizedState& q,
+                          int64_t version, int64_t* newest_output, StateBatch* out) {
+  if (version <= *newest_output) return false;
+  *newest_output = version;
+  EntityState st;
+  st.entity_id = id;
+  st.position = DequantizePosition(p, q.position);
+  st.rotation = DequantizeRotation(p, q.rotation);
+  out->states.push_back(st);
+  return true;
+}
+
 }  // namespace edgephys::delta_internal

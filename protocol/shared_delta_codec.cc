@@ -629,28 +629,8 @@ Status SharedDeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* 
     Track& t = *track;
     if (s.keyframe) ++stats_.keyframes;
     last_references_.push_back({s.id, tick, s.keyframe ? -1 : s.reference});
-    Entry* slot = nullptr;
-    bool duplicate = false;
-    for (Entry& e : t.ring) {
-      if (e.valid && e.tick == tick) duplicate = true;
-      if (!e.valid) {
-        if (slot == nullptr || slot->valid) slot = &e;
-      } else if (slot == nullptr || (slot->valid && e.tick < slot->tick)) {
-        slot = &e;
-      }
-    }
-    if (!duplicate && (!slot->valid || slot->tick < tick)) {
-      slot->valid = true;
-      slot->tick = tick;
-      slot->hist = s.hist;
-    }
-    if (tick > t.newest_output) {
-      t.newest_output = tick;
-      EntityState st;
-      st.entity_id = s.id;
-      st.position = DequantizePosition(params_, s.q.position);
-      st.rotation = DequantizeRotation(params_, s.q.rotation);
-      out->states.push_back(st);
+    StoreVersion(t.ring, &Entry::tick, tick, s.hist);
+    if (OutputIfNewer(params_, s.id, s.q, tick, &t.newest_output, out)) {
       ++stats_.entities;
     } else {
       ++stats_.stale_skipped;
