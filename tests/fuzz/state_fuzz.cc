@@ -3,8 +3,9 @@
 // Input: u8 mode | records (u8 tag | u16 length | bytes), at most kMaxRecords. By tag % 7 a
 // record goes to (for 1..5 its first byte is replaced by that decoder's format byte):
 //   0: DecodeStateBatch (format 1; any first byte)
-//   1: DeltaDecoder::Decode (format 2). One decoder per input sees every format-2 record in
-//      order, so later payloads resolve references to earlier ones. mode bit 0: the decoder's
+//   1: DeltaDecoder::Decode (format 2), or with tag bit 3 SharedDeltaDecoder::Decode (format
+//      9). One decoder of each per input sees every record of its format in order, so later
+//      payloads resolve references to earlier ones. mode bit 0: the decoders'
 //      quantisation comes from the first 32 bytes of the input after the mode byte (as a
 //      client builds it from the relay's Joined message), when MakeQuantizationParams accepts.
 //   2: DecodeEmulationBatch (tag bit 3: format 4 "paper", else 3 "photon"), looking up the
@@ -25,6 +26,7 @@
 #include "protocol/emulation_codec.h"
 #include "protocol/join_token.h"
 #include "protocol/quantize.h"
+#include "protocol/shared_delta_codec.h"
 #include "protocol/soft_body_codec.h"
 #include "protocol/state_codec.h"
 #include "tests/fuzz/fuzz_world.h"
@@ -103,6 +105,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   auto params = MakeQuantizationParams(q);
   EDGEPHYS_FUZZ_CHECK(params.ok());
   DeltaDecoder delta(*params, /*max_entities=*/4096);
+  SharedDeltaDecoder shared(*params, /*max_entities=*/4096);
 
   StateBatch batch;
   std::unordered_map<uint32_t, EntityState> known;  // for format 4 lookups
@@ -119,9 +122,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         }
         break;
       case 1: {
-        auto payload = WithFormat(bytes, kDeltaStateFormat);
+        const bool format9 = (tag & 8) != 0;
+        auto payload = WithFormat(bytes, format9 ? kSharedDeltaStateFormat : kDeltaStateFormat);
         const size_t before = batch.states.size();
-        if (delta.Decode(payload, &batch).ok()) {
+        if ((format9 ? shared.Decode(payload, &batch) : delta.Decode(payload, &batch)).ok()) {
           for (size_t k = before; k < batch.states.size(); ++k) {
             const EntityState& s = batch.states[k];
             // Decoded states lie on the lattice inside the bounds and are finite.
