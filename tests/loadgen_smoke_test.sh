@@ -136,7 +136,18 @@ if [ -n "$relay_bin" ]; then
   "$lg" ccu --users 4 --ramp 1 --duration 3 --relay "127.0.0.1:$udp_port" --secret "$secret" \
     --metrics "127.0.0.1:$tcp_port" --relay-pid "$relay_pid" --no-progress --charts '' \
     --json ext.json >/dev/null || fail "ccu against the external relay exited with an error"
+  # relay-compare on the same relay (its --replication-mode: the default, edgephys): egress to
+  # the receivers from /metrics agrees with what their sockets received (loopback, no loss).
+  "$lg" relay-compare --objects 32 --modes edgephys --duration 2 --receivers 1 \
+    --relay "127.0.0.1:$udp_port" --secret "$secret" --metrics "127.0.0.1:$tcp_port" \
+    --no-progress --charts '' --json rcext.json >/dev/null || fail "relay-compare external exited with an error"
   kill "$relay_pid"; wait "$relay_pid" 2>/dev/null || true; relay_pid=""
+  relay_b=$(num '.results[0].egress_bytes_per_s_per_receiver' rcext.json)
+  sock_b=$(num '.results[0].socket_bytes_per_s_per_receiver' rcext.json)
+  le 100 "$relay_b" || fail "relay-compare external: no egress from /metrics"
+  le "$(awk -v s="$sock_b" 'BEGIN { print s * 0.9 }')" "$relay_b" &&
+    le "$relay_b" "$(awk -v s="$sock_b" 'BEGIN { print s * 1.1 + 100 }')" ||
+    fail "relay-compare external: /metrics egress $relay_b B/s vs socket $sock_b B/s"
   [ "$(num '.relay.external' ext.json)" = "true" ] || fail "ccu external: not marked external"
   [ "$(num '.summary.connected' ext.json)" = "4" ] || fail "ccu external: not every bot joined"
   [ "$(num '.summary.reliable_lost' ext.json)" = "0" ] || fail "ccu external: reliable messages lost"
