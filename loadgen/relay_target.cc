@@ -238,6 +238,7 @@ RelayFigures RelayTarget::Read() const {
     f.physics_step_count = static_cast<double>(n);
     f.io_queue_drops = static_cast<double>(c.io_queue_drops.load());
     f.send_errors = static_cast<double>(c.send_errors.load());
+    for (const auto& r : c.packets_rejected) f.packets_rejected += static_cast<double>(r.load());
     f.rooms = static_cast<double>(c.rooms.load());
     f.clients = static_cast<double>(c.clients.load());
     f.cpu_s = thread_->cpu_s.load();
@@ -267,6 +268,7 @@ RelayFigures RelayTarget::Read() const {
   f.physics_step_count = get("edgephys_physics_step_seconds_count");
   f.io_queue_drops = get("edgephys_io_queue_drops_total");
   f.send_errors = get("edgephys_send_errors_total");
+  f.packets_rejected = get("edgephys_packets_rejected_total");
   f.rooms = get("edgephys_rooms");
   f.clients = get("edgephys_clients");
   f.ok = !std::isnan(f.bytes_sent);

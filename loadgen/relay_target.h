@@ -72,6 +72,7 @@ struct RelayFigures {
   double entity_updates_sent = 0, reliable_resends = 0;
   double physics_steps = 0, physics_step_seconds_sum = 0, physics_step_count = 0;
   double io_queue_drops = 0, send_errors = 0;
+  double packets_rejected = 0;  // all reasons
   double rooms = kUnknown, clients = kUnknown;  // gauges
   double cpu_s = kUnknown;                      // relay CPU seconds (thread or process)
 };
