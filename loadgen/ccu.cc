@@ -405,6 +405,10 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   double per_room = static_cast<double>(users) / std::max(1u, o.rooms);
   double expected = users * (per_room - 1) * o.publish_hz * o.duration_s;
   result.expected_update_ratio = expected > 0 ? world.hand_updates / expected : 0;
+  // Leave the relay clean (an external one keeps serving: no traffic to bots that are gone).
+  for (auto& b : world.bots) {
+    if (b->client) b->client->Disconnect();
+  }
   return result;
 }
 

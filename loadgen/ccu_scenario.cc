@@ -92,7 +92,7 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
   return j;
 }
 
-void FillTable(const CcuOptions&, const std::vector<CcuResult>& results, Table* t) {
+void FillTable(const CcuOptions& o, const std::vector<CcuResult>& results, Table* t) {
   t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n", "users", "rooms",
           "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50", "grab p99",
           "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio");
@@ -108,6 +108,11 @@ void FillTable(const CcuOptions&, const std::vector<CcuResult>& results, Table* 
   t->Text("(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
           "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
           "thread CPU / wall)\n");
+  if (o.external.enabled()) {
+    t->Line("(external relay %s: egress, updates and step time from its /metrics, process-wide; "
+            "cpu = its process CPU from /proc%s)\n",
+            o.external.relay.c_str(), o.external.relay_pid > 0 ? "" : ": unknown without --relay-pid");
+  }
 }
 
 // <prefix>.dat (one index block per run) and the chart <prefix>.png / .svg: users, egress and

@@ -493,6 +493,10 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
   if (o.progress) std::fprintf(stderr, "\n");
   for (auto& b : world.bots) result.connected += b->client && b->client->joined();
   if (b_started) room_b.Stop();
+  // Leave the relay clean (an external one keeps serving: no traffic to bots that are gone).
+  for (auto& b : world.bots) {
+    if (b->client) b->client->Disconnect();
+  }
   {
     std::lock_guard<std::mutex> lock(room_b.mu);
     result.b_ok = room_b.ok;

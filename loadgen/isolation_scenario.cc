@@ -84,7 +84,7 @@ void FillTable(const IsolationOptions& o, const IsolationResult& r, Table* t) {
   }
   t->Line("A p99 with B / alone: %.2f (SDK), %.2f (socket)\n", r.p99_ratio, r.arrival_p99_ratio);
   if (r.late_join_ok) {
-    t->Line("late joiner: every one of B's %u entities after %.2f s\n", r.scene_entities, r.late_join_s);
+    t->Line("late joiner: every one of B's %u entities %.3f s after its join request\n", r.scene_entities, r.late_join_s);
   } else {
     t->Line("late joiner: %u of %u entities received (incomplete)%s%s\n", r.late_join_spawns,
             r.scene_entities, r.b_error.empty() ? "" : "; ", r.b_error.c_str());
