@@ -22,6 +22,7 @@
 #include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
+#include "loadgen/relay_target.h"
 
 namespace edgephys::loadgen {
 namespace {
@@ -33,11 +34,6 @@ constexpr uint8_t kReleased = static_cast<uint8_t>(schema::PhysicsEventKind::Rel
 constexpr uint8_t kTriggerEnter = static_cast<uint8_t>(schema::PhysicsEventKind::TriggerEnter);
 constexpr uint32_t kInterpolationSampleEvery = 10;  // bots keeping jitter buffers
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch()).count());
-}
-
 // CLOCK_REALTIME in seconds: the clock of the kernel's receive timestamps
 // (RemoteEntity::arrival_unix_s), so publish times taken with it need no conversion.
 double RealtimeNow() {
@@ -45,41 +41,6 @@ double RealtimeNow() {
   clock_gettime(CLOCK_REALTIME, &ts);
   return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
 }
-
-double ThreadCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
-}
-
-// The relay on its own thread, as edgephys-relay runs it.
-struct RelayThread {
-  RelayCounters counters;
-  std::unique_ptr<UdpSocket> socket;
-  std::unique_ptr<Relay> relay;
-  std::thread thread;
-  std::atomic<bool> stop{false};
-  std::atomic<double> cpu_s{0};
-  Clock::time_point start;
-
-  RelayThread(const RelayConfig& config, Clock::time_point t0) : start(t0) {
-    socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
-    relay = std::make_unique<Relay>(config, socket.get(), &counters);
-    thread = std::thread([this] {
-      while (!stop.load()) {
-        socket->WaitReadable(0.001);
-        double now = std::chrono::duration<double>(Clock::now() - start).count();
-        relay->Update(now, UnixNow());
-        cpu_s.store(ThreadCpuSeconds());
-      }
-      relay->Shutdown();
-    });
-  }
-  ~RelayThread() {
-    stop.store(true);
-    thread.join();
-  }
-};
 
 struct EventRecord {
   uint32_t room;
@@ -135,7 +96,7 @@ class Bot : public ClientListener {
 class World {
  public:
   const CcuOptions& o;
-  RelayThread* relay = nullptr;
+  RelayTarget* relay = nullptr;
   std::vector<std::unique_ptr<Bot>> bots;
   std::unordered_map<uint32_t, Bot*> right_hand_owner;  // right hand id -> bot
   std::unordered_map<uint32_t, Bot*> box_owner;
@@ -160,6 +121,7 @@ Vec3f HandPath(const Bot& b, double t, float side) {
 void Bot::OnEntityUpdated(const RemoteEntity& e) {
   auto it = world_->right_hand_owner.find(e.id);
   if (it == world_->right_hand_owner.end() || it->second == this) return;
+  if (index_ % world_->o.measure_every != 0) return;  // not a measuring bot
   const Bot& sender = *it->second;
   double now = world_->Now();
   if (index_ % kInterpolationSampleEvery == 0) {
@@ -200,7 +162,8 @@ void Bot::OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) {
   if (grabber == this) {
     world_->events.push_back({room_, kind, a, now});
     if (kind == kGrabbed) phase = 3, phase_at = now;
-  } else if (kind == kGrabbed && grabber->grab_requested_at > 0 && world_->measuring) {
+  } else if (kind == kGrabbed && grabber->grab_requested_at > 0 && world_->measuring &&
+             index_ % world_->o.measure_every == 0) {
     world_->grab_latencies_ms.push_back((now - grabber->grab_requested_at) * 1000.0);
     world_->grab_arrival_latencies_ms.push_back(
         (client->packet_arrival_unix_s() - grabber->grab_requested_unix_s) * 1000.0);
@@ -297,7 +260,10 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   config.limits.handshakes_per_s = 100000;
   config.connection.timeout_s = 10;
   config.physics_threads = std::max<size_t>(1, o.relay_threads);
-  RelayThread relay(config, world.start);
+  std::unique_ptr<RelayTarget> target =
+      o.external.enabled() ? std::make_unique<RelayTarget>(o.external, world.start)
+                           : std::make_unique<RelayTarget>(config, world.start);
+  RelayTarget& relay = *target;
   world.relay = &relay;
 
   for (uint32_t i = 0; i < users; ++i) {
@@ -307,14 +273,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
     bot->start_at = o.ramp_s * i / std::max(1u, users);
     world.bots.push_back(std::move(bot));
   }
-  auto token = [&](const Bot& b) {
-    JoinToken t;
-    t.room = "ccu-" + std::to_string(b.room_);
-    t.player_id = b.index_ + 1;
-    t.expiry_unix_s = UnixNow() + 3600;
-    t.nonce = SecureRandom64();
-    return *SignJoinToken(t, config.secret);
-  };
+  auto token = [&](const Bot& b) { return relay.Token("ccu-" + std::to_string(b.room_), b.index_ + 1); };
   ClientConfig cc;
   cc.publish_rate_hz = 240;  // the bot paces itself; the SDK adds no batching delay
   cc.handshake_timeout_s = 10;
@@ -325,9 +284,10 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   result.rooms = o.rooms;
   const double end = o.ramp_s + o.duration_s;
   double next_sample = 1.0;
-  uint64_t last_sent = 0, last_recv = 0, last_updates = 0, last_resends = 0;
-  double last_cpu = 0, last_t = 0, last_step_sum = 0;
-  uint64_t last_steps = 0;
+  // Server-side figures: the in-process relay's counters or the external relay's /metrics.
+  RelayFigures last = relay.Read();
+  last.t = 0;
+  if (!last.ok) ++result.metrics_failures, result.metrics_error = last.error;
   std::vector<double> step_ms;
   std::vector<double> loop_ms;  // one pass over all bots (the load generator's own delay)
   for (;;) {
@@ -339,7 +299,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
         if (now < b->start_at) continue;
         b->socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
         b->client = std::make_unique<Client>(cc, b->socket.get(), b.get());
-        (void)b->client->Connect(relay.socket->LocalEndpoint(), token(*b), now);
+        (void)b->client->Connect(relay.endpoint(), token(*b), now);
       }
       // Publish first, then Update: the client sends what was just published in this pass
       // (Update receives, then sends), instead of one whole pass over the bots later.
@@ -356,22 +316,27 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
       CcuSample s;
       s.t = now;
       for (auto& b : world.bots) s.users += b->client && b->client->joined();
-      uint64_t sent = relay.counters.bytes_sent.load(), recv = relay.counters.bytes_received.load();
-      uint64_t updates = relay.counters.entity_updates_sent.load();
-      uint64_t resends = relay.counters.reliable_resends.load();
-      double cpu = relay.cpu_s.load();
-      double dt = now - last_t;
-      s.egress_bytes_per_s = (sent - last_sent) / dt;
-      s.ingress_bytes_per_s = (recv - last_recv) / dt;
-      s.updates_per_s = (updates - last_updates) / dt;
-      s.resends_per_s = (resends - last_resends) / dt;
-      s.relay_cpu = (cpu - last_cpu) / dt;
-      double step_sum = relay.counters.physics_step_seconds.sum();
-      uint64_t steps = relay.counters.physics_steps.load();
-      s.physics_step_ms = steps > last_steps ? (step_sum - last_step_sum) / (steps - last_steps) * 1000 : 0;
+      RelayFigures f = relay.Read();
+      if (!f.ok) {
+        ++result.metrics_failures, result.metrics_error = f.error;
+        continue;  // this second has no server figures; the next one spans two
+      }
+      double dt = now - last.t;
+      if (!last.ok) {  // no baseline yet
+        last = f;
+        last.t = now;
+        continue;
+      }
+      s.egress_bytes_per_s = (f.bytes_sent - last.bytes_sent) / dt;
+      s.ingress_bytes_per_s = (f.bytes_received - last.bytes_received) / dt;
+      s.updates_per_s = (f.entity_updates_sent - last.entity_updates_sent) / dt;
+      s.resends_per_s = (f.reliable_resends - last.reliable_resends) / dt;
+      s.relay_cpu = (f.cpu_s - last.cpu_s) / dt;  // NaN when unknown
+      const double steps = f.physics_steps - last.physics_steps;
+      s.physics_step_ms = steps > 0 ? (f.physics_step_seconds_sum - last.physics_step_seconds_sum) / steps * 1000 : 0;
       if (world.measuring && s.physics_step_ms > 0) step_ms.push_back(s.physics_step_ms);
-      last_sent = sent, last_recv = recv, last_updates = updates, last_resends = resends;
-      last_cpu = cpu, last_t = now, last_step_sum = step_sum, last_steps = steps;
+      last = f;
+      last.t = now;
       result.series.push_back(s);
       if (o.progress) {
         std::fprintf(stderr, "\r  ccu %u users: t=%5.1f joined=%u egress=%.0f KB/s cpu=%.2f ", users, now,
@@ -440,6 +405,10 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   double per_room = static_cast<double>(users) / std::max(1u, o.rooms);
   double expected = users * (per_room - 1) * o.publish_hz * o.duration_s;
   result.expected_update_ratio = expected > 0 ? world.hand_updates / expected : 0;
+  // Leave the relay clean (an external one keeps serving: no traffic to bots that are gone).
+  for (auto& b : world.bots) {
+    if (b->client) b->client->Disconnect();
+  }
   return result;
 }
 

@@ -27,6 +27,8 @@
 #include <string>
 #include <vector>
 
+#include "loadgen/relay_target.h"
+
 namespace edgephys::loadgen {
 
 struct CcuOptions {
@@ -39,6 +41,11 @@ struct CcuOptions {
   uint64_t seed = 1;
   size_t relay_threads = 1;              // relay worker threads (ticks and PhyS), its own included
   bool progress = true;
+  // --relay: bots join an external edgephys-relay; server-side figures from its /metrics.
+  ExternalRelayOptions external;
+  // Every bot decodes what it receives (the SDK has no acknowledge-only mode), but only every
+  // `measure_every`-th bot matches poses for latency and keeps jitter buffers (1: all bots).
+  uint32_t measure_every = 1;
 };
 
 // Member names are the --json field names of a "series" sample.
@@ -49,7 +56,7 @@ struct CcuSample {
   double ingress_bytes_per_s = 0;
   double updates_per_s = 0;        // entity updates sent by the relay
   double resends_per_s = 0;
-  double relay_cpu = 0;            // relay thread CPU time / wall time (1.0 = one core)
+  double relay_cpu = 0;            // relay thread CPU time / wall time (1.0 = one core); NaN unknown
   double physics_step_ms = 0;      // mean over the second
 };
 
@@ -77,6 +84,9 @@ struct CcuResult {
   double egress_bytes_per_s_per_user = 0;
   double expected_update_ratio = 0;   // hand updates received / expected
   std::vector<CcuSample> series;
+  // External relay: scrapes of /metrics that failed (their seconds have no server figures).
+  uint32_t metrics_failures = 0;
+  std::string metrics_error;  // the last failure
 };
 
 std::vector<CcuResult> RunCcu(const CcuOptions& options);

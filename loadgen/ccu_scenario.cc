@@ -39,6 +39,23 @@ nlohmann::json Summary(const CcuResult& r) {
           {"hand_update_ratio", r.expected_update_ratio}};
 }
 
+// External relay: the server-side figures' provenance, and what it cannot give.
+void AddExternalNotes(const CcuOptions& o, const CcuResult& r, nlohmann::json* summary) {
+  if (!o.external.enabled()) return;
+  (*summary)["metrics_failures"] = r.metrics_failures;
+  if (!r.metrics_error.empty()) (*summary)["metrics_error"] = r.metrics_error;
+  (*summary)["notes"] = {
+      {"egress_bytes_per_s_per_user",
+       "edgephys_bytes_sent_total differences over the relay's whole process (all rooms)"},
+      {"relay_cpu_mean", o.external.relay_pid > 0
+                             ? "process CPU (all threads) from /proc/<pid>/stat"
+                             : "null: the exporter has no process CPU series; pass --relay-pid"},
+      {"latency_physics_step_ms_p99",
+       "edgephys_physics_step_seconds_sum / edgephys_physics_steps_total per second"},
+      {"latency_relay_wait_ms_mean",
+       "half a tick at --tick-rate: the external relay's own tick rate is not exported"}};
+}
+
 nlohmann::json Series(const CcuResult& r) {
   nlohmann::json a = nlohmann::json::array();
   for (const CcuSample& s : r.series) a.push_back(s);
@@ -54,14 +71,28 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
                   {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
   if (results.size() == 1) {
     j["summary"] = Summary(results[0]);
+    AddExternalNotes(o, results[0], &j["summary"]);
     j["series"] = Series(results[0]);
   }
   j["runs"] = nlohmann::json::array();
-  for (const CcuResult& r : results) j["runs"].push_back({{"summary", Summary(r)}, {"series", Series(r)}});
+  for (const CcuResult& r : results) {
+    nlohmann::json summary = Summary(r);
+    AddExternalNotes(o, r, &summary);
+    j["runs"].push_back({{"summary", summary}, {"series", Series(r)}});
+  }
+  if (o.external.enabled()) {
+    j["relay"] = {{"external", true},
+                  {"address", o.external.relay},
+                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics},
+                  {"cpu_source", o.external.relay_pid > 0 ? "/proc/<pid>/stat" : "unknown"}};
+    j["options"]["measure_every"] = o.measure_every;
+  } else if (o.measure_every != 1) {
+    j["options"]["measure_every"] = o.measure_every;
+  }
   return j;
 }
 
-void FillTable(const CcuOptions&, const std::vector<CcuResult>& results, Table* t) {
+void FillTable(const CcuOptions& o, const std::vector<CcuResult>& results, Table* t) {
   t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n", "users", "rooms",
           "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50", "grab p99",
           "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio");
@@ -77,6 +108,11 @@ void FillTable(const CcuOptions&, const std::vector<CcuResult>& results, Table* 
   t->Text("(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
           "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
           "thread CPU / wall)\n");
+  if (o.external.enabled()) {
+    t->Line("(external relay %s: egress, updates and step time from its /metrics, process-wide; "
+            "cpu = its process CPU from /proc%s)\n",
+            o.external.relay.c_str(), o.external.relay_pid > 0 ? "" : ": unknown without --relay-pid");
+  }
 }
 
 // <prefix>.dat (one index block per run) and the chart <prefix>.png / .svg: users, egress and
@@ -120,13 +156,17 @@ class CcuScenario final : public Scenario {
     cmd.add_option("--relay-threads", o_.relay_threads,
                    "Relay threads for ticks and PhyS (1: the relay keeps to one core; the bots use "
                    "the other)");
+    cmd.add_option("--measure-every", o_.measure_every,
+                   "Only every K-th bot matches poses for latency (all still decode; 1: all)");
+    AddExternalRelayOptions(cmd, &o_.external);
   }
 
   std::string Validate() override {
     if (!ParseList(users_, &o_.users) || o_.rooms == 0 || o_.duration_s <= 0) {
       return "--users must be a list of counts; --rooms and --duration positive";
     }
-    return "";
+    if (o_.measure_every == 0) return "--measure-every must be positive";
+    return ValidateExternalRelay(o_.external);
   }
 
   std::optional<Report> Run() override {

@@ -100,7 +100,26 @@ class RelayUnderTest {
 struct Snapshot {
   uint64_t rx = 0, tx = 0, rx_bytes = 0, tx_bytes = 0, drops = 0, rejected = 0;
   double wall = 0, process_cpu = 0, bots_cpu = 0;
+  bool ok = true;
 };
+
+// An external relay's counters from its /metrics; process_cpu is the relay's (NaN unknown).
+Snapshot TakeExternal(const RelayTarget& target, int relay_pid, Clock::time_point t0) {
+  const RelayFigures f = target.Read();
+  Snapshot s;
+  s.ok = f.ok;
+  auto u = [](double v) { return std::isnan(v) ? uint64_t{0} : static_cast<uint64_t>(v); };
+  s.rx = u(f.packets_received);
+  s.tx = u(f.packets_sent);
+  s.rx_bytes = u(f.bytes_received);
+  s.tx_bytes = u(f.bytes_sent);
+  s.drops = u(f.io_queue_drops) + u(f.send_errors);
+  s.rejected = u(f.packets_rejected);
+  s.wall = std::chrono::duration<double>(Clock::now() - t0).count();
+  s.process_cpu = loadgen::ProcessCpuSeconds(relay_pid);
+  s.bots_cpu = ThreadCpuSeconds();
+  return s;
+}
 
 Snapshot Take(const RelayCounters& c, Clock::time_point t0) {
   Snapshot s;
@@ -137,8 +156,24 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
   // Every bot connects from 127.0.0.1 at once: lift the per-address limits.
   config.limits.handshakes_per_s = 0;
   config.limits.max_sessions_per_address = 0;
-  RelayUnderTest relay(config, io_threads);
   const auto t0 = Clock::now();
+  std::unique_ptr<RelayUnderTest> in_process;
+  std::unique_ptr<RelayTarget> external;
+  Endpoint endpoint;
+  std::string secret = kSecret, room_prefix = "ceiling-";
+  if (o.external.enabled()) {
+    external = std::make_unique<RelayTarget>(o.external, t0);
+    endpoint = external->endpoint();
+    secret = o.external.secret;
+    room_prefix = "ceiling-" + std::to_string(SecureRandom64() % 1000000000) + "-";
+  } else {
+    in_process = std::make_unique<RelayUnderTest>(config, io_threads);
+    endpoint = in_process->endpoint();
+  }
+  auto take = [&] {
+    return external ? TakeExternal(*external, o.external.relay_pid, t0)
+                    : Take(in_process->counters(), t0);
+  };
   auto now = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
 
   ClientConfig client_config;
@@ -146,7 +181,7 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
   std::vector<Bot> bots(o.clients);
   for (uint32_t i = 0; i < o.clients; ++i) {
     Bot& b = bots[i];
-    b.room = "ceiling-" + std::to_string(i % o.rooms);
+    b.room = room_prefix + std::to_string(i % o.rooms);
     b.socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
     b.client = std::make_unique<Client>(client_config, b.socket.get());
     JoinToken token;
@@ -154,7 +189,7 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
     token.player_id = i + 1;
     token.expiry_unix_s = UnixNow() + 600;
     token.nonce = SecureRandom64();
-    (void)b.client->Connect(relay.endpoint(), *SignJoinToken(token, kSecret), now());
+    (void)b.client->Connect(endpoint, *SignJoinToken(token, secret), now());
   }
   auto pump = [&](double t) {
     for (Bot& b : bots) b.client->Update(t);
@@ -196,7 +231,7 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
   while (true) {
     const double t = now();
     if (!measuring && t >= measure_from) {
-      first = Take(relay.counters(), t0);
+      first = take();
       measuring = true;
     }
     if (t >= measure_to) break;
@@ -216,9 +251,9 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
     }
     pump(t);
   }
-  const Snapshot last = Take(relay.counters(), t0);
+  const Snapshot last = take();
   const double seconds = last.wall - first.wall;
-  if (seconds > 0) {
+  if (seconds > 0 && first.ok && last.ok) {
     run.seconds = seconds;
     const double rx = static_cast<double>(last.rx - first.rx);
     const double tx = static_cast<double>(last.tx - first.tx);
@@ -231,7 +266,8 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
     run.mean_datagram_bytes = rx + tx > 0 ? bytes / (rx + tx) : 0;
     run.bots_cpu_cores = (last.bots_cpu - first.bots_cpu) / seconds;
     run.relay_cpu_cores =
-        std::max(0.0, (last.process_cpu - first.process_cpu) / seconds - run.bots_cpu_cores);
+        external ? (last.process_cpu - first.process_cpu) / seconds  // the relay's own process
+                 : std::max(0.0, (last.process_cpu - first.process_cpu) / seconds - run.bots_cpu_cores);
     run.drops = last.drops - first.drops;
     run.rejected = last.rejected - first.rejected;
   }
@@ -395,7 +431,7 @@ std::vector<CeilingSummary> SummarizeCeiling(const CeilingOptions& o,
       pps.push_back(run.packets_per_s);
       bps.push_back(run.bytes_per_s);
       size.push_back(run.mean_datagram_bytes);
-      cpu.push_back(run.relay_cpu_cores);
+      if (!std::isnan(run.relay_cpu_cores)) cpu.push_back(run.relay_cpu_cores);  // NaN: unknown
       bots.push_back(run.bots_cpu_cores);
       drops.push_back(static_cast<double>(run.drops));
       joined.push_back(run.clients_joined);
@@ -413,7 +449,7 @@ std::vector<CeilingSummary> SummarizeCeiling(const CeilingOptions& o,
     s.ratio_packets = Median(rp);
     s.ratio_bytes = Median(rb);
     s.mean_datagram_bytes = Median(size);
-    s.relay_cpu_cores = Median(cpu);
+    s.relay_cpu_cores = cpu.empty() && !reps.empty() && o.external.enabled() ? kUnknown : Median(cpu);
     s.bots_cpu_cores = Median(bots);
     s.drops = static_cast<uint64_t>(Median(drops));
     s.clients_joined = static_cast<uint32_t>(Median(joined));

@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "loadgen/relay_target.h"
+
 namespace edgephys::loadgen {
 
 // The members --json echoes under "options" appear there under their own names.
@@ -42,6 +44,10 @@ struct CeilingOptions {
   uint16_t iperf_port = 0;    // 0: a free port
   uint32_t repeat = 1;
   bool progress = true;
+  // --relay: the bots load an external edgephys-relay (one --io-threads value: the relay's own
+  // flag, echoed); packets, bytes, drops and rejects from its /metrics, relay CPU from
+  // /proc/<pid> with --relay-pid (else NaN). Not in --json "options" (see "relay" there).
+  ExternalRelayOptions external;
 };
 
 // Member names are the --json field names of a "repetitions"[].relay run.
@@ -55,6 +61,7 @@ struct CeilingRelayRun {
   double tx_packets_per_s = 0;
   double mean_datagram_bytes = 0;
   double relay_cpu_cores = 0;  // process CPU minus the bots' thread, per wall second
+                               // (external: the relay process's CPU; NaN unknown)
   double bots_cpu_cores = 0;
   uint64_t drops = 0;     // io_queue_drops + send_errors in the window
   uint64_t rejected = 0;  // packets_rejected (all reasons) in the window

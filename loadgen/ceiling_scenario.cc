@@ -53,6 +53,25 @@ nlohmann::json Json(const CeilingOptions& o, const CeilingResults& results) {
   for (const CeilingRepetition& r : reps) {
     j["repetitions"].push_back({{"relay", r.relay}, {"iperf3", r.iperf}});
   }
+  if (o.external.enabled()) {
+    j["relay"] = {{"external", true},
+                  {"address", o.external.relay},
+                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics},
+                  {"cpu_source", o.external.relay_pid > 0 ? "/proc/<pid>/stat" : "unknown"}};
+    j["notes"] = {
+        {"io_threads, tick_rate_hz",
+         "the external relay's own flags (--io-threads, --tick-rate); echoed, not set"},
+        {"relay_packets_per_s, relay_bytes_per_s, drops",
+         "differences of edgephys_packets_received_total + edgephys_packets_sent_total, "
+         "edgephys_bytes_*_total, edgephys_io_queue_drops_total + edgephys_send_errors_total "
+         "over the window (process-wide); 0 if a /metrics scrape failed"},
+        {"replication",
+         "in-process the relay sends every moving entity each tick (fixed_rate_hz = tick rate); "
+         "an external relay uses its own replication flags, so its egress may be lower"},
+        {"relay_cpu_cores", o.external.relay_pid > 0
+                                ? "the relay process's CPU from /proc/<pid>/stat"
+                                : "null: the exporter has no process CPU series; pass --relay-pid"}};
+  }
   return j;
 }
 
@@ -103,6 +122,7 @@ class CeilingScenario final : public Scenario {
                    "iperf3 -l (bytes; 0: the relay's mean datagram size)");
     cmd.add_option("--iperf-port", o_.iperf_port, "iperf3 port (0: a free one)");
     cmd.add_option("--repeat", o_.repeat, "Repetitions (medians reported)");
+    AddExternalRelayOptions(cmd, &o_.external);
   }
 
   std::string Validate() override {
@@ -115,7 +135,10 @@ class CeilingScenario final : public Scenario {
     for (size_t t : o_.io_threads) {
       if (t == 0 || t > 64) return "--io-threads: values must be in 1..64";
     }
-    return "";
+    if (o_.external.enabled() && o_.io_threads.size() != 1) {
+      return "--relay: one --io-threads value, the external relay's own";
+    }
+    return ValidateExternalRelay(o_.external);
   }
 
   std::optional<Report> Run() override {

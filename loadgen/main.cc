@@ -8,6 +8,8 @@
 //   edgephys-loadgen multiobject --objects 500,1000,2000,5000,10000
 //   edgephys-loadgen softbody --bunnies 1,3
 //   edgephys-loadgen ceiling --io-threads 1,2 --repeat 3 --json ceiling.json
+//   edgephys-loadgen isolation --users 50 --boxes 10000 --phase 10
+//   edgephys-loadgen ccu --users 100 --relay 127.0.0.1:7777 --secret S --relay-pid PID
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 

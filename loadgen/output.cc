@@ -46,6 +46,7 @@ std::vector<std::unique_ptr<Scenario>> AllScenarios() {
   all.push_back(MakeSoftBodyScenario());
   all.push_back(MakeCcuScenario());
   all.push_back(MakeCeilingScenario());
+  all.push_back(MakeIsolationScenario());
   return all;
 }
 

@@ -104,18 +104,34 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   r.rotation_threshold_deg = o.rotation_threshold_deg;
 
   auto loopback = asio::ip::make_address("127.0.0.1");
-  auto relay_socket = std::move(*UdpSocket::Open(Endpoint(loopback, 0)));
-  RelayCounters counters;
-  Relay relay(config, relay_socket.get(), &counters);
   const auto start = std::chrono::steady_clock::now();
+  // In-process: the relay driven on this thread. External: only its address, its secret and
+  // its /metrics (a room of its own per run, so runs against one relay do not meet).
+  std::unique_ptr<UdpSocket> relay_socket;
+  RelayCounters counters;
+  std::unique_ptr<Relay> relay_owned;
+  std::unique_ptr<RelayTarget> external;
+  Endpoint relay_endpoint;
+  std::string room = "compare";
+  std::string token_secret = secret;
+  if (o.external.enabled()) {
+    external = std::make_unique<RelayTarget>(o.external, start);
+    relay_endpoint = external->endpoint();
+    room = "compare-" + std::to_string(SecureRandom64() % 1000000000);
+    token_secret = o.external.secret;
+  } else {
+    relay_socket = std::move(*UdpSocket::Open(Endpoint(loopback, 0)));
+    relay_owned = std::make_unique<Relay>(config, relay_socket.get(), &counters);
+    relay_endpoint = relay_socket->LocalEndpoint();
+  }
 
   auto token = [&](uint32_t player) {
     JoinToken t;
-    t.room = "compare";
+    t.room = room;
     t.player_id = player;
     t.expiry_unix_s = UnixNow() + 3600;
     t.nonce = SecureRandom64();
-    return *SignJoinToken(t, secret);
+    return *SignJoinToken(t, token_secret);
   };
   Truth truth;
   std::vector<std::unique_ptr<UdpSocket>> sockets;
@@ -132,11 +148,11 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     }
     clients.push_back(std::make_unique<Client>(i == 0 ? host_config : ClientConfig{},
                                                sockets.back().get(), listener));
-    (void)clients.back()->Connect(relay_socket->LocalEndpoint(), token(i + 1), Now(start));
+    (void)clients.back()->Connect(relay_endpoint, token(i + 1), Now(start));
   }
   auto step = [&] {
     double now = Now(start);
-    relay.Update(now, UnixNow());
+    if (relay_owned) relay_owned->Update(now, UnixNow());
     for (auto& c : clients) c->Update(now);
   };
   auto run_until = [&](auto&& done, double timeout) {
@@ -151,7 +167,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     for (auto& c : clients) if (c->state() != ClientState::kConnected) return false;
     return true;
   }, 5.0);
-  for (auto& c : clients) (void)c->JoinRoom("compare");
+  for (auto& c : clients) (void)c->JoinRoom(room);
   ok = ok && run_until([&] {
     for (auto& c : clients) if (!c->joined()) return false;
     return true;
@@ -162,6 +178,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   result.rate_hz = o.rate_hz;
   if (!ok) {
     std::fprintf(stderr, "relay-compare: clients failed to connect/join\n");
+    for (auto& c : clients) c->Disconnect();
     return result;
   }
 
@@ -187,6 +204,8 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   double measure_end = measure_start + o.duration_s;
   bool measuring = false;
   std::vector<uint64_t> relay_bytes0(o.receivers), socket_bytes0(o.receivers);
+  RelayFigures figures0;        // external: /metrics at the window's start
+  uint64_t host_bytes0 = 0;     // external: the host's socket at the window's start
   double last_progress = 0;
   for (;;) {
     double now = Now(start);
@@ -201,8 +220,12 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     }
     if (!measuring && now >= measure_start) {
       measuring = true;
+      if (external) {
+        figures0 = external->Read();
+        host_bytes0 = host.stats()->bytes_received;
+      }
       for (uint32_t k = 0; k < o.receivers; ++k) {
-        const ConnectionStats* rs = relay.FindConnectionStats(k + 2);
+        const ConnectionStats* rs = relay_owned ? relay_owned->FindConnectionStats(k + 2) : nullptr;
         relay_bytes0[k] = rs ? rs->bytes_sent : 0;
         socket_bytes0[k] = clients[k + 1]->stats()->bytes_received;
         receivers[k]->measuring = true;
@@ -221,8 +244,17 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
 
   double relay_total = 0, socket_total = 0, updates = 0;
   std::vector<double> pos, rot;
+  if (external) {
+    // The relay's whole egress over the window, less what went to the host: the receivers'.
+    const RelayFigures figures1 = external->Read();
+    relay_total = figures0.ok && figures1.ok
+                      ? figures1.bytes_sent - figures0.bytes_sent -
+                            static_cast<double>(host.stats()->bytes_received - host_bytes0)
+                      : kUnknown;
+    for (auto& c : clients) c->Disconnect();
+  }
   for (uint32_t k = 0; k < o.receivers; ++k) {
-    const ConnectionStats* rs = relay.FindConnectionStats(k + 2);
+    const ConnectionStats* rs = relay_owned ? relay_owned->FindConnectionStats(k + 2) : nullptr;
     relay_total += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0[k]) : 0;
     socket_total += static_cast<double>(clients[k + 1]->stats()->bytes_received - socket_bytes0[k]);
     updates += static_cast<double>(receivers[k]->updates);

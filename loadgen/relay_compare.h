@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "loadgen/motion.h"
+#include "loadgen/relay_target.h"
 #include "relay/replication.h"
 
 namespace edgephys::loadgen {
@@ -32,6 +33,11 @@ struct RelayCompareOptions {
   float position_threshold_m = 0.0005f;
   float rotation_threshold_deg = 0.05f;
   bool progress = true;
+  // --relay: an external edgephys-relay started with the replication flags of the one mode
+  // measured (--replication-mode, --position-step, ...: the load generator cannot set them).
+  // Egress per receiver then = the /metrics edgephys_bytes_sent_total difference minus what
+  // the host's socket received (on loopback, what the relay sent the host), over receivers.
+  ExternalRelayOptions external;
 };
 
 // Member names are the --json field names of a result.
@@ -39,7 +45,7 @@ struct RelayCompareResult {
   ReplicationMode mode;
   uint32_t objects = 0;
   double rate_hz = 0;
-  double egress_bytes_per_s_per_receiver = 0;         // relay's counters
+  double egress_bytes_per_s_per_receiver = 0;         // relay's counters (external: /metrics)
   double socket_bytes_per_s_per_receiver = 0;         // receiving socket
   double updates_per_s_per_receiver = 0;
   double bytes_per_update = 0;

@@ -34,6 +34,19 @@ nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompare
     e["ratio_to_paper"] = RatioOr0(r.egress_bytes_per_s_per_receiver, r.paper_bytes_per_s);
     j["results"].push_back(e);
   }
+  if (o.external.enabled()) {
+    j["relay"] = {{"external", true},
+                  {"address", o.external.relay},
+                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics}};
+    j["notes"] = {
+        {"mode, rate_hz, position_step_m, rotation_bound_deg, thresholds",
+         "the external relay's own flags (--replication-mode, --position-step, ...); the load "
+         "generator only echoes its options and cannot check them"},
+        {"egress_bytes_per_s_per_receiver",
+         "edgephys_bytes_sent_total difference over the window (process-wide) minus the bytes "
+         "the host's socket received, over receivers; null if /metrics failed"},
+        {"pos_err, rot_err", "against the host's published truth, as in-process"}};
+  }
   return j;
 }
 
@@ -126,6 +139,7 @@ class RelayCompareScenario final : public Scenario {
     cmd.add_option("--position-threshold", o_.position_threshold_m, "Selective sync threshold (m)");
     cmd.add_option("--rotation-threshold", o_.rotation_threshold_deg,
                    "Selective sync threshold (deg)");
+    AddExternalRelayOptions(cmd, &o_.external);
   }
 
   std::string Validate() override {
@@ -137,7 +151,10 @@ class RelayCompareScenario final : public Scenario {
     if (o_.rate_hz <= 0 || o_.duration_s <= 0 || o_.receivers == 0) {
       return "--rate, --duration and --receivers must be positive";
     }
-    return "";
+    if (o_.external.enabled() && o_.modes.size() != 1) {
+      return "--relay: one --modes value, the external relay's --replication-mode";
+    }
+    return ValidateExternalRelay(o_.external);
   }
 
   std::optional<Report> Run() override {

@@ -2,11 +2,18 @@
 # Short runs of every edgephys-loadgen scenario, checking the figures the issues promise, so a
 # regression in the codec, the emulations, PhyS or the SDK fails CI. These check bytes and
 # errors (deterministic enough), never speed.
-# Usage: loadgen_smoke_test.sh path/to/edgephys-loadgen
+# Usage: loadgen_smoke_test.sh path/to/edgephys-loadgen [path/to/edgephys-relay]
+# With the relay binary, one scenario also runs against an external relay process.
 set -euo pipefail
 lg="$1"
+relay_bin="${2:-}"
+relay_pid=""
 work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+cleanup() {
+  if [ -n "$relay_pid" ]; then kill "$relay_pid" 2>/dev/null || true; wait "$relay_pid" 2>/dev/null || true; fi
+  rm -rf "$work"
+}
+trap cleanup EXIT
 cd "$work"
 fail() { echo "FAIL: $*"; exit 1; }
 num() { jq -r "$1" "$2"; }
@@ -80,4 +87,85 @@ if command -v iperf3 >/dev/null; then
   le 0.000001 "$(num '.summary[0].ratio_packets' ce.json)" || fail "ceiling: no iperf3 ratio"
 fi
 echo "ceiling ok"
+# isolation, tiny: room A alone, beside room B's PhyS scene, and after B leaves; the ratio and
+# the late joiner's time to B's whole scene reported.
+"$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --late-join-timeout 20 --no-progress \
+  --charts '' --json iso.json >/dev/null || fail "isolation exited with an error"
+[ "$(num '.summary.connected' iso.json)" = "4" ] || fail "isolation: not every A bot joined"
+[ "$(num '.summary.b_ok' iso.json)" = "true" ] || fail "isolation: room B's scene not spawned"
+[ "$(num '.summary.late_join_ok' iso.json)" = "true" ] || fail "isolation: late joiner incomplete"
+le 0 "$(num '.summary.late_join_s' iso.json)" || fail "isolation: no late join time"
+[ "$(jq -r '[.phases[].name] | join(",")' iso.json)" = "alone,with_b,after" ] || fail "isolation: phases"
+for i in 0 1 2; do
+  le 1 "$(num ".phases[$i].samples" iso.json)" || fail "isolation phase $i: no latency samples"
+  le 0.5 "$(num ".phases[$i].delivered_fraction" iso.json)" || fail "isolation phase $i: hands lost"
+  le 1 "$(num ".phases[$i].egress_bytes_per_s" iso.json)" || fail "isolation phase $i: no relay egress"
+done
+le 0.000001 "$(num '.summary.p99_ratio_with_b_to_alone' iso.json)" || fail "isolation: no p99 ratio"
+[ "$(jq '.series | length' iso.json)" -gt 0 ] || fail "isolation: no latency series"
+echo "isolation ok"
+
+# An external relay: edgephys-relay on free loopback ports with a secret, ccu against it with
+# server-side figures from its /metrics; the relay stopped by PID (and bounded by --run-for).
+if [ -n "$relay_bin" ]; then
+  free_port() {  # a random port nothing listens on ($1: -u UDP or -t TCP)
+    local p
+    for _ in $(seq 100); do
+      p=$((20000 + RANDOM % 40000))
+      [ -z "$(ss -Hln "$1" "sport = :$p" 2>/dev/null)" ] && { echo "$p"; return; }
+    done
+    return 1
+  }
+  secret="smoke-$RANDOM$RANDOM"
+  for attempt in 1 2 3; do  # a port taken between the check and the bind: try others
+    udp_port=$(free_port -u) && tcp_port=$(free_port -t) || fail "no free port"
+    "$relay_bin" --bind "127.0.0.1:$udp_port" --metrics "127.0.0.1:$tcp_port" --secret "$secret" \
+      --max-connections-per-address 256 --max-handshakes-per-s 10000 --run-for 120 \
+      --log-level warn >relay.log 2>&1 &
+    relay_pid=$!
+    up=""
+    for _ in $(seq 50); do  # up to 5 s for /metrics to answer
+      if curl -sf -m 1 "http://127.0.0.1:$tcp_port/metrics" >/dev/null; then up=1; break; fi
+      kill -0 "$relay_pid" 2>/dev/null || break
+      sleep 0.1
+    done
+    [ -n "$up" ] && break
+    kill "$relay_pid" 2>/dev/null || true; wait "$relay_pid" 2>/dev/null || true; relay_pid=""
+  done
+  [ -n "$relay_pid" ] || { cat relay.log; fail "edgephys-relay did not start"; }
+  "$lg" ccu --users 4 --ramp 1 --duration 3 --relay "127.0.0.1:$udp_port" --secret "$secret" \
+    --metrics "127.0.0.1:$tcp_port" --relay-pid "$relay_pid" --no-progress --charts '' \
+    --json ext.json >/dev/null || fail "ccu against the external relay exited with an error"
+  # relay-compare on the same relay (its --replication-mode: the default, edgephys): egress to
+  # the receivers from /metrics agrees with what their sockets received (loopback, no loss).
+  "$lg" relay-compare --objects 32 --modes edgephys --duration 2 --receivers 1 \
+    --relay "127.0.0.1:$udp_port" --secret "$secret" --metrics "127.0.0.1:$tcp_port" \
+    --no-progress --charts '' --json rcext.json >/dev/null || fail "relay-compare external exited with an error"
+  # isolation on the same relay: both rooms there, per-phase relay figures from /metrics.
+  "$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --late-join-timeout 20 \
+    --relay "127.0.0.1:$udp_port" --secret "$secret" --metrics "127.0.0.1:$tcp_port" \
+    --relay-pid "$relay_pid" --no-progress --charts '' --json isoext.json >/dev/null ||
+    fail "isolation external exited with an error"
+  kill "$relay_pid"; wait "$relay_pid" 2>/dev/null || true; relay_pid=""
+  [ "$(num '.summary.late_join_ok' isoext.json)" = "true" ] || fail "isolation external: late joiner"
+  le 1 "$(num '.phases[1].egress_bytes_per_s' isoext.json)" || fail "isolation external: no egress"
+  le 0.000001 "$(num '.phases[1].physics_steps_per_s' isoext.json)" || fail "isolation external: no PhyS steps"
+  relay_b=$(num '.results[0].egress_bytes_per_s_per_receiver' rcext.json)
+  sock_b=$(num '.results[0].socket_bytes_per_s_per_receiver' rcext.json)
+  le 100 "$relay_b" || fail "relay-compare external: no egress from /metrics"
+  le "$(awk -v s="$sock_b" 'BEGIN { print s * 0.9 }')" "$relay_b" &&
+    le "$relay_b" "$(awk -v s="$sock_b" 'BEGIN { print s * 1.1 + 100 }')" ||
+    fail "relay-compare external: /metrics egress $relay_b B/s vs socket $sock_b B/s"
+  [ "$(num '.relay.external' ext.json)" = "true" ] || fail "ccu external: not marked external"
+  [ "$(num '.summary.connected' ext.json)" = "4" ] || fail "ccu external: not every bot joined"
+  [ "$(num '.summary.reliable_lost' ext.json)" = "0" ] || fail "ccu external: reliable messages lost"
+  [ "$(num '.summary.metrics_failures' ext.json)" = "0" ] || fail "ccu external: /metrics scrapes failed"
+  le 100 "$(num '.summary.egress_bytes_per_s_per_user' ext.json)" || fail "ccu external: no egress from /metrics"
+  # /proc CPU ticks are 10 ms: a tiny relay load may round to 0, but it must not be unknown.
+  cpu=$(num '.summary.relay_cpu_mean' ext.json)
+  [ "$cpu" != null ] && le 0 "$cpu" || fail "ccu external: no relay CPU from /proc ($cpu)"
+  le 1 "$(jq '[.series[].updates_per_s] | max' ext.json)" || fail "ccu external: no updates/s from /metrics"
+  le 0.001 "$(num '.summary.latency_arrival_ms_p99' ext.json)" || fail "ccu external: no latency samples"
+  echo "external relay ok"
+fi
 echo "loadgen smoke test passed"

@@ -1,0 +1,99 @@
+// isolation: does a heavy PhyS room slow down a busy social room on the same relay?
+//
+// Room A: --users ccu-style bots (a head and two hands each, the hands with trigger spheres
+// mirrored into PhyS, poses published at --publish-hz), every bot watching every other bot's
+// right hand. Room B: the multiobject scene (physics_backend/scenes.h: --boxes boxes in a walled
+// container, a kinematic stirrer) spawned as Offloaded entities by one host client, which drives
+// the stirrer (on wall-clock time since B started, so the same in-process and external), plus
+// --b-receivers receivers. A's bots run on the calling thread; B's clients on a second thread,
+// so decoding B's states does not delay A's bots.
+//
+// One run, three phases (each --phase seconds, after A's ramp):
+//   alone   A only;
+//   with_b  B's host joins and spawns the scene, B's receivers join; once every spawn is sent
+//           and --late-join-delay has passed, a late joiner joins room B and the time until it
+//           has received every one of the scene's spawns is measured (the phase lasts until it
+//           has, at most --late-join-timeout after it joined, and at least --phase);
+//   after   (unless --no-after) B's clients disconnect; A alone again (the relay may keep the
+//           empty room, and its PhyS world, until its idle TTL).
+// Per phase: A's right-hand latency user to user (p50/p99) at the SDK (the receiving bot's
+// callback, steady clock) and at the socket (kernel receive timestamp, CLOCK_REALTIME), the
+// fraction of expected hand updates delivered, the bot pass, and the relay's figures over the
+// phase (egress, ingress, relay CPU, PhyS step time). Headline: A's p99 with B / A's p99 alone.
+// A latency series in --bin-s bins for the chart.
+//
+// The relay is started in-process (its own thread, --physics-threads, --tick-rate) or is an
+// external edgephys-relay (--relay, --secret, --metrics, --relay-pid; loadgen/relay_target.h).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "loadgen/relay_target.h"
+
+namespace edgephys::loadgen {
+
+struct IsolationOptions {
+  uint32_t users = 50;
+  uint32_t boxes = 10000;
+  uint32_t b_receivers = 1;
+  double ramp_s = 3;                 // A's bots join over this
+  double phase_s = 10;               // each phase
+  bool after_phase = true;
+  double late_join_delay_s = 1;      // after B's spawns are all sent
+  double late_join_timeout_s = 60;   // the late joiner's wait, at most
+  double tick_rate_hz = 60;          // in-process relay
+  double publish_hz = 30;            // A's pose updates (ccu's rate)
+  size_t physics_threads = 1;        // in-process relay (RelayConfig::physics_threads)
+  double bin_s = 0.5;                // latency series bins
+  uint32_t measure_every = 1;        // only every K-th A bot matches poses (all decode)
+  uint32_t seed = 1;
+  bool progress = true;
+  ExternalRelayOptions external;
+};
+
+struct IsolationPhase {
+  std::string name;                  // alone, with_b, after
+  double start_s = 0, end_s = 0;
+  uint64_t samples = 0;
+  double latency_ms_p50 = 0, latency_ms_p99 = 0;                  // SDK
+  double arrival_latency_ms_p50 = 0, arrival_latency_ms_p99 = 0;  // socket
+  double delivered_fraction = 0;     // hand updates received / expected
+  double bot_pass_ms_p99 = 0;
+  // Relay, over the phase (NaN: unknown, e.g. CPU of an external relay without --relay-pid).
+  bool relay_figures = false;
+  double egress_bytes_per_s = 0, ingress_bytes_per_s = 0;
+  double relay_cpu = 0;              // cores
+  double physics_step_ms_mean = 0;
+  double physics_steps_per_s = 0;
+};
+
+struct IsolationBin {
+  double t = 0;  // bin start
+  uint64_t samples = 0;
+  double latency_ms_p50 = 0, latency_ms_p99 = 0;
+  double arrival_latency_ms_p50 = 0, arrival_latency_ms_p99 = 0;
+};
+
+struct IsolationResult {
+  uint32_t users = 0, connected = 0;
+  uint32_t boxes = 0;
+  bool b_ok = false;                  // B's host joined and spawned its scene
+  std::string b_error;
+  double b_spawn_send_s = 0;          // B's host: time to issue every Spawn
+  bool late_join_ok = false;
+  double late_join_s = kUnknown;      // late joiner's join request -> every spawn received
+  uint32_t late_join_spawns = 0;      // spawns it received (of scene_entities)
+  uint32_t scene_entities = 0;
+  double p99_ratio = kUnknown;        // A's SDK p99 with B / alone
+  double arrival_p99_ratio = kUnknown;
+  std::vector<IsolationPhase> phases;
+  std::vector<IsolationBin> bins;
+  uint32_t metrics_failures = 0;
+  std::string metrics_error;
+};
+
+IsolationResult RunIsolation(const IsolationOptions& options);
+
+}  // namespace edgephys::loadgen
