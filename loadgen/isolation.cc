@@ -17,7 +17,7 @@
 #include "client/client.h"
 #include "loadgen/loopback_room.h"
 #include "loadgen/stats.h"
-#include "physics_backend/scenes.h"
+#include "physics/scenes.h"
 #include "protocol/handshake.h"
 
 namespace edgephys::loadgen {

@@ -2,7 +2,7 @@
 //
 // Room A: --users ccu-style bots (a head and two hands each, the hands with trigger spheres
 // mirrored into PhyS, poses published at --publish-hz), every bot watching every other bot's
-// right hand. Room B: the multiobject scene (physics_backend/scenes.h: --boxes boxes in a walled
+// right hand. Room B: the multiobject scene (physics/scenes.h: --boxes boxes in a walled
 // container, a kinematic stirrer) spawned as Offloaded entities by one host client, which drives
 // the stirrer (on wall-clock time since B started, so the same in-process and external), plus
 // --b-receivers receivers. A's bots run on the calling thread; B's clients on a second thread,
