@@ -104,11 +104,13 @@ ChartSet Charts(const IsolationOptions&, const IsolationResult& r, const std::st
   std::ostringstream gp;
   gp << "set title 'isolation: room A hand latency, room B (" << r.boxes << " boxes) joins and leaves'\n"
      << "set xlabel 'time (s)'\nset ylabel 'latency (ms)'\nset grid\nset key bottom right\n";
-  int n = 1;
+  int n = 0;
   for (const IsolationPhase& p : r.phases) {
-    gp << "set arrow " << n++ << " from " << p.start_s << ", graph 0 to " << p.start_s
+    ++n;  // arrow and label of phase n share its number
+    gp << "set arrow " << n << " from " << p.start_s << ", graph 0 to " << p.start_s
        << ", graph 1 nohead dashtype 2\n"
-       << "set label " << n << " '" << p.name << "' at " << p.start_s << ", graph 0.95 offset 0.5,0 noenhanced\n";
+       << "set label " << n << " '" << p.name << "' at " << p.start_s
+       << ", graph 0.95 offset 0.5,0 noenhanced\n";
   }
   gp << "plot '" << prefix << ".dat' using 1:3 with lines title 'SDK p50', '' using 1:4 with lines "
      << "title 'SDK p99', '' using 1:5 with lines title 'socket p50', '' using 1:6 with lines "
