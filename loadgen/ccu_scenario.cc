@@ -67,7 +67,7 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
   nlohmann::json j;
   j["scenario"] = "ccu";
   j["options"] = {{"rooms", o.rooms}, {"ramp_s", o.ramp_s}, {"duration_s", o.duration_s},
-                  {"relay_threads", o.relay_threads},
+                  {"relay_threads", o.relay_threads}, {"shared_encoding", o.shared_encoding},
                   {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
   if (results.size() == 1) {
     j["summary"] = Summary(results[0]);
@@ -156,6 +156,8 @@ class CcuScenario final : public Scenario {
     cmd.add_option("--relay-threads", o_.relay_threads,
                    "Relay threads for ticks and PhyS (1: the relay keeps to one core; the bots use "
                    "the other)");
+    cmd.add_flag("--shared-encoding", o_.shared_encoding,
+                 "In-process relay: rooms use the shared-delta state format (9) instead of 2");
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th bot matches poses for latency (all still decode; 1: all)");
     AddExternalRelayOptions(cmd, &o_.external);
