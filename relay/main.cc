@@ -119,10 +119,11 @@ int main(int argc, char** argv) {
                  "as before; N>1 adds a receive thread; see docs/operations.md)")
       ->capture_default_str()
       ->check(CLI::Range(size_t{1}, RelayShards::kMaxShards));
-  bool batching = true;
-  app.add_flag("!--no-batching", batching,
-               "One thread: send and receive datagram by datagram instead of with "
-               "sendmmsg/recvmmsg batches (for comparison)");
+  bool batching = false;
+  app.add_flag("--batching", batching,
+               "One thread: receive and send with recvmmsg/sendmmsg batches, flushed once per "
+               "update (experimental: measured no faster in `ceiling` on 2 cores, see "
+               "docs/benchmarks.md)");
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
@@ -205,8 +206,8 @@ int main(int argc, char** argv) {
     (*shards)->Stop();
     return 0;
   }
-  // One thread: datagrams move in recvmmsg/sendmmsg batches; the relay flushes its sends at
-  // the end of every Update.
+  // With --batching, datagrams move in recvmmsg/sendmmsg batches; the relay flushes its sends
+  // at the end of every Update.
   BatchedSocket batched(socket->get());
   DatagramSocket* relay_socket = batching ? static_cast<DatagramSocket*>(&batched) : socket->get();
   Relay relay(config, relay_socket, &counters);
