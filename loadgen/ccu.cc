@@ -15,6 +15,7 @@
 #include <unordered_map>
 
 #include "client/client.h"
+#include "loadgen/avatar.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/motion.h"
 #include "loadgen/stats.h"
@@ -112,10 +113,7 @@ class World {
 };
 
 Vec3f HandPath(const Bot& b, double t, float side) {
-  double w = 1.3 + 0.01 * (b.index_ % 17);
-  return {static_cast<float>(b.home.x + side * 0.25 + 0.2 * std::sin(w * t + b.index_)),
-          static_cast<float>(1.1 + 0.15 * std::sin(0.9 * w * t + 2 * b.index_)),
-          static_cast<float>(b.home.z + 0.2 * std::cos(w * t + b.index_))};
+  return AvatarHandPosition(b.home, b.index_, t, side);
 }
 
 void Bot::OnEntityUpdated(const RemoteEntity& e) {
@@ -183,22 +181,11 @@ void Bot::Tick(double now) {
       ground.colliders.push_back(BoxCollider({200, 0.5f, 200}));
       (void)c.Spawn(ground);
     }
-    SpawnDesc h{.position = {home.x, 1.6f, home.z}, .flags = kFlag(schema::EntityFlags::Avatar)};
-    h.rigid_body = RigidBodySpec{};
-    h.rigid_body->kinematic = true;
-    h.rigid_body->mass = 0;
-    head = *c.Spawn(h);
-    for (uint32_t* hand : {&left, &right}) {
-      SpawnDesc d{.position = HandPath(*this, now, hand == &left ? -1.f : 1.f),
-                  .flags = kFlag(schema::EntityFlags::Hand)};
-      d.rigid_body = RigidBodySpec{};
-      d.rigid_body->kinematic = true;
-      d.rigid_body->mass = 0;
-      ColliderSpec trigger = SphereCollider(0.15f);
-      trigger.is_trigger = true;
-      d.colliders.push_back(trigger);
-      *hand = *c.Spawn(d);
-    }
+    AvatarIds avatar;
+    (void)SpawnAvatar(c, home, index_, now, &avatar);  // a refusal leaves that id 0 (unused)
+    head = avatar.head;
+    left = avatar.left;
+    right = avatar.right;
     SpawnDesc b{.position = {home.x, 0.1f, home.z},
                 .flags = offloaded | kFlag(schema::EntityFlags::Interactable)};
     b.rigid_body = RigidBodySpec{};
