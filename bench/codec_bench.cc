@@ -7,6 +7,7 @@
 #include <random>
 #include <vector>
 
+#include "bench/bench_frames.h"
 #include "protocol/connection.h"
 #include "protocol/delta_codec.h"
 #include "protocol/state_codec.h"
@@ -14,29 +15,9 @@
 namespace edgephys {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
-// `frames` x `n` smooth states (circles of random radius, spin about a tilted axis).
 std::vector<std::vector<EntityState>> MakeFrames(int n, int frames) {
-  std::mt19937_64 rng(1);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::vector<std::vector<EntityState>> out(frames, std::vector<EntityState>(n));
-  for (int i = 0; i < n; ++i) {
-    const double r = 1.5 + 3 * u(rng), ph = 2 * kPi * u(rng), tilt = u(rng);
-    for (int f = 0; f < frames; ++f) {
-      const double t = f / 12.0;
-      const double a = ph + 1.5 / r * t;
-      EntityState& s = out[f][i];
-      s.entity_id = static_cast<uint32_t>(i);
-      s.position = {static_cast<float>(i % 16 * 4 + r * std::cos(a)), 1.f,
-                    static_cast<float>(i / 16 * 4 + r * std::sin(a))};
-      const double half = 0.5 * (kPi / 2) * t;
-      s.rotation = {static_cast<float>(std::sin(tilt) * std::sin(half)),
-                    static_cast<float>(std::cos(tilt) * std::sin(half)), 0.f,
-                    static_cast<float>(std::cos(half))};
-    }
-  }
-  return out;
+  return bench::MakeFrames(n, frames, 12.0, /*first_id=*/0);
 }
 
 void BM_Format1Encode(benchmark::State& state) {

@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "bench/bench_frames.h"
 #include "protocol/connection.h"
 #include "protocol/delta_codec.h"
 #include "protocol/shared_delta_codec.h"
@@ -19,29 +20,10 @@
 namespace edgephys {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kTickHz = 12;  // every receiver gets every entity each tick (a 12 Hz class)
 
 std::vector<std::vector<EntityState>> MakeFrames(int n, int frames) {
-  std::mt19937_64 rng(1);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::vector<std::vector<EntityState>> out(frames, std::vector<EntityState>(n));
-  for (int i = 0; i < n; ++i) {
-    const double r = 1.5 + 3 * u(rng), ph = 2 * kPi * u(rng), tilt = u(rng);
-    for (int f = 0; f < frames; ++f) {
-      const double t = f / static_cast<double>(kTickHz);
-      const double a = ph + 1.5 / r * t;
-      EntityState& s = out[f][i];
-      s.entity_id = static_cast<uint32_t>(i + 1);
-      s.position = {static_cast<float>(i % 16 * 4 + r * std::cos(a)), 1.f,
-                    static_cast<float>(i / 16 * 4 + r * std::sin(a))};
-      const double half = 0.5 * (kPi / 2) * t;
-      s.rotation = {static_cast<float>(std::sin(tilt) * std::sin(half)),
-                    static_cast<float>(std::cos(tilt) * std::sin(half)), 0.f,
-                    static_cast<float>(std::cos(half))};
-    }
-  }
-  return out;
+  return bench::MakeFrames(n, frames, kTickHz, /*first_id=*/1);
 }
 
 void BM_Format2PerReceiver(benchmark::State& state) {

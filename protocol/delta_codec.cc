@@ -597,47 +597,7 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
     min_dot_for_deg_ = rot_threshold_deg;
     min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (std::numbers::pi / 360.0));
   }
-  const double min_dot = min_dot_;
-  // The truth quantised, computed only if a threshold test fails: a state that quantises to
-  // what the client already has cannot be improved by sending it (thresholds finer than the
-  // lattice would otherwise resend a resting entity forever).
-  std::array<uint32_t, 3> truth_pos{};
-  QuantizedRotation truth_rot;
-  bool have_truth_pos = false, have_truth_rot = false;
-  auto within = [&](const auto& e) {  // an Entry or a Track::AckedCopy
-    if (!e.has_float) {
-      e.position = DequantizePosition(params_, e.q.position);
-      e.rotation = DequantizeRotation(params_, e.q.rotation);
-      e.has_float = true;
-    }
-    const double dx = static_cast<double>(e.position.x) - truth.position.x;
-    const double dy = static_cast<double>(e.position.y) - truth.position.y;
-    const double dz = static_cast<double>(e.position.z) - truth.position.z;
-    const double d2 = dx * dx + dy * dy + dz * dz;
-    if (d2 > pos2) {
-      // Both would lie within the lattice's own error of one lattice point: farther apart,
-      // they cannot quantise alike (no need to quantise the truth to know).
-      if (d2 > lattice_reach2_) return false;
-      if (!have_truth_pos) {
-        (void)QuantizePosition(params_, truth.position, &truth_pos);
-        have_truth_pos = true;
-      }
-      if (truth_pos != e.q.position) return false;
-    }
-    const Quatf& a = e.rotation;
-    const Quatf& b = truth.rotation;
-    const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
-                       static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
-    if (std::fabs(dot) < min_dot) {
-      if (std::fabs(dot) < lattice_min_dot_) return false;
-      if (!have_truth_rot) {
-        (void)QuantizeRotation(params_, truth.rotation, &truth_rot);
-        have_truth_rot = true;
-      }
-      if (!(truth_rot == e.q.rotation)) return false;
-    }
-    return true;
-  };
+  WithinThresholds within(params_, truth, pos2, min_dot_, lattice_reach2_, lattice_min_dot_);
   if (t.newest_acked != kNoSlot && within(t.acked)) {
     return UpdateNeed::kAckedWithin;
   }

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 
 #include "protocol/bit_stream.h"
@@ -105,5 +106,62 @@ inline bool OutputIfNewer(const QuantizationParams& p, uint32_t id, const Quanti
   out->states.push_back(st);
   return true;
 }
+
+// Selective sync, both formats: whether a state the client holds (an encoder entry with a
+// lazily dequantised copy: members q, has_float, position, rotation, the last three mutable)
+// is within the thresholds of `truth`. A field whose quantised truth equals the held state's
+// counts as within (thresholds finer than the lattice would otherwise resend a resting entity
+// forever); the truth is quantised only when a threshold test fails, once per test object.
+class WithinThresholds {
+ public:
+  // `pos2`: squared position threshold (m^2); `min_dot`: cos(rotation threshold / 2);
+  // `lattice_reach2`, `lattice_min_dot`: beyond these a truth cannot quantise to the held state.
+  WithinThresholds(const QuantizationParams& p, const EntityState& truth, double pos2,
+                   double min_dot, double lattice_reach2, double lattice_min_dot)
+      : p_(p), truth_(truth), pos2_(pos2), min_dot_(min_dot), reach2_(lattice_reach2),
+        lattice_min_dot_(lattice_min_dot) {}
+
+  template <typename Held>
+  bool operator()(const Held& e) {
+    if (!e.has_float) {
+      e.position = DequantizePosition(p_, e.q.position);
+      e.rotation = DequantizeRotation(p_, e.q.rotation);
+      e.has_float = true;
+    }
+    const double dx = static_cast<double>(e.position.x) - truth_.position.x;
+    const double dy = static_cast<double>(e.position.y) - truth_.position.y;
+    const double dz = static_cast<double>(e.position.z) - truth_.position.z;
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    if (d2 > pos2_) {
+      if (d2 > reach2_) return false;
+      if (!have_pos_) {
+        (void)QuantizePosition(p_, truth_.position, &truth_pos_);
+        have_pos_ = true;
+      }
+      if (truth_pos_ != e.q.position) return false;
+    }
+    const Quatf& a = e.rotation;
+    const Quatf& b = truth_.rotation;
+    const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
+                       static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
+    if (std::fabs(dot) < min_dot_) {
+      if (std::fabs(dot) < lattice_min_dot_) return false;
+      if (!have_rot_) {
+        (void)QuantizeRotation(p_, truth_.rotation, &truth_rot_);
+        have_rot_ = true;
+      }
+      if (!(truth_rot_ == e.q.rotation)) return false;
+    }
+    return true;
+  }
+
+ private:
+  const QuantizationParams& p_;
+  const EntityState& truth_;
+  double pos2_, min_dot_, reach2_, lattice_min_dot_;
+  std::array<uint32_t, 3> truth_pos_{};
+  QuantizedRotation truth_rot_;
+  bool have_pos_ = false, have_rot_ = false;
+};
 
 }  // namespace edgephys::delta_internal

@@ -340,6 +340,8 @@ void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
   RoomHost& room = GetOrCreateRoom(std::string(room_name), now);
   // The same player connected twice (e.g. a new device): the newer session wins.
   if (MemberLink* old = room.FindMember(s.player_id()); old != nullptr && old != &s) {
+    // Every MemberLink of this relay's rooms is one of its Sessions (RoomHost::Join is only
+    // called with sessions), so this downcast names the older session to remove.
     Session& old_session = static_cast<Session&>(*old);
     old_session.connection().Disconnect(DisconnectReason::kKicked, old_session);
     RemoveSession(old_session.connection().id(), now);
