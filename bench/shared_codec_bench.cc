@@ -93,7 +93,7 @@ void BM_Format9PerReceiver(benchmark::State& state) {
       int i = 0;
       while (i < n) {
         s.Begin(buf, 0);
-        while (i < n && s.Add(frame[i].entity_id, *entities[i], prepared[i])) ++i;
+        while (i < n && s.Add(frame[i].entity_id, *entities[i])) ++i;
         bytes += s.Finish();
         s.OnSent(seq[r], now);
         s.OnPacketAcked(seq[r]++);

@@ -137,6 +137,13 @@ void SharedDeltaRoom::PrepareEntity(SharedEntity& e, const PreparedState& state)
     v.tick = tick_;
     v.q = state.q;
     v.rot4 = state.rot4;
+    if (state.has_float) {
+      v.position = state.position;
+      v.rotation = state.rotation;
+    } else {
+      v.position = DequantizePosition(q_, state.q.position);
+      v.rotation = DequantizeRotation(q_, state.q.rotation);
+    }
     ++e.next_;
   }
 }
@@ -270,6 +277,22 @@ bool SharedDeltaRoom::Body(SharedEntity& e, const SharedBaselineKey& key,
   return true;
 }
 
+bool SharedDeltaRoom::HeldWithin(const SharedEntity& e, uint32_t ref_tick,
+                                 const EntityState& truth, double pos2, double min_dot,
+                                 double reach2, double lattice_min_dot) const {
+  constexpr uint64_t kTickMask = (uint64_t{1} << 31) - 1;
+  const uint64_t tag = ((uint64_t{tick_} & kTickMask) << 33) | (uint64_t{ref_tick} << 1);
+  std::atomic<uint64_t>& memo = e.within_memo_[ref_tick % e.within_memo_.size()];
+  const uint64_t word = memo.load(std::memory_order_relaxed);
+  if ((tick_ & kTickMask) != 0 && (word & ~uint64_t{1}) == tag) return (word & 1) != 0;
+  const SharedEntity::Version* v = e.room_ == this ? e.At(ref_tick) : nullptr;
+  if (v == nullptr) return false;
+  delta_internal::WithinThresholds within(q_, truth, pos2, min_dot, reach2, lattice_min_dot);
+  const bool ok = within(*v);
+  memo.store(tag | (ok ? 1 : 0), std::memory_order_relaxed);
+  return ok;
+}
+
 // ================================ Stream ================================
 
 SharedDeltaStream::SharedDeltaStream(const QuantizationParams& params,
@@ -294,7 +317,7 @@ void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
   writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
 }
 
-bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity, const PreparedState& prepared) {
+bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
   const SharedDeltaRoom* room = entity.room();
   if (room == nullptr) return false;
@@ -376,12 +399,6 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity, const PreparedSta
   e.key = keyframe ? SharedBaselineKey{tick_, tick_, tick_, 1}
                    : SharedBaselineKey{tick_, key.ref, key.s1,
                                        static_cast<uint8_t>(std::min(key.depth + 1, 3))};
-  e.q = prepared.q;
-  e.has_float = prepared.has_float;
-  if (e.has_float) {
-    e.position = prepared.position;
-    e.rotation = prepared.rotation;
-  }
   pending_ids_.emplace_back(id, slot);
   last_id_ = id;
   ++count_;
@@ -425,9 +442,13 @@ void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
     if (!e.valid || e.key.ref != tick_) continue;
     e.sent = true;
     e.sent_at = now;
-    if (t.newest_sent == kNoSlot ||
-        static_cast<int32_t>(e.key.ref - t.ring[t.newest_sent].key.ref) > 0) {
+    if (t.newest_sent == kNoSlot || static_cast<int32_t>(e.key.ref - t.sent_ref) > 0) {
       t.newest_sent = static_cast<int8_t>(slot);
+    }
+    if (t.newest_sent == slot) {
+      t.sent_ref = e.key.ref;
+      t.sent_at = e.sent_at;
+      t.newest_sent_acked = e.acked;
     }
   }
 }
@@ -449,16 +470,18 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
     Entry& e = t.ring[slot];
     if (!e.valid || e.key.ref != r.tick) continue;
     e.acked = true;
-    if (t.newest_acked == kNoSlot ||
-        static_cast<int32_t>(e.key.ref - t.ring[t.newest_acked].key.ref) > 0) {
+    if (t.newest_sent == slot) t.newest_sent_acked = true;
+    if (t.newest_acked == kNoSlot || static_cast<int32_t>(e.key.ref - t.acked_ref) > 0) {
       t.newest_acked = static_cast<int8_t>(slot);
+      t.acked_ref = e.key.ref;
     }
   }
 }
 
 void SharedDeltaStream::Forget(uint32_t id) { tracks_.Erase(id); }
 
-SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const EntityState& truth,
+SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedEntity& entity,
+                                                      const EntityState& truth,
                                                       float pos_threshold_m,
                                                       float rot_threshold_deg, double now,
                                                       double resend_after_s) const {
@@ -470,15 +493,16 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const EntityS
     min_dot_for_deg_ = rot_threshold_deg;
     min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
   }
-  WithinThresholds within(params_, truth, pos2, min_dot_, lattice_reach2_, lattice_min_dot_);
-  if (t.newest_acked != kNoSlot && within(t.ring[t.newest_acked])) {
-    return UpdateNeed::kAckedWithin;
-  }
-  if (t.newest_sent != kNoSlot) {
-    const Entry& newest = t.ring[t.newest_sent];
-    if (!newest.acked && now - newest.sent_at < resend_after_s && within(newest)) {
-      return UpdateNeed::kInFlightWithin;
-    }
+  const SharedDeltaRoom* room = entity.room();
+  if (room == nullptr) return UpdateNeed::kSend;
+  auto within = [&](uint32_t ref) {
+    return room->HeldWithin(entity, ref, truth, pos2, min_dot_, lattice_reach2_,
+                            lattice_min_dot_);
+  };
+  if (t.newest_acked != kNoSlot && within(t.acked_ref)) return UpdateNeed::kAckedWithin;
+  if (t.newest_sent != kNoSlot && !t.newest_sent_acked && now - t.sent_at < resend_after_s &&
+      within(t.sent_ref)) {
+    return UpdateNeed::kInFlightWithin;
   }
   return UpdateNeed::kSend;
 }

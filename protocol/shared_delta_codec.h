@@ -31,8 +31,8 @@
 // the receivers' ticks; during them, SharedDeltaRoom::Body may be called concurrently from any
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
-// Memory: room ~4.6 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
-// times); stream ~1.2 KiB per (receiver, entity); decoder ~2 KiB per entity, bounded by
+// Memory: room ~7 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
+// times); stream ~0.5 KiB per (receiver, entity); decoder ~2 KiB per entity, bounded by
 // max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
 // per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body
@@ -65,7 +65,7 @@ inline constexpr size_t kSharedVersionWindow = 64;
 // Versions per entity for a room ticking at `tick_rate_hz`: two seconds of ticks, as a power
 // of two (an entity that changes every tick still has the versions its receivers' keys name
 // when they are sent at a few Hz, with losses and round trips), at least
-// kSharedVersionWindow, at most 2048. ~36 bytes each: 4.6 KiB per entity at 60 Hz.
+// kSharedVersionWindow, at most 2048. ~56 bytes each: 7 KiB per entity at 60 Hz.
 inline size_t SharedVersionWindowFor(double tick_rate_hz) {
   const double n = tick_rate_hz > 0 ? 2.0 * tick_rate_hz : 0;
   size_t w = kSharedVersionWindow;
@@ -119,6 +119,12 @@ class SharedEntity {
     uint32_t tick = 0;  // the tick it was prepared in (became the entity's state)
     QuantizedState q;
     std::array<int32_t, 4> rot4{};
+    // q dequantised once when recorded, for selective sync. Named and mutable as
+    // delta_internal::WithinThresholds expects of a held state; has_float is always true, so
+    // it never writes them.
+    mutable bool has_float = true;
+    mutable Vec3f position;
+    mutable Quatf rotation;
   };
   struct Slot {
     std::atomic<uint8_t> state{0};  // 0 empty, 1 being built, 2 ready
@@ -142,6 +148,10 @@ class SharedEntity {
   uint64_t next_ = 0;  // versions ever recorded
   uint32_t cache_tick_ = 0;
   std::array<Slot, kSharedCacheSlots> slots_;
+  // Selective-sync answers of this tick, shared by the room's receivers: word = (tick & 2^31-1)
+  // << 33 | reference tick << 1 | within. Receivers in one send phase hold the same references,
+  // so one threshold test serves them all. Relaxed atomics: a lost write only costs a retest.
+  mutable std::array<std::atomic<uint64_t>, 4> within_memo_{};
 };
 
 // The room side: tick clock, tick times, coding parameters and the body cache.
@@ -174,6 +184,15 @@ class SharedDeltaRoom {
   bool Body(SharedEntity& entity, const SharedBaselineKey& key,
             std::array<uint8_t, kSharedBodyMaxBytes>& scratch, const uint8_t** bits,
             size_t* nbits, bool* hit) const;
+
+  // Selective sync against the room's versions: whether the version of `entity` current at
+  // `ref_tick` (a version some receiver holds) is within the thresholds of `truth` (the
+  // entity's state this tick). `pos2`, `min_dot`, `reach2`, `lattice_min_dot` as
+  // delta_internal::WithinThresholds; every caller in one tick must pass the same thresholds
+  // (the answer is memoised per (entity, tick, ref_tick)). False when the version is no longer
+  // held. Thread-safe between BeginTick calls. O(log window) on a memo miss, O(1) on a hit.
+  bool HeldWithin(const SharedEntity& entity, uint32_t ref_tick, const EntityState& truth,
+                  double pos2, double min_dot, double reach2, double lattice_min_dot) const;
 
   const SharedDeltaRoomStats& stats() const { return stats_; }
 
@@ -222,21 +241,23 @@ class SharedDeltaStream final : public StateEncoder {
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override;
   // Format 9 needs the room's entity: this overload always returns false.
   bool Add(const EntityState& /*truth*/) override { return false; }
-  // Appends entity `id`'s current version (`entity`, prepared this tick by its room;
-  // `prepared` its current PreparedState, kept for NeedsUpdate). False (nothing written) if it
-  // does not fit, ids are not increasing, or the entity belongs to another room or tick than
-  // the payload's first record.
-  bool Add(uint32_t id, SharedEntity& entity, const PreparedState& prepared);
+  // Appends entity `id`'s current version (`entity`, prepared this tick by its room). False
+  // (nothing written) if it does not fit, ids are not increasing, or the entity belongs to
+  // another room or tick than the payload's first record.
+  bool Add(uint32_t id, SharedEntity& entity);
   size_t count() const override { return count_; }
   size_t Finish() override;
   void OnSent(uint16_t packet_sequence, double now);
   void OnPacketAcked(uint16_t packet_sequence);
   void Forget(uint32_t id);
 
-  // Selective synchronisation, exactly as DeltaEncoder::Need.
+  // Selective synchronisation, as DeltaEncoder::Need, with the held states looked up in the
+  // room's versions of `entity` (SharedDeltaRoom::HeldWithin, shared by all receivers) rather
+  // than kept per receiver. `entity` must have been prepared this tick by its room.
   using UpdateNeed = DeltaEncoder::UpdateNeed;
-  UpdateNeed Need(uint32_t id, const EntityState& truth, float pos_threshold_m,
-                  float rot_threshold_deg, double now, double resend_after_s) const;
+  UpdateNeed Need(uint32_t id, const SharedEntity& entity, const EntityState& truth,
+                  float pos_threshold_m, float rot_threshold_deg, double now,
+                  double resend_after_s) const;
 
   const SharedDeltaStreamStats& stats() const { return stats_; }
 
@@ -247,18 +268,21 @@ class SharedDeltaStream final : public StateEncoder {
     bool sent = false;
     SharedBaselineKey key;  // key.ref = the tick it was sent in; key as a reference
     double sent_at = 0;
-    QuantizedState q;
-    mutable bool has_float = false;
-    mutable Vec3f position;
-    mutable Quatf rotation;
+    // No state: the room's versions of the entity hold it under key.ref.
   };
   static constexpr int8_t kNoSlot = -1;
   struct Track {
-    std::array<Entry, kDeltaBaselineWindow> ring;
-    uint32_t next = 0;
-    uint32_t sends_since_keyframe = 0;
+    // First, in one cache line: what Need reads every tick (copies of the newest acked and
+    // newest sent entries' fields, valid while the index is not kNoSlot).
     int8_t newest_acked = kNoSlot;
     int8_t newest_sent = kNoSlot;
+    bool newest_sent_acked = false;
+    uint32_t acked_ref = 0;
+    uint32_t sent_ref = 0;
+    double sent_at = 0;
+    uint32_t next = 0;
+    uint32_t sends_since_keyframe = 0;
+    std::array<Entry, kDeltaBaselineWindow> ring;
   };
   struct PacketRecord {
     bool valid = false;

@@ -87,10 +87,10 @@ struct Receiver {
     };
     stream.Begin(buf, 0);
     for (uint32_t id : ids) {
-      if (!stream.Add(id, *r.shared[id], r.prepared[id])) {
+      if (!stream.Add(id, *r.shared[id])) {
         flush();
         stream.Begin(buf, 0);
-        EXPECT_TRUE(stream.Add(id, *r.shared[id], r.prepared[id])) << id;
+        EXPECT_TRUE(stream.Add(id, *r.shared[id])) << id;
       }
     }
     flush();
@@ -194,7 +194,7 @@ TEST(SharedDeltaCodec, SeveralReceiversConvergeUnderLossDuplicationAndReordering
       if ((tick + phase) % 5 != 0) continue;
       std::vector<uint32_t> ids;
       for (uint32_t id = 1; id <= kEntities; ++id) {
-        if (x.stream.Need(id, r.truth[id], 0.001f, 0.1f, now, 0.2) ==
+        if (x.stream.Need(id, *r.shared[id], r.truth[id], 0.001f, 0.1f, now, 0.2) ==
             SharedDeltaStream::UpdateNeed::kSend) {
           ids.push_back(id);
         }

@@ -173,8 +173,10 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
       case ReplicationMode::kEdgephys: {
         const DeltaEncoder::UpdateNeed need =
             shared_ != nullptr
-                ? shared_->Need(id, e.state, config_.position_threshold_m,
-                                config_.rotation_threshold_deg, now, resend_after)
+                ? (e.shared != nullptr
+                       ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
+                                       config_.rotation_threshold_deg, now, resend_after)
+                       : DeltaEncoder::UpdateNeed::kSend)
                 : delta_->Need(id, e.state, config_.position_threshold_m,
                                config_.rotation_threshold_deg, now, resend_after);
         if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
@@ -211,7 +213,7 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
       if (paper_ != nullptr) return paper_->AddFields(c.entity->state, c.fields);
       if (shared_ != nullptr) {  // the room codes the body once for every receiver
         return c.entity->shared != nullptr && c.entity->prepared_valid &&
-               shared_->Add(c.id, *c.entity->shared, c.entity->prepared);
+               shared_->Add(c.id, *c.entity->shared);
       }
       if (delta_ != nullptr) {  // the room quantised it once for every receiver
         return delta_->Add(c.entity->state,
