@@ -713,3 +713,49 @@ TEST(SharedDeltaCodec, BytesPerUpdateWithinFifteenPercentOfFormat2) {
 
 }  // namespace
 }  // namespace edgephys
+
+namespace edgephys {
+namespace {
+
+// Selective sync against the room's versions: the answer for a reference tick is memoised per
+// tick, so it must follow the truth from one tick to the next, and a version the room no
+// longer holds is never "within".
+TEST(SharedDeltaRoomTest, HeldWithinFollowsTheTruthAcrossTicks) {
+  TestRoom r(/*versions=*/4);
+  const double pos2 = 0.001 * 0.001;
+  const double min_dot = std::cos(0.1 * 3.14159265358979323846 / 360.0);
+  const double reach = 0.5 * std::sqrt(3.0) * r.params.step * 1.01;
+  const double lattice_min_dot = std::cos(0.1 * 1.01 * 3.14159265358979323846 / 360.0);
+  auto within = [&](uint32_t ref) {
+    return r.room.HeldWithin(*r.shared[1], ref, r.truth[1], pos2, min_dot, reach * reach,
+                             lattice_min_dot);
+  };
+  EntityState s;
+  s.position = {1.0f, 1.0f, 1.0f};
+  r.Set(1, s);
+  r.Tick(0);  // tick 1: version at (1, 1, 1)
+  EXPECT_TRUE(within(1));
+  r.Tick(16);  // tick 2: unchanged
+  EXPECT_TRUE(within(1));
+  EXPECT_TRUE(within(2));
+  s.position.x += 0.005f;  // 5 mm: beyond the 1 mm threshold
+  r.Set(1, s);
+  r.Tick(33);                // tick 3
+  EXPECT_FALSE(within(1));   // tick 2's memo for reference 1 must not answer for tick 3
+  EXPECT_FALSE(within(1));   // and the memo of tick 3 says the same
+  EXPECT_TRUE(within(3));
+  s.rotation = {0.0f, 0.0f, 0.0087265f, 0.9999619f};  // 1 deg about z
+  r.Set(1, s);
+  r.Tick(50);  // tick 4
+  EXPECT_FALSE(within(3));
+  for (uint32_t t = 0; t < 6; ++t) {  // four more versions: tick 4's falls out of the window
+    s.position.y += 0.01f;
+    r.Set(1, s);
+    r.Tick(66 + 16 * t);
+  }
+  EXPECT_FALSE(within(4));                      // no longer held: never within
+  EXPECT_TRUE(within(r.room.tick()));  // the current version is
+}
+
+}  // namespace
+}  // namespace edgephys
