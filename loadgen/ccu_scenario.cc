@@ -159,7 +159,8 @@ class CcuScenario final : public Scenario {
     cmd.add_flag("--shared-encoding", o_.shared_encoding,
                  "In-process relay: rooms use the shared-delta state format (9) instead of 2");
     cmd.add_option("--measure-every", o_.measure_every,
-                   "Only every K-th bot matches poses for latency (all still decode; 1: all)");
+                   "Only every K-th bot matches poses for latency (all still decode; 1: all)")
+        ->check(CLI::Range(1u, 1000000u));
     AddExternalRelayOptions(cmd, &o_.external);
   }
 
