@@ -67,7 +67,10 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
   svr.set_payload_max_length(options.max_body_bytes);
   svr.set_read_timeout(5, 0);
   svr.set_write_timeout(5, 0);
-  svr.set_keep_alive_max_count(100);
+  // One request per connection: httplib serves a connection on one pool thread until it
+  // closes, so browsers' idle keep-alive connections would otherwise hold every thread and
+  // queue the next client behind the read timeout.
+  svr.set_keep_alive_max_count(1);
   svr.set_error_handler(httplib::Server::HandlerWithResponse(
       [](const httplib::Request&, httplib::Response& res) {
         if (res.body.empty()) WriteJson(res, ErrorFor(res.status));

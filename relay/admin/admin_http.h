@@ -11,7 +11,9 @@
 // if it leaves the host.
 //
 // Thread-safety: Start() and Stop() from one thread; requests are served on `threads` worker
-// threads of the server's own, which call the AdminBackend concurrently.
+// threads of the server's own, which call the AdminBackend concurrently. A connection carries
+// one request (no keep-alive), so idle clients cannot hold the threads; a slow one holds its
+// thread for at most the 5 s read timeout.
 #pragma once
 
 #include <memory>
@@ -31,7 +33,7 @@ struct AdminHttpOptions {
   std::string address = "127.0.0.1:9465";  // numeric host:port; port 0 picks a free one
   std::string key;                          // bearer key; empty: no key (loopback only)
   size_t max_body_bytes = 64 * 1024;
-  size_t threads = 2;
+  size_t threads = 4;        // requests served at once (one connection per request)
 };
 
 class AdminHttpServer {
