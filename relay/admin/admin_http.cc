@@ -19,7 +19,10 @@ using nlohmann::json;
 void WriteJson(httplib::Response& res, const AdminReply& reply) {
   res.status = reply.status;
   res.set_header("Cache-Control", "no-store");
-  res.set_content(reply.body.dump(), "application/json");
+  // Room names come from join tokens and may hold any bytes: invalid UTF-8 is replaced, never
+  // thrown on.
+  res.set_content(reply.body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+                  "application/json");
 }
 
 // The JSON error for statuses httplib produces itself (no route, body too large, bad HTTP).

@@ -1,5 +1,6 @@
 #include "relay/admin/command_queue.h"
 
+#include <exception>
 #include <utility>
 #include <vector>
 
@@ -24,7 +25,12 @@ void CommandQueue::RunPending(double now) {
     batch.swap(queue_);
   }
   for (auto& slot : batch) {
-    AdminReply reply = slot->command(now);  // outside the lock: commands touch the relay
+    AdminReply reply;
+    try {  // outside the lock: commands touch the relay. A bug answers 500, the loop goes on.
+      reply = slot->command(now);
+    } catch (const std::exception& e) {
+      reply = AdminError(500, "internal", e.what());
+    }
     std::lock_guard lock(mu_);
     slot->reply = std::move(reply);
     slot->done = true;

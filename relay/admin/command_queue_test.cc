@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <stdexcept>
 #include <thread>
 
 namespace edgephys::admin {
@@ -42,6 +43,24 @@ TEST(CommandQueueTest, TimesOutWhenTheLoopDoesNotRun) {
   EXPECT_FALSE(reply.has_value());
   q.RunPending(0);  // runs late; its reply is dropped, nothing dangles
   EXPECT_TRUE(ran);
+}
+
+TEST(CommandQueueTest, ACommandThatThrowsAnswers500AndTheLoopGoesOn) {
+  CommandQueue q;
+  std::thread loop([&] {
+    for (int i = 0; i < 2000; ++i) {
+      q.RunPending(0);
+      std::this_thread::sleep_for(1ms);
+    }
+  });
+  auto thrown = q.Call([](double) -> AdminReply { throw std::runtime_error("boom"); }, 5s);
+  auto next = q.Call([](double) { return AdminReply{}; }, 5s);
+  loop.join();
+  ASSERT_TRUE(thrown.has_value());
+  EXPECT_EQ(thrown->status, 500);
+  EXPECT_EQ(thrown->body["error"]["code"], "internal");
+  ASSERT_TRUE(next.has_value());
+  EXPECT_EQ(next->status, 200);
 }
 
 TEST(CommandQueueTest, ClosedQueueFailsAtOnce) {

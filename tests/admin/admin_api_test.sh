@@ -128,6 +128,16 @@ jq -e '.rooms[] | select(.id == "arena") | .players == 3 and .entities == 3 and 
   "$work/body" >/dev/null || fail "list with players: $(cat "$work/body")"
 jq -e '.clients == 3' "$work/body" >/dev/null || fail "clients count: $(cat "$work/body")"
 
+# A room named by a join token with bytes that are not UTF-8: the JSON stays valid.
+start_client $'odd\xffname' 14
+wait_for 10 client_says 14 joined || fail "client 14: $(cat "$work/client-14.out")"
+expect 200 - GET /v1/rooms
+[ "$(jq '.rooms | length' "$work/body")" = 2 ] || fail "rooms with the odd name: $(cat "$work/body")"
+expect 200 - GET /v1/rooms/odd%FFname
+jq -e '.members[0].player_id == 14' "$work/body" >/dev/null || fail "odd room: $(cat "$work/body")"
+expect 200 - DELETE /v1/rooms/odd%FFname
+wait_for 5 client_says 14 "disconnected 4" || fail "client 14: $(cat "$work/client-14.out")"
+
 # --- kick: the client reports the reason -----------------------------------------------------
 expect 400 invalid_request POST /v1/rooms/arena/members/12/kick "{\"reason\":\"$(printf 'r%.0s' $(seq 1 300))\"}"
 expect 200 - POST /v1/rooms/arena/members/12/kick '{"reason":"spam in chat"}'
