@@ -265,8 +265,8 @@ int main(int argc, char** argv) {
     if (run_for_s > 0 && now >= run_for_s) break;
   }
   spdlog::info("shutting down");
+  admin_backend.Close();  // requests waiting for the loop get 503 now, so Stop() is quick
   if (admin_http) admin_http->Stop();
-  admin_backend.Close();
   relay.Shutdown();
   return 0;
 }

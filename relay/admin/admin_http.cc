@@ -67,6 +67,12 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
   httplib::Server& svr = *self->server_;
   const size_t threads = std::max<size_t>(1, options.threads);
   svr.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+  // httplib's default sets SO_REUSEPORT, which lets a second relay bind the same admin port
+  // and take a share of its requests. SO_REUSEADDR only: a restart still binds at once.
+  svr.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
   svr.set_payload_max_length(options.max_body_bytes);
   svr.set_read_timeout(5, 0);
   svr.set_write_timeout(5, 0);

@@ -177,6 +177,16 @@ TEST(AdminHttpStartTest, RefusesAnOpenAddressWithoutAKey) {
   (*started)->Stop();  // idempotent
 }
 
+TEST_F(AdminHttpTest, ASecondServerCannotShareThePort) {
+  // Two relays on one admin port would split its requests between them (SO_REUSEPORT).
+  RecordingBackend other;
+  AdminHttpOptions options;
+  options.address = server_->address();
+  auto second = AdminHttpServer::Start(options, &other);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.status().code(), StatusCode::kIoError);
+}
+
 TEST(AdminHttpStartTest, KeyMatchesIsExact) {
   EXPECT_TRUE(KeyMatches("abc", "abc"));
   EXPECT_FALSE(KeyMatches("abd", "abc"));
