@@ -17,6 +17,7 @@ RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TES
 #   libspdlog1.10, libfmt9                       logging (Debian's spdlog uses the shared fmt)
 #   libprometheus-cpp-core1.0, libprometheus-cpp-pull1.0, libcivetweb1   /metrics server
 #   libbullet3.24                                PhyS (embedded in the relay, and edgephys-phys)
+#   libcpp-httplib0.11                           the admin API (docs/admin-api.md)
 # libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. FlatBuffers, Asio,
 # CLI11 and Eigen are header-only here.
 FROM debian:bookworm-slim
@@ -30,6 +31,7 @@ RUN apt-get update \
       libprometheus-cpp-pull1.0 \
       libcivetweb1 \
       libbullet3.24 \
+      libcpp-httplib0.11 \
  && rm -rf /var/lib/apt/lists/*
 RUN groupadd --system edgephys \
  && useradd --system --gid edgephys --no-create-home --home-dir /nonexistent \
@@ -41,7 +43,9 @@ COPY --from=build /src/build/physics/edgephys-phys /usr/local/bin/edgephys-phys
 RUN for b in edgephys-relay edgephys-phys; do \
       if ldd /usr/local/bin/$b | grep -q 'not found'; then ldd /usr/local/bin/$b; exit 1; fi; \
     done
-EXPOSE 7777/udp 9464/tcp
+# 9465: the admin API, served only with --admin-addr 0.0.0.0:9465 and a key
+# (EDGEPHYS_ADMIN_KEY); by default it listens on the container's own loopback.
+EXPOSE 7777/udp 9464/tcp 9465/tcp
 USER edgephys
 ENTRYPOINT ["/usr/local/bin/edgephys-relay"]
 CMD ["--bind", "0.0.0.0:7777", "--metrics", "0.0.0.0:9464"]

@@ -412,6 +412,11 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
                          e->detail() ? e->detail()->string_view() : std::string_view());
       break;
     }
+    case schema::Body::Disconnecting: {
+      const auto* d = msg->body_as_Disconnecting();
+      disconnect_detail_ = d->detail() ? d->detail()->str() : std::string();
+      break;
+    }
     default:
       listener_->OnOtherMessage(*msg);
       break;

@@ -190,6 +190,10 @@ class Client final : private ConnectionHandler, private PacketWriter {
   const std::string& room() const { return room_; }
   uint16_t reject_reason() const { return reject_reason_; }
   DisconnectReason disconnect_reason() const { return disconnect_reason_; }
+  // The relay's text for why it is ending this connection (an operator's kick, room close or
+  // drain: ControlMessage Disconnecting, docs/protocol.md), set when that message arrives,
+  // before the Disconnect itself (so it is there when OnDisconnected runs). Empty otherwise.
+  const std::string& disconnect_detail() const { return disconnect_detail_; }
   // nullptr before kConnected.
   const ConnectionStats* stats() const;
   // Others' entities (and own entities are not listed).
@@ -243,6 +247,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   uint32_t player_id_ = 0;
   uint16_t reject_reason_ = 0;
   DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
+  std::string disconnect_detail_;
 
   bool joined_ = false;
   std::string room_;

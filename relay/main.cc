@@ -14,6 +14,8 @@
 #include <thread>
 
 #include "metrics/metrics_exporter.h"
+#include "relay/admin/admin_http.h"
+#include "relay/admin/relay_admin.h"
 #include "protocol/batched_socket.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
@@ -31,6 +33,12 @@ uint64_t UnixNow() {
   return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
                                    std::chrono::system_clock::now().time_since_epoch())
                                    .count());
+}
+
+std::string AdminKeyFromEnv(const std::string& flag) {
+  if (!flag.empty()) return flag;
+  const char* env = std::getenv("EDGEPHYS_ADMIN_KEY");
+  return env != nullptr ? env : "";
 }
 
 std::string SecretFromEnv(const std::string& flag) {
@@ -54,6 +62,15 @@ int main(int argc, char** argv) {
   app.add_option("--bind", bind, "UDP address:port to serve")->capture_default_str();
   app.add_option("--metrics", metrics, "Prometheus address:port ('off' to disable)")
       ->capture_default_str();
+  std::string admin_addr = "127.0.0.1:9465";
+  std::string admin_key;
+  auto* admin_addr_opt =
+      app.add_option("--admin-addr", admin_addr,
+                     "Admin HTTP API and /monitor address:port ('off' to disable; a non-loopback "
+                     "address needs a key)")
+          ->capture_default_str();
+  app.add_option("--admin-key", admin_key,
+                 "Admin API bearer key (default: $EDGEPHYS_ADMIN_KEY; none: loopback only)");
   app.add_option("--secret", secret,
                  "Join token secret (default: $EDGEPHYS_SECRET, else a development secret)");
   app.add_option("--max-clients", config.max_clients, "Connections at once")->capture_default_str();
@@ -185,6 +202,7 @@ int main(int argc, char** argv) {
     spdlog::info("metrics on http://{}/metrics", metrics);
   }
   if (io_threads > 1) {
+    if (admin_addr != "off") spdlog::warn("the admin API needs --io-threads 1; disabled");
     std::signal(SIGINT, OnSignal);
     std::signal(SIGTERM, OnSignal);
     RelayShardsOptions options;
@@ -212,6 +230,28 @@ int main(int argc, char** argv) {
   DatagramSocket* relay_socket = batching ? static_cast<DatagramSocket*>(&batched) : socket->get();
   Relay relay(config, relay_socket, &counters);
   spdlog::info("edgephys-relay listening on udp {}", FormatEndpoint((*socket)->LocalEndpoint()));
+  // The admin API (docs/admin-api.md): its HTTP threads reach the relay only through
+  // RelayAdmin's command queue, which the loop below drains.
+  admin::RelayAdmin admin_backend(&relay, config.room_defaults);
+  std::unique_ptr<admin::AdminHttpServer> admin_http;
+  if (admin_addr != "off") {
+    admin::AdminHttpOptions options;
+    options.address = admin_addr;
+    options.key = AdminKeyFromEnv(admin_key);
+    auto started = admin::AdminHttpServer::Start(options, &admin_backend);
+    if (started.ok()) {
+      admin_http = std::move(*started);
+      spdlog::info("admin API on http://{}/v1 (monitor: http://{}/monitor){}", admin_http->address(),
+                   admin_http->address(), options.key.empty() ? ", no key" : "");
+    } else if (admin_addr_opt->count() == 0 && started.status().code() == StatusCode::kIoError) {
+      // The default address is taken (another relay on this host): run without the API.
+      spdlog::warn("admin API disabled: {} ({}); pass --admin-addr", started.status().ToString(),
+                   admin_addr);
+    } else {
+      spdlog::error("admin API: {}", started.status().ToString());
+      return 2;
+    }
+  }
 
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -220,9 +260,13 @@ int main(int argc, char** argv) {
     (*socket)->WaitReadable(0.002);
     double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     relay.Update(now, UnixNow());
+    admin_backend.Tick(now);
+    if (admin_backend.ShouldExit()) break;  // a drain finished
     if (run_for_s > 0 && now >= run_for_s) break;
   }
   spdlog::info("shutting down");
+  admin_backend.Close();  // requests waiting for the loop get 503 now, so Stop() is quick
+  if (admin_http) admin_http->Stop();
   relay.Shutdown();
   return 0;
 }

@@ -103,9 +103,12 @@ void Relay::UpdateSessions(double now, bool sample_rtt) {
     if (sample_rtt && s->connection().stats().rtt_s > 0) {
       counters_->rtt_seconds.Observe(s->connection().stats().rtt_s);
     }
+    if (s->CloseDue(now) && s->connection().connected()) {  // an operator's close
+      s->connection().Disconnect(s->close_reason(), *s);
+    }
     if (!s->connection().connected()) {
       removal_scratch_.push_back(id);
-    } else if (!s->is_worker() && s->room() == nullptr && config_.limits.join_timeout_s > 0 &&
+    } else if (!s->is_worker() && !s->closing() && s->room() == nullptr && config_.limits.join_timeout_s > 0 &&
                now - s->connected_at() > config_.limits.join_timeout_s) {
       // A connection that holds a slot without ever joining a room (slow or idle handshake).
       Log().Note("connection dropped", "no room joined in time", s->endpoint(), now);
@@ -228,6 +231,10 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
     existing.connection().Disconnect(DisconnectReason::kKicked, existing);
     RemoveSession(it->second, now);
   }
+  if (!admitting_) {  // draining
+    Log().Note("connect rejected", "relay draining", from, now);
+    return SendReject(from, Code(RejectReason::ServerFull), data.size());
+  }
   if (sessions_.size() >= config_.max_clients) {
     return SendReject(from, Code(RejectReason::ServerFull), data.size());
   }
@@ -322,6 +329,7 @@ Status Relay::CreateRoom(const std::string& name, const RoomConfig& config, doub
       config.tick_rate_hz > 1000) {
     return Status::InvalidArgument("room capacity or tick rate out of range");
   }
+  if (!admitting_) return Status::ResourceExhausted("the relay is draining");
   auto it = rooms_.find(name);
   if (it != rooms_.end()) {
     if (it->second->in_use()) return Status::AlreadyExists("room is in use");
@@ -336,6 +344,7 @@ void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
   if (room_name.empty() || room_name != s.token_room()) {
     return s.SendError(RejectReason::WrongRoom, 0, "the join token does not grant this room");
   }
+  if (!admitting_) return s.SendError(RejectReason::ServerFull, 0, "the relay is draining");
   if (s.room() != nullptr) OnLeaveRoom(s, now);
   RoomHost& room = GetOrCreateRoom(std::string(room_name), now);
   // The same player connected twice (e.g. a new device): the newer session wins.
@@ -491,6 +500,50 @@ const ConnectionStats* Relay::FindConnectionStats(uint32_t player_id) const {
     if (s->player_id() == player_id) return &s->connection().stats();
   }
   return nullptr;
+}
+
+const Session* Relay::FindMemberSession(const std::string& room, uint32_t player_id) const {
+  auto it = rooms_.find(room);
+  if (it == rooms_.end()) return nullptr;
+  // Every MemberLink of this relay's rooms is one of its Sessions (see OnJoinRoom).
+  return static_cast<const Session*>(it->second->FindMember(player_id));
+}
+
+Status Relay::Kick(const std::string& room, uint32_t player_id, std::string_view reason,
+                   double now) {
+  auto* s = const_cast<Session*>(FindMemberSession(room, player_id));
+  if (s == nullptr) return Status::NotFound("no such member");
+  s->BeginClose(DisconnectReason::kKicked, reason, now);
+  OnLeaveRoom(*s, now);
+  spdlog::info("player {} kicked from room '{}': {}", player_id, room, reason);
+  return Status::Ok();
+}
+
+Status Relay::CloseRoom(const std::string& name, std::string_view reason, double now) {
+  auto it = rooms_.find(name);
+  if (it == rooms_.end()) return Status::NotFound("no such room");
+  std::vector<uint32_t> players;
+  for (const auto& [player, member] : it->second->room().members()) players.push_back(player);
+  for (uint32_t player : players) (void)Kick(name, player, reason, now);
+  counters_->entities.fetch_sub(static_cast<int64_t>(it->second->room().entities().size()),
+                                std::memory_order_relaxed);
+  rooms_.erase(it);
+  spdlog::info("room '{}' closed by the operator: {}", name, reason);
+  return Status::Ok();
+}
+
+void Relay::CloseAllSessions(std::string_view reason, double now) {
+  for (auto& [id, s] : sessions_) {
+    if (s->is_worker()) continue;
+    s->BeginClose(DisconnectReason::kServerShutdown, reason, now);
+    if (s->room() != nullptr) OnLeaveRoom(*s, now);
+  }
+}
+
+size_t Relay::client_count() const {
+  size_t n = 0;
+  for (const auto& [id, s] : sessions_) n += !s->is_worker();
+  return n;
 }
 
 size_t Relay::ReplicatedEntityCount(uint32_t player_id) const {

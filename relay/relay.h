@@ -94,6 +94,25 @@ class Relay final : private SessionHost {
   // Connection id of the worker simulating `room`'s PhyS; 0 if embedded or none.
   uint32_t PhysicsWorkerOf(const std::string& room) const;
 
+  // --- Operator surface (the admin API, relay/relay_admin.h). Relay thread only. ---------
+  const std::map<std::string, std::unique_ptr<RoomHost>>& rooms() const { return rooms_; }
+  // The session of member `player_id` of `room`; null if it is not a member.
+  const Session* FindMemberSession(const std::string& room, uint32_t player_id) const;
+  // Ends member `player_id`'s connection with kKicked and `reason` (Session::BeginClose: the
+  // SDK reports the reason) and removes it from the room at once. kNotFound if not a member.
+  Status Kick(const std::string& room, uint32_t player_id, std::string_view reason, double now);
+  // Kicks every member with `reason`, then removes the room with its entities and PhyS.
+  // kNotFound if there is no such room.
+  Status CloseRoom(const std::string& name, std::string_view reason, double now);
+  // Ends every client connection (not PhyS workers) with kServerShutdown and `reason`.
+  void CloseAllSessions(std::string_view reason, double now);
+  // While not admitting (a drain): Connects are rejected (ServerFull), JoinRoom is refused
+  // (Error{ServerFull}) and CreateRoom fails with kResourceExhausted. Default: admitting.
+  void set_admitting(bool admitting) { admitting_ = admitting; }
+  bool admitting() const { return admitting_; }
+  // Client sessions (PhyS workers not counted), in a room or not. O(sessions).
+  size_t client_count() const;
+
  private:
   // Admission: the handshake and the socket.
   void HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
@@ -159,6 +178,7 @@ class Relay final : private SessionHost {
   std::vector<TickJob> tick_jobs_;
   std::vector<MemberLink*> receivers_;
   double now_ = 0;
+  bool admitting_ = true;
   double last_rtt_sample_ = 0;
   std::vector<uint32_t> removal_scratch_;
   // Gauge values last published (shared_counters only).

@@ -18,6 +18,8 @@ struct RoomConfig {
   double idle_ttl_s = 300.0;       // an empty room is closed after this long
   double tick_rate_hz = 60.0;      // replication ticks per second
   uint32_t max_entities_per_player = 1024;
+  // PhyS for this room: false refuses spawns with physics components (InvalidContainer).
+  bool physics = true;
   ReplicationConfig replication;   // encoder, send rates by priority class, thresholds, budget
 };
 

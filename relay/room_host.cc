@@ -196,6 +196,9 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
   e.changed_at = now;
   e.creator = player;
   e.physics = RoomPhysics::RoleOf(*c);
+  if (e.physics != PhysicsRole::kNone && !room_.config().physics) {
+    return link.SendError(RejectReason::InvalidContainer, id, "physics is off in this room");
+  }
   e.spawn_seq = room_.NextSpawnSeq();
   if (e.physics != PhysicsRole::kNone) {
     if (room_.physics() == nullptr) room_.set_physics(env_.placement->Place(0, now));

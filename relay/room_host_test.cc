@@ -557,3 +557,28 @@ TEST_F(RoomHostTest, AJoinerWhoseReliableQueueOverflowsStopsReceivingTheBacklog)
 
 }  // namespace
 }  // namespace edgephys
+
+namespace edgephys {
+namespace {
+
+TEST_F(RoomHostTest, ARoomWithPhysicsOffRefusesPhysicsComponentsButNotPlainEntities) {
+  config_.physics = false;  // the admin API's {"physics": false}
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  RecordingMember a(1);
+  ASSERT_TRUE(host_->Join(a, 0));
+  EntitySpec cube = DynamicBox(Base(a) + 1, {0, 1, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
+  cube.owner = 1;
+  cube.flags = kOffloaded;
+  Spawn(a, cube);
+  ASSERT_EQ(a.errors.size(), 1u);
+  EXPECT_EQ(a.errors[0].first, schema::RejectReason::InvalidContainer);
+  EXPECT_EQ(Find(Base(a) + 1), nullptr);
+  EXPECT_TRUE(placement_.links.empty()) << "no PhyS made for a room with physics off";
+  Spawn(a, LocalBox(Base(a) + 2, 1));
+  EXPECT_EQ(a.errors.size(), 1u);
+  EXPECT_NE(Find(Base(a) + 2), nullptr);
+}
+
+}  // namespace
+}  // namespace edgephys

@@ -28,6 +28,7 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
   using schema::Body;
   using schema::RejectReason;
   RelayCounters::Inc(counters_->reliable_messages_received);
+  if (closing_) return;  // an operator is ending this connection
   const schema::ControlMessage* msg = VerifyControlMessage(message);
   if (msg == nullptr) return SendError(RejectReason::InvalidMessage, 0, "message failed verification");
   switch (msg->body_type()) {
@@ -61,6 +62,7 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
 }
 
 void Session::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
+  if (closing_) return;
   if (is_worker_) return host_->OnWorkerStates(*this, payload);
   if (room_ == nullptr) return counters_->RejectUpdate(DropReason::kNotJoined);
   room_->ApplyStates(*this, payload, now_);
@@ -90,6 +92,20 @@ void Session::SendError(schema::RejectReason reason, uint32_t entity_id, std::st
   FinishControl(fbb, schema::CreateError(fbb, reason, entity_id,
                                          fbb.CreateString(detail.data(), detail.size())));
   (void)SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+}
+
+void Session::BeginClose(DisconnectReason reason, std::string_view detail, double now) {
+  if (closing_ || !connection_.connected()) return;
+  if (detail.size() > kMaxCloseDetail) detail = detail.substr(0, kMaxCloseDetail);
+  flatbuffers::FlatBufferBuilder fbb(64 + detail.size());
+  FinishControl(fbb, schema::CreateDisconnecting(fbb, static_cast<schema::DisconnectReason>(reason),
+                                                 fbb.CreateString(detail.data(), detail.size())));
+  closing_ = true;
+  close_reason_ = reason;
+  close_deadline_ = now + kCloseGraceS;
+  // Overflow disconnects at once (kReliableOverflow); otherwise wait for the acknowledgement.
+  (void)SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
+  close_acked_end_ = connection_.reliable_queued_end();
 }
 
 void Session::DropPayload(DropReason reason) {

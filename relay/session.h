@@ -86,7 +86,22 @@ class Session final : public ConnectionHandler,
   }
   double connected_at() const { return connected_at_; }
 
+  // An operator ends this connection (a kick, its room closed, a drain; docs/admin-api.md):
+  // queues Disconnecting{reason, detail} (detail cut to kMaxCloseDetail bytes) and from then on
+  // ignores what the client sends. The relay ends the connection with `reason` once CloseDue().
+  void BeginClose(DisconnectReason reason, std::string_view detail, double now);
+  bool closing() const { return closing_; }
+  // A closing session's Disconnecting was acknowledged, or kCloseGraceS passed.
+  bool CloseDue(double now) const {
+    return closing_ && (connection_.reliable_acked_end() >= close_acked_end_ ||
+                        now >= close_deadline_);
+  }
+  DisconnectReason close_reason() const { return close_reason_; }
+  static constexpr size_t kMaxCloseDetail = 256;
+  static constexpr double kCloseGraceS = 1.0;
+
   Connection& connection() { return connection_; }
+  const Connection& connection() const { return connection_; }
   const Endpoint& endpoint() const { return endpoint_; }
   const std::string& token_room() const { return token_room_; }
   uint64_t token_nonce() const { return token_nonce_; }
@@ -118,6 +133,10 @@ class Session final : public ConnectionHandler,
   std::unique_ptr<ClientReplicator> replicator_;
   std::vector<uint8_t> accept_packet_;
   bool is_worker_ = false;
+  bool closing_ = false;
+  DisconnectReason close_reason_ = DisconnectReason::kNone;
+  uint64_t close_acked_end_ = 0;
+  double close_deadline_ = 0;
   bool buffering_ = false;
   std::vector<std::vector<uint8_t>> outbox_;  // capacity reused between ticks
   size_t outbox_size_ = 0;

@@ -9,7 +9,12 @@ PACKAGES=(
   libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
   prometheus-cpp-dev libcli11-dev nlohmann-json3-dev libssl-dev zlib1g-dev libcurl4-openssl-dev
   gnuplot-nox prometheus iproute2 iperf3 clang libclang-rt-14-dev jq
+  libcpp-httplib-dev chromium
 )
+
+# The monitor page's browser test (tests/browser) runs on node with npm; a machine that has
+# its own node (not from Debian) keeps it, one without gets Debian's.
+if ! command -v node >/dev/null; then PACKAGES+=(nodejs npm); fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -1,0 +1,162 @@
+#include "relay/admin/admin_http.h"
+
+#include <httplib.h>
+#include <openssl/crypto.h>
+#include <openssl/sha.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <exception>
+
+#include "protocol/endpoint.h"
+#include "relay/admin/admin_routes.h"
+
+namespace edgephys::admin {
+namespace {
+
+using nlohmann::json;
+
+void WriteJson(httplib::Response& res, const AdminReply& reply) {
+  res.status = reply.status;
+  res.set_header("Cache-Control", "no-store");
+  // Room names come from join tokens and may hold any bytes: invalid UTF-8 is replaced, never
+  // thrown on.
+  res.set_content(reply.body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+                  "application/json");
+}
+
+// The JSON error for statuses httplib produces itself (no route, body too large, bad HTTP).
+AdminReply ErrorFor(int status) {
+  switch (status) {
+    case 404: return AdminError(404, "not_found", "no such endpoint (see docs/admin-api.md)");
+    case 413: return AdminError(413, "body_too_large", "the request body exceeds the limit");
+    case 400: return AdminError(400, "bad_request", "malformed HTTP request");
+    default: return AdminError(status, "http_error", "HTTP error " + std::to_string(status));
+  }
+}
+
+std::string BearerOf(const httplib::Request& req) {
+  std::string h = req.get_header_value("Authorization");
+  constexpr std::string_view kPrefix = "Bearer ";
+  if (h.size() <= kPrefix.size() || h.compare(0, kPrefix.size(), kPrefix) != 0) return {};
+  return h.substr(kPrefix.size());
+}
+
+}  // namespace
+
+bool KeyMatches(const std::string& presented, const std::string& expected) {
+  // Digests first: equal lengths, so the comparison leaks neither content nor length.
+  unsigned char a[SHA256_DIGEST_LENGTH], b[SHA256_DIGEST_LENGTH];
+  SHA256(reinterpret_cast<const unsigned char*>(presented.data()), presented.size(), a);
+  SHA256(reinterpret_cast<const unsigned char*>(expected.data()), expected.size(), b);
+  return CRYPTO_memcmp(a, b, sizeof(a)) == 0 && !expected.empty();
+}
+
+Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpOptions& options,
+                                                                 AdminBackend* backend) {
+  auto endpoint = ParseEndpoint(options.address);
+  if (!endpoint.ok()) {
+    return Status::InvalidArgument("bad admin address", std::string(endpoint.status().reason()));
+  }
+  if (options.key.empty() && !endpoint->address().is_loopback()) {
+    return Status::InvalidArgument(
+        "the admin API needs a key (--admin-key or EDGEPHYS_ADMIN_KEY) on a non-loopback address");
+  }
+  std::unique_ptr<AdminHttpServer> self(new AdminHttpServer());
+  self->server_ = std::make_unique<httplib::Server>();
+  httplib::Server& svr = *self->server_;
+  const size_t threads = std::max<size_t>(1, options.threads);
+  svr.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+  // httplib's default sets SO_REUSEPORT, which lets a second relay bind the same admin port
+  // and take a share of its requests. SO_REUSEADDR only: a restart still binds at once.
+  svr.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
+  svr.set_payload_max_length(options.max_body_bytes);
+  svr.set_read_timeout(5, 0);
+  svr.set_write_timeout(5, 0);
+  // One request per connection: httplib serves a connection on one pool thread until it
+  // closes, so browsers' idle keep-alive connections would otherwise hold every thread and
+  // queue the next client behind the read timeout.
+  svr.set_keep_alive_max_count(1);
+  svr.set_error_handler(httplib::Server::HandlerWithResponse(
+      [](const httplib::Request&, httplib::Response& res) {
+        if (res.body.empty()) WriteJson(res, ErrorFor(res.status));
+        return httplib::Server::HandlerResponse::Handled;
+      }));
+  svr.set_exception_handler([](const httplib::Request&, httplib::Response& res,
+                               std::exception_ptr) {
+    WriteJson(res, AdminError(500, "internal", "internal error"));
+  });
+
+  const std::string key = options.key;
+  for (AdminRoute& route : AdminRoutes(*backend)) {
+    httplib::Server::Handler handler = [key, route](const httplib::Request& req,
+                                                    httplib::Response& res) {
+      if (route.page != nullptr) {
+        res.set_header("Cache-Control", "no-store");
+        res.set_header("X-Content-Type-Options", "nosniff");
+        res.set_header("Content-Security-Policy",
+                       "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
+                       "connect-src 'self'; img-src data:");
+        res.set_content(route.page, route.content_type);
+        return;
+      }
+      if (route.needs_key && !key.empty() && !KeyMatches(BearerOf(req), key)) {
+        res.set_header("WWW-Authenticate", "Bearer");
+        return WriteJson(res, AdminError(401, "unauthorized", "missing or wrong bearer key"));
+      }
+      AdminRequest request;
+      for (size_t i = 1; i < req.matches.size(); ++i) request.params.push_back(req.matches[i]);
+      if (req.body.empty()) {
+        request.body = json::object();
+      } else {
+        request.body = json::parse(req.body, nullptr, /*allow_exceptions=*/false);
+        if (request.body.is_discarded()) {
+          return WriteJson(res, AdminError(400, "bad_json", "the body is not valid JSON"));
+        }
+        if (!request.body.is_object()) {
+          return WriteJson(res, AdminError(400, "bad_json", "the body must be a JSON object"));
+        }
+      }
+      WriteJson(res, route.handler(request));
+    };
+    switch (route.method) {
+      case AdminRoute::Method::kGet: svr.Get(route.pattern, handler); break;
+      case AdminRoute::Method::kPost: svr.Post(route.pattern, handler); break;
+      case AdminRoute::Method::kDelete: svr.Delete(route.pattern, handler); break;
+    }
+  }
+
+  const std::string host = endpoint->address().to_string();
+  int port = endpoint->port();
+  if (port == 0) {
+    port = svr.bind_to_any_port(host);
+    if (port <= 0) return Status::IoError("cannot bind the admin address", options.address);
+  } else if (!svr.bind_to_port(host, port)) {
+    return Status::IoError("cannot bind the admin address", options.address);
+  }
+  self->address_ = (endpoint->address().is_v6() ? "[" + host + "]" : host) + ":" +
+                   std::to_string(port);
+  self->thread_ = std::thread([&svr] { svr.listen_after_bind(); });
+  // Stop() must not race the thread's start (httplib's stop() is a no-op before it runs).
+  for (int i = 0; i < 200 && !svr.is_running(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return self;
+}
+
+AdminHttpServer::~AdminHttpServer() { Stop(); }
+
+void AdminHttpServer::Stop() {
+  if (!server_) return;
+  for (int i = 0; i < 200 && thread_.joinable() && !server_->is_running(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  server_->stop();
+  if (thread_.joinable()) thread_.join();
+  server_.reset();
+}
+
+}  // namespace edgephys::admin

@@ -1,0 +1,198 @@
+// The HTTP front over a recording backend: the key, the body limit, JSON errors, routing and
+// parameter checks. The real relay behind it is tested in tests/admin/admin_api_test.sh.
+#include "relay/admin/admin_http.h"
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include <mutex>
+
+namespace edgephys::admin {
+namespace {
+
+using nlohmann::json;
+
+class RecordingBackend final : public AdminBackend {
+ public:
+  AdminReply ListRooms() override { return Note("list", {{"rooms", json::array()}}); }
+  AdminReply GetRoom(const std::string& id) override { return Note("get " + id, {}); }
+  AdminReply CreateRoom(const json& request) override { return Note("create " + request.dump(), {}); }
+  AdminReply CloseRoom(const std::string& id, const std::string& reason) override {
+    return Note("close " + id + " " + reason, {});
+  }
+  AdminReply Kick(const std::string& room, uint32_t player, const std::string& reason) override {
+    return Note("kick " + room + " " + std::to_string(player) + " " + reason, {});
+  }
+  AdminReply Drain(double deadline_s) override {
+    return Note("drain " + std::to_string(static_cast<int>(deadline_s)), {});
+  }
+  AdminReply Health() override { return Note("health", {{"status", "ok"}}); }
+  AdminReply Ready() override { return Note("ready", {{"ready", true}}); }
+
+  std::string last() {
+    std::lock_guard lock(mu_);
+    return last_;
+  }
+
+ private:
+  AdminReply Note(std::string what, json body) {
+    std::lock_guard lock(mu_);
+    last_ = std::move(what);
+    AdminReply r;
+    r.body = std::move(body);
+    return r;
+  }
+  std::mutex mu_;
+  std::string last_;
+};
+
+class AdminHttpTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    AdminHttpOptions options;
+    options.address = "127.0.0.1:0";
+    options.key = "s3cret";
+    options.max_body_bytes = 1024;
+    auto started = AdminHttpServer::Start(options, &backend_);
+    ASSERT_TRUE(started.ok()) << started.status().ToString();
+    server_ = std::move(*started);
+    auto colon = server_->address().rfind(':');
+    client_ = std::make_unique<httplib::Client>("127.0.0.1",
+                                                std::stoi(server_->address().substr(colon + 1)));
+    client_->set_connection_timeout(5);
+    client_->set_read_timeout(5);
+  }
+  httplib::Headers Auth(const std::string& key = "s3cret") {
+    return {{"Authorization", "Bearer " + key}};
+  }
+  static std::string Code(const httplib::Result& r) {
+    auto body = json::parse(r->body, nullptr, false);
+    if (body.is_discarded() || !body.contains("error")) return "(no error: " + r->body + ")";
+    return body["error"]["code"];
+  }
+
+  RecordingBackend backend_;
+  std::unique_ptr<AdminHttpServer> server_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+TEST_F(AdminHttpTest, KeyIsRequiredAndChecked) {
+  auto none = client_->Get("/v1/rooms");
+  ASSERT_TRUE(none);
+  EXPECT_EQ(none->status, 401);
+  EXPECT_EQ(Code(none), "unauthorized");
+  auto wrong = client_->Get("/v1/rooms", Auth("s3cret2"));
+  EXPECT_EQ(wrong->status, 401);
+  auto prefix = client_->Get("/v1/rooms", Auth("s3cre"));
+  EXPECT_EQ(prefix->status, 401);
+  auto basic = client_->Get("/v1/rooms", {{"Authorization", "Basic s3cret"}});
+  EXPECT_EQ(basic->status, 401);
+  EXPECT_EQ(backend_.last(), "");
+  auto ok = client_->Get("/v1/rooms", Auth());
+  EXPECT_EQ(ok->status, 200);
+  EXPECT_EQ(ok->get_header_value("Content-Type"), "application/json");
+  EXPECT_EQ(backend_.last(), "list");
+}
+
+TEST_F(AdminHttpTest, ProbesAndMonitorNeedNoKey) {
+  EXPECT_EQ(client_->Get("/healthz")->status, 200);
+  EXPECT_EQ(client_->Get("/readyz")->status, 200);
+  auto page = client_->Get("/monitor");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_NE(page->body.find("<title>edgephys relay monitor</title>"), std::string::npos);
+  EXPECT_EQ(page->body.find("https://"), std::string::npos) << "the page must be self-contained";
+}
+
+TEST_F(AdminHttpTest, BadBodiesGetJsonErrors) {
+  auto bad = client_->Post("/v1/rooms", Auth(), "{\"id\": ", "application/json");
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_EQ(Code(bad), "bad_json");
+  auto array = client_->Post("/v1/rooms", Auth(), "[1, 2]", "application/json");
+  EXPECT_EQ(array->status, 400);
+  EXPECT_EQ(Code(array), "bad_json");
+  auto deep = client_->Post("/v1/rooms", Auth(), std::string(1000, '['), "application/json");
+  EXPECT_EQ(deep->status, 400);
+  auto binary = client_->Post("/v1/rooms", Auth(), std::string("\xff\xfe\x00\x01", 4),
+                              "application/json");
+  EXPECT_EQ(binary->status, 400);
+  auto big = client_->Post("/v1/rooms", Auth(), "{\"id\": \"" + std::string(4000, 'a') + "\"}",
+                           "application/json");
+  ASSERT_TRUE(big);
+  EXPECT_EQ(big->status, 413);
+  EXPECT_EQ(Code(big), "body_too_large");
+  auto good = client_->Post("/v1/rooms", Auth(), R"({"id": "a"})", "application/json");
+  EXPECT_EQ(good->status, 200);
+  EXPECT_EQ(backend_.last(), R"(create {"id":"a"})");
+}
+
+TEST_F(AdminHttpTest, RoutesAndParameters) {
+  auto unknown = client_->Get("/v1/nothing", Auth());
+  EXPECT_EQ(unknown->status, 404);
+  EXPECT_EQ(Code(unknown), "not_found");
+  EXPECT_EQ(client_->Get("/v1/rooms/lob%20by", Auth())->status, 200);
+  EXPECT_EQ(backend_.last(), "get lob by");
+  EXPECT_EQ(client_->Delete("/v1/rooms/x", Auth())->status, 200);
+  EXPECT_EQ(backend_.last(), "close x the room was closed by the operator");
+  auto kick = client_->Post("/v1/rooms/x/members/7/kick", Auth(), R"({"reason": "spam"})",
+                            "application/json");
+  EXPECT_EQ(kick->status, 200);
+  EXPECT_EQ(backend_.last(), "kick x 7 spam");
+  for (const char* player : {"0", "-1", "abc", "4294967296", "99999999999"}) {
+    auto r = client_->Post(std::string("/v1/rooms/x/members/") + player + "/kick", Auth(), "{}",
+                           "application/json");
+    EXPECT_EQ(r->status, 400) << player;
+    EXPECT_EQ(Code(r), "invalid_request") << player;
+  }
+  auto long_reason = client_->Post("/v1/rooms/x/members/7/kick", Auth(),
+                                   "{\"reason\": \"" + std::string(300, 'r') + "\"}",
+                                   "application/json");
+  EXPECT_EQ(long_reason->status, 400);
+  auto extra = client_->Post("/v1/rooms/x/members/7/kick", Auth(), R"({"why": "x"})",
+                             "application/json");
+  EXPECT_EQ(extra->status, 400);
+  EXPECT_EQ(client_->Post("/v1/drain", Auth(), R"({"deadline_s": -5})", "application/json")->status,
+            400);
+  EXPECT_EQ(client_->Post("/v1/drain", Auth(), R"({"deadline_s": "soon"})", "application/json")->status,
+            400);
+  EXPECT_EQ(client_->Post("/v1/drain", Auth(), R"({"deadline_s": 30})", "application/json")->status,
+            200);
+  EXPECT_EQ(backend_.last(), "drain 30");
+}
+
+TEST(AdminHttpStartTest, RefusesAnOpenAddressWithoutAKey) {
+  RecordingBackend backend;
+  AdminHttpOptions options;
+  options.address = "0.0.0.0:0";
+  auto refused = AdminHttpServer::Start(options, &backend);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  options.address = "not an address";
+  EXPECT_FALSE(AdminHttpServer::Start(options, &backend).ok());
+  options.address = "0.0.0.0:0";
+  options.key = "k";
+  auto started = AdminHttpServer::Start(options, &backend);
+  ASSERT_TRUE(started.ok()) << started.status().ToString();
+  (*started)->Stop();
+  (*started)->Stop();  // idempotent
+}
+
+TEST_F(AdminHttpTest, ASecondServerCannotShareThePort) {
+  // Two relays on one admin port would split its requests between them (SO_REUSEPORT).
+  RecordingBackend other;
+  AdminHttpOptions options;
+  options.address = server_->address();
+  auto second = AdminHttpServer::Start(options, &other);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.status().code(), StatusCode::kIoError);
+}
+
+TEST(AdminHttpStartTest, KeyMatchesIsExact) {
+  EXPECT_TRUE(KeyMatches("abc", "abc"));
+  EXPECT_FALSE(KeyMatches("abd", "abc"));
+  EXPECT_FALSE(KeyMatches("ab", "abc"));
+  EXPECT_FALSE(KeyMatches("", ""));  // an empty key never matches
+}
+
+}  // namespace
+}  // namespace edgephys::admin

@@ -1,0 +1,165 @@
+// The relay's monitor page (GET /monitor) in a real headless Chromium, driven by
+// puppeteer-core: a real edgephys-relay process, rooms created and closed over the admin
+// API, real SDK clients (admin_test_client) joining and leaving. The page must show every
+// room and player the test makes, and follow each change without a reload.
+//
+//   node monitor_test.mjs RELAY_BIN CLIENT_BIN [SCREENSHOT.png]
+//
+// Prints "SKIPPED: ..." and exits 0 only when Chromium cannot start (ctest skips on that).
+// Every wait is bounded; every process it starts is stopped by its pid.
+import { spawn } from "node:child_process";
+import { mkdtempSync, readFileSync, rmSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join } from "node:path";
+import puppeteer from "puppeteer-core";
+
+const [relayBin, clientBin, screenshot] = process.argv.slice(2);
+if (!relayBin || !clientBin) {
+  console.error("usage: monitor_test.mjs RELAY_BIN CLIENT_BIN [SCREENSHOT.png]");
+  process.exit(2);
+}
+const chromium = process.env.CHROMIUM || "/usr/bin/chromium";
+const KEY = "monitor-test-key-" + Math.random().toString(36).slice(2);
+const SECRET = "monitor-test-secret";
+const work = mkdtempSync(join(tmpdir(), "edgephys-monitor-"));
+const children = [];
+const t0 = Date.now();
+const step = (what) => console.log(`[${((Date.now() - t0) / 1000).toFixed(1)} s] ${what}`);
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+function start(bin, args, logName) {
+  const log = join(work, logName);
+  const child = spawn("bash", ["-c", 'exec "$0" "$@" >"' + log + '" 2>&1', bin, ...args],
+                      { stdio: "ignore" });
+  children.push(child);
+  child.log = log;
+  return child;
+}
+const readLog = (child) => { try { return readFileSync(child.log, "utf8"); } catch { return ""; } };
+
+async function until(what, fn, timeoutMs = 10000) {
+  const end = Date.now() + timeoutMs;
+  for (;;) {
+    const v = await fn().catch(() => false);
+    if (v) return v;
+    if (Date.now() > end) throw new Error("timed out waiting for " + what);
+    await sleep(100);
+  }
+}
+
+let browser;
+let relay;
+try {
+  relay = start(relayBin, ["--bind", "127.0.0.1:0", "--metrics", "off", "--secret", SECRET,
+                           "--admin-addr", "127.0.0.1:0", "--admin-key", KEY,
+                           "--physics-threads", "1", "--run-for", "120"], "relay.log");
+  const addrs = await until("the relay's addresses", async () => {
+    const log = readLog(relay);
+    const admin = /admin API on http:\/\/([0-9.:]+)\/v1/.exec(log);
+    const udp = /listening on udp ([0-9.:]+)/.exec(log);
+    return admin && udp ? { admin: admin[1], udp: udp[1] } : false;
+  });
+  const base = "http://" + addrs.admin;
+  const api = async (method, path, body) => {
+    const res = await fetch(base + path, {
+      method, headers: { Authorization: "Bearer " + KEY, "Content-Type": "application/json" },
+      body: body === undefined ? undefined : JSON.stringify(body) });
+    if (!res.ok) throw new Error(method + " " + path + ": HTTP " + res.status + " " + await res.text());
+    return res.json();
+  };
+  const client = (room, player, runFor = 60) =>
+    start(clientBin, ["--relay", addrs.udp, "--secret", SECRET, "--room", room,
+                      "--player", String(player), "--run-for", String(runFor)], `client-${player}.log`);
+
+  try {
+    browser = await puppeteer.launch({
+      executablePath: chromium, headless: true, timeout: 30000,
+      args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run"] });
+  } catch (e) {
+    console.log("SKIPPED: Chromium cannot start (" + chromium + "): " + String(e.message).split("\n")[0]);
+    process.exitCode = 0;
+    throw null;  // to the cleanup below
+  }
+  step("chromium started");
+  const page = await browser.newPage();
+  await page.setViewport({ width: 1366, height: 768 });  // a laptop screen
+  const pageErrors = [];
+  page.on("pageerror", (e) => pageErrors.push(String(e)));
+  const requests = [];
+  page.on("request", (r) => requests.push(r.url()));
+
+  // A wrong key: the page asks for one instead of showing data.
+  await page.goto(base + "/monitor#key=wrong", { waitUntil: "load", timeout: 15000 });
+  await page.waitForSelector("#keyform:not([hidden])", { timeout: 10000 });
+  step("wrong key: key form shown");
+  // The right key, in the fragment: moved to sessionStorage, gone from the address bar.
+  await page.goto(base + "/monitor#key=" + encodeURIComponent(KEY), { waitUntil: "load", timeout: 15000 });
+  const stored = await page.evaluate(() => [sessionStorage.getItem("edgephys-admin-key"), location.hash]);
+  if (stored[0] !== KEY || stored[1] !== "") throw new Error("key handling: " + JSON.stringify(stored));
+  await page.evaluate(() => { window.__noReload = true; });
+  await page.waitForFunction(() => document.getElementById("state").textContent === "ready", { timeout: 10000 });
+
+  const roomShown = (id) => page.waitForSelector(`[data-room="${id}"]`, { timeout: 10000 });
+  const roomGone = (id) => page.waitForFunction((id) => !document.querySelector(`[data-room="${id}"]`),
+                                                { timeout: 10000 }, id);
+  const playerShown = (room, p) => page.waitForSelector(`[data-room="${room}"] tr[data-player="${p}"]`, { timeout: 15000 });
+  const playerGone = (room, p) => page.waitForFunction((room, p) =>
+      !document.querySelector(`[data-room="${room}"] tr[data-player="${p}"]`), { timeout: 15000 }, room, p);
+
+  // A room created over the API appears.
+  await api("POST", "/v1/rooms", { id: "arena", capacity: 8, tick_rate_hz: 30, physics: false });
+  await roomShown("arena");
+  step("room arena shown");
+  // Players join: their rows appear, with their link quality.
+  for (const p of [11, 12]) client("arena", p);
+  await playerShown("arena", 11);
+  await playerShown("arena", 12);
+  // A room made by a first join, and a player who leaves by himself after a few seconds.
+  client("lobby", 31);
+  client("lobby", 32, 6);
+  await playerShown("lobby", 31);
+  await playerShown("lobby", 32);
+  step("players 11, 12, 31, 32 shown");
+  // Wait until rates are measured (the relay samples once a second), then the screenshot.
+  await page.waitForFunction(() => [...document.querySelectorAll('[data-room="arena"] tr[data-player] td:nth-child(3)')]
+      .every((td) => parseFloat(td.textContent) > 0) &&
+      document.querySelectorAll('tr[data-player]').length === 4, { timeout: 15000 });
+  await sleep(1500);
+  if (screenshot) await page.screenshot({ path: screenshot });
+  const text = await page.$eval('[data-room="arena"]', (e) => e.textContent);
+  if (!/2 \/ 8 players/.test(text) || !/physics off/.test(text) || !/30 Hz/.test(text)) {
+    throw new Error("arena card: " + text);
+  }
+  step("screenshot taken");
+  // Leaves: player 32 by himself, player 12 kicked.
+  await playerGone("lobby", 32);
+  await api("POST", "/v1/rooms/arena/members/12/kick", { reason: "monitor test" });
+  await playerGone("arena", 12);
+  await playerShown("arena", 11);
+  step("players 32 (left) and 12 (kicked) gone");
+  // A room closed over the API disappears.
+  await api("DELETE", "/v1/rooms/lobby", { reason: "closing" });
+  await roomGone("lobby");
+  await roomShown("arena");
+
+  step("room lobby gone after DELETE");
+  const stillSamePage = await page.evaluate(() => window.__noReload === true);
+  if (!stillSamePage) throw new Error("the page reloaded");
+  if (pageErrors.length) throw new Error("page errors: " + pageErrors.join("; "));
+  const foreign = requests.filter((u) => !u.startsWith(base));
+  if (foreign.length) throw new Error("the page fetched outside the relay: " + foreign.join(", "));
+  console.log("monitor test passed (" + requests.length + " requests, all to the relay)" +
+              (screenshot ? "; screenshot " + screenshot : ""));
+} catch (e) {
+  if (e !== null) {
+    console.error("FAIL:", e && e.message ? e.message : e);
+    if (relay) console.error("--- relay log\n" + readLog(relay).split("\n").slice(-30).join("\n"));
+    process.exitCode = 1;
+  }
+} finally {
+  step("cleanup");
+  if (browser) await browser.close().catch(() => {});
+  for (const c of children) { try { c.kill("SIGTERM"); } catch {} }
+  rmSync(work, { recursive: true, force: true });
+  step("done");
+}

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Runs tests/browser/monitor_test.mjs (headless Chromium + puppeteer-core) for ctest.
+# Installs the pinned npm modules (package-lock.json) with `npm ci` when they are missing or
+# the lock file changed. Prints SKIPPED (ctest then skips) when node or Chromium is missing.
+# Usage: run_monitor_test.sh RELAY_BIN CLIENT_BIN [SCREENSHOT.png]
+set -euo pipefail
+cd "$(dirname "$0")"
+command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 0; }
+chromium="${CHROMIUM:-/usr/bin/chromium}"
+[ -x "$chromium" ] || { echo "SKIPPED: no Chromium at $chromium (scripts/setup.sh installs it)"; exit 0; }
+if ! cmp -s package-lock.json node_modules/.edgephys-lock 2>/dev/null; then
+  # A lock next to node_modules: parallel runs install once.
+  exec 9>".npm-ci.lock"
+  flock 9
+  if ! cmp -s package-lock.json node_modules/.edgephys-lock 2>/dev/null; then
+    npm ci --no-audit --no-fund --loglevel=error
+    cp package-lock.json node_modules/.edgephys-lock
+  fi
+  flock -u 9
+fi
+exec timeout 150 node monitor_test.mjs "$@"
