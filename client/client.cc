@@ -120,10 +120,12 @@ void Client::Update(double now) {
     }
     if (now - handshake_started_ > config_.resume_attempt_s) {
       // Next candidate: the first relay, then the configured ones, round robin.
-      std::vector<Endpoint> candidates{entry_server_};
+      std::vector<Endpoint> candidates;
+      if (entry_server_ != lost_server_) candidates.push_back(entry_server_);
       for (const Endpoint& e : config_.relays) {
-        if (e != entry_server_) candidates.push_back(e);
+        if (e != entry_server_ && e != lost_server_) candidates.push_back(e);
       }
+      if (candidates.empty()) candidates.push_back(lost_server_);
       RestartHandshake(candidates[resume_index_++ % candidates.size()], now);
       redirects_this_handshake_ = 0;
       return;
@@ -368,6 +370,7 @@ void Client::StartResume(double now) {
   resume_base_ = entity_id_base_;
   resume_started_ = now;
   resume_index_ = 0;
+  lost_server_ = server_;
   joined_ = false;
   connection_.reset();
   redirects_this_handshake_ = 0;

@@ -80,7 +80,7 @@ struct ClientConfig {
   // Session continuity across a relay's death: when the connection ends by timeout or server
   // shutdown while in a room, reconnect with the same token (so the same player id), rejoin
   // the room and keep this player's entities and id block, without OnDisconnected or a second
-  // OnJoined. Tried at the last relay, the first relay, then `relays` in turn, each for
+  // OnJoined. Tried at the last relay, then the first relay and `relays` in turn, each for
   // resume_attempt_s, for at most resume_timeout_s (then kDisconnected, reason kTimeout).
   // If the room comes back with another id block, the owned entities are dropped and the game
   // gets OnJoined again.
@@ -301,6 +301,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   uint64_t arrival_time_fallbacks_ = 0;
   // Cluster.
   Endpoint entry_server_;  // the relay Connect() was given
+  Endpoint lost_server_;   // the relay whose connection ended (resume tries it first only)
   int redirects_this_handshake_ = 0;
   uint64_t redirects_followed_ = 0;
   uint64_t redirects_refused_ = 0;
