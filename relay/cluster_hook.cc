@@ -126,6 +126,15 @@ void ClusterHook::Update(double now, uint64_t unix_now_s) {
         break;
     }
   }
+  const cluster::DirectoryCounters& dc = directory_->counters();
+  RelayCounters& rc = *relay_->counters_;
+  rc.cluster_redis_errors.store(dc.redis_errors.load(std::memory_order_relaxed),
+                                std::memory_order_relaxed);
+  rc.cluster_bad_keys.store(dc.bad_keys.load(std::memory_order_relaxed) +
+                                counters_.entities_skipped,
+                            std::memory_order_relaxed);
+  rc.cluster_redirects.store(counters_.redirects_sent, std::memory_order_relaxed);
+  rc.cluster_rooms_restored.store(counters_.rooms_restored, std::memory_order_relaxed);
   // Rooms closed since the last update: no longer ours.
   std::set<std::string> rooms;
   for (const auto& [name, room] : relay_->rooms_) rooms.insert(name);

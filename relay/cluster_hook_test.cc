@@ -121,6 +121,7 @@ class ClusterWorld {
   // Destroys relay `i` (its UDP port goes silent; clean directory stop).
   void Kill(int i) { nodes_[i]->relay.reset(); }
   Relay* relay(int i) { return nodes_[i]->relay.get(); }
+  const RelayCounters& counters(int i) const { return nodes_[i]->counters; }
   Endpoint endpoint(int i) const { return nodes_[i]->socket->LocalEndpoint(); }
   int size() const { return static_cast<int>(nodes_.size()); }
   // Index of the live relay holding `room`, -1 if none.
@@ -192,6 +193,9 @@ TEST_F(ClusterTest, PlayersJoiningThroughAnyRelayLandOnTheirRoomsRelay) {
     EXPECT_EQ(listeners[i].joined, 1);
   }
   EXPECT_GT(followed, 0u);
+  uint64_t redirects = 0;
+  for (int i = 0; i < world.size(); ++i) redirects += world.counters(i).cluster_redirects.load();
+  EXPECT_GE(redirects, followed);
   EXPECT_GE(holders.size(), 2u) << "rooms should spread over the relays";
 }
 
@@ -333,6 +337,9 @@ TEST_F(ClusterTest, GarbageSnapshotsAreCountedAndTheRoomStillComesBack) {
   EXPECT_TRUE(world.relay(0)->FindRoom("junk")->entities().empty());
   EXPECT_EQ(world.relay(0)->cluster()->counters().entities_skipped, 1u);
   EXPECT_GE(world.relay(0)->cluster()->directory().counters().bad_keys.load(), 1u);
+  world.Step();  // publishes the counters (edgephys_cluster_*_total)
+  EXPECT_GE(world.counters(0).cluster_bad_keys.load(), 2u);
+  EXPECT_EQ(world.counters(0).cluster_rooms_restored.load(), 2u);
   // And the relay still serves: a player joins the restored room.
   CountingListener l;
   Client& c = world.AddClient(0, Token("junk", 9), &l);
