@@ -18,6 +18,7 @@ RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TES
 #   libprometheus-cpp-core1.0, libprometheus-cpp-pull1.0, libcivetweb1   /metrics server
 #   libbullet3.24                                PhyS (embedded in the relay, and edgephys-phys)
 #   libcpp-httplib0.11                           the admin API (docs/admin-api.md)
+#   libhiredis0.14                               --redis (clusters of relays)
 # libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. FlatBuffers, Asio,
 # CLI11 and Eigen are header-only here.
 FROM debian:bookworm-slim
@@ -32,6 +33,7 @@ RUN apt-get update \
       libcivetweb1 \
       libbullet3.24 \
       libcpp-httplib0.11 \
+      libhiredis0.14 \
  && rm -rf /var/lib/apt/lists/*
 RUN groupadd --system edgephys \
  && useradd --system --gid edgephys --no-create-home --home-dir /nonexistent \

@@ -6,7 +6,10 @@
 #include <cstring>
 
 #include "protocol/emulation_codec.h"
+#include "protocol/endpoint.h"
 #include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/redirect.h"
 #include "protocol/soft_body_codec.h"
 
 namespace edgephys {
@@ -21,6 +24,8 @@ double RealtimeNow() {
   clock_gettime(CLOCK_REALTIME, &now);
   return static_cast<double>(now.tv_sec) + now.tv_nsec * 1e-9;
 }
+
+uint64_t UnixNowS() { return static_cast<uint64_t>(RealtimeNow()); }
 
 }  // namespace
 
@@ -40,6 +45,8 @@ Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, d
     return Status::InvalidArgument("Connect() called twice");
   }
   server_ = server;
+  entry_server_ = server;
+  redirects_this_handshake_ = 0;
   token_.assign(token.begin(), token.end());
   nonce_ = SecureRandom64();
   state_ = ClientState::kHandshaking;
@@ -102,6 +109,28 @@ void Client::Update(double now) {
     }
   }
 
+  if (state_ == ClientState::kHandshaking && resuming_) {
+    if (now - resume_started_ > config_.resume_timeout_s) {
+      resuming_ = false;
+      state_ = ClientState::kDisconnected;
+      disconnect_reason_ = DisconnectReason::kTimeout;
+      ResetRoom();
+      listener_->OnDisconnected(disconnect_reason_);
+      return;
+    }
+    if (now - handshake_started_ > config_.resume_attempt_s) {
+      // Next candidate: the first relay, then the configured ones, round robin.
+      std::vector<Endpoint> candidates;
+      if (entry_server_ != lost_server_) candidates.push_back(entry_server_);
+      for (const Endpoint& e : config_.relays) {
+        if (e != entry_server_ && e != lost_server_) candidates.push_back(e);
+      }
+      if (candidates.empty()) candidates.push_back(lost_server_);
+      RestartHandshake(candidates[resume_index_++ % candidates.size()], now);
+      redirects_this_handshake_ = 0;
+      return;
+    }
+  }
   if (state_ == ClientState::kHandshaking) {
     if (now - handshake_started_ > config_.handshake_timeout_s) {
       state_ = ClientState::kFailed;
@@ -118,6 +147,11 @@ void Client::Update(double now) {
     next_publish_ = now + 1.0 / std::max(1.0, config_.publish_rate_hz);
   }
   if (!connection_->connected()) {
+    DisconnectReason why = connection_->disconnect_reason();
+    if (config_.resume && joined_ &&
+        (why == DisconnectReason::kTimeout || why == DisconnectReason::kServerShutdown)) {
+      return StartResume(now);
+    }
     state_ = ClientState::kDisconnected;
     disconnect_reason_ = connection_->disconnect_reason();
     joined_ = false;
@@ -145,8 +179,15 @@ void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) 
     connection_ = std::make_unique<Connection>(accept->connection_id(), cc, now);
     player_id_ = accept->player_id();
     state_ = ClientState::kConnected;
+    if (resuming_) {  // transparent: rejoin the room at once
+      (void)JoinRoom(resume_room_);
+      return;
+    }
     listener_->OnConnected(player_id_);
+  } else if (prefix.type == PacketType::kReject && msg->body_type() == schema::Body::Redirect) {
+    HandleRedirect(*msg, now);
   } else if (prefix.type == PacketType::kReject && msg->body_type() == schema::Body::Reject) {
+    if (resuming_) return;  // e.g. a relay that does not know the room yet: try the next one
     reject_reason_ = static_cast<uint16_t>(msg->body_as_Reject()->reason());
     state_ = ClientState::kRejected;
     listener_->OnRejected(reject_reason_);
@@ -297,7 +338,48 @@ Status Client::SendReliableUnchecked(std::span<const uint8_t> message) {
   return connection_->SendReliable(message);
 }
 
+void Client::RestartHandshake(const Endpoint& server, double now) {
+  server_ = server;
+  cookie_.clear();
+  nonce_ = SecureRandom64();
+  handshake_started_ = now;
+  state_ = ClientState::kHandshaking;
+  SendHandshake(now);
+}
+
+void Client::HandleRedirect(const schema::ControlMessage& msg, double now) {
+  auto ticket = ParseRedirect(*msg.body_as_Redirect());
+  if (!ticket.ok() || redirects_this_handshake_ >= config_.max_redirects ||
+      !VerifyRedirect(*ticket, token_, UnixNowS()).ok()) {
+    ++redirects_refused_;  // forged, expired or a loop: keep waiting for a real answer
+    return;
+  }
+  auto target = ParseEndpoint(ticket->address);
+  if (!target.ok()) {
+    ++redirects_refused_;
+    return;
+  }
+  ++redirects_this_handshake_;
+  ++redirects_followed_;
+  RestartHandshake(*target, now);
+}
+
+void Client::StartResume(double now) {
+  resuming_ = true;
+  resume_room_ = room_;
+  resume_base_ = entity_id_base_;
+  resume_started_ = now;
+  resume_index_ = 0;
+  lost_server_ = server_;
+  joined_ = false;
+  connection_.reset();
+  redirects_this_handshake_ = 0;
+  // First the relay that was lost (a restart, or a blip), then the others (Update).
+  RestartHandshake(server_, now);
+}
+
 void Client::Disconnect() {
+  resuming_ = false;
   if (connection_ && connection_->connected()) {
     connection_->Disconnect(DisconnectReason::kClientLeft, *this);
   }
@@ -323,11 +405,25 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
   switch (msg->body_type()) {
     case schema::Body::Joined: {
       const auto* j = msg->body_as_Joined();
-      ResetRoom();
+      const bool resumed = resuming_ && j->room() != nullptr && j->room()->str() == resume_room_ &&
+                           j->entity_id_base() == resume_base_;
+      if (resumed) {
+        // Same room, same id block: this player's entities are still its own. Forget what
+        // the old relay sent; re-send every owned entity's state.
+        auto owned = std::move(owned_);
+        uint32_t next_local = next_local_id_;
+        ResetRoom();
+        owned_ = std::move(owned);
+        for (auto& [id, e] : owned_) ++e.version;
+        next_local_id_ = next_local;
+      } else {
+        ResetRoom();
+      }
+      resuming_ = false;
       joined_ = true;
       room_ = j->room() ? j->room()->str() : std::string();
       entity_id_base_ = j->entity_id_base();
-      next_local_id_ = 1;
+      if (!resumed) next_local_id_ = 1;
       delta_decoder_.reset();
       shared_decoder_.reset();
       position_step_m_ =
@@ -348,7 +444,11 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
           delta_decoder_ = std::make_unique<DeltaDecoder>(*params);
         }
       }
-      listener_->OnJoined(room_, entity_id_base_);
+      if (resumed) {
+        ++resumes_;
+      } else {
+        listener_->OnJoined(room_, entity_id_base_);
+      }
       break;
     }
     case schema::Body::RoomState: {
@@ -363,6 +463,8 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
     case schema::Body::Spawn: {
       const auto* c = msg->body_as_Spawn()->container();
       if (c == nullptr || c->transform() == nullptr) return;
+      // This player's own entity, as a relay that restored the room after a failover lists it.
+      if (c->owner() == player_id_ && owned_.count(c->entity_id()) != 0) return;
       despawned_.erase(c->entity_id());
       RemoteEntity& e = entities_[c->entity_id()];
       e.id = c->entity_id();

@@ -70,6 +70,24 @@ struct ClientConfig {
   // used instead and counted in arrival_time_fallbacks(). Cost when on: a recvmsg(2) with a
   // control message per datagram instead of a recvfrom(2), plus a clock read per fallback.
   bool record_arrival_times = false;
+
+  // Clusters of relays (docs/operations.md, "Scale-out and failover"). A relay that does not
+  // hold the token's room answers Connect with a signed Redirect (protocol/redirect.h); the SDK
+  // checks it against its token and the clock and repeats the handshake at the named relay, at
+  // most this many times per handshake. Forged or expired redirects are ignored and counted
+  // (redirects_refused()). 0: follow none.
+  int max_redirects = 4;
+  // Session continuity across a relay's death: when the connection ends by timeout or server
+  // shutdown while in a room, reconnect with the same token (so the same player id), rejoin
+  // the room and keep this player's entities and id block, without OnDisconnected or a second
+  // OnJoined. Tried at the last relay, then the first relay and `relays` in turn, each for
+  // resume_attempt_s, for at most resume_timeout_s (then kDisconnected, reason kTimeout).
+  // If the room comes back with another id block, the owned entities are dropped and the game
+  // gets OnJoined again.
+  bool resume = false;
+  std::vector<Endpoint> relays;
+  double resume_attempt_s = 1.0;
+  double resume_timeout_s = 15.0;
 };
 
 enum class ClientState {
@@ -216,6 +234,14 @@ class Client final : private ConnectionHandler, private PacketWriter {
   // (arrival times unsupported, e.g. a simulated network, or no timestamp from the OS). Only
   // counted with ClientConfig::record_arrival_times.
   uint64_t arrival_time_fallbacks() const { return arrival_time_fallbacks_; }
+  // Cluster: signed redirects followed and refused (forged, expired, or too many); sessions
+  // resumed after a relay was lost (ClientConfig::resume); whether one is under way; the relay
+  // this client talks to now.
+  uint64_t redirects_followed() const { return redirects_followed_; }
+  uint64_t redirects_refused() const { return redirects_refused_; }
+  uint64_t resumes() const { return resumes_; }
+  bool resuming() const { return resuming_; }
+  const Endpoint& server() const { return server_; }
 
  private:
   struct OwnedEntity {
@@ -231,6 +257,10 @@ class Client final : private ConnectionHandler, private PacketWriter {
   void SendHandshake(double now);
   void Publish(double now);
   void ResetRoom();
+  // Cluster: follows a Redirect datagram (checked against the token); starts/advances resume.
+  void HandleRedirect(const schema::ControlMessage& msg, double now);
+  void RestartHandshake(const Endpoint& server, double now);
+  void StartResume(double now);
 
   ClientConfig config_;
   DatagramSocket* socket_;
@@ -274,6 +304,18 @@ class Client final : private ConnectionHandler, private PacketWriter {
   uint64_t state_payloads_outside_room_ = 0;
   double packet_arrival_unix_s_ = 0;
   uint64_t arrival_time_fallbacks_ = 0;
+  // Cluster.
+  Endpoint entry_server_;  // the relay Connect() was given
+  Endpoint lost_server_;   // the relay whose connection ended (resume tries it first only)
+  int redirects_this_handshake_ = 0;
+  uint64_t redirects_followed_ = 0;
+  uint64_t redirects_refused_ = 0;
+  bool resuming_ = false;
+  std::string resume_room_;
+  uint32_t resume_base_ = 0;
+  double resume_started_ = 0;
+  size_t resume_index_ = 0;
+  uint64_t resumes_ = 0;
 };
 
 }  // namespace edgephys

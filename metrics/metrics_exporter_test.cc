@@ -171,6 +171,10 @@ TEST_F(MetricsExporterTest, TypeAndHelpLinesAndSingleTotalSuffix) {
       {"edgephys_disconnects_total", "counter"},
       {"edgephys_rtt_seconds", "histogram"},
       {"edgephys_tick_duration_seconds", "histogram"},
+      {"edgephys_cluster_redis_errors_total", "counter"},
+      {"edgephys_cluster_bad_keys_total", "counter"},
+      {"edgephys_cluster_redirects_total", "counter"},
+      {"edgephys_cluster_rooms_restored_total", "counter"},
   };
   for (const auto& [name, type] : families) {
     EXPECT_THAT(text, HasSubstr("# TYPE " + name + " " + type + "\n")) << name;

@@ -21,6 +21,7 @@
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
+#include "relay/cluster_hook.h"
 #include "relay/relay.h"
 #include "relay/relay_shards.h"
 
@@ -145,6 +146,25 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
   app.add_option("--run-for", run_for_s, "Exit after this many seconds (0: until a signal)");
+  // Cluster (docs/operations.md, "Scale-out and failover"): off unless --redis is given.
+  std::string redis;
+  ClusterOptions cluster;
+  double cluster_snapshot_ms = 500, cluster_heartbeat_ms = 200, cluster_ttl_ms = 1000;
+  app.add_option("--redis", redis,
+                 "Join a cluster of relays over this Redis (host:port); off: run alone");
+  app.add_option("--relay-id", cluster.directory.relay_id,
+                 "Unique id of this relay in the cluster (default: host-port of --public-address)");
+  app.add_option("--public-address", cluster.directory.public_address,
+                 "host:port clients reach this relay at, sent in redirects (default: --bind, "
+                 "which must then not be a wildcard address)");
+  app.add_option("--cluster-snapshot-ms", cluster_snapshot_ms,
+                 "Rooms' state written to Redis at most this often (bounds what a failover loses)")
+      ->capture_default_str()->check(CLI::Range(20.0, 60000.0));
+  app.add_option("--cluster-heartbeat-ms", cluster_heartbeat_ms, "Registration refreshed this often")
+      ->capture_default_str()->check(CLI::Range(10.0, 60000.0));
+  app.add_option("--cluster-ttl-ms", cluster_ttl_ms,
+                 "A relay silent this long is dead and its rooms fail over")
+      ->capture_default_str()->check(CLI::Range(50.0, 600000.0));
 
   auto* token_cmd = app.add_subcommand("token", "Mint a join token (printed as base64url)");
   JoinToken token;
@@ -201,6 +221,10 @@ int main(int argc, char** argv) {
     exporter = std::move(*started);
     spdlog::info("metrics on http://{}/metrics", metrics);
   }
+  if (io_threads > 1 && !redis.empty()) {
+    spdlog::error("--redis is not supported with --io-threads > 1");
+    return 2;
+  }
   if (io_threads > 1) {
     if (admin_addr != "off") spdlog::warn("the admin API needs --io-threads 1; disabled");
     std::signal(SIGINT, OnSignal);
@@ -229,6 +253,39 @@ int main(int argc, char** argv) {
   BatchedSocket batched(socket->get());
   DatagramSocket* relay_socket = batching ? static_cast<DatagramSocket*>(&batched) : socket->get();
   Relay relay(config, relay_socket, &counters);
+  if (!redis.empty()) {
+    auto redis_endpoint = ParseEndpoint(redis);
+    if (!redis_endpoint.ok()) {
+      spdlog::error("--redis {}: {}", redis, redis_endpoint.status().message());
+      return 2;
+    }
+    cluster::DirectoryOptions& d = cluster.directory;
+    d.redis_host = redis_endpoint->address().to_string();
+    d.redis_port = redis_endpoint->port();
+    if (d.public_address.empty()) {
+      Endpoint local = (*socket)->LocalEndpoint();
+      if (local.address().is_unspecified()) {
+        spdlog::error("--redis needs --public-address when --bind is a wildcard address");
+        return 2;
+      }
+      d.public_address = FormatEndpoint(local);
+    }
+    if (d.relay_id.empty()) {
+      d.relay_id = d.public_address;
+      for (char& c : d.relay_id) c = (c == ':' || c == ' ') ? '-' : c;
+    }
+    d.heartbeat_s = cluster_heartbeat_ms / 1000.0;
+    d.ttl_s = cluster_ttl_ms / 1000.0;
+    d.refresh_s = d.heartbeat_s;
+    d.redis_timeout_s = std::min(0.5, d.ttl_s / 2);
+    cluster.snapshot_interval_s = cluster_snapshot_ms / 1000.0;
+    Status joined = relay.EnableCluster(cluster);
+    if (!joined.ok()) {
+      spdlog::error("cannot join the cluster: {}", joined.ToString());
+      return 2;
+    }
+    spdlog::info("cluster: relay '{}' at {} on redis {}", d.relay_id, d.public_address, redis);
+  }
   spdlog::info("edgephys-relay listening on udp {}", FormatEndpoint((*socket)->LocalEndpoint()));
   // The admin API (docs/admin-api.md): its HTTP threads reach the relay only through
   // RelayAdmin's command queue, which the loop below drains.

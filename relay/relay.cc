@@ -6,6 +6,7 @@
 #include <chrono>
 
 #include "protocol/byte_io.h"
+#include "relay/cluster_hook.h"
 #include "relay/drop_log.h"
 
 namespace edgephys {
@@ -60,6 +61,7 @@ void Relay::PublishGauge(RelayCounters::Gauge& gauge, int64_t* published, int64_
 
 void Relay::Update(double now, uint64_t unix_now_s) {
   now_ = now;
+  if (cluster_) cluster_->Update(now, unix_now_s);
   for (size_t i = 0; i < config_.max_datagrams_per_update; ++i) {
     Endpoint from;
     size_t n = socket_->ReceiveFrom(&from, receive_buffer_);
@@ -218,6 +220,14 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
                                                     : RejectReason::BadToken;
     Log().Note("connect rejected", schema::EnumNameRejectReason(r), from, now);
     return SendReject(from, Code(r), data.size());
+  }
+  if (cluster_) {  // the room may live on another relay of the cluster
+    std::vector<uint8_t> redirect;
+    switch (cluster_->RouteConnect(*token, token_bytes, unix_now_s, &redirect)) {
+      case ClusterHook::Route::kLocal: break;
+      case ClusterHook::Route::kRedirected: return Transmit(from, redirect);  // cookie-verified
+      case ClusterHook::Route::kDeferred: return;  // the client repeats its Connect
+    }
   }
 
   // The same client repeating its Connect because our Accept was lost: repeat the Accept.
@@ -476,6 +486,14 @@ void Relay::CloseIdleRooms(double now) {
       ++it;
     }
   }
+}
+
+Status Relay::EnableCluster(const ClusterOptions& options) {
+  if (shard_.count > 1) return Status::InvalidArgument("clusters need a single-shard relay");
+  auto hook = ClusterHook::Start(this, options);
+  if (!hook.ok()) return hook.status();
+  cluster_ = std::move(*hook);
+  return Status::Ok();
 }
 
 void Relay::Shutdown() {

@@ -43,6 +43,9 @@
 
 namespace edgephys {
 
+class ClusterHook;
+struct ClusterOptions;
+
 // How a Relay runs as one of several shards over one socket (relay/relay_shards.h). The
 // defaults are a standalone relay, which behaves exactly as without them.
 struct RelayShardOptions {
@@ -60,6 +63,8 @@ struct RelayShardOptions {
 };
 
 class Relay final : private SessionHost {
+  friend class ClusterHook;  // reads rooms and sessions, creates restored rooms
+
  public:
   // `socket` and `counters` are not owned and must outlive the relay.
   Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* counters,
@@ -80,6 +85,13 @@ class Relay final : private SessionHost {
 
   // Disconnects every client with kServerShutdown.
   void Shutdown();
+
+  // Joins a cluster of relays over Redis (relay/cluster_hook.h): rooms placed across relays,
+  // Connects for rooms elsewhere redirected, rooms of dead relays restored here. Without it
+  // (the default) the relay runs alone, exactly as before. kInvalidArgument on bad options.
+  Status EnableCluster(const ClusterOptions& options);
+  // Null unless EnableCluster succeeded.
+  const ClusterHook* cluster() const { return cluster_.get(); }
 
   // Introspection for tests and the admin surface.
   const Room* FindRoom(const std::string& name) const;
@@ -186,6 +198,8 @@ class Relay final : private SessionHost {
   int64_t published_clients_ = 0;
   int64_t published_bodies_ = 0;
   int64_t published_sleeping_ = 0;
+  // Last: destroyed first (its directory thread stops before the rooms go).
+  std::unique_ptr<ClusterHook> cluster_;
 };
 
 }  // namespace edgephys

@@ -92,6 +92,12 @@ struct RelayCounters {
   Gauge physics_sleeping_bodies{0};
   Gauge physics_workers{0};        // remote edgephys-phys workers attached
   Counter physics_failovers{0};    // rooms restored after a worker died
+
+  // Clusters of relays (--redis; relay/cluster_hook.h), published every update.
+  Counter cluster_redis_errors{0};    // failed Redis round trips (down, timeout)
+  Counter cluster_bad_keys{0};        // garbage met in Redis keys, skipped
+  Counter cluster_redirects{0};       // Connects answered with a signed Redirect
+  Counter cluster_rooms_restored{0};  // rooms of dead relays restored here
   AtomicHistogram<10> physics_step_seconds{
       {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.016, 0.025, 0.05}};
   // Real-time factor of embedded PhyS (PhysicsLink::realtime_factor(): simulated seconds per

@@ -12,11 +12,23 @@ Room::Room(std::string name, const RoomConfig& config, double now)
 
 uint32_t Room::AddMember(uint32_t player_id, MemberLink* link) {
   if (members_.size() >= config_.capacity) return 0;
+  if (auto r = reserved_slots_.find(player_id); r != reserved_slots_.end()) {
+    const uint32_t slot = r->second;
+    bool taken = false;
+    for (const auto& [id, m] : members_) taken = taken || m.slot == slot;
+    if (!taken) {
+      uint32_t owned = 0;
+      for (const auto& [id, e] : entities_) owned += e.owner == player_id;
+      members_[player_id] = Member{player_id, slot, link, owned, {}};
+      return slot;
+    }
+  }
   // Lowest free slot: not a member's, and not the id block of entities that outlived their
   // owner (Persistent ones pass to the room but keep their ids). Slot 0 is the room's own.
   std::vector<bool> used(kEntityIdBlock, false);
   used[0] = true;
   for (const auto& [id, m] : members_) used[m.slot] = true;
+  for (const auto& [id, slot] : reserved_slots_) used[slot] = true;
   for (const auto& [id, e] : entities_) used[id / kEntityIdBlock] = true;
   uint32_t slot = 1;
   while (slot < kEntityIdBlock && used[slot]) ++slot;

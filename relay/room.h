@@ -7,6 +7,7 @@
 // session outlives its users.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -34,8 +35,15 @@ class Room {
   size_t size() const { return members_.size(); }
 
   // Adds a player reached through `link` (not owned; valid until RemoveMember); returns its
-  // slot, or 0 when the room is full.
+  // slot, or 0 when the room is full. A player with a reserved slot (ReserveSlot) gets it back
+  // if no member holds it.
   uint32_t AddMember(uint32_t player_id, MemberLink* link);
+  // Cluster failover (relay/cluster_hook.h): `player_id` gets `slot` (its entity id block) when
+  // it joins, so the entities a restored room holds for it stay its own.
+  void ReserveSlot(uint32_t player_id, uint32_t slot) { reserved_slots_[player_id] = slot; }
+  const std::map<uint32_t, uint32_t>& reserved_slots() const { return reserved_slots_; }
+  // Spawn sequence numbers continue after `seq` (restored entities keep theirs).
+  void AdvanceSpawnSeq(uint64_t seq) { spawn_seq_ = std::max(spawn_seq_, seq); }
   // Removes a player. Its entities (those it owns, and PhyS-owned ones it created) are
   // despawned (ids appended to `despawned`) unless Persistent, which pass to the room.
   void RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned);
@@ -75,6 +83,7 @@ class Room {
   std::string name_;
   RoomConfig config_;
   std::map<uint32_t, Member> members_;  // by player id
+  std::map<uint32_t, uint32_t> reserved_slots_;  // player id -> slot (failover)
   EntityTable entities_;
   std::unique_ptr<PhysicsLink> physics_;
   uint64_t spawn_seq_ = 0;

@@ -357,6 +357,29 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
   }
 }
 
+size_t RoomHost::Restore(std::vector<Entity> entities, const std::map<uint32_t, uint32_t>& slots,
+                         double now) {
+  for (const auto& [player, slot] : slots) room_.ReserveSlot(player, slot);
+  size_t skipped = 0;
+  bool physics = false;
+  for (Entity& e : entities) {
+    const auto* msg = VerifyControlMessage(e.spawn, schema::Body::Spawn);
+    const schema::Container* c = msg != nullptr ? msg->body_as_Spawn()->container() : nullptr;
+    if (c == nullptr || c->entity_id() != e.id || c->transform() == nullptr ||
+        room_.FindEntity(e.id) != nullptr || !IsValidState(e.state)) {
+      ++skipped;
+      continue;
+    }
+    physics = physics || e.physics != PhysicsRole::kNone;
+    room_.AdvanceSpawnSeq(e.spawn_seq);
+    e.changed_at = now;
+    room_.AddEntity(std::move(e));
+    env_.counters->entities.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (physics) FailOver(now);
+  return skipped;
+}
+
 void RoomHost::FailOver(double now) {
   std::unique_ptr<PhysicsLink> old = room_.TakePhysics();
   const uint32_t dead_worker = old ? old->worker() : 0;

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <span>
 #include <string>
@@ -92,6 +93,16 @@ class RoomHost {
   void FailOver(double now);
   // Connection id of the worker simulating the room, 0 if embedded or none.
   uint32_t physics_worker() const;
+
+  // --- Cluster failover (relay/cluster_hook.h) ---------------------------------------------
+  // Restores what a relay of the cluster saved for this room: slot reservations (players get
+  // their entity id blocks back when they rejoin) and entities. Entities already in the room
+  // are kept; a restored entity whose stored spawn is not a verifiable ControlMessage{Spawn}
+  // for its id is skipped and counted in the return value. PhyS is rebuilt (FailOver) when any
+  // entity has physics. Call before members join (members present are not sent the restored
+  // entities). O(entities).
+  size_t Restore(std::vector<Entity> entities, const std::map<uint32_t, uint32_t>& slots,
+                 double now);
 
   // --- Fan-out ----------------------------------------------------------------------------
   bool TickDue(double now) const { return now >= room_.next_tick(); }

@@ -10,6 +10,8 @@ PACKAGES=(
   prometheus-cpp-dev libcli11-dev nlohmann-json3-dev libssl-dev zlib1g-dev libcurl4-openssl-dev
   gnuplot-nox prometheus iproute2 iperf3 clang libclang-rt-14-dev jq
   libcpp-httplib-dev chromium
+  libhiredis-dev redis-server
+  linux-perf
 )
 
 # The monitor page's browser test (tests/browser) runs on node with npm; a machine that has

@@ -1,0 +1,98 @@
+#include "cluster/room_snapshot.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace edgephys::cluster {
+namespace {
+
+RoomSnapshot Sample() {
+  RoomSnapshot s;
+  s.room = "arena";
+  s.written_unix_ms = 1234567;
+  s.slots = {{7, 1}, {9, 2}};
+  EntitySnapshot a;
+  a.id = kEntityIdBlock + 1;
+  a.owner = 7;
+  a.creator = 7;
+  a.flags = 1;
+  a.physics_role = 2;
+  a.spawn_seq = 3;
+  a.state = {a.id, {1, 2, 3}, {0, 0, 0, 1}};
+  a.linear_velocity = {0.5f, 0, 0};
+  a.angular_velocity = {0, 1, 0};
+  a.nodes = {{1, 1, 1}, {2, 2, 2}};
+  a.spawn = {1, 2, 3, 4, 5};
+  s.entities.push_back(a);
+  EntitySnapshot b;
+  b.id = 2 * kEntityIdBlock + 5;
+  b.owner = 0;
+  b.creator = 9;
+  b.state = {b.id, {-1, 0, 0}, {0, 0, 0, 1}};
+  s.entities.push_back(b);
+  return s;
+}
+
+TEST(RoomSnapshot, RoundTrips) {
+  RoomSnapshot s = Sample();
+  auto bytes = EncodeRoomSnapshot(s);
+  auto back = DecodeRoomSnapshot(bytes);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->room, "arena");
+  EXPECT_EQ(back->written_unix_ms, 1234567u);
+  ASSERT_EQ(back->slots.size(), 2u);
+  EXPECT_EQ(back->slots[1].player_id, 9u);
+  EXPECT_EQ(back->slots[1].slot, 2u);
+  ASSERT_EQ(back->entities.size(), 2u);
+  const EntitySnapshot& a = back->entities[0];
+  EXPECT_EQ(a.id, s.entities[0].id);
+  EXPECT_EQ(a.owner, 7u);
+  EXPECT_EQ(a.physics_role, 2);
+  EXPECT_EQ(a.state.entity_id, a.id);
+  EXPECT_FLOAT_EQ(a.state.position.z, 3);
+  EXPECT_FLOAT_EQ(a.linear_velocity.x, 0.5f);
+  ASSERT_EQ(a.nodes.size(), 2u);
+  EXPECT_FLOAT_EQ(a.nodes[1].y, 2);
+  EXPECT_EQ(a.spawn, s.entities[0].spawn);
+  EXPECT_EQ(back->entities[1].creator, 9u);
+}
+
+TEST(RoomSnapshot, EveryTruncationIsRefused) {
+  auto bytes = EncodeRoomSnapshot(Sample());
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    EXPECT_FALSE(DecodeRoomSnapshot(std::span<const uint8_t>(bytes.data(), n)).ok()) << n;
+  }
+  bytes.push_back(0);  // trailing garbage
+  EXPECT_FALSE(DecodeRoomSnapshot(bytes).ok());
+}
+
+TEST(RoomSnapshot, NonFiniteAndOutOfRangeValuesAreRefused) {
+  RoomSnapshot s = Sample();
+  s.entities[0].state.position.x = std::nanf("");
+  EXPECT_FALSE(DecodeRoomSnapshot(EncodeRoomSnapshot(s)).ok());
+  s = Sample();
+  s.entities[1].physics_role = 9;
+  EXPECT_FALSE(DecodeRoomSnapshot(EncodeRoomSnapshot(s)).ok());
+  s = Sample();
+  s.slots[0].slot = kEntityIdBlock;
+  EXPECT_FALSE(DecodeRoomSnapshot(EncodeRoomSnapshot(s)).ok());
+}
+
+TEST(RoomSnapshot, RandomGarbageNeverCrashes) {
+  std::mt19937 rng(12);
+  auto good = EncodeRoomSnapshot(Sample());
+  for (int i = 0; i < 5000; ++i) {
+    std::vector<uint8_t> bytes = good;
+    int flips = 1 + static_cast<int>(rng() % 4);
+    for (int f = 0; f < flips; ++f) bytes[rng() % bytes.size()] = static_cast<uint8_t>(rng());
+    (void)DecodeRoomSnapshot(bytes);  // any result; must not crash or over-read (ASan)
+    std::vector<uint8_t> noise(rng() % 256);
+    for (auto& b : noise) b = static_cast<uint8_t>(rng());
+    EXPECT_FALSE(DecodeRoomSnapshot(noise).ok());
+  }
+}
+
+}  // namespace
+}  // namespace edgephys::cluster

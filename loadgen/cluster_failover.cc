@@ -1,0 +1,346 @@
+// edgephys-cluster-failover: the scale-out and failover benchmark of issue 12
+// (docs/benchmarks.md, "Scale-out and failover (issue 12)"). Starts a real redis-server and
+// --relays edgephys-relay processes (--redis) on free loopback ports, joins --users bots to
+// --rooms rooms, each through relay (i mod relays) (tokens name only the room), and checks
+// every bot lands on its room's relay. Each bot owns one Persistent entity and publishes it at
+// --publish-hz with its send time in x, so receivers measure one-way latency. Then `kill -9`
+// of the relay holding most rooms, and it measures: time until every lost room is owned by a
+// live relay again (Redis), time until every bot of those rooms has resumed and is seen
+// publishing again, latency p99 before and during recovery, and whether every persistent
+// entity is back exactly once with its owner. Exit status 1 if a check fails.
+// Bounded: every phase has a deadline; the processes it started are killed by PID at exit.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "client/client.h"
+#include "cluster/redis_client.h"
+#include "cluster/testing/redis_server.h"
+#include "protocol/endpoint.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/udp_socket.h"
+
+namespace {
+
+using namespace edgephys;
+using Clock = std::chrono::steady_clock;
+constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
+constexpr double kStampPeriodS = 50.0;  // x carries the send time modulo this
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+uint16_t FreeUdpPort() {
+  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
+  return (*s)->LocalEndpoint().port();
+}
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
+}
+
+struct Bot {
+  std::unique_ptr<UdpSocket> socket;
+  std::unique_ptr<Client> client;
+  std::string room;
+  uint32_t player = 0;
+  uint32_t entity = 0;
+  bool join_sent = false;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"edgephys-cluster-failover: relays on Redis, 300 users, kill -9 of one relay"};
+  std::string relay_binary = "edgephys-relay";
+  int relays = 3, users = 300, rooms = 30;
+  double publish_hz = 10, join_timeout_s = 30, settle_s = 2, recover_timeout_s = 15,
+         after_s = 2;
+  double relay_timeout_s = 1.0, ttl_ms = 1000, heartbeat_ms = 200, snapshot_ms = 500;
+  std::string json_path;
+  app.add_option("--relay-binary", relay_binary, "edgephys-relay to start")->capture_default_str();
+  app.add_option("--relays", relays, "Relay processes")->capture_default_str()->check(CLI::Range(2, 16));
+  app.add_option("--users", users, "Bot users")->capture_default_str()->check(CLI::Range(1, 2000));
+  app.add_option("--rooms", rooms, "Rooms")->capture_default_str()->check(CLI::Range(1, 500));
+  app.add_option("--publish-hz", publish_hz, "Each bot's publish rate")->capture_default_str();
+  app.add_option("--settle", settle_s, "Seconds measured before the kill")->capture_default_str();
+  app.add_option("--recover-timeout", recover_timeout_s, "Give up recovery after this long")
+      ->capture_default_str();
+  app.add_option("--after", after_s, "Seconds measured after recovery")->capture_default_str();
+  app.add_option("--relay-timeout", relay_timeout_s, "Relays' --timeout (client silence)")
+      ->capture_default_str();
+  app.add_option("--ttl-ms", ttl_ms, "Relays' --cluster-ttl-ms")->capture_default_str();
+  app.add_option("--heartbeat-ms", heartbeat_ms, "Relays' --cluster-heartbeat-ms")->capture_default_str();
+  app.add_option("--snapshot-ms", snapshot_ms, "Relays' --cluster-snapshot-ms")->capture_default_str();
+  app.add_option("--json", json_path, "Write the results as JSON here");
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::warn);
+  const std::string secret = "failover-bench-secret";
+
+  cluster::testing::RedisServer redis;
+  if (!redis.Start()) {
+    std::fprintf(stderr, "cannot start redis-server\n");
+    return 1;
+  }
+  std::vector<pid_t> pids;
+  std::vector<Endpoint> endpoints;
+  std::map<std::string, int> relay_index;  // relay id -> index
+  for (int i = 0; i < relays; ++i) {
+    uint16_t port = FreeUdpPort();
+    std::string bind = "127.0.0.1:" + std::to_string(port);
+    endpoints.push_back(*ParseEndpoint(bind));
+    relay_index["127.0.0.1-" + std::to_string(port)] = i;
+    std::vector<std::string> args = {relay_binary, "--bind", bind, "--metrics", "off",
+                                     "--secret", secret, "--redis",
+                                     "127.0.0.1:" + std::to_string(redis.port()),
+                                     "--timeout", std::to_string(relay_timeout_s),
+                                     "--cluster-ttl-ms", std::to_string(ttl_ms),
+                                     "--cluster-heartbeat-ms", std::to_string(heartbeat_ms),
+                                     "--cluster-snapshot-ms", std::to_string(snapshot_ms),
+                                     "--max-handshakes-per-s", "100000",
+                                     "--max-connections-per-address", "100000",
+                                     "--log-level", "warn", "--run-for", "600"};
+    pid_t pid = fork();
+    if (pid == 0) {
+      std::vector<char*> cargs;
+      for (auto& a : args) cargs.push_back(a.data());
+      cargs.push_back(nullptr);
+      execv(relay_binary.c_str(), cargs.data());
+      _exit(127);
+    }
+    pids.push_back(pid);
+  }
+  auto stop_all = [&] {
+    for (pid_t p : pids) {
+      if (p > 0) kill(p, SIGKILL), waitpid(p, nullptr, 0);
+    }
+    pids.clear();
+  };
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));  // relays register
+
+  const auto start = Clock::now();
+  auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  std::vector<Bot> bots(users);
+  for (int i = 0; i < users; ++i) {
+    Bot& b = bots[i];
+    b.room = "room" + std::to_string(i % rooms);
+    b.player = 1000 + i;
+    b.socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
+    ClientConfig cc;
+    cc.publish_rate_hz = publish_hz;
+    cc.resume = true;
+    cc.relays = endpoints;
+    cc.resume_attempt_s = 0.5;
+    cc.handshake_timeout_s = join_timeout_s;
+    b.client = std::make_unique<Client>(cc, b.socket.get());
+    JoinToken t;
+    t.room = b.room;
+    t.player_id = b.player;
+    t.expiry_unix_s = UnixNow() + 3600;
+    t.nonce = SecureRandom64();
+    (void)b.client->Connect(endpoints[i % relays], *SignJoinToken(t, secret), now_s());
+  }
+  // Latency samples: (receive time, one-way latency s).
+  std::vector<std::pair<double, double>> samples;
+  std::map<uint32_t, double> last_seen;  // player -> last time any member saw its entity move
+  std::map<uint32_t, double> last_stamp;  // entity state x last seen, per player
+  auto pump = [&](bool publish) {
+    const double t = now_s();
+    for (Bot& b : bots) {
+      b.client->Update(t);
+      if (b.client->state() == ClientState::kConnected && !b.client->joined() &&
+          !b.client->resuming() && !b.join_sent) {
+        b.join_sent = b.client->JoinRoom(b.room).ok();
+      }
+      if (b.client->joined() && b.entity == 0) {
+        SpawnDesc d;
+        d.flags = kPersistent;
+        d.position = {0, 1, 0};
+        auto id = b.client->Spawn(d);
+        if (id.ok()) b.entity = *id;
+      }
+      if (publish && b.entity != 0 && b.client->joined()) {
+        float x = static_cast<float>(std::fmod(t, kStampPeriodS));
+        (void)b.client->PublishTransform(b.entity, {x, 1, 0}, Quatf{});
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  };
+  // Reads every bot's view of the others' entities: latency samples and liveness.
+  std::map<std::pair<uint32_t, uint32_t>, float> seen_x;  // (observer, entity owner) -> x
+  auto observe = [&] {
+    const double t = now_s();
+    for (Bot& b : bots) {
+      if (!b.client->joined()) continue;
+      for (const auto& [id, e] : b.client->entities()) {
+        if (!e.has_state || e.owner == 0) continue;
+        float& prev = seen_x[{b.player, e.owner}];
+        if (prev == e.state.position.x) continue;
+        prev = e.state.position.x;
+        double lat = std::fmod(t - e.state.position.x + kStampPeriodS, kStampPeriodS);
+        if (lat < 5.0) samples.emplace_back(t, lat);
+        last_seen[e.owner] = t;
+      }
+    }
+  };
+
+  nlohmann::json out;
+  bool ok = true;
+  // 1. Join.
+  double deadline = now_s() + join_timeout_s;
+  auto all_spawned = [&] {
+    return std::all_of(bots.begin(), bots.end(), [](const Bot& b) { return b.entity != 0; });
+  };
+  while (now_s() < deadline && !all_spawned()) pump(false);
+  const double joined_s = now_s();
+  int joined = 0;
+  for (const Bot& b : bots) joined += b.entity != 0;
+  out["joined"] = joined;
+  out["join_s"] = joined_s;
+  if (joined != users) {
+    std::fprintf(stderr, "only %d of %d users joined\n", joined, users);
+    ok = false;
+  }
+  // 2. Settle and check placement: every bot's relay is its room's owner in Redis.
+  for (double end = now_s() + settle_s; now_s() < end;) pump(true), observe();
+  cluster::RedisClient rc("127.0.0.1", redis.port(), 1.0);
+  auto owners = [&] {
+    std::map<std::string, std::string> m;
+    for (int r = 0; r < rooms; ++r) {
+      std::string room = "room" + std::to_string(r);
+      auto v = rc.Command({"GET", "edgephys:room:" + room});
+      if (v.ok() && v->is_string()) m[room] = v->str;
+    }
+    return m;
+  };
+  auto placed = owners();
+  int misplaced = 0;
+  std::map<int, int> rooms_per_relay;
+  for (auto& [room, id] : placed) rooms_per_relay[relay_index.count(id) ? relay_index[id] : -1]++;
+  for (const Bot& b : bots) {
+    auto it = placed.find(b.room);
+    if (it == placed.end() || relay_index.count(it->second) == 0 ||
+        b.client->server() != endpoints[relay_index[it->second]]) {
+      ++misplaced;
+    }
+  }
+  out["misplaced_users"] = misplaced;
+  out["rooms_per_relay"] = nlohmann::json::object();
+  for (auto& [i, n] : rooms_per_relay) out["rooms_per_relay"][std::to_string(i)] = n;
+  if (misplaced != 0 || static_cast<int>(placed.size()) != rooms) ok = false;
+  const double before_end = now_s();
+  std::vector<double> before;
+  for (auto& [t, l] : samples) {
+    if (t >= joined_s) before.push_back(l);
+  }
+
+  // 3. kill -9 the relay holding most rooms.
+  int victim = 0;
+  for (auto& [i, n] : rooms_per_relay) {
+    if (i >= 0 && n > rooms_per_relay[victim]) victim = i;
+  }
+  std::set<std::string> lost;
+  for (auto& [room, id] : placed) {
+    if (relay_index.count(id) && relay_index[id] == victim) lost.insert(room);
+  }
+  std::vector<Bot*> lost_bots;
+  for (Bot& b : bots) {
+    if (lost.count(b.room)) lost_bots.push_back(&b);
+  }
+  kill(pids[victim], SIGKILL);
+  waitpid(pids[victim], nullptr, 0);
+  pids[victim] = -1;
+  const double kill_s = now_s();
+  double rooms_back_s = -1, users_back_s = -1;
+  double next_redis_poll = 0;
+  while (now_s() < kill_s + recover_timeout_s && (rooms_back_s < 0 || users_back_s < 0)) {
+    pump(true);
+    observe();
+    double t = now_s();
+    if (rooms_back_s < 0 && t >= next_redis_poll) {
+      next_redis_poll = t + 0.02;
+      auto o = owners();
+      bool back = true;
+      for (const auto& room : lost) {
+        auto it = o.find(room);
+        back = back && it != o.end() && relay_index.count(it->second) &&
+               relay_index[it->second] != victim;
+      }
+      if (back) rooms_back_s = t - kill_s;
+    }
+    if (users_back_s < 0) {
+      bool back = true;
+      for (Bot* b : lost_bots) {
+        back = back && b->client->joined() && b->client->resumes() > 0 &&
+               last_seen[b->player] > kill_s + 0.1 && b->client->server() != endpoints[victim];
+      }
+      if (back) users_back_s = t - kill_s;
+    }
+  }
+  const double recovered_at = now_s();
+  std::vector<double> during;
+  for (auto& [t, l] : samples) {
+    if (t >= kill_s && t <= recovered_at) during.push_back(l);
+  }
+  for (double end = now_s() + after_s; now_s() < end;) pump(true), observe();
+  // 4. Entities: every member of every room sees each other member's entity exactly once, owned
+  // by its player; nothing else.
+  int missing = 0, foreign = 0, not_resumed = 0;
+  std::map<std::string, std::set<uint32_t>> members;
+  for (const Bot& b : bots) members[b.room].insert(b.player);
+  for (const Bot& b : bots) {
+    std::set<uint32_t> owners_seen;
+    for (const auto& [id, e] : b.client->entities()) {
+      if (members[b.room].count(e.owner) == 0 || !owners_seen.insert(e.owner).second) ++foreign;
+    }
+    missing += static_cast<int>(members[b.room].size() - 1 - owners_seen.size());
+    if (lost.count(b.room) && b.client->resumes() == 0) ++not_resumed;
+  }
+  out["users"] = users;
+  out["rooms"] = rooms;
+  out["relays"] = relays;
+  out["killed_relay_rooms"] = lost.size();
+  out["killed_relay_users"] = lost_bots.size();
+  out["rooms_back_s"] = rooms_back_s;
+  out["users_back_s"] = users_back_s;
+  out["latency_ms_p50_before"] = Percentile(before, 0.5) * 1000;
+  out["latency_ms_p90_before"] = Percentile(before, 0.90) * 1000;
+  out["latency_ms_p99_before"] = Percentile(before, 0.99) * 1000;
+  out["latency_ms_p50_during_recovery"] = Percentile(during, 0.5) * 1000;
+  out["latency_ms_p99_during_recovery"] = Percentile(during, 0.99) * 1000;
+  out["samples_before"] = before.size();
+  out["samples_during_recovery"] = during.size();
+  out["entities_missing"] = missing;
+  out["entities_duplicated_or_foreign"] = foreign;
+  out["users_not_resumed"] = not_resumed;
+  out["settings"] = {{"relay_timeout_s", relay_timeout_s}, {"ttl_ms", ttl_ms},
+                     {"heartbeat_ms", heartbeat_ms}, {"snapshot_ms", snapshot_ms},
+                     {"publish_hz", publish_hz}};
+  (void)before_end;
+  if (rooms_back_s < 0 || users_back_s < 0 || missing != 0 || foreign != 0 || not_resumed != 0) {
+    ok = false;
+  }
+  out["ok"] = ok;
+  std::printf("%s\n", out.dump(2).c_str());
+  if (!json_path.empty()) std::ofstream(json_path) << out.dump(2) << "\n";
+  stop_all();
+  return ok ? 0 : 1;
+}

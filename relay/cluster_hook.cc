@@ -1,0 +1,208 @@
+#include "relay/cluster_hook.h"
+
+#include <spdlog/spdlog.h>
+
+#include "protocol/redirect.h"
+#include "relay/relay.h"
+
+namespace edgephys {
+namespace {
+
+// A placement answer not received after this long is asked again.
+constexpr double kPlacementRetryS = 1.0;
+
+cluster::EntitySnapshot ToSnapshot(const Entity& e) {
+  cluster::EntitySnapshot s;
+  s.id = e.id;
+  s.owner = e.owner;
+  s.creator = e.creator;
+  s.flags = e.flags;
+  s.held_by = e.held_by;
+  s.physics_role = static_cast<uint8_t>(e.physics);
+  s.spawn_seq = e.spawn_seq;
+  s.state = e.state;
+  s.linear_velocity = e.linear_velocity;
+  s.angular_velocity = e.angular_velocity;
+  s.nodes = e.nodes;
+  s.spawn = e.spawn;
+  return s;
+}
+
+Entity FromSnapshot(cluster::EntitySnapshot s) {
+  Entity e;
+  e.id = s.id;
+  e.owner = s.owner;
+  e.creator = s.creator;
+  e.flags = s.flags;
+  e.held_by = s.held_by;
+  e.physics = static_cast<PhysicsRole>(s.physics_role);
+  e.spawn_seq = s.spawn_seq;
+  e.state = s.state;
+  e.state.entity_id = s.id;
+  e.linear_velocity = s.linear_velocity;
+  e.angular_velocity = s.angular_velocity;
+  e.nodes = std::move(s.nodes);
+  e.spawn = std::move(s.spawn);
+  return e;
+}
+
+// Changes whenever anything a snapshot holds changes (entities' versions, members).
+uint64_t Signature(const Room& room) {
+  uint64_t sig = room.entities().size() * 1000003ull + room.size();
+  for (const auto& [id, e] : room.entities()) {
+    sig += (uint64_t{id} * 2654435761ull) ^ (uint64_t{e.version} << 20) ^ e.nodes_version ^
+           (uint64_t{e.owner} << 40);
+  }
+  for (const auto& [pid, m] : room.members()) sig += uint64_t{pid} * 40503ull + m.slot;
+  return sig;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<ClusterHook>> ClusterHook::Start(Relay* relay,
+                                                        const ClusterOptions& options) {
+  if (options.snapshot_interval_s <= 0) {
+    return Status::InvalidArgument("snapshot interval must be > 0");
+  }
+  auto directory = cluster::Directory::Start(options.directory);
+  if (!directory.ok()) return directory.status();
+  return std::unique_ptr<ClusterHook>(new ClusterHook(relay, options, std::move(*directory)));
+}
+
+ClusterHook::ClusterHook(Relay* relay, const ClusterOptions& options,
+                         std::unique_ptr<cluster::Directory> directory)
+    : relay_(relay), options_(options), directory_(std::move(directory)) {}
+
+ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
+                                             std::span<const uint8_t> token_bytes,
+                                             uint64_t unix_now_s, std::vector<uint8_t>* packet) {
+  if ((token.permissions & kPermissionWorker) != 0) return Route::kLocal;  // PhyS workers
+  if (relay_->rooms_.count(token.room) != 0 || local_fallback_.count(token.room) != 0) {
+    return Route::kLocal;
+  }
+  auto view = directory_->view();
+  if (!view->healthy) {
+    ++counters_.local_fallbacks;
+    return Route::kLocal;
+  }
+  auto owner = view->room_owner.find(token.room);
+  if (owner != view->room_owner.end()) {
+    if (owner->second == directory_->relay_id()) return Route::kLocal;
+    auto relay = view->relays.find(owner->second);
+    if (relay != view->relays.end()) {
+      auto ticket = SignRedirect(token_bytes, relay->second.address,
+                                 unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
+      if (!ticket.ok()) return Route::kLocal;
+      *packet = BuildRedirectPacket(*ticket);
+      ++counters_.redirects_sent;
+      return Route::kRedirected;
+    }
+    // Owned by a relay that is gone: a live relay claims it on its next refresh.
+    ++counters_.connects_deferred;
+    return Route::kDeferred;
+  }
+  auto asked = asked_.find(token.room);
+  if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
+    asked_[token.room] = relay_->now_;
+    directory_->RequestPlacement(token.room, /*prefer_self=*/false);
+  }
+  ++counters_.connects_deferred;
+  return Route::kDeferred;
+}
+
+void ClusterHook::Update(double now, uint64_t unix_now_s) {
+  for (cluster::DirectoryEvent& ev : directory_->TakeEvents()) {
+    switch (ev.kind) {
+      case cluster::DirectoryEvent::Kind::kPlaced:
+        asked_.erase(ev.room);
+        break;
+      case cluster::DirectoryEvent::Kind::kPlacementFailed:
+        asked_.erase(ev.room);
+        local_fallback_.insert(ev.room);
+        ++counters_.local_fallbacks;
+        break;
+      case cluster::DirectoryEvent::Kind::kClaimed:
+        Restore(ev, now);
+        break;
+    }
+  }
+  const cluster::DirectoryCounters& dc = directory_->counters();
+  RelayCounters& rc = *relay_->counters_;
+  rc.cluster_redis_errors.store(dc.redis_errors.load(std::memory_order_relaxed),
+                                std::memory_order_relaxed);
+  rc.cluster_bad_keys.store(dc.bad_keys.load(std::memory_order_relaxed) +
+                                counters_.entities_skipped,
+                            std::memory_order_relaxed);
+  rc.cluster_redirects.store(counters_.redirects_sent, std::memory_order_relaxed);
+  rc.cluster_rooms_restored.store(counters_.rooms_restored, std::memory_order_relaxed);
+  // Rooms closed since the last update: no longer ours.
+  std::set<std::string> rooms;
+  for (const auto& [name, room] : relay_->rooms_) rooms.insert(name);
+  for (const std::string& name : known_rooms_) {
+    if (rooms.count(name) == 0) {
+      directory_->Release(name);
+      local_fallback_.erase(name);
+      saved_sig_.erase(name);
+    }
+  }
+  known_rooms_ = std::move(rooms);
+  if (now >= next_snapshot_) {
+    next_snapshot_ = now + options_.snapshot_interval_s;
+    directory_->SetLoad(static_cast<uint32_t>(relay_->sessions_.size()),
+                        static_cast<uint32_t>(relay_->rooms_.size()), false);
+    SaveSnapshots(unix_now_s);
+  }
+}
+
+void ClusterHook::SaveSnapshots(uint64_t unix_now_s) {
+  auto view = directory_->view();
+  for (const auto& [name, host] : relay_->rooms_) {
+    const Room& room = host->room();
+    auto owner = view->room_owner.find(name);
+    if (view->healthy && owner == view->room_owner.end()) {
+      // Created here (operator, fallback, or a join before the view knew it): register it.
+      auto asked = asked_.find(name);
+      if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
+        asked_[name] = relay_->now_;
+        directory_->RequestPlacement(name, /*prefer_self=*/true);
+      }
+    } else if (owner != view->room_owner.end() && owner->second != directory_->relay_id()) {
+      continue;  // another relay owns it: never overwrite its snapshot
+    }
+    uint64_t sig = Signature(room);
+    auto saved = saved_sig_.find(name);
+    if (saved != saved_sig_.end() && saved->second == sig) continue;
+    saved_sig_[name] = sig;
+    cluster::RoomSnapshot snap;
+    snap.room = name;
+    snap.written_unix_ms = unix_now_s * 1000;
+    std::map<uint32_t, uint32_t> slots = room.reserved_slots();
+    for (const auto& [pid, m] : room.members()) slots[pid] = m.slot;
+    for (const auto& [pid, slot] : slots) snap.slots.push_back({pid, slot});
+    snap.entities.reserve(room.entities().size());
+    for (const auto& [id, e] : room.entities()) snap.entities.push_back(ToSnapshot(e));
+    directory_->SaveSnapshot(name, cluster::EncodeRoomSnapshot(snap));
+    ++counters_.snapshots_saved;
+  }
+}
+
+void ClusterHook::Restore(const cluster::DirectoryEvent& event, double now) {
+  RoomHost& host = relay_->GetOrCreateRoom(event.room, now);
+  std::vector<Entity> entities;
+  std::map<uint32_t, uint32_t> slots;
+  if (event.has_snapshot) {
+    cluster::RoomSnapshot snap = event.snapshot;
+    for (const auto& s : snap.slots) slots[s.player_id] = s.slot;
+    entities.reserve(snap.entities.size());
+    for (auto& e : snap.entities) entities.push_back(FromSnapshot(std::move(e)));
+  }
+  const size_t total = entities.size();
+  const size_t skipped = host.Restore(std::move(entities), slots, now);
+  ++counters_.rooms_restored;
+  counters_.entities_restored += total - skipped;
+  counters_.entities_skipped += skipped;
+  spdlog::warn("cluster: room '{}' restored here ({} entities, {} skipped, {} players expected)",
+               event.room, total - skipped, skipped, slots.size());
+}
+
+}  // namespace edgephys

@@ -1,0 +1,430 @@
+// Relays in a cluster over a real redis-server (free loopback port), in one process on real
+// loopback UDP: placement, signed redirects followed by the SDK, failover with restored rooms
+// and resumed sessions, forged/expired redirects refused, garbage snapshots survived.
+#include "relay/cluster_hook.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <functional>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "client/client.h"
+#include "cluster/redis_client.h"
+#include "cluster/testing/redis_server.h"
+#include "protocol/container_builder.h"
+#include "protocol/endpoint.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
+#include "protocol/redirect.h"
+#include "protocol/udp_socket.h"
+#include "relay/relay.h"
+
+namespace edgephys {
+namespace {
+
+constexpr char kSecret[] = "cluster-secret";
+constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+std::vector<uint8_t> Token(const std::string& room, uint32_t player) {
+  JoinToken t;
+  t.room = room;
+  t.player_id = player;
+  t.expiry_unix_s = UnixNow() + 3600;
+  t.nonce = SecureRandom64();
+  return *SignJoinToken(t, kSecret);
+}
+
+struct CountingListener : ClientListener {
+  int connected = 0, joined = 0, disconnected = 0;
+  void OnConnected(uint32_t) override { ++connected; }
+  void OnJoined(std::string_view, uint32_t) override { ++joined; }
+  void OnDisconnected(DisconnectReason) override { ++disconnected; }
+};
+
+// N relays (each its own UDP socket and Relay) and clients, pumped from the test thread.
+class ClusterWorld {
+ public:
+  ClusterWorld(uint16_t redis_port, int relays) : start_(std::chrono::steady_clock::now()) {
+    for (int i = 0; i < relays; ++i) AddRelay(redis_port, "r" + std::to_string(i));
+  }
+
+  void AddRelay(uint16_t redis_port, const std::string& id) {
+    auto node = std::make_unique<Node>();
+    node->socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
+    RelayConfig config;
+    config.secret = kSecret;
+    config.room_defaults.tick_rate_hz = 30;
+    config.connection.timeout_s = 1.0;
+    node->relay = std::make_unique<Relay>(config, node->socket.get(), &node->counters);
+    ClusterOptions o;
+    o.directory.redis_port = redis_port;
+    o.directory.relay_id = id;
+    o.directory.public_address = FormatEndpoint(node->socket->LocalEndpoint());
+    o.directory.heartbeat_s = 0.05;
+    o.directory.ttl_s = 0.4;
+    o.directory.refresh_s = 0.05;
+    o.directory.redis_timeout_s = 0.3;
+    o.snapshot_interval_s = 0.1;
+    EXPECT_TRUE(node->relay->EnableCluster(o).ok());
+    nodes_.push_back(std::move(node));
+  }
+
+  double Now() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+  Client& AddClient(int via, const std::vector<uint8_t>& token, CountingListener* listener) {
+    client_sockets_.push_back(std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"))));
+    ClientConfig cc;
+    cc.resume = true;
+    cc.resume_attempt_s = 0.5;
+    for (auto& n : nodes_) cc.relays.push_back(n->socket->LocalEndpoint());
+    clients_.push_back(std::make_unique<Client>(cc, client_sockets_.back().get(), listener));
+    (void)clients_.back()->Connect(endpoint(via), token, Now());
+    return *clients_.back();
+  }
+
+  void Step() {
+    double now = Now();
+    for (auto& n : nodes_) {
+      if (n->relay) n->relay->Update(now, UnixNow());
+    }
+    for (auto& c : clients_) {
+      c->Update(now);
+      // The game: join once connected (the SDK rejoins by itself after a failover).
+      if (c->state() == ClientState::kConnected && !c->joined() && !c->resuming() &&
+          joins_.insert(c.get()).second) {
+        (void)c->JoinRoom(rooms_[c.get()]);
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
+    double deadline = Now() + timeout_s;
+    while (Now() < deadline) {
+      Step();
+      if (done()) return true;
+    }
+    return done();
+  }
+  void set_room(Client& c, const std::string& room) { rooms_[&c] = room; }
+
+  // Destroys relay `i` (its UDP port goes silent; clean directory stop).
+  void Kill(int i) { nodes_[i]->relay.reset(); }
+  Relay* relay(int i) { return nodes_[i]->relay.get(); }
+  const RelayCounters& counters(int i) const { return nodes_[i]->counters; }
+  Endpoint endpoint(int i) const { return nodes_[i]->socket->LocalEndpoint(); }
+  int size() const { return static_cast<int>(nodes_.size()); }
+  // Index of the live relay holding `room`, -1 if none.
+  int Holder(const std::string& room) {
+    for (int i = 0; i < size(); ++i) {
+      if (relay(i) != nullptr && relay(i)->FindRoom(room) != nullptr) return i;
+    }
+    return -1;
+  }
+
+ private:
+  struct Node {
+    RelayCounters counters;
+    std::unique_ptr<UdpSocket> socket;
+    std::unique_ptr<Relay> relay;
+  };
+  std::chrono::steady_clock::time_point start_;
+  std::vector<std::unique_ptr<Node>> nodes_;
+  std::vector<std::unique_ptr<UdpSocket>> client_sockets_;
+  std::vector<std::unique_ptr<Client>> clients_;
+  std::map<Client*, std::string> rooms_;
+  std::set<Client*> joins_;
+};
+
+class ClusterTest : public ::testing::Test {
+ protected:
+  void SetUp() override { ASSERT_TRUE(redis_.Start()) << "redis-server did not start"; }
+  cluster::testing::RedisServer redis_;
+};
+
+TEST_F(ClusterTest, PlayersJoiningThroughAnyRelayLandOnTheirRoomsRelay) {
+  ClusterWorld world(redis_.port(), 3);
+  world.RunUntil([] { return false; }, 0.3);  // relays register
+  constexpr int kRooms = 6, kPerRoom = 4;
+  std::vector<CountingListener> listeners(kRooms * kPerRoom);
+  std::vector<Client*> clients;
+  for (int i = 0; i < kRooms * kPerRoom; ++i) {
+    std::string room = "room" + std::to_string(i % kRooms);
+    Client& c = world.AddClient(i % 3, Token(room, 100 + i), &listeners[i]);
+    world.set_room(c, room);
+    clients.push_back(&c);
+  }
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (Client* c : clients) {
+          if (!c->joined()) return false;
+        }
+        return true;
+      },
+      15.0));
+  std::set<int> holders;
+  uint64_t followed = 0;
+  for (int r = 0; r < kRooms; ++r) {
+    std::string room = "room" + std::to_string(r);
+    int holder = world.Holder(room);
+    ASSERT_GE(holder, 0) << room;
+    holders.insert(holder);
+    EXPECT_EQ(world.relay(holder)->FindRoom(room)->size(), static_cast<size_t>(kPerRoom)) << room;
+    for (int i = 0; i < world.size(); ++i) {  // nowhere else
+      if (i != holder) {
+        EXPECT_EQ(world.relay(i)->FindRoom(room), nullptr) << room;
+      }
+    }
+  }
+  for (size_t i = 0; i < clients.size(); ++i) {
+    followed += clients[i]->redirects_followed();
+    EXPECT_EQ(clients[i]->redirects_refused(), 0u);
+    EXPECT_EQ(listeners[i].connected, 1);  // the redirect is invisible to the game
+    EXPECT_EQ(listeners[i].joined, 1);
+  }
+  EXPECT_GT(followed, 0u);
+  uint64_t redirects = 0;
+  for (int i = 0; i < world.size(); ++i) redirects += world.counters(i).cluster_redirects.load();
+  EXPECT_GE(redirects, followed);
+  EXPECT_GE(holders.size(), 2u) << "rooms should spread over the relays";
+}
+
+TEST_F(ClusterTest, ADeadRelaysRoomsComeBackWithTheirEntitiesAndSessionsResume) {
+  ClusterWorld world(redis_.port(), 3);
+  world.RunUntil([] { return false; }, 0.3);
+  constexpr int kRooms = 3, kPerRoom = 3;
+  std::vector<CountingListener> listeners(kRooms * kPerRoom);
+  std::vector<Client*> clients;
+  for (int i = 0; i < kRooms * kPerRoom; ++i) {
+    std::string room = "fo" + std::to_string(i % kRooms);
+    Client& c = world.AddClient(i % 3, Token(room, 200 + i), &listeners[i]);
+    world.set_room(c, room);
+    clients.push_back(&c);
+  }
+  auto all_joined = [&] {
+    for (Client* c : clients) {
+      if (!c->joined()) return false;
+    }
+    return true;
+  };
+  ASSERT_TRUE(world.RunUntil(all_joined, 15.0));
+  // Every player spawns one persistent entity and one ordinary one.
+  std::map<std::string, std::map<uint32_t, uint32_t>> owner_of;  // room -> entity -> player
+  std::map<Client*, std::vector<uint32_t>> owned;
+  for (Client* c : clients) {
+    for (uint32_t flags : {kPersistent, 0u}) {
+      SpawnDesc d;
+      d.position = {1, 1, static_cast<float>(c->player_id() % 10)};
+      d.flags = flags;
+      auto id = c->Spawn(d);
+      ASSERT_TRUE(id.ok());
+      owner_of[c->room()][*id] = c->player_id();
+      owned[c].push_back(*id);
+    }
+  }
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (int r = 0; r < kRooms; ++r) {
+          int h = world.Holder("fo" + std::to_string(r));
+          if (h < 0 || world.relay(h)->FindRoom("fo" + std::to_string(r))->entities().size() !=
+                           2 * kPerRoom) {
+            return false;
+          }
+        }
+        return true;
+      },
+      5.0));
+  world.RunUntil([] { return false; }, 0.4);  // a snapshot interval or more
+  const int victim = world.Holder("fo0");
+  std::vector<std::string> lost_rooms;
+  for (int r = 0; r < kRooms; ++r) {
+    if (world.Holder("fo" + std::to_string(r)) == victim) lost_rooms.push_back("fo" + std::to_string(r));
+  }
+  std::map<Client*, uint32_t> base_before;
+  for (Client* c : clients) base_before[c] = c->entity_id_base();
+  world.Kill(victim);
+  // Rooms back elsewhere, with every entity, its owner intact.
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (const auto& room : lost_rooms) {
+          int h = world.Holder(room);
+          if (h < 0 || world.relay(h)->FindRoom(room)->entities().size() != 2 * kPerRoom) {
+            return false;
+          }
+        }
+        return true;
+      },
+      5.0));
+  for (const auto& room : lost_rooms) {
+    const Room* restored = world.relay(world.Holder(room))->FindRoom(room);
+    ASSERT_EQ(restored->entities().size(), owner_of[room].size());
+    for (const auto& [id, e] : restored->entities()) {
+      ASSERT_EQ(owner_of[room].count(id), 1u) << id;
+      EXPECT_EQ(e.owner, owner_of[room][id]) << id;
+    }
+  }
+  // Every player of a lost room resumes there with its id block; nobody saw a disconnect or a
+  // second join.
+  auto resumes = [&] {
+    uint64_t n = 0;
+    for (Client* c : clients) n += c->resumes();
+    return n;
+  };
+  const uint64_t expected_resumes = lost_rooms.size() * kPerRoom;
+  ASSERT_TRUE(world.RunUntil([&] { return resumes() >= expected_resumes && all_joined(); }, 10.0))
+      << resumes();
+  for (size_t i = 0; i < clients.size(); ++i) {
+    Client* c = clients[i];
+    EXPECT_EQ(c->entity_id_base(), base_before[c]);
+    EXPECT_EQ(listeners[i].disconnected, 0);
+    EXPECT_EQ(listeners[i].joined, 1);
+  }
+  EXPECT_EQ(resumes(), expected_resumes);
+  // They publish again, and the room sees it: move every entity.
+  const Vec3f moved{3, 2, 1};
+  ASSERT_TRUE(world.RunUntil(
+      [&] {
+        for (auto& [c, ids] : owned) {
+          for (uint32_t id : ids) (void)c->PublishTransform(id, moved, Quatf{});
+        }
+        for (const auto& room : lost_rooms) {
+          int h = world.Holder(room);
+          for (const auto& [id, e] : world.relay(h)->FindRoom(room)->entities()) {
+            if (std::abs(e.state.position.x - moved.x) > 0.01f) return false;
+          }
+        }
+        return true;
+      },
+      5.0));
+  const auto* hook = world.relay(world.Holder(lost_rooms[0]))->cluster();
+  ASSERT_NE(hook, nullptr);
+  EXPECT_GE(hook->counters().rooms_restored, 1u);
+  EXPECT_EQ(hook->counters().entities_skipped, 0u);
+}
+
+TEST_F(ClusterTest, GarbageSnapshotsAreCountedAndTheRoomStillComesBack) {
+  ClusterWorld world(redis_.port(), 1);
+  cluster::RedisClient raw("127.0.0.1", redis_.port(), 1.0);
+  // A room owned by a relay that is gone, whose snapshot decodes but holds an entity whose
+  // stored spawn is junk, and another whose snapshot is noise.
+  cluster::RoomSnapshot s;
+  s.room = "junk";
+  cluster::EntitySnapshot e;
+  e.id = kEntityIdBlock + 1;
+  e.owner = 5;
+  e.spawn = {1, 2, 3, 4, 5, 6, 7, 8, 9};
+  s.entities.push_back(e);
+  auto bytes = cluster::EncodeRoomSnapshot(s);
+  ASSERT_TRUE(raw.Command({"SET", "edgephys:room:junk", "ghost"}).ok());
+  ASSERT_TRUE(raw.Command({"SET", "edgephys:room:noise", "ghost"}).ok());
+  ASSERT_TRUE(
+      raw.Command({"SET", "edgephys:state:junk", std::string(bytes.begin(), bytes.end())}).ok());
+  ASSERT_TRUE(raw.Command({"HSET", "edgephys:state:noise", "x", "y"}).ok());
+  // Last (a room listed before its key exists is dropped from the list by a refresh).
+  ASSERT_TRUE(raw.Command({"SADD", "edgephys:rooms", "junk", "noise"}).ok());
+  ASSERT_TRUE(world.RunUntil(
+      [&] { return world.relay(0)->FindRoom("junk") && world.relay(0)->FindRoom("noise"); }, 5.0));
+  EXPECT_TRUE(world.relay(0)->FindRoom("junk")->entities().empty());
+  EXPECT_EQ(world.relay(0)->cluster()->counters().entities_skipped, 1u);
+  EXPECT_GE(world.relay(0)->cluster()->directory().counters().bad_keys.load(), 1u);
+  world.Step();  // publishes the counters (edgephys_cluster_*_total)
+  EXPECT_GE(world.counters(0).cluster_bad_keys.load(), 2u);
+  EXPECT_EQ(world.counters(0).cluster_rooms_restored.load(), 2u);
+  // And the relay still serves: a player joins the restored room.
+  CountingListener l;
+  Client& c = world.AddClient(0, Token("junk", 9), &l);
+  world.set_room(c, "junk");
+  EXPECT_TRUE(world.RunUntil([&] { return c.joined(); }, 5.0));
+}
+
+// A fake relay: answers Hello with a Challenge, and Connect with `reply`.
+class FakeRelay {
+ public:
+  FakeRelay() : socket_(std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")))) {}
+  Endpoint endpoint() const { return socket_->LocalEndpoint(); }
+  // Handles what arrived; returns the token of a Connect, if one came.
+  void Pump(const std::function<std::vector<uint8_t>()>& reply) {
+    std::vector<uint8_t> buf(2048);
+    Endpoint from;
+    for (size_t n; (n = socket_->ReceiveFrom(&from, buf)) > 0;) {
+      PacketPrefix prefix{};
+      DropReason reason{};
+      if (!ParsePacketPrefix({buf.data(), n}, &prefix, &reason)) continue;
+      flatbuffers::FlatBufferBuilder fbb;
+      if (prefix.type == PacketType::kHello) {
+        std::vector<uint8_t> cookie(kCookieSize, 7);
+        FinishControl(fbb, schema::CreateChallenge(fbb, fbb.CreateVector(cookie)));
+        (void)socket_->SendTo(from, BuildHandshakePacket(PacketType::kChallenge, fbb));
+      } else if (prefix.type == PacketType::kConnect) {
+        ++connects;
+        (void)socket_->SendTo(from, reply());
+      }
+    }
+  }
+  int connects = 0;
+
+ private:
+  std::unique_ptr<UdpSocket> socket_;
+};
+
+TEST(ClusterRedirect, ForgedAndExpiredRedirectsAreRefusedByTheSdk) {
+  FakeRelay fake;
+  FakeRelay target;
+  auto token = Token("arena", 7);
+  auto udp = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
+  Client client(ClientConfig{}, udp.get());
+  auto start = std::chrono::steady_clock::now();
+  auto now = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  ASSERT_TRUE(client.Connect(fake.endpoint(), token, now()).ok());
+  const std::string target_address = FormatEndpoint(target.endpoint());
+  std::vector<std::function<std::vector<uint8_t>()>> replies = {
+      // Signed with another token (an attacker who does not hold this one).
+      [&] { return BuildRedirectPacket(*SignRedirect(Token("arena", 7), target_address, UnixNow() + 30)); },
+      // Right token, tampered address.
+      [&] {
+        auto t = *SignRedirect(token, target_address, UnixNow() + 30);
+        t.address = "127.0.0.1:9";
+        return BuildRedirectPacket(t);
+      },
+      // Right token, expired.
+      [&] { return BuildRedirectPacket(*SignRedirect(token, target_address, UnixNow() - 1)); },
+  };
+  for (size_t i = 0; i < replies.size(); ++i) {
+    const int connects_before = fake.connects;
+    for (int k = 0; k < 400 && client.redirects_refused() == i; ++k) {
+      fake.Pump(replies[i]);
+      client.Update(now());
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    EXPECT_EQ(client.redirects_refused(), i + 1) << i;
+    EXPECT_GT(fake.connects, connects_before);
+    EXPECT_EQ(client.redirects_followed(), 0u);
+    EXPECT_EQ(client.server(), fake.endpoint());
+    EXPECT_EQ(client.state(), ClientState::kHandshaking);
+  }
+  // A genuine one is followed: the handshake moves to the target.
+  for (int k = 0; k < 400 && target.connects == 0; ++k) {
+    fake.Pump([&] { return BuildRedirectPacket(*SignRedirect(token, target_address, UnixNow() + 30)); });
+    target.Pump([&] { return std::vector<uint8_t>{}; });
+    client.Update(now());
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_EQ(client.redirects_followed(), 1u);
+  EXPECT_EQ(client.server(), target.endpoint());
+  EXPECT_GT(target.connects, 0);
+}
+
+}  // namespace
+}  // namespace edgephys
