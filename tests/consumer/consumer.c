@@ -2,6 +2,7 @@
  * address, a join token and a room, connects, joins, spawns one entity and leaves.
  *   consumer [<relay host:port> <token> <room>]
  * Prints "consumer ok" and exits 0 on success. */
+#define _POSIX_C_SOURCE 200809L
 #include <edgephys/edgephys.h>
 
 #include <stdio.h>
