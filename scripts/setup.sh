@@ -9,6 +9,7 @@ PACKAGES=(
   libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
   prometheus-cpp-dev libcli11-dev nlohmann-json3-dev libssl-dev zlib1g-dev libcurl4-openssl-dev
   gnuplot-nox prometheus iproute2 iperf3 clang libclang-rt-14-dev jq
+  python3 mono-mcs mono-runtime dpkg-dev
 )
 
 missing=()
