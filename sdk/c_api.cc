@@ -413,7 +413,15 @@ edgephys_status edgephys_client_update(edgephys_client* client, double now_s) {
   EDGEPHYS_CHECK(client);
   return Guarded([&]() -> edgephys_status {
     if (edgephys_status s = CheckNow(client, now_s); s != EDGEPHYS_OK) return s;
+    const edgephys::ClientState before = client->client->state();
     client->client->Update(now_s);
+    if (before == edgephys::ClientState::kHandshaking &&
+        client->client->state() == edgephys::ClientState::kFailed) {
+      // The C++ client has no callback for this; the C API reports it as documented.
+      if (edgephys_event* ev = client->Push(EDGEPHYS_EVENT_DISCONNECTED)) {
+        CopyDetail("handshake timeout: no answer from the relay", ev);
+      }
+    }
     return Ok();
   });
 }

@@ -423,6 +423,11 @@ TEST(CApi, HandshakeTimeoutEndsInAnEventNotAHang) {
   }
   ASSERT_EQ(edgephys_client_get_info(c, &info), EDGEPHYS_OK);
   EXPECT_EQ(info.state, static_cast<uint32_t>(EDGEPHYS_STATE_FAILED));
+  edgephys_event ev;
+  ASSERT_EQ(edgephys_client_poll_event(c, &ev), EDGEPHYS_OK);
+  EXPECT_EQ(ev.type, static_cast<uint32_t>(EDGEPHYS_EVENT_DISCONNECTED));
+  EXPECT_EQ(ev.code, 0u);
+  EXPECT_NE(std::string(ev.detail).find("handshake timeout"), std::string::npos) << ev.detail;
   EXPECT_EQ(edgephys_client_join(c, "lobby"), EDGEPHYS_E_NOT_CONNECTED);
   EXPECT_EQ(edgephys_client_destroy(c), EDGEPHYS_OK);
 }

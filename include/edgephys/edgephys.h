@@ -301,7 +301,9 @@ typedef enum edgephys_event_type {
   EDGEPHYS_EVENT_SPAWNED = 7,         /* entity_id, player_id (owner, 0: PhyS), parent_id, flags,
                                          transform */
   EDGEPHYS_EVENT_DESPAWNED = 8,       /* entity_id */
-  EDGEPHYS_EVENT_STATE = 9,           /* entity_id, transform (only with queue_state_events) */
+  EDGEPHYS_EVENT_STATE = 9,           /* entity_id, player_id (owner), transform, code: relay
+                                         time of the state in ms (wraps); only with
+                                         queue_state_events */
   EDGEPHYS_EVENT_SOFT_BODY = 10,      /* entity_id, code: particle count; read the particles with
                                          edgephys_client_get_soft_body */
   EDGEPHYS_EVENT_COLLISION_ENTER = 11, /* entity_id < other_id */
