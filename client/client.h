@@ -190,13 +190,6 @@ class Client final : private ConnectionHandler, private PacketWriter {
   // Records the latest transform of an owned entity; it goes out at the publish rate.
   // kNotFound if not owned, kInvalidArgument if not finite / not unit.
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
-  // Sends a state for any id, owned or not, unchecked, in its own packet now. For tests and
-  // tools that exercise the relay's authority checks; games use PublishTransform.
-  Status SendStateUnchecked(const EntityState& state, double now);
-  // Sends raw bytes on the reliable channel. For tests and tools.
-  Status SendReliableUnchecked(std::span<const uint8_t> message);
-  // Sends one unreliable payload now, as is. For tools (the PhyS worker's state stream).
-  Status SendUnreliableRaw(std::span<const uint8_t> payload, double now);
 
   // Sends a disconnect (kClientLeft) to the relay.
   void Disconnect();
@@ -244,6 +237,13 @@ class Client final : private ConnectionHandler, private PacketWriter {
   const Endpoint& server() const { return server_; }
 
  private:
+  // Raw senders (unchecked state, reliable bytes, unreliable payloads) for tests, fuzzers and
+  // the PhyS worker: client/client_testing.h.
+  friend class ClientTesting;
+  Status SendStateUnchecked(const EntityState& state, double now);
+  Status SendReliableUnchecked(std::span<const uint8_t> message);
+  Status SendUnreliableRaw(std::span<const uint8_t> payload, double now);
+
   struct OwnedEntity {
     EntityState state;
     uint32_t version = 1;

@@ -6,7 +6,8 @@
 #
 # Environment: FUZZ_SECONDS (per target, default 20), FUZZ_JOBS (build jobs, default 2),
 # FUZZ_TARGETS (space-separated subset), FUZZ_BUILD_DIR (default build/fuzz),
-# FUZZ_KEEP_DIR (copy crash artifacts and logs there).
+# FUZZ_KEEP_DIR (copy crash artifacts and logs there), FUZZ_SKIP_CAPI=1 (skip the C API's
+# sanitized bad-argument test, sdk/c_api_test.cc, which runs before the fuzzers).
 # Reproduce a finding: build/fuzz/tests/fuzz/<target> <artifact file>
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -27,6 +28,14 @@ CC=$cc CXX=$cxx cmake -S "$root" -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYP
   -DEDGEPHYS_BUILD_FUZZ=ON -DEDGEPHYS_BUILD_TESTS=ON -DEDGEPHYS_BUILD_BENCH=OFF >/dev/null
 echo "== building ${targets[*]} (-j$jobs)"
 cmake --build "$build" -j "$jobs" --target "${targets[@]}"
+
+# The C API's bad-argument test under the same ASan + UBSan (include/edgephys/edgephys.h).
+if [[ "${FUZZ_SKIP_CAPI:-0}" != "1" ]]; then
+  echo "== c_api_sanitized_test (ASan + UBSan)"
+  cmake --build "$build" -j "$jobs" --target c_api_sanitized_test
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    "$build/sdk/c_api_sanitized_test" --gtest_brief=1 || { echo "!! c_api_sanitized_test FAILED"; exit 1; }
+fi
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -23,6 +23,7 @@
 #include "physics/worker.h"
 #include "protocol/delta_codec.h"
 #include "tests/fuzz/fuzz_world.h"
+#include "client/client_testing.h"
 
 namespace edgephys::fuzz {
 namespace {
@@ -45,9 +46,9 @@ void RunRelayEmbedded(Reader& in) {
     VerifyDirectly(bytes);
     int steps = 2;
     switch (tag % 4) {
-      case 0: (void)a.SendReliableUnchecked(bytes); break;
-      case 1: (void)c.SendReliableUnchecked(bytes); break;
-      case 2: (void)a.SendUnreliableRaw(bytes, world.now()); break;
+      case 0: (void)ClientTesting::SendReliableUnchecked(a, bytes); break;
+      case 1: (void)ClientTesting::SendReliableUnchecked(c, bytes); break;
+      case 2: (void)ClientTesting::SendUnreliableRaw(a, bytes, world.now()); break;
       case 3: steps += bytes.empty() ? 0 : bytes[0] % 16; break;
     }
     for (int s = 0; s < steps; ++s) world.Step();
@@ -77,10 +78,10 @@ void RunRelayRemote(Reader& in) {
     auto bytes = in.Bytes(in.U16());
     VerifyDirectly(bytes);
     switch (tag % 4) {
-      case 0: (void)a.SendReliableUnchecked(bytes); break;
-      case 1: (void)w.SendReliableUnchecked(bytes); break;
-      case 2: (void)w.SendUnreliableRaw(bytes, world.now()); break;
-      case 3: (void)a.SendUnreliableRaw(bytes, world.now()); break;
+      case 0: (void)ClientTesting::SendReliableUnchecked(a, bytes); break;
+      case 1: (void)ClientTesting::SendReliableUnchecked(w, bytes); break;
+      case 2: (void)ClientTesting::SendUnreliableRaw(w, bytes, world.now()); break;
+      case 3: (void)ClientTesting::SendUnreliableRaw(a, bytes, world.now()); break;
     }
     step();
     step();

@@ -5,6 +5,7 @@
 #include <map>
 
 #include "tests/integration/harness.h"
+#include "client/client_testing.h"
 
 namespace edgephys::testing {
 namespace {
@@ -48,7 +49,7 @@ TEST(Abuse, RogueClientCannotTouchOthersEntitiesAndItsFloodIsThrottled) {
       }
       if (flood) {
         for (int k = 0; k < 60; ++k, ++sent) {
-          (void)rogue.SendStateUnchecked({*rogue_id, {float(k), 0, 0}, {0, 0, 0, 1}}, now);
+          (void)ClientTesting::SendStateUnchecked(rogue, {*rogue_id, {float(k), 0, 0}, {0, 0, 0, 1}}, now);
         }
       }
     });
@@ -69,10 +70,10 @@ TEST(Abuse, RogueClientCannotTouchOthersEntitiesAndItsFloodIsThrottled) {
   // The rogue cannot move, despawn or grab A's entities.
   uint64_t not_owner = UpdatesRejected(world.counters(), DropReason::kNotOwner);
   world.RunFor(0.5);  // let the rogue's bucket refill
-  ASSERT_TRUE(rogue.SendStateUnchecked({ids[0], {50, 50, 50}, {0, 0, 0, 1}}, world.Now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(rogue, {ids[0], {50, 50, 50}, {0, 0, 0, 1}}, world.Now()).ok());
   flatbuffers::FlatBufferBuilder despawn;
   FinishControl(despawn, schema::CreateDespawn(despawn, ids[1]));
-  ASSERT_TRUE(rogue.SendReliableUnchecked({despawn.GetBufferPointer(), despawn.GetSize()}).ok());
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(rogue, {despawn.GetBufferPointer(), despawn.GetSize()}).ok());
   ASSERT_TRUE(rogue.Grab(ids[2], ids[3]).ok());  // a hand that is not the rogue's
   ASSERT_TRUE(world.RunUntil([&] { return rogue_log.errors.size() >= 2; }, 3.0));
   world.RunFor(0.3);

@@ -4,6 +4,7 @@
 #include <random>
 
 #include "tests/integration/harness.h"
+#include "client/client_testing.h"
 
 namespace edgephys::testing {
 namespace {
@@ -311,11 +312,11 @@ TEST(RelayHostileInput, NanAndUnknownEntityUpdatesAreCountedDrops) {
   // An id in another player's block: unknown to the room and not this sender's to spawn.
   // (Unknown ids in the sender's own block are held briefly: the spawn may be in flight.)
   EntityState unknown{*id + 5 * kEntityIdBlock, {0, 0, 0}, {0, 0, 0, 1}};
-  ASSERT_TRUE(a.SendStateUnchecked(nan_state, world.Now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, nan_state, world.Now()).ok());
   world.RunFor(0.02);
-  ASSERT_TRUE(a.SendStateUnchecked(bad_rotation, world.Now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, bad_rotation, world.Now()).ok());
   world.RunFor(0.02);
-  ASSERT_TRUE(a.SendStateUnchecked(unknown, world.Now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, unknown, world.Now()).ok());
   world.RunFor(0.2);
   EXPECT_EQ(UpdatesRejected(world.counters(), DropReason::kInvalidValue), 2u);
   EXPECT_EQ(UpdatesRejected(world.counters(), DropReason::kUnknownEntity), 1u);
@@ -335,7 +336,7 @@ TEST(RelayHostileInput, AStateThatOvertakesItsSpawnIsAppliedWhenTheSpawnArrives)
   ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 3.0));
   // The state for the next id A will spawn goes out before the spawn does.
   uint32_t next_id = a.entity_id_base() + 1;
-  ASSERT_TRUE(a.SendStateUnchecked({next_id, {7, 8, 9}, {0, 0, 0, 1}}, world.Now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {next_id, {7, 8, 9}, {0, 0, 0, 1}}, world.Now()).ok());
   world.RunFor(0.1);
   auto id = a.Spawn({.position = {1, 1, 1}});
   ASSERT_TRUE(id.ok());

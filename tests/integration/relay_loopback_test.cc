@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "tests/integration/harness.h"
+#include "client/client_testing.h"
 
 namespace edgephys::testing {
 namespace {
@@ -95,7 +96,7 @@ TEST(RelayLoopback, FanOutLateJoinAndOwnership) {
   EntityState forged = last[0];
   forged.position = {100, 100, 100};
   for (int i = 0; i < 5; ++i) {
-    ASSERT_TRUE(b.SendStateUnchecked(forged, world.Now()).ok());
+    ASSERT_TRUE(ClientTesting::SendStateUnchecked(b, forged, world.Now()).ok());
     world.RunFor(0.02);
   }
   world.RunFor(0.3);

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "tests/integration/sim_world.h"
+#include "client/client_testing.h"
 
 namespace edgephys::testing {
 namespace {
@@ -66,9 +67,9 @@ TEST(RelayRooms, NobodyDespawnsOrSpawnsInAnotherPlayersName) {
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*id) != nullptr; }, 2.0));
 
   auto msg = DespawnMessage(*id);
-  ASSERT_TRUE(b.SendReliableUnchecked({msg.GetBufferPointer(), msg.GetSize()}).ok());
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, {msg.GetBufferPointer(), msg.GetSize()}).ok());
   auto unknown = DespawnMessage(424242);
-  ASSERT_TRUE(b.SendReliableUnchecked({unknown.GetBufferPointer(), unknown.GetSize()}).ok());
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, {unknown.GetBufferPointer(), unknown.GetSize()}).ok());
   // A spawn in A's id block, claiming to be A's.
   flatbuffers::FlatBufferBuilder fbb;
   schema::Transform t(schema::Vec3(0, 0, 0), schema::Quat(0, 0, 0, 1), schema::Vec3(1, 1, 1));
@@ -78,9 +79,9 @@ TEST(RelayRooms, NobodyDespawnsOrSpawnsInAnotherPlayersName) {
   cb.add_transform(&t);
   auto c = cb.Finish();
   FinishControl(fbb, schema::CreateSpawn(fbb, c));
-  ASSERT_TRUE(b.SendReliableUnchecked({fbb.GetBufferPointer(), fbb.GetSize()}).ok());
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, {fbb.GetBufferPointer(), fbb.GetSize()}).ok());
   std::vector<uint8_t> garbage(50, 0x33);
-  ASSERT_TRUE(b.SendReliableUnchecked(garbage).ok());
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, garbage).ok());
 
   ASSERT_TRUE(world.RunUntil([&] { return errors.reasons.size() >= 4; }, 2.0));
   EXPECT_EQ(errors.reasons[0], static_cast<uint16_t>(RejectReason::NotOwner));

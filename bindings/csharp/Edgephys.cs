@@ -1,0 +1,345 @@
+// edgephys C# binding: P/Invoke over the C API of libedgephys (include/edgephys/edgephys.h,
+// the manual for units, ownership and threading), written the way a Unity package is: blittable
+// [StructLayout(LayoutKind.Sequential)] structs, a Client class with C# events, and no managed
+// allocation per received state (the event struct is reused and passed by ref; state handlers
+// get the transform by ref).
+//
+//   using (var c = new Edgephys.Client()) {
+//     c.Connected += id => c.Join("lobby");
+//     c.StateReceived += (uint id, ref Edgephys.Transform t) => Render(id, t);
+//     c.Connect("127.0.0.1:7777", token);
+//     while (running) c.Update();              // every frame
+//   }
+//
+// Build: mcs -unsafe -target:library Edgephys.cs. At run time the loader must find
+// libedgephys.so (installed, LD_LIBRARY_PATH, or a Mono dllmap / Unity Plugins folder).
+// Thread-safety: a Client is used from one thread at a time (Unity: the main thread); its
+// events are raised inside Update() on that thread.
+using System;
+using System.Runtime.InteropServices;
+using System.Text;
+
+namespace Edgephys {
+
+public enum Status : int {
+  Ok = 0, InvalidArgument = 1, Malformed = 2, TooLarge = 3, QueueFull = 4, NotConnected = 5,
+  IoError = 6, Unauthenticated = 7, PermissionDenied = 8, NotFound = 9, AlreadyExists = 10,
+  ResourceExhausted = 11, InvalidHandle = 12, Closed = 13, BufferTooSmall = 14, Internal = 15,
+}
+
+public enum EventType : uint {
+  None = 0, Connected, Rejected, Disconnected, Joined, PlayerJoined, PlayerLeft, Spawned,
+  Despawned, State, SoftBody, CollisionEnter, CollisionExit, TriggerEnter, TriggerExit,
+  GuardReset, Grabbed, Released, Error,
+}
+
+[Flags]
+public enum EntityFlags : uint {
+  None = 0, Persistent = 1, Kinematic = 2, Interactable = 4, Avatar = 8, Hand = 16,
+  Offloaded = 32, ReportContacts = 64,
+}
+
+public enum ColliderShape : uint { Box = 0, Sphere, Capsule, Cylinder, ConvexHull, TriangleMesh }
+public enum Interpolator : uint { LerpSlerp = 0, DualQuatDlb, DualQuatSclerp, Hermite, None }
+
+[StructLayout(LayoutKind.Sequential)]
+public struct Vec3 {
+  public float X, Y, Z;  // metres (m/s, rad/s where a field says)
+  public Vec3(float x, float y, float z) { X = x; Y = y; Z = z; }
+  public override string ToString() { return string.Format("({0:F3}, {1:F3}, {2:F3})", X, Y, Z); }
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct Quat {
+  public float X, Y, Z, W;  // unit quaternion
+  public Quat(float x, float y, float z, float w) { X = x; Y = y; Z = z; W = w; }
+  public static readonly Quat Identity = new Quat(0, 0, 0, 1);
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct Transform {
+  public Vec3 Position;
+  public Quat Rotation;
+  public Transform(Vec3 p, Quat r) { Position = p; Rotation = r; }
+  public Transform(float x, float y, float z) { Position = new Vec3(x, y, z); Rotation = Quat.Identity; }
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct Collider {
+  public uint Shape;
+  public Vec3 HalfExtents;
+  public float Radius, Height;
+  public Vec3 LocalPosition;
+  public Quat LocalRotation;
+  public IntPtr Vertices;
+  public uint VertexFloatCount;
+  public IntPtr Indices;
+  public uint IndexCount;
+  public uint IsTrigger;
+
+  public static Collider Box(float hx, float hy, float hz) {
+    Collider c = Default(); c.HalfExtents = new Vec3(hx, hy, hz); return c;
+  }
+  public static Collider Sphere(float radius, bool trigger = false) {
+    Collider c = Default(); c.Shape = (uint)ColliderShape.Sphere; c.Radius = radius;
+    c.IsTrigger = trigger ? 1u : 0u; return c;
+  }
+  public static Collider Default() { Collider c; Native.edgephys_collider_init(out c); return c; }
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct RigidBody {
+  public float Mass, LinearDamping, AngularDamping, Friction, Restitution;
+  public uint Kinematic, UseGravity;
+  public Vec3 LinearVelocity, AngularVelocity;
+  public static RigidBody Dynamic(float mass) { RigidBody b; Native.edgephys_rigid_body_init(out b); b.Mass = mass; return b; }
+  public static RigidBody KinematicBody() {
+    RigidBody b; Native.edgephys_rigid_body_init(out b); b.Kinematic = 1; b.Mass = 0; return b;
+  }
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct Joint {
+  public uint Kind, ConnectedEntity;
+  public Vec3 Anchor, Axis;
+  public float Stiffness, Damping;
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct SoftBody {
+  public IntPtr Particles, Masses;
+  public uint ParticleCount;
+  public IntPtr Springs;
+  public uint SpringCount;
+  public float Stiffness, Damping;
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct NativeSpawnDesc {
+  public uint StructSize;
+  public Transform Transform;
+  public Vec3 Scale;
+  public uint ParentId, Flags;
+  public IntPtr Name;
+  public IntPtr RigidBody, Colliders;
+  public uint ColliderCount;
+  public IntPtr Joints;
+  public uint JointCount;
+  public IntPtr SoftBody;
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct ClientConfig {
+  public uint StructSize;
+  public IntPtr BindAddress;
+  public double PublishRateHz, HandshakeTimeoutS;
+  public uint EventQueueCapacity, QueueStateEvents, SnapshotCapacity;
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public unsafe struct Event {
+  public uint Type, Code, PlayerId, EntityId, OtherId, ParentId, Flags, Reserved;
+  public Transform Transform;
+  public fixed byte Detail[128];
+  public string DetailString() {  // allocates: call only for rare events
+    fixed (byte* p = Detail) {
+      int n = 0;
+      while (n < 128 && p[n] != 0) ++n;
+      return Encoding.UTF8.GetString(p, n);
+    }
+  }
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct ClientInfo {
+  public uint StructSize, State, Joined, PlayerId, EntityIdBase, EntityCount, RejectReason, DisconnectReason;
+  public ulong DroppedEvents, StatesReceived, StateBytesReceived;
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct Entity {
+  public uint Id, Owner, ParentId, Flags, HasState, StateTimeMs, SoftBodyParticles, Reserved;
+  public Transform Transform;
+}
+
+public class EdgephysException : Exception {
+  public readonly Status Status;
+  public EdgephysException(Status status, string message) : base(message + " (" + status + ")") { Status = status; }
+}
+
+public static class Native {
+  const string Lib = "edgephys";
+  public const uint AbiVersion = 1;
+  [DllImport(Lib)] public static extern uint edgephys_abi_version();
+  [DllImport(Lib)] public static extern IntPtr edgephys_version_string();
+  [DllImport(Lib)] public static extern IntPtr edgephys_last_error();
+  [DllImport(Lib)] public static extern double edgephys_now_s();
+  [DllImport(Lib)] public static extern Status edgephys_spawn_desc_init(out NativeSpawnDesc d);
+  [DllImport(Lib)] public static extern Status edgephys_collider_init(out Collider c);
+  [DllImport(Lib)] public static extern Status edgephys_rigid_body_init(out RigidBody b);
+  [DllImport(Lib)] public static extern Status edgephys_joint_init(out Joint j);
+  [DllImport(Lib)] public static extern Status edgephys_client_config_init(out ClientConfig c);
+  [DllImport(Lib)] public static extern Status edgephys_client_create(ref ClientConfig c, out IntPtr client);
+  [DllImport(Lib)] public static extern Status edgephys_client_destroy(IntPtr client);
+  [DllImport(Lib)] public static extern Status edgephys_client_close(IntPtr client);
+  [DllImport(Lib)] public static extern Status edgephys_client_connect(IntPtr client, byte[] relay, byte[] token, double now);
+  [DllImport(Lib)] public static extern Status edgephys_client_update(IntPtr client, double now);
+  [DllImport(Lib)] public static extern Status edgephys_client_join(IntPtr client, byte[] room);
+  [DllImport(Lib)] public static extern Status edgephys_client_leave(IntPtr client);
+  [DllImport(Lib)] public static extern Status edgephys_client_disconnect(IntPtr client);
+  [DllImport(Lib)] public static extern Status edgephys_client_spawn(IntPtr client, ref NativeSpawnDesc d, out uint id);
+  [DllImport(Lib)] public static extern Status edgephys_client_despawn(IntPtr client, uint id);
+  [DllImport(Lib)] public static extern Status edgephys_client_publish_transform(IntPtr client, uint id, ref Transform t);
+  [DllImport(Lib)] public static extern Status edgephys_client_grab(IntPtr client, uint entity, uint hand);
+  [DllImport(Lib)] public static extern Status edgephys_client_release(IntPtr client, uint entity);
+  [DllImport(Lib)] public static extern Status edgephys_client_poll_event(IntPtr client, ref Event e);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_info(IntPtr client, ref ClientInfo info);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_entity(IntPtr client, uint id, out Entity e);
+  [DllImport(Lib)] public static extern Status edgephys_client_sample_pose(IntPtr client, uint id, double now, uint method, out Transform t);
+
+  public static string LastError() { return Marshal.PtrToStringAnsi(edgephys_last_error()); }
+  public static string Version() { return Marshal.PtrToStringAnsi(edgephys_version_string()); }
+  public static double Now() { return edgephys_now_s(); }
+  public static void Check(Status s, string what) {
+    if (s != Status.Ok) throw new EdgephysException(s, what + ": " + LastError());
+  }
+  internal static byte[] Utf8Z(string s) {
+    if (s == null) return null;
+    byte[] b = new byte[Encoding.UTF8.GetByteCount(s) + 1];
+    Encoding.UTF8.GetBytes(s, 0, s.Length, b, 0);
+    return b;
+  }
+}
+
+// One connection to a relay. Dispose() destroys it.
+public sealed class Client : IDisposable {
+  public delegate void StateHandler(uint entityId, ref Transform transform);
+  public delegate void PhysicsHandler(EventType type, uint entityA, uint entityB);
+
+  public event Action<uint> Connected;                // player id
+  public event Action<uint> Rejected;                 // RejectReason
+  public event Action<uint> Disconnected;             // DisconnectReason
+  public event Action<string, uint> Joined;           // room, entity id base
+  public event Action<uint> PlayerJoined, PlayerLeft;
+  public event Action<Event> Spawned;                 // entity id, owner, parent, flags, transform
+  public event Action<uint> Despawned;
+  public event StateHandler StateReceived;            // per state: no allocation
+  public event PhysicsHandler Physics;                // collision / trigger / grab / guard events
+  public event Action<uint, uint, string> Error;      // reason, entity, detail
+
+  IntPtr handle_;
+  Event event_;  // reused for every poll
+
+  // queueStateEvents: raise StateReceived for every received state (else read with TryGetEntity).
+  public Client(bool queueStateEvents = true, string bindAddress = null) {
+    if (Native.edgephys_abi_version() != Native.AbiVersion) {
+      throw new EdgephysException(Status.Internal, "libedgephys ABI " + Native.edgephys_abi_version() + ", binding needs " + Native.AbiVersion);
+    }
+    ClientConfig cfg;
+    Native.Check(Native.edgephys_client_config_init(out cfg), "config");
+    cfg.QueueStateEvents = queueStateEvents ? 1u : 0u;
+    IntPtr bind = bindAddress == null ? IntPtr.Zero : Marshal.StringToHGlobalAnsi(bindAddress);
+    try {
+      cfg.BindAddress = bind;
+      Native.Check(Native.edgephys_client_create(ref cfg, out handle_), "create");
+    } finally {
+      if (bind != IntPtr.Zero) Marshal.FreeHGlobal(bind);
+    }
+  }
+
+  public IntPtr Handle { get { return handle_; } }
+
+  public void Dispose() {
+    if (handle_ != IntPtr.Zero) {
+      Native.edgephys_client_destroy(handle_);
+      handle_ = IntPtr.Zero;
+    }
+    GC.SuppressFinalize(this);
+  }
+  ~Client() { if (handle_ != IntPtr.Zero) Native.edgephys_client_destroy(handle_); }
+
+  public void Connect(string relay, string token) {
+    Native.Check(Native.edgephys_client_connect(handle_, Native.Utf8Z(relay), Native.Utf8Z(token), Native.Now()), "connect");
+  }
+  public void Join(string room) { Native.Check(Native.edgephys_client_join(handle_, Native.Utf8Z(room)), "join"); }
+  public void Leave() { Native.Check(Native.edgephys_client_leave(handle_), "leave"); }
+  public void Disconnect() { Native.Check(Native.edgephys_client_disconnect(handle_), "disconnect"); }
+
+  // Receives, then raises the events of everything that arrived. Call every frame.
+  public void Update() { Update(Native.Now()); }
+  public void Update(double now) {
+    Native.Check(Native.edgephys_client_update(handle_, now), "update");
+    for (;;) {
+      Native.Check(Native.edgephys_client_poll_event(handle_, ref event_), "poll");
+      if (event_.Type == (uint)EventType.None) return;
+      Dispatch();
+    }
+  }
+
+  void Dispatch() {
+    switch ((EventType)event_.Type) {
+      case EventType.State:
+        if (StateReceived != null) StateReceived(event_.EntityId, ref event_.Transform);
+        break;
+      case EventType.Connected: if (Connected != null) Connected(event_.PlayerId); break;
+      case EventType.Rejected: if (Rejected != null) Rejected(event_.Code); break;
+      case EventType.Disconnected: if (Disconnected != null) Disconnected(event_.Code); break;
+      case EventType.Joined: if (Joined != null) Joined(event_.DetailString(), event_.EntityId); break;
+      case EventType.PlayerJoined: if (PlayerJoined != null) PlayerJoined(event_.PlayerId); break;
+      case EventType.PlayerLeft: if (PlayerLeft != null) PlayerLeft(event_.PlayerId); break;
+      case EventType.Spawned: if (Spawned != null) Spawned(event_); break;
+      case EventType.Despawned: if (Despawned != null) Despawned(event_.EntityId); break;
+      case EventType.Error: if (Error != null) Error(event_.Code, event_.EntityId, event_.DetailString()); break;
+      case EventType.CollisionEnter: case EventType.CollisionExit: case EventType.TriggerEnter:
+      case EventType.TriggerExit: case EventType.GuardReset: case EventType.Grabbed: case EventType.Released:
+        if (Physics != null) Physics((EventType)event_.Type, event_.EntityId, event_.OtherId);
+        break;
+      default: break;
+    }
+  }
+
+  // Spawns an entity (the dissected container: rigid body, colliders, joints); returns its id.
+  public unsafe uint Spawn(Transform transform, EntityFlags flags, RigidBody? body = null,
+                           Collider[] colliders = null, Joint[] joints = null, uint parentId = 0,
+                           string name = null) {
+    NativeSpawnDesc d;
+    Native.Check(Native.edgephys_spawn_desc_init(out d), "spawn_desc_init");
+    d.Transform = transform;
+    d.Flags = (uint)flags;
+    d.ParentId = parentId;
+    RigidBody b = body.HasValue ? body.Value : default(RigidBody);
+    byte[] nameBytes = Native.Utf8Z(name);
+    Collider[] cs = colliders ?? new Collider[0];
+    Joint[] js = joints ?? new Joint[0];
+    fixed (Collider* pc = cs)
+    fixed (Joint* pj = js)
+    fixed (byte* pn = nameBytes) {
+      d.RigidBody = body.HasValue ? (IntPtr)(&b) : IntPtr.Zero;
+      d.Colliders = (IntPtr)pc;
+      d.ColliderCount = (uint)cs.Length;
+      d.Joints = (IntPtr)pj;
+      d.JointCount = (uint)js.Length;
+      d.Name = (IntPtr)pn;
+      uint id;
+      Native.Check(Native.edgephys_client_spawn(handle_, ref d, out id), "spawn");
+      return id;
+    }
+  }
+  public void Despawn(uint id) { Native.Check(Native.edgephys_client_despawn(handle_, id), "despawn"); }
+  public void Publish(uint id, Transform t) { Native.Check(Native.edgephys_client_publish_transform(handle_, id, ref t), "publish"); }
+  public void Grab(uint entity, uint hand) { Native.Check(Native.edgephys_client_grab(handle_, entity, hand), "grab"); }
+  public void Release(uint entity) { Native.Check(Native.edgephys_client_release(handle_, entity), "release"); }
+
+  public bool TryGetEntity(uint id, out Entity e) { return Native.edgephys_client_get_entity(handle_, id, out e) == Status.Ok; }
+  public bool TrySamplePose(uint id, Interpolator method, out Transform t) {
+    return Native.edgephys_client_sample_pose(handle_, id, Native.Now(), (uint)method, out t) == Status.Ok;
+  }
+  public ClientInfo Info() {
+    ClientInfo info = new ClientInfo();
+    info.StructSize = (uint)Marshal.SizeOf(typeof(ClientInfo));
+    Native.Check(Native.edgephys_client_get_info(handle_, ref info), "get_info");
+    return info;
+  }
+}
+
+}  // namespace Edgephys

@@ -1,0 +1,140 @@
+// Tests of the C# binding, run by a console runner under Mono (ctest: sdk_csharp_test, started
+// by tests/with_relay.sh, which provides a real relay in EDGEPHYS_RELAY and two tokens).
+//   ClientTests.exe            the tests (bad arguments; zero allocation per received state)
+//   ClientTests.exe --bench N  the per-state cost of Client.Update with N moving entities
+//                              (docs/benchmarks.md, "SDK (issue 13)")
+using System;
+using System.Diagnostics;
+using Edgephys;
+
+static class ClientTests {
+  static int failures = 0;
+
+  static void Expect(bool ok, string what) {
+    if (!ok) { Console.WriteLine("  FAIL: " + what); ++failures; }
+  }
+
+  static void ExpectStatus(Status expected, Action call, string what) {
+    try {
+      call();
+      Expect(false, what + ": no exception, expected " + expected);
+    } catch (EdgephysException e) {
+      Expect(e.Status == expected, what + ": got " + e.Status + ", expected " + expected + " (" + e.Message + ")");
+    }
+  }
+
+  static void BadArgumentsThrowWithTheirStatus() {
+    Expect(Native.edgephys_abi_version() == Native.AbiVersion, "ABI version");
+    using (var c = new Client(true, "127.0.0.1:0")) {
+      ExpectStatus(Status.Malformed, () => c.Connect("nowhere", "AAAA"), "connect to a bad address");
+      ExpectStatus(Status.NotConnected, () => c.Join("lobby"), "join before connecting");
+      ExpectStatus(Status.InvalidArgument, () => c.Join(""), "empty room");
+      ExpectStatus(Status.InvalidArgument, () => c.Publish(65537, new Transform(float.NaN, 0, 0)), "NaN publish");
+      ExpectStatus(Status.InvalidArgument,
+                   () => c.Spawn(new Transform(0, 1, 0), EntityFlags.Offloaded, RigidBody.Dynamic(float.NaN)), "NaN mass");
+      ExpectStatus(Status.InvalidArgument,
+                   () => c.Spawn(new Transform(0, 1, 0), EntityFlags.None, null, new[] { Collider.Box(-1, 1, 1) }), "negative box");
+      ExpectStatus(Status.InvalidArgument,
+                   () => c.Spawn(new Transform(new Vec3(0, 0, 0), new Quat(0, 0, 0, 0)), EntityFlags.None), "zero quaternion");
+      ExpectStatus(Status.NotConnected, () => c.Spawn(new Transform(0, 1, 0), EntityFlags.None), "valid spawn, not joined");
+      ExpectStatus(Status.InvalidArgument, () => c.Grab(0, 1), "grab entity 0");
+      Entity e;
+      Expect(!c.TryGetEntity(1, out e), "unknown entity");
+      c.Dispose();
+      ExpectStatus(Status.InvalidHandle, () => c.Join("lobby"), "use after Dispose");
+    }
+    ExpectStatus(Status.Malformed, () => new Client(true, "garbage"), "bad bind address");
+  }
+
+  // A sender moves `entities` entities every frame; the receiver's Update() (receive, poll,
+  // raise StateReceived) is measured after a warm-up: managed bytes allocated and CPU time.
+  static void Stream(int entities, double warmup_s, double measure_s, out long states, out long bytes, out double ns_per_state) {
+    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
+    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
+    using (var sender = new Client(false))
+    using (var receiver = new Client(true)) {
+      bool sConnected = false, rConnected = false, sJoined = false, rJoined = false;
+      sender.Connected += id => sConnected = true;
+      receiver.Connected += id => rConnected = true;
+      sender.Joined += (r, b) => sJoined = true;
+      receiver.Joined += (r, b) => rJoined = true;
+      long received = 0;
+      receiver.StateReceived += (uint id, ref Transform t) => { received++; };
+      sender.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_1"));
+      receiver.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_2"));
+      double end = Native.Now() + 5;
+      while (!(sConnected && rConnected) && Native.Now() < end) { sender.Update(); receiver.Update(); System.Threading.Thread.Sleep(5); }
+      if (!(sConnected && rConnected)) throw new Exception("no connection to " + relay);
+      sender.Join(room);
+      receiver.Join(room);
+      while (!(sJoined && rJoined) && Native.Now() < end) { sender.Update(); receiver.Update(); System.Threading.Thread.Sleep(5); }
+      if (!(sJoined && rJoined)) throw new Exception("no join");
+      uint[] ids = new uint[entities];
+      for (int i = 0; i < entities; ++i) ids[i] = sender.Spawn(new Transform(i, 1, 0), EntityFlags.None);
+
+      double start = Native.Now();
+      long allocated = 0, received0 = 0;
+      double cpu = 0;
+      bool measuring = false;
+      var watch = new Stopwatch();
+      for (;;) {
+        double now = Native.Now();
+        if (now - start > warmup_s + measure_s) break;
+        if (!measuring && now - start > warmup_s) {
+          measuring = true;
+          received0 = received;
+          allocated = 0;
+          cpu = 0;
+        }
+        float phase = (float)(now - start);
+        for (int i = 0; i < entities; ++i) {
+          sender.Publish(ids[i], new Transform(i + 0.5f * (float)Math.Sin(phase + i), 1, 0));
+        }
+        sender.Update(now);
+        long before = GC.GetAllocatedBytesForCurrentThread();
+        watch.Restart();
+        receiver.Update(now);
+        watch.Stop();
+        long after = GC.GetAllocatedBytesForCurrentThread();
+        // Only the receiver's Update() is counted (bracketed call by call), not the sender's.
+        allocated += after - before;
+        cpu += watch.Elapsed.TotalMilliseconds * 1e6;
+        System.Threading.Thread.Sleep(2);
+      }
+      states = received - received0;
+      bytes = allocated;
+      ns_per_state = states > 0 ? cpu / states : 0;
+    }
+  }
+
+  static void NoAllocationPerReceivedState() {
+    long states, bytes;
+    double ns;
+    Stream(40, 1.5, 3.0, out states, out bytes, out ns);
+    Console.WriteLine("  steady state: {0} states received, {1} managed bytes allocated in Update() ({2:F4} bytes/state), {3:F0} ns/state",
+                      states, bytes, states > 0 ? (double)bytes / states : 0, ns);
+    Expect(states > 500, "too few states received: " + states);
+    Expect(bytes == 0, "Update() allocated " + bytes + " bytes over " + states + " states");
+  }
+
+  static int Main(string[] args) {
+    Console.WriteLine("edgephys " + Native.Version() + " (C# binding, Mono)");
+    if (args.Length == 2 && args[0] == "--bench") {
+      long states, bytes;
+      double ns;
+      Stream(int.Parse(args[1]), 2.0, 10.0, out states, out bytes, out ns);
+      Console.WriteLine("csharp entities={0} states={1} ns_per_state={2:F1} bytes_per_state={3:F4}",
+                        args[1], states, ns, states > 0 ? (double)bytes / states : 0);
+      return 0;
+    }
+    var tests = new Action[] { BadArgumentsThrowWithTheirStatus, NoAllocationPerReceivedState };
+    foreach (var t in tests) {
+      Console.WriteLine("[ RUN  ] " + t.Method.Name);
+      int before = failures;
+      try { t(); } catch (Exception e) { Console.WriteLine("  FAIL: exception " + e); ++failures; }
+      Console.WriteLine((failures == before ? "[  OK  ] " : "[FAILED] ") + t.Method.Name);
+    }
+    Console.WriteLine(failures == 0 ? "all C# tests passed" : failures + " failure(s)");
+    return failures == 0 ? 0 : 1;
+  }
+}

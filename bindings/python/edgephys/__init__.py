@@ -1,0 +1,331 @@
+"""edgephys Python binding: ctypes over the C API of libedgephys (include/edgephys/edgephys.h).
+
+For tools, bots and tests. The C header is the manual: units (metres, seconds, unit quaternions
+x, y, z, w), ownership and threading are its. A call that fails raises EdgephysError with the
+C status and edgephys_last_error()'s message.
+
+    import edgephys as ep
+    c = ep.Client()
+    c.connect("127.0.0.1:7777", token)
+    while True:
+        c.update()
+        for ev in c.events():
+            if ev.type == ep.EVENT_CONNECTED: c.join("lobby")
+
+The library is found through $EDGEPHYS_LIBRARY (a path), then the system loader (libedgephys.so
+installed with cmake --install or the .deb). A Client is not thread-safe (one thread at a time).
+"""
+import ctypes
+import ctypes.util
+import os
+
+ABI_VERSION = 1
+
+# ---- status and event codes (edgephys.h) -------------------------------------------------
+OK = 0
+E_INVALID_ARGUMENT, E_MALFORMED, E_TOO_LARGE, E_QUEUE_FULL, E_NOT_CONNECTED, E_IO = 1, 2, 3, 4, 5, 6
+E_UNAUTHENTICATED, E_PERMISSION_DENIED, E_NOT_FOUND, E_ALREADY_EXISTS = 7, 8, 9, 10
+E_RESOURCE_EXHAUSTED, E_INVALID_HANDLE, E_CLOSED, E_BUFFER_TOO_SMALL, E_INTERNAL = 11, 12, 13, 14, 15
+
+FLAG_PERSISTENT, FLAG_KINEMATIC, FLAG_INTERACTABLE, FLAG_AVATAR = 1, 2, 4, 8
+FLAG_HAND, FLAG_OFFLOADED, FLAG_REPORT_CONTACTS = 16, 32, 64
+
+SHAPE_BOX, SHAPE_SPHERE, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_CONVEX_HULL, SHAPE_TRIANGLE_MESH = range(6)
+JOINT_FIXED, JOINT_HINGE, JOINT_SPRING = range(3)
+INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE = range(5)
+
+(EVENT_NONE, EVENT_CONNECTED, EVENT_REJECTED, EVENT_DISCONNECTED, EVENT_JOINED, EVENT_PLAYER_JOINED,
+ EVENT_PLAYER_LEFT, EVENT_SPAWNED, EVENT_DESPAWNED, EVENT_STATE, EVENT_SOFT_BODY,
+ EVENT_COLLISION_ENTER, EVENT_COLLISION_EXIT, EVENT_TRIGGER_ENTER, EVENT_TRIGGER_EXIT,
+ EVENT_GUARD_RESET, EVENT_GRABBED, EVENT_RELEASED, EVENT_ERROR) = range(19)
+
+EVENT_NAMES = {
+    EVENT_COLLISION_ENTER: "collision_enter", EVENT_COLLISION_EXIT: "collision_exit",
+    EVENT_TRIGGER_ENTER: "trigger_enter", EVENT_TRIGGER_EXIT: "trigger_exit",
+    EVENT_GUARD_RESET: "guard_reset", EVENT_GRABBED: "grabbed", EVENT_RELEASED: "released",
+}
+
+
+# ---- plain structs ------------------------------------------------------------------------
+class Vec3(ctypes.Structure):
+    _fields_ = [("x", ctypes.c_float), ("y", ctypes.c_float), ("z", ctypes.c_float)]
+
+
+class Quat(ctypes.Structure):
+    _fields_ = [("x", ctypes.c_float), ("y", ctypes.c_float), ("z", ctypes.c_float), ("w", ctypes.c_float)]
+
+
+class Transform(ctypes.Structure):
+    _fields_ = [("position", Vec3), ("rotation", Quat)]
+
+
+class Collider(ctypes.Structure):
+    _fields_ = [("shape", ctypes.c_uint32), ("half_extents", Vec3), ("radius", ctypes.c_float),
+                ("height", ctypes.c_float), ("local_position", Vec3), ("local_rotation", Quat),
+                ("vertices", ctypes.POINTER(ctypes.c_float)), ("vertex_float_count", ctypes.c_uint32),
+                ("indices", ctypes.POINTER(ctypes.c_uint32)), ("index_count", ctypes.c_uint32),
+                ("is_trigger", ctypes.c_uint32)]
+
+
+class RigidBody(ctypes.Structure):
+    _fields_ = [("mass", ctypes.c_float), ("linear_damping", ctypes.c_float),
+                ("angular_damping", ctypes.c_float), ("friction", ctypes.c_float),
+                ("restitution", ctypes.c_float), ("kinematic", ctypes.c_uint32),
+                ("use_gravity", ctypes.c_uint32), ("linear_velocity", Vec3), ("angular_velocity", Vec3)]
+
+
+class Joint(ctypes.Structure):
+    _fields_ = [("kind", ctypes.c_uint32), ("connected_entity", ctypes.c_uint32), ("anchor", Vec3),
+                ("axis", Vec3), ("stiffness", ctypes.c_float), ("damping", ctypes.c_float)]
+
+
+class SoftBody(ctypes.Structure):
+    _fields_ = [("particles", ctypes.POINTER(ctypes.c_float)), ("masses", ctypes.POINTER(ctypes.c_float)),
+                ("particle_count", ctypes.c_uint32), ("springs", ctypes.POINTER(ctypes.c_uint32)),
+                ("spring_count", ctypes.c_uint32), ("stiffness", ctypes.c_float), ("damping", ctypes.c_float)]
+
+
+class SpawnDesc(ctypes.Structure):
+    _fields_ = [("struct_size", ctypes.c_uint32), ("transform", Transform), ("scale", Vec3),
+                ("parent_id", ctypes.c_uint32), ("flags", ctypes.c_uint32), ("name", ctypes.c_char_p),
+                ("rigid_body", ctypes.POINTER(RigidBody)), ("colliders", ctypes.POINTER(Collider)),
+                ("collider_count", ctypes.c_uint32), ("joints", ctypes.POINTER(Joint)),
+                ("joint_count", ctypes.c_uint32), ("soft_body", ctypes.POINTER(SoftBody))]
+
+
+class ClientConfig(ctypes.Structure):
+    _fields_ = [("struct_size", ctypes.c_uint32), ("bind_address", ctypes.c_char_p),
+                ("publish_rate_hz", ctypes.c_double), ("handshake_timeout_s", ctypes.c_double),
+                ("event_queue_capacity", ctypes.c_uint32), ("queue_state_events", ctypes.c_uint32),
+                ("snapshot_capacity", ctypes.c_uint32)]
+
+
+class Event(ctypes.Structure):
+    _fields_ = [("type", ctypes.c_uint32), ("code", ctypes.c_uint32), ("player_id", ctypes.c_uint32),
+                ("entity_id", ctypes.c_uint32), ("other_id", ctypes.c_uint32), ("parent_id", ctypes.c_uint32),
+                ("flags", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("transform", Transform),
+                ("detail", ctypes.c_char * 128)]
+
+
+class ClientInfo(ctypes.Structure):
+    _fields_ = [("struct_size", ctypes.c_uint32), ("state", ctypes.c_uint32), ("joined", ctypes.c_uint32),
+                ("player_id", ctypes.c_uint32), ("entity_id_base", ctypes.c_uint32),
+                ("entity_count", ctypes.c_uint32), ("reject_reason", ctypes.c_uint32),
+                ("disconnect_reason", ctypes.c_uint32), ("dropped_events", ctypes.c_uint64),
+                ("states_received", ctypes.c_uint64), ("state_bytes_received", ctypes.c_uint64)]
+
+
+class Entity(ctypes.Structure):
+    _fields_ = [("id", ctypes.c_uint32), ("owner", ctypes.c_uint32), ("parent_id", ctypes.c_uint32),
+                ("flags", ctypes.c_uint32), ("has_state", ctypes.c_uint32), ("state_time_ms", ctypes.c_uint32),
+                ("soft_body_particles", ctypes.c_uint32), ("reserved", ctypes.c_uint32),
+                ("transform", Transform)]
+
+
+class EdgephysError(RuntimeError):
+    """A C API call failed: .status is the edgephys_status, the message edgephys_last_error()."""
+
+    def __init__(self, status, message):
+        super().__init__(f"{message} (status {status})")
+        self.status = status
+
+
+# ---- the library --------------------------------------------------------------------------
+def _load():
+    path = os.environ.get("EDGEPHYS_LIBRARY") or ctypes.util.find_library("edgephys") or "libedgephys.so.1"
+    lib = ctypes.CDLL(path)
+    P = ctypes.POINTER
+    c = ctypes.c_void_p
+    u32, f64, sz = ctypes.c_uint32, ctypes.c_double, ctypes.c_size_t
+    sigs = {
+        "edgephys_abi_version": ([], u32),
+        "edgephys_version_string": ([], ctypes.c_char_p),
+        "edgephys_status_name": ([ctypes.c_int32], ctypes.c_char_p),
+        "edgephys_last_error": ([], ctypes.c_char_p),
+        "edgephys_now_s": ([], f64),
+        "edgephys_spawn_desc_init": ([P(SpawnDesc)], ctypes.c_int),
+        "edgephys_collider_init": ([P(Collider)], ctypes.c_int),
+        "edgephys_rigid_body_init": ([P(RigidBody)], ctypes.c_int),
+        "edgephys_joint_init": ([P(Joint)], ctypes.c_int),
+        "edgephys_client_config_init": ([P(ClientConfig)], ctypes.c_int),
+        "edgephys_client_create": ([P(ClientConfig), P(c)], ctypes.c_int),
+        "edgephys_client_destroy": ([c], ctypes.c_int),
+        "edgephys_client_close": ([c], ctypes.c_int),
+        "edgephys_client_connect": ([c, ctypes.c_char_p, ctypes.c_char_p, f64], ctypes.c_int),
+        "edgephys_client_update": ([c, f64], ctypes.c_int),
+        "edgephys_client_join": ([c, ctypes.c_char_p], ctypes.c_int),
+        "edgephys_client_leave": ([c], ctypes.c_int),
+        "edgephys_client_disconnect": ([c], ctypes.c_int),
+        "edgephys_client_spawn": ([c, P(SpawnDesc), P(u32)], ctypes.c_int),
+        "edgephys_client_despawn": ([c, u32], ctypes.c_int),
+        "edgephys_client_publish_transform": ([c, u32, P(Transform)], ctypes.c_int),
+        "edgephys_client_grab": ([c, u32, u32], ctypes.c_int),
+        "edgephys_client_release": ([c, u32], ctypes.c_int),
+        "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
+        "edgephys_client_get_info": ([c, P(ClientInfo)], ctypes.c_int),
+        "edgephys_client_get_entity": ([c, u32, P(Entity)], ctypes.c_int),
+        "edgephys_client_list_entities": ([c, P(u32), sz, P(sz)], ctypes.c_int),
+        "edgephys_client_get_soft_body": ([c, u32, P(Vec3), sz, P(sz)], ctypes.c_int),
+        "edgephys_client_sample_pose": ([c, u32, f64, u32, P(Transform)], ctypes.c_int),
+    }
+    for name, (args, res) in sigs.items():
+        fn = getattr(lib, name)
+        fn.argtypes = args
+        fn.restype = res
+    if lib.edgephys_abi_version() != ABI_VERSION:
+        raise ImportError(f"libedgephys ABI {lib.edgephys_abi_version()}, this binding needs {ABI_VERSION}")
+    return lib
+
+
+lib = _load()
+
+
+def now_s():
+    """Monotonic clock, seconds (edgephys_now_s)."""
+    return lib.edgephys_now_s()
+
+
+def version():
+    return lib.edgephys_version_string().decode()
+
+
+def _check(status, what=""):
+    if status != OK:
+        raise EdgephysError(status, (what + ": " if what else "") + lib.edgephys_last_error().decode())
+
+
+def transform(x=0.0, y=0.0, z=0.0, rotation=(0.0, 0.0, 0.0, 1.0)):
+    return Transform(Vec3(x, y, z), Quat(*rotation))
+
+
+def collider(shape=SHAPE_BOX, **fields):
+    """A Collider with the C defaults, then `fields` (half_extents=(x, y, z), radius=..., is_trigger=1)."""
+    c = Collider()
+    _check(lib.edgephys_collider_init(ctypes.byref(c)))
+    for k, v in fields.items():
+        setattr(c, k, Vec3(*v) if k in ("half_extents", "local_position") else v)
+    c.shape = shape
+    return c
+
+
+def rigid_body(**fields):
+    b = RigidBody()
+    _check(lib.edgephys_rigid_body_init(ctypes.byref(b)))
+    for k, v in fields.items():
+        setattr(b, k, Vec3(*v) if k.endswith("velocity") else v)
+    return b
+
+
+class Client:
+    """One connection to a relay (edgephys_client). Close it with close() or a with-block."""
+
+    def __init__(self, bind_address=None, queue_state_events=False, event_queue_capacity=4096):
+        cfg = ClientConfig()
+        _check(lib.edgephys_client_config_init(ctypes.byref(cfg)))
+        if bind_address:
+            cfg.bind_address = bind_address.encode()
+        cfg.queue_state_events = 1 if queue_state_events else 0
+        cfg.event_queue_capacity = event_queue_capacity
+        self._h = ctypes.c_void_p()
+        _check(lib.edgephys_client_create(ctypes.byref(cfg), ctypes.byref(self._h)), "create")
+        self._event = Event()
+        self._entity = Entity()
+
+    def close(self):
+        if self._h:
+            lib.edgephys_client_destroy(self._h)
+            self._h = ctypes.c_void_p()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        self.close()
+
+    def connect(self, relay, token, now=None):
+        _check(lib.edgephys_client_connect(self._h, relay.encode(), token.encode(), now_s() if now is None else now), "connect")
+
+    def update(self, now=None):
+        _check(lib.edgephys_client_update(self._h, now_s() if now is None else now), "update")
+
+    def join(self, room):
+        _check(lib.edgephys_client_join(self._h, room.encode()), "join")
+
+    def leave(self):
+        _check(lib.edgephys_client_leave(self._h), "leave")
+
+    def disconnect(self):
+        _check(lib.edgephys_client_disconnect(self._h), "disconnect")
+
+    def spawn(self, position=(0, 0, 0), rotation=(0, 0, 0, 1), flags=0, name=None, rigid_body=None,
+              colliders=(), joints=(), parent_id=0, scale=(1, 1, 1)):
+        """Spawns an entity (see edgephys_client_spawn); returns its id."""
+        d = SpawnDesc()
+        _check(lib.edgephys_spawn_desc_init(ctypes.byref(d)))
+        d.transform = transform(*position, rotation=rotation)
+        d.scale = Vec3(*scale)
+        d.parent_id = parent_id
+        d.flags = flags
+        if name is not None:
+            d.name = name.encode()
+        if rigid_body is not None:
+            d.rigid_body = ctypes.pointer(rigid_body)
+        cols = (Collider * len(colliders))(*colliders) if colliders else None
+        if cols is not None:
+            d.colliders = cols
+            d.collider_count = len(colliders)
+        jts = (Joint * len(joints))(*joints) if joints else None
+        if jts is not None:
+            d.joints = jts
+            d.joint_count = len(joints)
+        out = ctypes.c_uint32()
+        _check(lib.edgephys_client_spawn(self._h, ctypes.byref(d), ctypes.byref(out)), "spawn")
+        return out.value
+
+    def despawn(self, entity_id):
+        _check(lib.edgephys_client_despawn(self._h, entity_id), "despawn")
+
+    def publish(self, entity_id, position, rotation=(0, 0, 0, 1)):
+        t = transform(*position, rotation=rotation)
+        _check(lib.edgephys_client_publish_transform(self._h, entity_id, ctypes.byref(t)), "publish")
+
+    def grab(self, entity_id, hand_id):
+        _check(lib.edgephys_client_grab(self._h, entity_id, hand_id), "grab")
+
+    def release(self, entity_id):
+        _check(lib.edgephys_client_release(self._h, entity_id), "release")
+
+    def events(self):
+        """Yields queued events (copies) until the queue is empty."""
+        while True:
+            _check(lib.edgephys_client_poll_event(self._h, ctypes.byref(self._event)), "poll")
+            if self._event.type == EVENT_NONE:
+                return
+            ev = Event()
+            ctypes.pointer(ev)[0] = self._event
+            yield ev
+
+    def entity(self, entity_id):
+        """The latest Entity, or None if unknown."""
+        st = lib.edgephys_client_get_entity(self._h, entity_id, ctypes.byref(self._entity))
+        if st == E_NOT_FOUND:
+            return None
+        _check(st, "get_entity")
+        e = Entity()
+        ctypes.pointer(e)[0] = self._entity
+        return e
+
+    def sample_pose(self, entity_id, method=INTERP_DQ_SCLERP, now=None):
+        t = Transform()
+        _check(lib.edgephys_client_sample_pose(self._h, entity_id, now_s() if now is None else now, method,
+                                               ctypes.byref(t)), "sample_pose")
+        return t
+
+    def info(self):
+        i = ClientInfo()
+        i.struct_size = ctypes.sizeof(ClientInfo)
+        _check(lib.edgephys_client_get_info(self._h, ctypes.byref(i)), "get_info")
+        return i

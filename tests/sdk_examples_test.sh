@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Runs one SDK example (examples/: C, C++, Python or C#) against a real edgephys-relay process
+# on a free loopback port, with a second client (the C++ example in --watch mode) in the same
+# room. Passes when the example passes its own checks (the offloaded boxes fall and settle, the
+# grab gives Grabbed, collision exit, Released, collision enter, in that order; it prints "ok")
+# and the watcher saw every box the example reports at the same pose within the codec's bounds
+# (1 mm, 0.1 degree).
+# Usage: sdk_examples_test.sh <edgephys-relay> <stack_and_grab_cpp> <example command...>
+#   (the example is called with three more arguments: relay address, join token, room)
+# Prints SKIPPED (exit 0) when the example's runtime is missing (mono, python3).
+set -euo pipefail
+relay="$1"; watcher="$2"; shift 2
+source "$(dirname "$0")/../scripts/lib/stop_process.sh"
+case "$1" in
+  mono|python3) command -v "$1" >/dev/null || { echo "SKIPPED: $1 is not installed"; exit 0; } ;;
+esac
+work=$(mktemp -d)
+relay_pid=""; watch_pid=""
+cleanup() { stop "$watch_pid"; stop "$relay_pid"; rm -rf "$work"; }
+trap cleanup EXIT
+
+"$relay" --bind 127.0.0.1:0 --metrics off --run-for 120 --log-level info >"$work/relay.log" 2>&1 &
+relay_pid=$!
+address=""
+for _ in $(seq 1 50); do
+  address=$(grep -o "listening on udp [0-9.:]*" "$work/relay.log" | awk '{print $4}' || true)
+  [ -n "$address" ] && break
+  kill -0 "$relay_pid" 2>/dev/null || break
+  sleep 0.1
+done
+[ -n "$address" ] || { echo "FAIL: the relay did not start"; cat "$work/relay.log"; exit 1; }
+room="sdk$RANDOM"
+token1=$("$relay" token --player 1 --room "$room" --ttl 300)
+token2=$("$relay" token --player 2 --room "$room" --ttl 300)
+
+"$watcher" "$address" "$token2" "$room" --watch >"$work/watch.log" 2>&1 &
+watch_pid=$!
+for _ in $(seq 1 50); do grep -q "^watching" "$work/watch.log" && break; sleep 0.1; done
+grep -q "^watching" "$work/watch.log" || { echo "FAIL: the watcher did not join"; cat "$work/watch.log"; exit 1; }
+
+status=0
+timeout 90 "$@" "$address" "$token1" "$room" >"$work/example.log" 2>&1 || status=$?
+cat "$work/example.log"
+[ "$status" -eq 0 ] && grep -q "^ok$" "$work/example.log" || { echo "FAIL: the example failed (exit $status)"; cat "$work/relay.log"; exit 1; }
+for _ in $(seq 1 100); do kill -0 "$watch_pid" 2>/dev/null || break; sleep 0.1; done
+wait "$watch_pid" || { echo "FAIL: the watcher failed"; cat "$work/watch.log"; exit 1; }
+watch_pid=""
+
+# Every pose the example printed, seen by the watcher within 1 mm and 0.1 degree.
+awk '
+  FNR == NR { if ($1 == "pose") w[$2] = $0; next }
+  $1 == "pose" {
+    n++
+    if (!($2 in w)) { print "FAIL: the watcher never saw entity " $2; bad = 1; next }
+    split(w[$2], o, " ")
+    dx = $3 - o[3]; dy = $4 - o[4]; dz = $5 - o[5]
+    d = sqrt(dx * dx + dy * dy + dz * dz)
+    dot = $6 * o[6] + $7 * o[7] + $8 * o[8] + $9 * o[9]; if (dot < 0) dot = -dot; if (dot > 1) dot = 1
+    deg = 2 * atan2(sqrt(1 - dot * dot), dot) * 180 / 3.14159265358979
+    printf "entity %s: example vs watcher %.4f mm, %.4f deg\n", $2, d * 1000, deg
+    if (d > 0.001 || deg > 0.1) { print "FAIL: entity " $2 " differs beyond the codec bounds"; bad = 1 }
+  }
+  END { if (n < 3) { print "FAIL: fewer than 3 poses printed"; bad = 1 } exit bad }
+' "$work/watch.log" "$work/example.log"
+echo "sdk example passed: $*"
