@@ -7,6 +7,7 @@
 
 #include "protocol/emulation_codec.h"
 #include "protocol/handshake.h"
+#include "protocol/join_token.h"
 #include "protocol/soft_body_codec.h"
 
 namespace edgephys {
@@ -155,6 +156,9 @@ void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) 
 
 Status Client::JoinRoom(std::string_view room) {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
+  if (room.empty() || room.size() > kMaxRoomNameSize) {
+    return Status::InvalidArgument("room name must be 1..64 bytes");
+  }
   flatbuffers::FlatBufferBuilder fbb(128);
   FinishControl(fbb, schema::CreateJoinRoom(fbb, fbb.CreateString(room.data(), room.size())));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});

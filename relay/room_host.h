@@ -65,8 +65,10 @@ class RoomHost {
 
   // --- Requests of a member (refused ones: Error{reason} on `link`) ------------------------
   // A spawn: `message` is the whole verified ControlMessage{Spawn}. Checks size, rate,
-  // permission, id block, owner, duplicate id, the player's entity limit and the transform;
-  // physics components go to PhyS (created on first use). Broadcast to the others (to all,
+  // permission, id block, owner, duplicate id, the transform (finite, unit rotation, scale in
+  // [1e-4, 1e4]), the parent (an existing entity) and the budgets (relay/room_budget.h:
+  // Error{EntityLimit} for the player's entity limit, Error{OverBudget} naming any other, and
+  // counted by budget); physics components go to PhyS (created on first use). Broadcast to the others (to all,
   // with owner 0, when PhyS simulates it).
   void Spawn(MemberLink& link, std::span<const uint8_t> message, const schema::Spawn& spawn,
              double now);
