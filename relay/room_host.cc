@@ -129,15 +129,32 @@ void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
   FinishControl(fbb, schema::CreateRoomState(fbb, fbb.CreateString(name()),
                                              fbb.CreateVector(players),
                                              static_cast<uint32_t>(room_.entities().size())));
-  (void)link.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
-  for (const auto& [id, e] : room_.entities()) {
-    if (!link.SendReliable(e.spawn)) break;  // overflowed: the link disconnected the joiner
+  if (!link.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()})) return;
+  if (room_.entities().empty()) return;
+  join_streams_.insert_or_assign(link.player_id(), JoinStream(room_.entities()));
+  PumpJoinStreams(link.player_id());
+}
+
+void RoomHost::PumpJoinStreams(uint32_t only) {
+  for (auto it = join_streams_.begin(); it != join_streams_.end();) {
+    if (only != 0 && it->first != only) {
+      ++it;
+      continue;
+    }
+    MemberLink* link = FindMember(it->first);
+    // Erased when the member is gone, finished, or overflowed (the link disconnected it).
+    if (link == nullptr || !it->second.Pump(*link, room_.entities()) || it->second.done()) {
+      it = join_streams_.erase(it);
+    } else {
+      ++it;
+    }
   }
 }
 
 void RoomHost::Leave(MemberLink& link, double now) {
   const auto it = room_.members().find(link.player_id());
   if (it == room_.members().end() || it->second.link != &link) return;
+  join_streams_.erase(link.player_id());
   std::vector<uint32_t> despawned;
   room_.RemoveMember(link.player_id(), &despawned);
   env_.counters->entities.fetch_sub(static_cast<int64_t>(despawned.size()),
@@ -423,6 +440,7 @@ void RoomHost::FailOver(double now) {
 // --- Fan-out ---------------------------------------------------------------------------------
 
 void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
+  if (!join_streams_.empty()) PumpJoinStreams();
   room_.PrepareStates(now);  // once per changed entity, not once per receiver
   for (const auto& [pid, member] : room_.members()) {
     if (member.link->ReadyForStates()) receivers->push_back(member.link);
@@ -432,7 +450,17 @@ void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
 
 void RoomHost::BroadcastReliable(std::span<const uint8_t> message, uint32_t except_player) {
   for (const auto& [pid, m] : room_.members()) {
-    if (pid != except_player) (void)m.link->SendReliable(message);
+    if (pid == except_player) continue;
+    if (auto stream = join_streams_.find(pid); stream != join_streams_.end()) {
+      // After the room's existing state; a joiner that falls a whole queue behind is dropped
+      // as its queue would have overflowed.
+      if (!stream->second.Hold(message, m.link->ReliableCapacity())) {
+        join_streams_.erase(stream);
+        m.link->Overflow();
+      }
+    } else {
+      (void)m.link->SendReliable(message);
+    }
   }
 }
 

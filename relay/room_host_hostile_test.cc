@@ -256,3 +256,68 @@ TEST(RemotePhysicsLinkHostile, AChildContainerGetsEveryComponentCheck) {
 
 }  // namespace
 }  // namespace edgephys
+
+namespace edgephys {
+namespace {
+
+using namespace room_host_testing;  // NOLINT: the test doubles
+
+// Finding 2: a member's large persistent entities made every late joiner overflow its reliable
+// queue at once. The join now streams within the joiner's queue, resumable across ticks, with
+// the room's live broadcasts held until the stream is through.
+TEST_F(RoomHostTest, ALateJoinStreamsWithinTheJoinersReliableBudget) {
+  config_.max_entities_per_player = 64;
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  RecordingMember a(1), b(2);
+  ASSERT_TRUE(host_->Join(a, 0));
+  std::vector<uint32_t> order;
+  for (uint32_t i = 10; i > 0; --i) {  // spawn order differs from id order
+    EntitySpec s = LocalBox(Base(a) + i, 1, kPersistent);
+    s.name = std::string(1000, 'x');
+    Spawn(a, s);
+    order.push_back(Base(a) + i);
+  }
+  ASSERT_TRUE(a.errors.empty());
+  b.capacity_bytes = 5000;  // room for ~2 spawns in the half the stream may use
+  ASSERT_TRUE(host_->Join(b, 0));
+  EXPECT_EQ(b.Of(Body::Spawn).size(), 2u);
+  Spawn(a, LocalBox(Base(a) + 20, 1));  // live traffic during the stream: held
+  EXPECT_EQ(b.Of(Body::Spawn).size(), 2u);
+  std::vector<MemberLink*> receivers;
+  host_->BeginTick(0.1, &receivers);  // nothing acknowledged: nothing more
+  EXPECT_EQ(b.Of(Body::Spawn).size(), 2u);
+  for (int tick = 0; tick < 20 && b.Of(Body::Spawn).size() < 11; ++tick) {
+    b.pending_bytes = 0;  // acknowledged
+    host_->BeginTick(0.2 + tick * 0.1, &receivers);
+    EXPECT_LE(b.pending_bytes, 5000u / 2 + 1200u);
+  }
+  EXPECT_FALSE(b.overflowed);
+  const auto spawns = b.Of(Body::Spawn);
+  ASSERT_EQ(spawns.size(), 11u);
+  for (size_t i = 0; i < order.size(); ++i) {
+    EXPECT_EQ(spawns[i]->body_as_Spawn()->container()->entity_id(), order[i]) << i;
+  }
+  EXPECT_EQ(spawns.back()->body_as_Spawn()->container()->entity_id(), Base(a) + 20);
+}
+
+// A joiner that never acknowledges is dropped once the room's live traffic held for it would
+// exceed its queue: held messages are bounded.
+TEST_F(RoomHostTest, AJoinerThatNeverAcknowledgesIsDroppedNotBufferedForever) {
+  config_.max_entities_per_player = 1024;
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  RecordingMember a(1), b(2);
+  ASSERT_TRUE(host_->Join(a, 0));
+  EntitySpec big = LocalBox(Base(a) + 1, 1);
+  big.name = std::string(1000, 'x');
+  Spawn(a, big);
+  b.capacity_bytes = 4000;
+  b.pending_bytes = 3000;  // stalled
+  ASSERT_TRUE(host_->Join(b, 0));
+  for (uint32_t i = 2; i < 40 && !b.overflowed; ++i) Spawn(a, LocalBox(Base(a) + i, 1));
+  EXPECT_TRUE(b.overflowed);
+}
+
+}  // namespace
+}  // namespace edgephys

@@ -38,9 +38,13 @@ class RecordingMember final : public MemberLink {
       return false;
     }
     --reliable_capacity_;
+    pending_bytes += message.size();  // until the test "acknowledges" (sets it to 0)
     reliable.emplace_back(message.begin(), message.end());
     return true;
   }
+  size_t ReliablePending() const override { return pending_bytes; }
+  size_t ReliableCapacity() const override { return capacity_bytes; }
+  void Overflow() override { overflowed = true; }
   void SendError(RejectReason reason, uint32_t entity_id, std::string_view) override {
     errors.push_back({reason, entity_id});
   }
@@ -90,7 +94,9 @@ class RecordingMember final : public MemberLink {
   size_t start_after_messages = 0;
   bool ready = true;
   bool overflowed = false;
-  size_t reliable_capacity_ = 1u << 20;
+  size_t reliable_capacity_ = 1u << 20;  // messages
+  size_t pending_bytes = 0;               // what ReliablePending() reports
+  size_t capacity_bytes = 8u << 20;
   int spawns_left_ = 1 << 20;
 
  private:

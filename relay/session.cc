@@ -22,7 +22,8 @@ Session::Session(SessionHost* host, RelayCounters* counters, const Endpoint& end
       packets_(limits.packets_per_s, limits.packets_per_s * 2),
       bytes_(limits.bytes_per_s, limits.bytes_per_s * 2),
       spawns_(limits.spawns_per_s, limits.spawns_per_s * 20),
-      connected_at_(now) {}
+      connected_at_(now),
+      reliable_capacity_(config.max_pending_reliable_bytes) {}
 
 void Session::OnReliableMessage(std::span<const uint8_t> message) {
   using schema::Body;

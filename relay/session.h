@@ -67,6 +67,9 @@ class Session final : public ConnectionHandler,
   uint32_t permissions() const override { return permissions_; }
   bool AllowSpawn(double now) override { return spawns_.Take(now); }
   bool SendReliable(std::span<const uint8_t> message) override;
+  size_t ReliablePending() const override { return connection_.stats().pending_reliable_bytes; }
+  size_t ReliableCapacity() const override { return reliable_capacity_; }
+  void Overflow() override { connection_.Disconnect(DisconnectReason::kReliableOverflow, *this); }
   void SendError(schema::RejectReason reason, uint32_t entity_id,
                  std::string_view detail) override;
   void DropPayload(DropReason reason) override;
@@ -124,6 +127,7 @@ class Session final : public ConnectionHandler,
   double now_;
   TokenBucket packets_, bytes_, spawns_;
   double connected_at_;
+  size_t reliable_capacity_;  // ConnectionConfig::max_pending_reliable_bytes
 };
 
 }  // namespace edgephys
