@@ -140,6 +140,10 @@ int main(int argc, char** argv) {
                  "as before; N>1 adds a receive thread; see docs/operations.md)")
       ->capture_default_str()
       ->check(CLI::Range(size_t{1}, RelayShards::kMaxShards));
+  app.add_option("--packet-auth", config.packet_auth,
+                 "Seal every packet after the handshake (ChaCha20-Poly1305; 'false' only to "
+                 "measure its cost)")
+      ->capture_default_str();
   bool batching = false;
   app.add_flag("--batching", batching,
                "One thread: receive and send with recvmmsg/sendmmsg batches, flushed once per "

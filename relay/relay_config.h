@@ -41,6 +41,9 @@ struct RelayConfig {
   // development only; the relay warns loudly when it is used.
   std::string secret = "edgephys-dev-secret";
   uint32_t max_clients = 4096;     // connections at once; beyond: ServerFull
+  // Every packet after the handshake authenticated and encrypted (protocol/packet_seal.h);
+  // off only to measure its cost: then a Connect without a key is accepted and not sealed.
+  bool packet_auth = true;
   RoomConfig room_defaults;
   ConnectionConfig connection;
   physics::PhysicsConfig physics;  // each room's embedded PhyS world

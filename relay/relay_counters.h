@@ -17,8 +17,8 @@
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. OverBudget).
-inline constexpr size_t kRejectReasonCount = 18;
+// Number of RejectReason values in schema/control.fbs (None .. AuthRequired).
+inline constexpr size_t kRejectReasonCount = 19;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.
