@@ -49,6 +49,9 @@ Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, d
   redirects_this_handshake_ = 0;
   token_.assign(token.begin(), token.end());
   nonce_ = SecureRandom64();
+  Result<KeyExchange> kx = KeyExchange::Generate();
+  if (!kx.ok()) return kx.status();
+  key_exchange_ = std::make_unique<KeyExchange>(std::move(*kx));
   state_ = ClientState::kHandshaking;
   handshake_started_ = now;
   // false (no arrival times from this socket) is handled per datagram: Update() takes the time
@@ -67,8 +70,10 @@ void Client::SendHandshake(double now) {
     // A lost Hello is like a lost datagram: Update() sends it again after handshake_resend_s.
     (void)socket_->SendTo(server_, packet);
   } else {
+    const KeyExchangePublic& key = key_exchange_->public_key();
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie_),
-                                             fbb.CreateVector(token_), nonce_));
+                                             fbb.CreateVector(token_), nonce_,
+                                             fbb.CreateVector(key.data(), key.size())));
     auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
     // As for Hello: resent until answered.
     (void)socket_->SendTo(server_, packet);
@@ -93,12 +98,24 @@ void Client::Update(double now) {
       n = socket_->ReceiveFrom(&from, receive_buffer_);
       if (n == 0) break;
     }
-    if (from != server_ || n > kMaxPacketSize) continue;  // not our relay / oversized
+    if (from != server_ || n > kMaxDatagramSize) continue;  // not our relay / oversized
     std::span<const uint8_t> packet(receive_buffer_.data(), n);
     PacketPrefix prefix{};
     DropReason reason{};
-    if (!ParsePacketPrefix(packet, &prefix, &reason)) continue;
-    if (prefix.type == PacketType::kData || prefix.type == PacketType::kDisconnect) {
+    if (!ParsePacketPrefix(packet.first(std::min(n, kMaxPacketSize)), &prefix, &reason)) continue;
+    const bool data = prefix.type == PacketType::kData || prefix.type == PacketType::kDisconnect;
+    if (data && seal_ != nullptr) {
+      // Forged, corrupted or replayed packets are dropped before the connection sees them.
+      const size_t opened = seal_->Open(packet, open_buffer_, &reason);
+      if (opened == 0) {
+        ++packets_refused_;
+        continue;
+      }
+      packet = std::span<const uint8_t>(open_buffer_.data(), opened);
+    } else if (n > kMaxPacketSize) {
+      continue;  // only a sealed packet may be longer
+    }
+    if (data) {
       if (connection_ && prefix.connection_id == connection_->id() && connection_->connected()) {
         // An error either drops this one datagram (malformed, duplicate: nothing to undo) or
         // ends the connection, which the connected() check below reports.
@@ -176,6 +193,17 @@ void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) 
     ConnectionConfig cc = config_.connection;
     if (accept->keepalive_ms() > 0) cc.keepalive_interval_s = accept->keepalive_ms() / 1000.0;
     if (accept->timeout_ms() > 0) cc.timeout_s = accept->timeout_ms() / 1000.0;
+    const auto* relay_key = accept->relay_key();
+    if (relay_key != nullptr) {
+      Result<ConnectionKeys> keys = key_exchange_->Derive(
+          std::span<const uint8_t>(relay_key->data(), relay_key->size()), /*own_is_client=*/true,
+          token_, nonce_, accept->connection_id());
+      if (!keys.ok()) return;  // not our relay's answer (a forged Accept): keep waiting
+      seal_ = std::make_unique<PacketSeal>(*keys, PacketSeal::Side::kClient);
+      seal_buffer_.resize(kMaxDatagramSize);
+      open_buffer_.resize(kMaxDatagramSize);
+    }
+    key_exchange_.reset();
     connection_ = std::make_unique<Connection>(accept->connection_id(), cc, now);
     player_id_ = accept->player_id();
     state_ = ClientState::kConnected;
@@ -196,6 +224,9 @@ void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) 
 
 Status Client::JoinRoom(std::string_view room) {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
+  if (room.empty() || room.size() > kMaxRoomNameSize) {
+    return Status::InvalidArgument("room name must be 1..64 bytes");
+  }
   flatbuffers::FlatBufferBuilder fbb(128);
   FinishControl(fbb, schema::CreateJoinRoom(fbb, fbb.CreateString(room.data(), room.size())));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
@@ -598,6 +629,11 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
 void Client::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
 
 void Client::WritePacket(std::span<const uint8_t> packet) {
+  if (seal_ != nullptr) {
+    const size_t n = seal_->Seal(packet, seal_buffer_);
+    if (n == 0) return;
+    packet = std::span<const uint8_t>(seal_buffer_.data(), n);
+  }
   // A refused send is a lost datagram (DatagramSocket::SendTo); the connection resends what
   // must arrive.
   (void)socket_->SendTo(server_, packet);

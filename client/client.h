@@ -40,6 +40,7 @@
 #include <unordered_set>
 #include <vector>
 
+#include "protocol/packet_seal.h"
 #include "protocol/connection.h"
 #include "protocol/container_builder.h"
 #include "edgephys/schema/control_generated.h"
@@ -235,6 +236,8 @@ class Client final : private ConnectionHandler, private PacketWriter {
   uint64_t resumes() const { return resumes_; }
   bool resuming() const { return resuming_; }
   const Endpoint& server() const { return server_; }
+  // Datagrams from the relay's address that failed authentication or were replays (dropped).
+  uint64_t packets_refused() const { return packets_refused_; }
 
  private:
   // Raw senders (unchecked state, reliable bytes, unreliable payloads) for tests, fuzzers and
@@ -274,6 +277,12 @@ class Client final : private ConnectionHandler, private PacketWriter {
   double handshake_started_ = 0;
   double last_handshake_send_ = -1e9;
   std::unique_ptr<Connection> connection_;
+  // Packet authentication (protocol/packet_seal.h): this connection's key pair until Accept,
+  // then the seal every packet goes through (null if the relay does not seal).
+  std::unique_ptr<KeyExchange> key_exchange_;
+  std::unique_ptr<PacketSeal> seal_;
+  std::vector<uint8_t> seal_buffer_, open_buffer_;
+  uint64_t packets_refused_ = 0;
   uint32_t player_id_ = 0;
   uint16_t reject_reason_ = 0;
   DisconnectReason disconnect_reason_ = DisconnectReason::kNone;

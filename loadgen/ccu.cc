@@ -258,6 +258,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   config.room_defaults.capacity = users / std::max(1u, o.rooms) + 16;
   config.room_defaults.tick_rate_hz = o.tick_rate_hz;
   config.room_defaults.replication.shared_encoding = o.shared_encoding;
+  config.packet_auth = o.packet_auth;
   config.limits.max_sessions_per_address = users + 64;  // every bot comes from 127.0.0.1
   config.limits.handshakes_per_s = 100000;
   config.connection.timeout_s = 10;

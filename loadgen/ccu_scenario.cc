@@ -158,6 +158,8 @@ class CcuScenario final : public Scenario {
                    "the other)");
     cmd.add_flag("--shared-encoding", o_.shared_encoding,
                  "In-process relay: rooms use the shared-delta state format (9) instead of 2");
+    cmd.add_option("--packet-auth", o_.packet_auth,
+                   "In-process relay: seal packets after the handshake (false: measure without)");
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th bot matches poses for latency (all still decode; 1: all)")
         ->check(CLI::Range(1u, 1000000u));

@@ -150,6 +150,7 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
   config.physics_threads = 1;
   config.room_defaults.tick_rate_hz = o.tick_rate_hz;
   config.room_defaults.capacity = 64;
+  config.packet_auth = o.packet_auth;
   // Every moving entity to every other member each tick (as relay-compare does), so the egress
   // follows the tick rate rather than the priority classes' send intervals.
   config.room_defaults.replication.fixed_rate_hz = o.tick_rate_hz;

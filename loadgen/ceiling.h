@@ -43,6 +43,7 @@ struct CeilingOptions {
   uint32_t iperf_length = 0;  // datagram payload bytes; 0: the relay's mean datagram size
   uint16_t iperf_port = 0;    // 0: a free port
   uint32_t repeat = 1;
+  bool packet_auth = true;  // the relay under test seals packets (RelayConfig::packet_auth)
   bool progress = true;
   // --relay: the bots load an external edgephys-relay (one --io-threads value: the relay's own
   // flag, echoed); packets, bytes, drops and rejects from its /metrics, relay CPU from

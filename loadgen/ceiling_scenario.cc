@@ -111,6 +111,8 @@ class CeilingScenario final : public Scenario {
     cmd.add_option("--io-threads", threads_,
                    "Relay --io-threads values (comma separated; one run each)");
     cmd.add_option("--clients", o_.clients, "Bot clients");
+    cmd.add_option("--packet-auth", o_.packet_auth,
+                   "Seal packets after the handshake (false: measure without)");
     cmd.add_option("--rooms", o_.rooms, "Rooms the clients spread over");
     cmd.add_option("--entities", o_.entities_per_client, "Entities each client moves");
     cmd.add_option("--publish-hz", o_.publish_hz, "Client publish rate");

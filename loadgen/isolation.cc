@@ -310,6 +310,7 @@ RelayConfig InProcessConfig(const IsolationOptions& o) {
   config.room_defaults.capacity = members + 16;
   config.room_defaults.tick_rate_hz = o.tick_rate_hz;
   config.room_defaults.max_entities_per_player = o.boxes + 64;
+  config.room_defaults.budgets = RoomBudgets::Unlimited();
   config.limits.max_sessions_per_address = o.users + o.b_receivers + 64;  // all from 127.0.0.1
   config.limits.handshakes_per_s = 100000;
   config.limits.spawns_per_s = 0;  // the B host spawns its scene at once

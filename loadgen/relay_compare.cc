@@ -95,6 +95,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   config.room_defaults.capacity = o.receivers + 4;
   config.room_defaults.tick_rate_hz = 60;
   config.room_defaults.max_entities_per_player = objects + 16;
+  config.room_defaults.budgets = RoomBudgets::Unlimited();
   ReplicationConfig& r = config.room_defaults.replication;
   r.mode = mode;
   r.fixed_rate_hz = o.rate_hz;

@@ -158,6 +158,17 @@ const std::vector<std::string>& DisconnectLabels() {
       schema::EnumNameDisconnectReason);
 }
 
+const std::vector<std::string>& BudgetLabels() {
+  static const std::vector<std::string> labels = [] {
+    std::vector<std::string> out;
+    for (size_t i = 0; i < kBudgetKindCount; ++i) {
+      out.emplace_back(BudgetKindName(static_cast<BudgetKind>(i)));
+    }
+    return out;
+  }();
+  return labels;
+}
+
 using C = RelayCounters;
 // Exported in this order, after edgephys_build_info.
 const FamilySpec kFamilies[] = {
@@ -202,6 +213,9 @@ const FamilySpec kFamilies[] = {
     {"edgephys_requests_rejected_total",
      "Connect, join and command requests refused to clients, by reason.",
      ReasonCountersSource{CountersOf<&C::requests_rejected>, RejectLabels}},
+    {"edgephys_budget_refusals_total",
+     "Spawns refused with Error{OverBudget}, by the room or player budget used up.",
+     ReasonCountersSource{CountersOf<&C::budget_refusals>, BudgetLabels}},
     {"edgephys_disconnects_total", "Connections ended, by reason.",
      ReasonCountersSource{CountersOf<&C::disconnects>, DisconnectLabels}},
     {"edgephys_rtt_seconds", "Connection round-trip time samples, in seconds.",

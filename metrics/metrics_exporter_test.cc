@@ -183,6 +183,15 @@ TEST_F(MetricsExporterTest, TypeAndHelpLinesAndSingleTotalSuffix) {
   EXPECT_THAT(text, Not(HasSubstr("_total_total")));
 }
 
+TEST_F(MetricsExporterTest, BudgetRefusalsExportedByBudget) {
+  counters_.RefuseOverBudget(BudgetKind::kRoomParticles);
+  counters_.RejectRequest(17);  // schema::RejectReason::OverBudget
+  const auto samples = ParseSamples(Scrape(*exporter_));
+  EXPECT_EQ(samples.at("edgephys_budget_refusals_total{reason=\"room_particles\"}"), 1);
+  EXPECT_EQ(samples.at("edgephys_budget_refusals_total{reason=\"player_entities\"}"), 0);
+  EXPECT_EQ(samples.at("edgephys_requests_rejected_total{reason=\"over_budget\"}"), 1);
+}
+
 TEST_F(MetricsExporterTest, DropReasonLabelsExportedEvenAtZero) {
   counters_.RejectPacket(DropReason::kBadCookie);
   counters_.RejectPacket(DropReason::kBadCookie);

@@ -28,6 +28,10 @@ bool Fail(DropReason* reason, DropReason value) {
 
 std::string_view DropReasonName(DropReason reason) {
   switch (reason) {
+    case DropReason::kBadAuth:
+      return "bad_auth";
+    case DropReason::kReplayed:
+      return "replayed";
     case DropReason::kTooShort:
       return "too_short";
     case DropReason::kTooLarge:

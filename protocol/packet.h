@@ -58,6 +58,8 @@ enum class DropReason : uint8_t {
   kRateLimited,
   kUnknownEntity,      // state update for an entity id the room does not have
   kNotJoined,          // state update from a connection that has joined no room
+  kBadAuth,            // a sealed packet whose AEAD tag does not verify (forged, corrupted)
+  kReplayed,           // a sealed packet already received, or older than the replay window
   kCount               // number of reasons; not a reason
 };
 

@@ -12,6 +12,7 @@
 #include "protocol/delta_codec.h"
 #include "protocol/shared_delta_codec.h"
 #include "protocol/state_codec.h"
+#include "relay/room_budget.h"
 
 namespace edgephys {
 
@@ -21,7 +22,11 @@ class MemberLink;
 struct Entity {
   uint32_t id = 0;
   uint32_t owner = 0;            // player id; 0 = the room or PhyS (see physics)
-  uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones)
+  uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones;
+                                 // the room's budgets charge it `cost` until it is removed)
+  uint32_t parent = 0;           // parent entity (Container.parent_id), 0: none
+  uint32_t children = 0;         // entities whose parent this is
+  EntityCost cost;
   PhysicsRole physics = PhysicsRole::kNone;
   uint32_t held_by = 0;          // hand entity holding it (grabbed), 0 if none
   std::vector<Vec3f> nodes;      // soft body particles (PhyS-simulated soft bodies)
@@ -56,7 +61,6 @@ struct Member {
   uint32_t player_id = 0;
   uint32_t slot = 0;             // 1..capacity; entity ids slot<<16 .. +65535 are the player's
   MemberLink* link = nullptr;    // how the room reaches the player (its session); not owned
-  uint32_t entity_count = 0;
   // States that arrived for the player's own, not yet spawned entities (the spawn travels on
   // the reliable channel and may arrive later). Bounded; applied when the spawn arrives.
   std::unordered_map<uint32_t, EntityState> early_states;

@@ -85,6 +85,27 @@ int main(int argc, char** argv) {
   app.add_option("--max-entities-per-player", config.room_defaults.max_entities_per_player,
                  "Entities one player may own in a room")
       ->capture_default_str();
+  RoomBudgets& budget = config.room_defaults.budgets;  // docs/operations.md, "Room budgets"
+  app.add_option("--max-room-entities", budget.max_entities, "Entities in one room (0: off)")
+      ->capture_default_str();
+  app.add_option("--max-player-bytes", budget.max_bytes_per_player,
+                 "Stored spawn bytes per player in a room")->capture_default_str();
+  app.add_option("--max-room-bytes", budget.max_bytes, "Stored spawn bytes in one room")
+      ->capture_default_str();
+  app.add_option("--max-player-bodies", budget.max_bodies_per_player, "PhyS bodies per player")
+      ->capture_default_str();
+  app.add_option("--max-room-bodies", budget.max_bodies, "PhyS bodies in one room")
+      ->capture_default_str();
+  app.add_option("--max-player-particles", budget.max_particles_per_player,
+                 "Soft-body particles per player")->capture_default_str();
+  app.add_option("--max-room-particles", budget.max_particles, "Soft-body particles in one room")
+      ->capture_default_str();
+  app.add_option("--max-player-joints", budget.max_joints_per_player, "PhyS joints per player")
+      ->capture_default_str();
+  app.add_option("--max-room-joints", budget.max_joints, "PhyS joints in one room")
+      ->capture_default_str();
+  app.add_option("--max-name-bytes", budget.max_name_bytes, "Longest entity name (bytes)")
+      ->capture_default_str();
   std::string replication_mode = "edgephys";
   app.add_option("--replication-mode", replication_mode,
                  "State encoding: edgephys (quantized delta), float, photon or paper (emulations)")
@@ -137,6 +158,10 @@ int main(int argc, char** argv) {
                  "as before; N>1 adds a receive thread; see docs/operations.md)")
       ->capture_default_str()
       ->check(CLI::Range(size_t{1}, RelayShards::kMaxShards));
+  app.add_option("--packet-auth", config.packet_auth,
+                 "Seal every packet after the handshake (ChaCha20-Poly1305; 'false' only to "
+                 "measure its cost)")
+      ->capture_default_str();
   bool batching = false;
   app.add_flag("--batching", batching,
                "One thread: receive and send with recvmmsg/sendmmsg batches, flushed once per "

@@ -29,6 +29,13 @@ class MemberLink {
   // Queues a reliable-ordered message. False when the member's reliable queue overflowed: the
   // link has then disconnected the member (kReliableOverflow) and will be removed by its owner.
   virtual bool SendReliable(std::span<const uint8_t> message) = 0;
+  // The member's reliable queue: bytes queued or unacknowledged, and the most it may hold
+  // (SendReliable beyond it overflows). Used to pace a late join (relay/join_stream.h).
+  virtual size_t ReliablePending() const = 0;
+  virtual size_t ReliableCapacity() const = 0;
+  // The member fell a whole reliable queue behind: disconnect it (kReliableOverflow), as an
+  // overflowing SendReliable would; its owner removes it later.
+  virtual void Overflow() = 0;
   // Refuses one of the member's requests: counts `reason` (requests_rejected), logs at a
   // bounded rate and sends Error{reason, entity_id, detail}.
   virtual void SendError(schema::RejectReason reason, uint32_t entity_id,

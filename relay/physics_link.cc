@@ -133,7 +133,7 @@ physics::PhysicsCounters EmbeddedPhysicsLink::counters() const {
 RemotePhysicsLink::RemotePhysicsLink(WorkerChannel* channel, uint32_t worker_id,
                                      uint32_t room_handle, const physics::PhysicsConfig& config,
                                      double now)
-    : channel_(channel), worker_id_(worker_id), handle_(room_handle), validator_(config),
+    : channel_(channel), worker_id_(worker_id), handle_(room_handle), admission_(config),
       last_heard_(now) {
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateWorkerAssign(fbb, handle_, config.fixed_dt));
@@ -155,40 +155,30 @@ void RemotePhysicsLink::Send(flatbuffers::FlatBufferBuilder& fbb) {
 }
 
 Status RemotePhysicsLink::Add(const schema::Container& c, PhysicsRole role) {
-  // The same component checks as an embedded world; the structural ones against our ids.
-  physics::InvalidReason reason = validator_.Validate(c);
-  using R = physics::InvalidReason;
-  if (reason == R::kDuplicateId || reason == R::kUnknownParent || reason == R::kUnknownJointTarget) {
-    reason = R::kNone;
-  }
-  if (reason == R::kNone && ids_.count(c.entity_id()) != 0) reason = R::kDuplicateId;
-  if (reason == R::kNone && c.parent_id() != 0 && ids_.count(c.parent_id()) == 0) {
-    reason = R::kUnknownParent;
-  }
-  if (reason != R::kNone) {
-    return Status::InvalidArgument(
-        "invalid physics components",
-        "physics: invalid components (reason " + std::to_string(static_cast<int>(reason)) + ")");
-  }
+  // The worker's RoomPhysics::Add decides again, but a refusal there is not answered to the
+  // client: the relay refuses exactly what it would, with the embedded link's Status.
+  PhysicsCommand unused;
+  Status admitted = admission_.Admit(c, role, &unused);
+  if (!admitted.ok()) return admitted;
   schema::ContainerT copy;
   c.UnPackTo(&copy);
   flatbuffers::FlatBufferBuilder fbb(1024);
   auto container = schema::Container::Pack(fbb, &copy);
   FinishControl(fbb, schema::CreateWorkerAdd(fbb, handle_, static_cast<uint8_t>(role), container));
   Send(fbb);
-  ids_.insert(c.entity_id());
   return Status::Ok();
 }
 
 void RemotePhysicsLink::Remove(uint32_t id) {
-  if (ids_.erase(id) == 0) return;
+  if (admission_.RoleOf(id) == PhysicsRole::kNone) return;
+  admission_.Removed(id);
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateWorkerRemove(fbb, handle_, id));
   Send(fbb);
 }
 
 void RemotePhysicsLink::Drive(uint32_t id, const EntityState& s) {
-  if (ids_.count(id) == 0) return;
+  if (admission_.RoleOf(id) == PhysicsRole::kNone) return;
   for (schema::Pose& p : drives_) {
     if (p.entity_id() == id) {
       p = ToPose(id, s);

@@ -151,8 +151,9 @@ class RemotePhysicsLink final : public PhysicsLink {
   PhysicsLinkRegistry* registry_ = nullptr;
   uint32_t worker_id_;
   uint32_t handle_;
-  physics::PhysicsWorld validator_;  // empty: checks components, never simulates
-  std::unordered_set<uint32_t> ids_;
+  // The worker's entities as the relay knows them, and the same checks an embedded world
+  // makes (ids, parents and joint partners against these, every component of a child too).
+  PhysicsAdmission admission_;
   StepOutput pending_;
   std::vector<schema::Pose> drives_;  // batched per Advance
   double last_heard_;

@@ -68,7 +68,7 @@ void Relay::Update(double now, uint64_t unix_now_s) {
     if (n == 0) break;
     RelayCounters::Inc(counters_->packets_received);
     RelayCounters::Inc(counters_->bytes_received, n);
-    if (n > kMaxPacketSize) {
+    if (n > kMaxDatagramSize) {
       counters_->RejectPacket(DropReason::kTooLarge);
       Log().Note("datagram dropped", DropReasonName(DropReason::kTooLarge), from, now);
       continue;
@@ -145,10 +145,15 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
     counters_->RejectPacket(r);
     Log().Note("datagram dropped", DropReasonName(r), from, now);
   };
-  if (!ParsePacketPrefix(data, &prefix, &reason)) return drop(reason);
+  // A sealed packet may be kSealOverhead longer than kMaxPacketSize; nothing else may.
+  if (!ParsePacketPrefix(data.first(std::min(data.size(), kMaxPacketSize)), &prefix, &reason)) {
+    return drop(reason);
+  }
+  const bool oversized = data.size() > kMaxPacketSize;
   switch (prefix.type) {
     case PacketType::kHello:
     case PacketType::kConnect:
+      if (oversized) return drop(DropReason::kTooLarge);
       if (!handshake_limiter_.Allow(from, now)) return drop(DropReason::kRateLimited);
       if (prefix.type == PacketType::kHello) return HandleHello(from, data, now);
       return HandleConnect(from, data, now, unix_now_s);
@@ -160,8 +165,21 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
       if (s.endpoint() != from) return drop(DropReason::kWrongAddress);
       if (!s.connection().connected()) return;  // closing: redundant disconnect copies
       if (!s.AllowPacket(now, data.size())) return drop(DropReason::kRateLimited);
+      std::span<const uint8_t> packet = data;
+      if (s.sealed()) {
+        // Forged (even with the victim's exact address and connection id), corrupted or
+        // replayed: dropped and counted before the connection sees anything.
+        packet = s.Open(data, &reason);
+        if (packet.empty() && reason == DropReason::kReplayed) {
+          // Also what a network duplicate is: ordinary, so counted but not logged.
+          return counters_->RejectPacket(reason);
+        }
+        if (packet.empty()) return drop(reason);
+      } else if (oversized) {
+        return drop(DropReason::kTooLarge);
+      }
       s.set_now(now);
-      Status st = s.connection().ProcessPacket(data, now, s);
+      Status st = s.connection().ProcessPacket(packet, now, s);
       if (st.code() == StatusCode::kAlreadyExists) {
         // The network delivered a packet twice: ordinary, so counted but not logged.
         counters_->RejectPacket(DropReason::kDuplicate);
@@ -214,6 +232,10 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
   if (connect->token() != nullptr) {
     token_bytes = std::span<const uint8_t>(connect->token()->data(), connect->token()->size());
   }
+  std::span<const uint8_t> client_key;
+  if (connect->client_key() != nullptr) {
+    client_key = std::span<const uint8_t>(connect->client_key()->data(), connect->client_key()->size());
+  }
   Result<JoinToken> token = VerifyJoinToken(token_bytes, config_.secret, unix_now_s);
   if (!token.ok()) {
     RejectReason r = IsExpiredToken(token.status()) ? RejectReason::ExpiredToken
@@ -245,6 +267,10 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
     Log().Note("connect rejected", "relay draining", from, now);
     return SendReject(from, Code(RejectReason::ServerFull), data.size());
   }
+  if (config_.packet_auth && client_key.size() != kKeyExchangePublicSize) {
+    Log().Note("connect rejected", "no packet key", from, now);
+    return SendReject(from, Code(RejectReason::AuthRequired), data.size());
+  }
   if (sessions_.size() >= config_.max_clients) {
     return SendReject(from, Code(RejectReason::ServerFull), data.size());
   }
@@ -264,10 +290,12 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
     return SendReject(from, Code(r), data.size());
   }
 
-  Admit(from, *token, now);
+  Admit(from, *token, token_bytes, config_.packet_auth ? client_key : std::span<const uint8_t>(),
+        connect->client_nonce(), now);
 }
 
-void Relay::Admit(const Endpoint& from, const JoinToken& token, double now) {
+void Relay::Admit(const Endpoint& from, const JoinToken& token, std::span<const uint8_t> token_bytes,
+                  std::span<const uint8_t> client_key, uint64_t client_nonce, double now) {
   uint32_t connection_id = 0;
   while (connection_id == 0 || sessions_.count(connection_id) != 0) {
     connection_id = static_cast<uint32_t>(SecureRandom64());
@@ -280,11 +308,25 @@ void Relay::Admit(const Endpoint& from, const JoinToken& token, double now) {
   auto session = std::make_unique<Session>(host, counters_, from, connection_id, token.player_id,
                                            token.permissions, token.room, token.nonce,
                                            config_.connection, config_.limits, now);
-  flatbuffers::FlatBufferBuilder fbb(64);
+  flatbuffers::FlatBufferBuilder fbb(128);
+  flatbuffers::Offset<flatbuffers::Vector<uint8_t>> relay_key;
+  if (!client_key.empty()) {  // packet authentication: this connection's keys
+    Result<KeyExchange> kx = KeyExchange::Generate();
+    Result<ConnectionKeys> keys =
+        kx.ok() ? kx->Derive(client_key, /*own_is_client=*/false, token_bytes, client_nonce,
+                             connection_id)
+                : Result<ConnectionKeys>(kx.status());
+    if (!keys.ok()) {
+      Log().Note("connect rejected", "bad packet key", from, now);
+      return SendReject(from, Code(RejectReason::AuthRequired), kMaxPacketSize);  // verified
+    }
+    session->EnableSeal(*keys);
+    relay_key = fbb.CreateVector(kx->public_key().data(), kx->public_key().size());
+  }
   FinishControl(fbb, schema::CreateAccept(
                          fbb, connection_id, token.player_id,
                          static_cast<uint32_t>(config_.connection.keepalive_interval_s * 1000),
-                         static_cast<uint32_t>(config_.connection.timeout_s * 1000)));
+                         static_cast<uint32_t>(config_.connection.timeout_s * 1000), relay_key));
   session->accept_packet() = BuildHandshakePacket(PacketType::kAccept, fbb);
   Transmit(from, session->accept_packet());
   session_by_endpoint_[from] = connection_id;

@@ -133,7 +133,9 @@ class Relay final : private SessionHost {
   void HandleConnect(const Endpoint& from, std::span<const uint8_t> data, double now,
                      uint64_t unix_now_s);
   // Makes the session of an admitted Connect and answers Accept.
-  void Admit(const Endpoint& from, const JoinToken& token, double now);
+  // `client_key` empty: packets unsealed (RelayConfig::packet_auth off).
+  void Admit(const Endpoint& from, const JoinToken& token, std::span<const uint8_t> token_bytes,
+             std::span<const uint8_t> client_key, uint64_t client_nonce, double now);
   void SendReject(const Endpoint& to, uint16_t reason, size_t request_size);
   // Sends a reply to an address that has not completed the handshake, refusing (and
   // counting) any reply larger than the datagram that provoked it.

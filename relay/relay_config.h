@@ -10,6 +10,7 @@
 #include "protocol/connection.h"
 #include "physics/physics_world.h"
 #include "relay/replication.h"
+#include "relay/room_budget.h"
 
 namespace edgephys {
 
@@ -17,7 +18,8 @@ struct RoomConfig {
   uint32_t capacity = 64;          // players at once; joins beyond get RoomFull
   double idle_ttl_s = 300.0;       // an empty room is closed after this long
   double tick_rate_hz = 60.0;      // replication ticks per second
-  uint32_t max_entities_per_player = 1024;
+  uint32_t max_entities_per_player = 1024;  // per player identity, also after it leaves
+  RoomBudgets budgets;             // room-wide and per-player caps (relay/room_budget.h)
   // PhyS for this room: false refuses spawns with physics components (InvalidContainer).
   bool physics = true;
   ReplicationConfig replication;   // encoder, send rates by priority class, thresholds, budget
@@ -41,6 +43,9 @@ struct RelayConfig {
   // development only; the relay warns loudly when it is used.
   std::string secret = "edgephys-dev-secret";
   uint32_t max_clients = 4096;     // connections at once; beyond: ServerFull
+  // Every packet after the handshake authenticated and encrypted (protocol/packet_seal.h);
+  // off only to measure its cost: then a Connect without a key is accepted and not sealed.
+  bool packet_auth = true;
   RoomConfig room_defaults;
   ConnectionConfig connection;
   physics::PhysicsConfig physics;  // each room's embedded PhyS world

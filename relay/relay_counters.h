@@ -13,11 +13,12 @@
 
 #include "protocol/connection.h"
 #include "protocol/packet.h"
+#include "relay/room_budget.h"
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. RateLimited).
-inline constexpr size_t kRejectReasonCount = 17;
+// Number of RejectReason values in schema/control.fbs (None .. AuthRequired).
+inline constexpr size_t kRejectReasonCount = 19;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.
@@ -84,6 +85,8 @@ struct RelayCounters {
   std::array<Counter, kRejectReasonCount> requests_rejected{};
   // Connections ended, by DisconnectReason.
   std::array<Counter, kDisconnectReasonCount> disconnects{};
+  // Spawns refused with Error{OverBudget}, by the budget used up (BudgetKind).
+  std::array<Counter, kBudgetKindCount> budget_refusals{};
 
   // PhyS (embedded worlds, all rooms).
   Counter physics_steps{0};
@@ -121,6 +124,9 @@ struct RelayCounters {
   void RejectUpdate(DropReason r) { Inc(updates_rejected[static_cast<size_t>(r)]); }
   void RejectRequest(uint16_t reject_reason) {
     if (reject_reason < kRejectReasonCount) Inc(requests_rejected[reject_reason]);
+  }
+  void RefuseOverBudget(BudgetKind kind) {
+    if (static_cast<size_t>(kind) < kBudgetKindCount) Inc(budget_refusals[static_cast<size_t>(kind)]);
   }
   void CountDisconnect(DisconnectReason r) {
     size_t i = static_cast<size_t>(r);

@@ -13,6 +13,7 @@
 #include <ctime>
 #include <mutex>
 
+#include "protocol/packet_seal.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/packet.h"
@@ -56,12 +57,12 @@ uint64_t HashAddress(const Endpoint& from) {
   return HashBytes(bytes.data(), bytes.size());
 }
 
-// One queued datagram. Bytes beyond kMaxPacketSize are not kept: the relay drops such a
-// datagram by its reported size alone.
+// One queued datagram. Bytes beyond kMaxDatagramSize (a sealed full packet) are not kept: the
+// relay drops such a datagram by its reported size alone.
 struct QueuedDatagram {
   Endpoint from;
   size_t size = 0;  // full size as received
-  std::array<uint8_t, kMaxPacketSize> data;
+  std::array<uint8_t, kMaxDatagramSize> data;
 };
 
 }  // namespace
@@ -73,7 +74,7 @@ class ShardSocket final : public DatagramSocket {
   ShardSocket(UdpSocket* socket, RelayCounters* counters, size_t queue_capacity)
       : socket_(socket), counters_(counters), ring_(queue_capacity) {
     pending_.reserve(UdpSocket::kMaxBatch);
-    arena_.reserve(UdpSocket::kMaxBatch * kMaxPacketSize);
+    arena_.reserve(UdpSocket::kMaxBatch * kMaxDatagramSize);
   }
 
   Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
@@ -274,7 +275,7 @@ size_t RelayShards::Route(const Endpoint& from, std::span<const uint8_t> datagra
 
 void RelayShards::ReceiveLoop() {
   constexpr size_t kBatch = UdpSocket::kMaxBatch;
-  std::vector<std::array<uint8_t, kMaxPacketSize>> buffers(kBatch);
+  std::vector<std::array<uint8_t, kMaxDatagramSize>> buffers(kBatch);
   std::array<UdpSocket::ReceiveSlot, kBatch> slots{};
   for (size_t i = 0; i < kBatch; ++i) slots[i].buffer = buffers[i];
   while (!stop_receiving_.load(std::memory_order_relaxed)) {

@@ -4,11 +4,16 @@
 #include <cstring>
 
 #include "relay/replication.h"
+#include "edgephys/schema/control_generated.h"
 
 namespace edgephys {
 
 Room::Room(std::string name, const RoomConfig& config, double now)
-    : name_(std::move(name)), config_(config), next_tick_(now), empty_since_(now) {}
+    : name_(std::move(name)),
+      config_(config),
+      ledger_(config.budgets, config.max_entities_per_player),
+      next_tick_(now),
+      empty_since_(now) {}
 
 uint32_t Room::AddMember(uint32_t player_id, MemberLink* link) {
   if (members_.size() >= config_.capacity) return 0;
@@ -33,28 +38,23 @@ uint32_t Room::AddMember(uint32_t player_id, MemberLink* link) {
   uint32_t slot = 1;
   while (slot < kEntityIdBlock && used[slot]) ++slot;
   if (slot >= kEntityIdBlock) return 0;
-  members_[player_id] = Member{player_id, slot, link, 0, {}};
+  members_[player_id] = Member{player_id, slot, link, {}};
   return slot;
 }
 
 void Room::RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned) {
   if (members_.erase(player_id) == 0) return;
-  for (auto it = entities_.begin(); it != entities_.end();) {
-    Entity& e = it->second;
-    if (e.owner != player_id && !(e.owner == 0 && e.creator == player_id)) {
-      ++it;
-      continue;
-    }
+  const size_t first = despawned->size();
+  for (auto& [id, e] : entities_) {
+    if (e.owner != player_id && !(e.owner == 0 && e.creator == player_id)) continue;
     constexpr uint32_t kPersistent = 1u << 0;  // schema::EntityFlags::Persistent
     if (e.flags & kPersistent) {
-      e.owner = 0;
-      ++it;
+      e.owner = 0;  // the room's now; still charged to its creator
     } else {
-      despawned->push_back(e.id);
-      if (physics_) physics_->Remove(e.id);
-      it = entities_.erase(it);
+      despawned->push_back(id);
     }
   }
+  for (size_t i = first; i < despawned->size(); ++i) RemoveEntity((*despawned)[i]);
 }
 
 Member* Room::FindMember(uint32_t player_id) {
@@ -69,12 +69,34 @@ Entity* Room::FindEntity(uint32_t id) {
 
 Entity& Room::AddEntity(Entity entity) {
   uint32_t id = entity.id;
+  ledger_.Charge(entity.creator, entity.cost);
+  if (Entity* parent = entity.parent != 0 ? FindEntity(entity.parent) : nullptr) {
+    ++parent->children;
+  }
   return entities_[id] = std::move(entity);
 }
 
 void Room::RemoveEntity(uint32_t id) {
-  entities_.erase(id);
+  auto it = entities_.find(id);
+  if (it == entities_.end()) return;
+  const Entity& e = it->second;
+  ledger_.Refund(e.creator, e.cost);
+  if (Entity* parent = e.parent != 0 ? FindEntity(e.parent) : nullptr) {
+    if (parent->children > 0) --parent->children;
+  }
+  const bool had_children = e.children != 0;
+  entities_.erase(it);
   if (physics_) physics_->Remove(id);
+  if (!had_children) return;
+  // Its children become roots (as in PhyS), also in the spawn a late joiner is sent, so an
+  // entity that later reuses the id is never anyone's ancestor: no parent cycle can form.
+  for (auto& [cid, child] : entities_) {
+    if (child.parent != id) continue;
+    child.parent = 0;
+    auto* msg = schema::GetMutableControlMessage(child.spawn.data());
+    auto* spawn = static_cast<schema::Spawn*>(msg->mutable_body());
+    if (auto* c = spawn->mutable_container()) c->mutate_parent_id(0);
+  }
 }
 
 void Room::ScheduleNextTick(double now) {

@@ -51,9 +51,13 @@ class Room {
   const std::map<uint32_t, Member>& members() const { return members_; }
 
   Entity* FindEntity(uint32_t id);
-  // Inserts a new entity (the caller validated ownership and id range).
+  // Inserts a new entity (the caller validated ownership, id range, parent and budgets) and
+  // charges its cost to its creator in ledger().
   Entity& AddEntity(Entity entity);
+  // Removes an entity (from PhyS too) and refunds its creator; its children become roots.
   void RemoveEntity(uint32_t id);
+  // What the entities cost, by creator and in all (relay/room_budget.h).
+  const RoomLedger& ledger() const { return ledger_; }
   const EntityTable& entities() const { return entities_; }
 
   // PhyS for this room (embedded or on a worker); null until the first physics entity.
@@ -85,6 +89,7 @@ class Room {
   std::map<uint32_t, Member> members_;  // by player id
   std::map<uint32_t, uint32_t> reserved_slots_;  // player id -> slot (failover)
   EntityTable entities_;
+  RoomLedger ledger_;
   std::unique_ptr<PhysicsLink> physics_;
   uint64_t spawn_seq_ = 0;
   std::optional<QuantizationParams> quantization_;  // edgephys rooms, made on first use

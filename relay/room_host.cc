@@ -3,6 +3,8 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
+#include <string>
 
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -17,6 +19,16 @@ bool ReportsContacts(const Entity* e) {
   constexpr uint32_t kMask = static_cast<uint32_t>(schema::EntityFlags::ReportContacts) |
                              static_cast<uint32_t>(schema::EntityFlags::Hand);
   return e != nullptr && (e->flags & kMask) != 0;
+}
+
+// Scale of a spawned entity, every axis (docs/protocol.md, "Spawn rules").
+constexpr float kMinScale = 1e-4f;
+constexpr float kMaxScale = 1e4f;
+bool ValidScale(const schema::Vec3& s) {
+  for (float v : {s.x(), s.y(), s.z()}) {
+    if (!std::isfinite(v) || v < kMinScale || v > kMaxScale) return false;
+  }
+  return true;
 }
 
 // States held per member for entities whose spawn has not arrived yet.
@@ -117,15 +129,32 @@ void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
   FinishControl(fbb, schema::CreateRoomState(fbb, fbb.CreateString(name()),
                                              fbb.CreateVector(players),
                                              static_cast<uint32_t>(room_.entities().size())));
-  (void)link.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
-  for (const auto& [id, e] : room_.entities()) {
-    if (!link.SendReliable(e.spawn)) break;  // overflowed: the link disconnected the joiner
+  if (!link.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()})) return;
+  if (room_.entities().empty()) return;
+  join_streams_.insert_or_assign(link.player_id(), JoinStream(room_.entities()));
+  PumpJoinStreams(link.player_id());
+}
+
+void RoomHost::PumpJoinStreams(uint32_t only) {
+  for (auto it = join_streams_.begin(); it != join_streams_.end();) {
+    if (only != 0 && it->first != only) {
+      ++it;
+      continue;
+    }
+    MemberLink* link = FindMember(it->first);
+    // Erased when the member is gone, finished, or overflowed (the link disconnected it).
+    if (link == nullptr || !it->second.Pump(*link, room_.entities()) || it->second.done()) {
+      it = join_streams_.erase(it);
+    } else {
+      ++it;
+    }
   }
 }
 
 void RoomHost::Leave(MemberLink& link, double now) {
   const auto it = room_.members().find(link.player_id());
   if (it == room_.members().end() || it->second.link != &link) return;
+  join_streams_.erase(link.player_id());
   std::vector<uint32_t> despawned;
   room_.RemoveMember(link.player_id(), &despawned);
   env_.counters->entities.fetch_sub(static_cast<int64_t>(despawned.size()),
@@ -179,9 +208,6 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
   if (room_.FindEntity(id) != nullptr) {
     return link.SendError(RejectReason::DuplicateEntity, id, "entity id already in use");
   }
-  if (member->entity_count >= room_.config().max_entities_per_player) {
-    return link.SendError(RejectReason::EntityLimit, id, "too many entities");
-  }
   const schema::Transform* t = c->transform();
   Entity e;
   e.id = id;
@@ -193,12 +219,33 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
   if (!IsValidState(e.state)) {
     return link.SendError(RejectReason::InvalidMessage, id, "transform not finite or not unit");
   }
-  e.changed_at = now;
-  e.creator = player;
+  if (!ValidScale(t->scale())) {
+    return link.SendError(RejectReason::InvalidMessage, id,
+                          "scale must be finite and within [1e-4, 1e4] on every axis");
+  }
+  if (c->parent_id() != 0) {
+    // The parent must exist already: with ids never reused while a child names them (Room::
+    // RemoveEntity unparents children), no cycle can form.
+    if (c->parent_id() == id || room_.FindEntity(c->parent_id()) == nullptr) {
+      return link.SendError(RejectReason::UnknownEntity, id, "unknown parent (or itself)");
+    }
+  }
   e.physics = RoomPhysics::RoleOf(*c);
   if (e.physics != PhysicsRole::kNone && !room_.config().physics) {
     return link.SendError(RejectReason::InvalidContainer, id, "physics is off in this room");
   }
+  e.cost = EntityCost::Of(*c, message.size(), e.physics != PhysicsRole::kNone);
+  const size_t name_bytes = c->name() == nullptr ? 0 : c->name()->size();
+  if (const BudgetKind over = room_.ledger().Check(player, e.cost, name_bytes);
+      over != BudgetKind::kNone) {
+    env_.counters->RefuseOverBudget(over);
+    return link.SendError(over == BudgetKind::kPlayerEntities ? RejectReason::EntityLimit
+                                                              : RejectReason::OverBudget,
+                          id, std::string("over budget: ") + std::string(BudgetKindName(over)));
+  }
+  e.parent = c->parent_id();
+  e.changed_at = now;
+  e.creator = player;
   e.spawn_seq = room_.NextSpawnSeq();
   if (e.physics != PhysicsRole::kNone) {
     if (room_.physics() == nullptr) room_.set_physics(env_.placement->Place(0, now));
@@ -216,7 +263,6 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
   // The stored spawn tells every client (the creator included) that PhyS owns it.
   if (simulated) SetStoredOwner(e.spawn, 0);
   Entity& added = room_.AddEntity(std::move(e));
-  ++member->entity_count;
   env_.counters->entities.fetch_add(1, std::memory_order_relaxed);
   BroadcastReliable(added.spawn, simulated ? 0 : player);
 }
@@ -230,7 +276,6 @@ void RoomHost::Despawn(MemberLink& link, uint32_t entity_id) {
   }
   const bool simulated = e->physics == PhysicsRole::kSimulated;
   room_.RemoveEntity(entity_id);
-  if (Member* m = room_.FindMember(player); m && m->entity_count > 0) --m->entity_count;
   env_.counters->entities.fetch_sub(1, std::memory_order_relaxed);
   for (const auto& [pid, m] : room_.members()) m.link->Forget(entity_id);
   BroadcastDespawn(entity_id, simulated ? 0 : player);
@@ -421,6 +466,7 @@ void RoomHost::FailOver(double now) {
 // --- Fan-out ---------------------------------------------------------------------------------
 
 void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
+  if (!join_streams_.empty()) PumpJoinStreams();
   room_.PrepareStates(now);  // once per changed entity, not once per receiver
   for (const auto& [pid, member] : room_.members()) {
     if (member.link->ReadyForStates()) receivers->push_back(member.link);
@@ -430,7 +476,17 @@ void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
 
 void RoomHost::BroadcastReliable(std::span<const uint8_t> message, uint32_t except_player) {
   for (const auto& [pid, m] : room_.members()) {
-    if (pid != except_player) (void)m.link->SendReliable(message);
+    if (pid == except_player) continue;
+    if (auto stream = join_streams_.find(pid); stream != join_streams_.end()) {
+      // After the room's existing state; a joiner that falls a whole queue behind is dropped
+      // as its queue would have overflowed.
+      if (!stream->second.Hold(message, m.link->ReliableCapacity())) {
+        join_streams_.erase(stream);
+        m.link->Overflow();
+      }
+    } else {
+      (void)m.link->SendReliable(message);
+    }
   }
 }
 

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "relay/join_stream.h"
 #include "relay/member_link.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
@@ -54,8 +55,9 @@ class RoomHost {
 
   // --- Membership -------------------------------------------------------------------------
   // Admits `link`'s player: queues Joined (its slot's entity id block, the state format and
-  // quantisation), RoomState and one Spawn per existing entity on its reliable channel, starts
-  // its replication, and tells the other members PlayerJoined. False (Error{RoomFull} sent)
+  // quantisation) and RoomState on its reliable channel, starts its replication, starts its
+  // JoinStream (one Spawn per existing entity, paced by its reliable queue: sent here as far as
+  // it fits, then by BeginTick until done), and tells the other members PlayerJoined. False (Error{RoomFull} sent)
   // when the room is full. The player must not be a member already (the relay replaces an
   // older session of the same player first). O(entities + members).
   bool Join(MemberLink& link, double now);
@@ -66,8 +68,10 @@ class RoomHost {
 
   // --- Requests of a member (refused ones: Error{reason} on `link`) ------------------------
   // A spawn: `message` is the whole verified ControlMessage{Spawn}. Checks size, rate,
-  // permission, id block, owner, duplicate id, the player's entity limit and the transform;
-  // physics components go to PhyS (created on first use). Broadcast to the others (to all,
+  // permission, id block, owner, duplicate id, the transform (finite, unit rotation, scale in
+  // [1e-4, 1e4]), the parent (an existing entity) and the budgets (relay/room_budget.h:
+  // Error{EntityLimit} for the player's entity limit, Error{OverBudget} naming any other, and
+  // counted by budget); physics components go to PhyS (created on first use). Broadcast to the others (to all,
   // with owner 0, when PhyS simulates it).
   void Spawn(MemberLink& link, std::span<const uint8_t> message, const schema::Spawn& spawn,
              double now);
@@ -117,9 +121,12 @@ class RoomHost {
   void BroadcastPhysicsEvent(schema::PhysicsEventKind kind, uint32_t a, uint32_t b, double now);
   void BroadcastDespawn(uint32_t entity_id, uint32_t except_player);
   void SendJoinState(MemberLink& link, uint32_t slot);
+  // Sends what fits of the join streams (all members, or `only`); drops finished ones.
+  void PumpJoinStreams(uint32_t only = 0);
 
   Room room_;
   RoomHostEnv env_;
+  std::map<uint32_t, JoinStream> join_streams_;  // by player id, while a join streams
   StateBatch batch_;  // ApplyStates' decode buffer, reused
 };
 

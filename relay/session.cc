@@ -22,7 +22,8 @@ Session::Session(SessionHost* host, RelayCounters* counters, const Endpoint& end
       packets_(limits.packets_per_s, limits.packets_per_s * 2),
       bytes_(limits.bytes_per_s, limits.bytes_per_s * 2),
       spawns_(limits.spawns_per_s, limits.spawns_per_s * 20),
-      connected_at_(now) {}
+      connected_at_(now),
+      reliable_capacity_(config.max_pending_reliable_bytes) {}
 
 void Session::OnReliableMessage(std::span<const uint8_t> message) {
   using schema::Body;
@@ -72,7 +73,23 @@ void Session::OnPacketAcked(uint16_t sequence) {
   if (replicator_) replicator_->OnPacketAcked(sequence);
 }
 
+void Session::EnableSeal(const ConnectionKeys& keys) {
+  seal_ = std::make_unique<PacketSeal>(keys, PacketSeal::Side::kRelay);
+  seal_buffer_.resize(kMaxDatagramSize);
+  open_buffer_.resize(kMaxDatagramSize);
+}
+
+std::span<const uint8_t> Session::Open(std::span<const uint8_t> datagram, DropReason* reason) {
+  const size_t n = seal_->Open(datagram, open_buffer_, reason);
+  return {open_buffer_.data(), n};
+}
+
 void Session::WritePacket(std::span<const uint8_t> packet) {
+  if (seal_ != nullptr) {  // runs on a pool thread in a parallel tick: the seal is this session's
+    const size_t n = seal_->Seal(packet, seal_buffer_);
+    if (n == 0) return;  // cannot happen for the connection's packets; a lost datagram if it did
+    packet = {seal_buffer_.data(), n};
+  }
   if (!buffering_) return host_->Transmit(endpoint_, packet);
   if (outbox_size_ == outbox_.size()) outbox_.emplace_back();
   outbox_[outbox_size_++].assign(packet.begin(), packet.end());

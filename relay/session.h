@@ -15,6 +15,7 @@
 
 #include "protocol/connection.h"
 #include "protocol/datagram_socket.h"
+#include "protocol/packet_seal.h"
 #include "relay/member_link.h"
 #include "relay/physics_link.h"
 #include "relay/rate_limit.h"
@@ -67,6 +68,9 @@ class Session final : public ConnectionHandler,
   uint32_t permissions() const override { return permissions_; }
   bool AllowSpawn(double now) override { return spawns_.Take(now); }
   bool SendReliable(std::span<const uint8_t> message) override;
+  size_t ReliablePending() const override { return connection_.stats().pending_reliable_bytes; }
+  size_t ReliableCapacity() const override { return reliable_capacity_; }
+  void Overflow() override { connection_.Disconnect(DisconnectReason::kReliableOverflow, *this); }
   void SendError(schema::RejectReason reason, uint32_t entity_id,
                  std::string_view detail) override;
   void DropPayload(DropReason reason) override;
@@ -81,6 +85,13 @@ class Session final : public ConnectionHandler,
   bool is_worker() const { return is_worker_; }
   void set_worker(bool worker) { is_worker_ = worker; }
   // Rate limits (AbuseLimits); workers are exempt from the packet limits.
+  // Packet authentication: from now on every packet to the client is sealed and every packet
+  // from it must open (protocol/packet_seal.h).
+  void EnableSeal(const ConnectionKeys& keys);
+  bool sealed() const { return seal_ != nullptr; }
+  // Opens a sealed datagram from the client; empty with `*reason` (kBadAuth, kReplayed,
+  // kTooShort) when it must be dropped. The span is valid until the next call.
+  std::span<const uint8_t> Open(std::span<const uint8_t> datagram, DropReason* reason);
   bool AllowPacket(double now, size_t bytes) {
     return is_worker_ || (packets_.Take(now) && bytes_.Take(now, static_cast<double>(bytes)));
   }
@@ -143,6 +154,9 @@ class Session final : public ConnectionHandler,
   double now_;
   TokenBucket packets_, bytes_, spawns_;
   double connected_at_;
+  size_t reliable_capacity_;  // ConnectionConfig::max_pending_reliable_bytes
+  std::unique_ptr<PacketSeal> seal_;
+  std::vector<uint8_t> seal_buffer_, open_buffer_;
 };
 
 }  // namespace edgephys

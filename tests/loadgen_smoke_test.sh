@@ -119,8 +119,12 @@ if [ -n "$relay_bin" ]; then
   secret="smoke-$RANDOM$RANDOM"
   for attempt in 1 2 3; do  # a port taken between the check and the bind: try others
     udp_port=$(free_port -u) && tcp_port=$(free_port -t) || fail "no free port"
+    # --packet-auth false: the egress check below compares the relay's wire bytes with what the
+    # receivers' connections counted, which is the opened packets (24 bytes less per sealed
+    # datagram, docs/protocol.md §3a).
     "$relay_bin" --bind "127.0.0.1:$udp_port" --metrics "127.0.0.1:$tcp_port" --secret "$secret" \
       --max-connections-per-address 256 --max-handshakes-per-s 10000 --run-for 120 \
+      --packet-auth false \
       --log-level warn >relay.log 2>&1 &
     relay_pid=$!
     up=""

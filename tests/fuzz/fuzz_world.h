@@ -8,6 +8,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -18,6 +19,7 @@
 
 #include "client/client.h"
 #include "protocol/handshake.h"
+#include "protocol/packet_seal.h"
 #include "protocol/testing/in_memory_network.h"
 #include "protocol/join_token.h"
 #include "relay/relay.h"
@@ -105,8 +107,10 @@ class TapSocket final : public DatagramSocket {
   Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
     PacketPrefix prefix{};
     DropReason reason{};
-    if (ParsePacketPrefix(data, &prefix, &reason) && prefix.type == PacketType::kData) {
+    if (ParsePacketPrefix(data.first(std::min(data.size(), kMaxPacketSize)), &prefix, &reason) &&
+        prefix.type == PacketType::kData) {
       connection_id_ = prefix.connection_id;
+      last_data_.assign(data.begin(), data.end());  // sealed (the relay seals by default)
     }
     return inner_->SendTo(to, data);
   }
@@ -119,8 +123,11 @@ class TapSocket final : public DatagramSocket {
     return inner_->SendTo(to, data);
   }
   uint32_t connection_id() const { return connection_id_; }
+  // The last data packet the client sent, as on the wire (for replays and forgeries).
+  const std::vector<uint8_t>& last_data() const { return last_data_; }
 
  private:
+  std::vector<uint8_t> last_data_;
   std::unique_ptr<DatagramSocket> inner_;
   uint32_t connection_id_ = 0;
 };

@@ -5,7 +5,9 @@
 // record is parsed directly (ParsePacketPrefix, VerifyControlMessage for every handshake
 // body) and then sent, by tag % 5, as:
 //   0: a datagram from a stranger's address to the relay (handshake, unknown connections)
-//   1: a datagram from A's address to the relay, as is
+//   1: a datagram from A's address to the relay, as is (tag bit 3: A's last sealed data
+//      packet with the bytes XORed over it from offset 10: a replay when they are empty or
+//      zero, else a forgery of the authenticated path with A's address and connection id)
 //   2: A's address, with a valid prefix (tag bit 3: kDisconnect, else kData) and A's
 //      connection id prepended: the bytes reach Connection::ProcessPacket and the session's
 //      message handlers
@@ -13,7 +15,9 @@
 //      the client SDK's datagram path
 //   4: a datagram from a silent server to client B, which is mid-handshake: the client's
 //      handshake handling (tag bit 3: a handshake prefix of type tag >> 4 prepended)
-// The relay and the clients are pumped one fake-clock step after each record.
+// The relay and the clients are pumped one fake-clock step after each record. Every record is
+// also opened by a PacketSeal (must refuse it, never crash) and sealed and opened again (must
+// round-trip).
 #include <cstddef>
 #include <cstdint>
 
@@ -23,6 +27,26 @@ namespace edgephys::fuzz {
 namespace {
 
 constexpr size_t kMaxRecords = 64;
+
+// The AEAD layer alone: arbitrary bytes never open under a key; sealed ones open once, intact.
+void SealDirectly(std::span<const uint8_t> bytes) {
+  static ConnectionKeys keys = [] {
+    ConnectionKeys k;
+    for (size_t i = 0; i < k.client_to_relay.size(); ++i) k.client_to_relay[i] = uint8_t(i);
+    for (size_t i = 0; i < k.relay_to_client.size(); ++i) k.relay_to_client[i] = uint8_t(3 * i);
+    return k;
+  }();
+  PacketSeal client(keys, PacketSeal::Side::kClient), relay(keys, PacketSeal::Side::kRelay);
+  std::vector<uint8_t> out(kMaxDatagramSize + 64), sealed(kMaxDatagramSize);
+  DropReason reason{};
+  EDGEPHYS_FUZZ_CHECK(relay.Open(bytes, out, &reason) == 0);
+  if (bytes.size() < kPacketPrefixSize || bytes.size() > kMaxPacketSize) return;
+  const size_t n = client.Seal(bytes, sealed);
+  EDGEPHYS_FUZZ_CHECK(n == bytes.size() + kSealOverhead);
+  EDGEPHYS_FUZZ_CHECK(relay.Open({sealed.data(), n}, out, &reason) == bytes.size());
+  EDGEPHYS_FUZZ_CHECK(std::equal(bytes.begin(), bytes.end(), out.begin()));
+  EDGEPHYS_FUZZ_CHECK(relay.Open({sealed.data(), n}, out, &reason) == 0);  // replay
+}
 
 void ParseDirectly(std::span<const uint8_t> bytes) {
   PacketPrefix prefix{};
@@ -99,6 +123,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const size_t len = in.U16();
     auto bytes = in.Bytes(len);
     ParseDirectly(bytes);
+    SealDirectly(bytes);
     const bool alt = (tag & 8) != 0;
     const uint32_t a_id = world.client_socket(0).connection_id();
     switch (tag % 5) {
@@ -106,7 +131,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         (void)stranger->SendTo(world.relay_endpoint(), bytes);
         break;
       case 1:
-        (void)world.client_socket(0).SendUntapped(world.relay_endpoint(), bytes);
+        if (alt && !world.client_socket(0).last_data().empty()) {
+          std::vector<uint8_t> forged = world.client_socket(0).last_data();
+          for (size_t k = 0; k < bytes.size() && kPacketPrefixSize + k < forged.size(); ++k) {
+            forged[kPacketPrefixSize + k] ^= bytes[k];
+          }
+          (void)world.client_socket(0).SendUntapped(world.relay_endpoint(), forged);
+        } else {
+          (void)world.client_socket(0).SendUntapped(world.relay_endpoint(), bytes);
+        }
         break;
       case 2: {
         auto packet = WithPrefix(alt ? PacketType::kDisconnect : PacketType::kData, a_id, bytes);

@@ -29,6 +29,7 @@ TEST(PhysicsOffload, AHeavyRoomNeitherStallsAnotherRoomNorStopsSimulating) {
   config.physics.sleeping = false;  // the heavy scene never comes to rest...
   config.physics.substeps = 4;      // ... and every fixed step is four Bullet steps
   config.room_defaults.max_entities_per_player = 4096;
+  config.room_defaults.budgets = RoomBudgets::Unlimited();
   config.limits.spawns_per_s = 0;
   config.limits.packets_per_s = 0;
   config.limits.bytes_per_s = 0;

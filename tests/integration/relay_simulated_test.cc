@@ -59,14 +59,19 @@ TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   }, 3.0)) << "B did not converge to A's final state";
   const ConnectionStats* stats = b.stats();
   ASSERT_NE(stats, nullptr);
-  EXPECT_GT(stats->stale_dropped + stats->duplicates_dropped, 0u);
+  // Duplicates stop at the packet seal's replay window, stale payloads in the connection.
+  EXPECT_GT(stats->stale_dropped + stats->duplicates_dropped + b.packets_refused(), 0u);
   // The relay sends states only after Joined was acknowledged: none reached B outside a room
   // (a reordered state ahead of Joined would be undecodable, yet acknowledged).
   EXPECT_EQ(b.state_payloads_outside_room(), 0u);
   EXPECT_EQ(a.state_payloads_outside_room(), 0u);
-  // The relay sees duplicates too: counted as such, never as malformed input.
+  // The relay sees duplicates too: counted as such (replays of a sealed packet), never as
+  // malformed input or failed authentication.
   const auto& rejected = world.counters().packets_rejected;
-  EXPECT_GT(rejected[static_cast<size_t>(DropReason::kDuplicate)].load(), 0u);
+  EXPECT_GT(rejected[static_cast<size_t>(DropReason::kDuplicate)].load() +
+                rejected[static_cast<size_t>(DropReason::kReplayed)].load(),
+            0u);
+  EXPECT_EQ(rejected[static_cast<size_t>(DropReason::kBadAuth)].load(), 0u);
   EXPECT_EQ(rejected[static_cast<size_t>(DropReason::kMalformed)].load(), 0u);
   // Delay is 50 ms each way: the RTT estimate reflects it.
   EXPECT_GT(stats->rtt_s, 0.06);

@@ -1,0 +1,121 @@
+#include "protocol/packet_seal.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace edgephys {
+namespace {
+
+struct Pair {
+  std::unique_ptr<PacketSeal> client, relay;
+};
+
+Pair Connect(std::vector<uint8_t> token = {1, 2, 3}) {
+  auto c = KeyExchange::Generate();
+  auto r = KeyExchange::Generate();
+  EXPECT_TRUE(c.ok() && r.ok());
+  auto ck = c->Derive(r->public_key(), true, token, 77, 0x1234);
+  auto rk = r->Derive(c->public_key(), false, token, 77, 0x1234);
+  EXPECT_TRUE(ck.ok() && rk.ok());
+  EXPECT_EQ(ck->client_to_relay, rk->client_to_relay);
+  EXPECT_EQ(ck->relay_to_client, rk->relay_to_client);
+  EXPECT_NE(ck->client_to_relay, ck->relay_to_client);
+  return {std::make_unique<PacketSeal>(*ck, PacketSeal::Side::kClient),
+          std::make_unique<PacketSeal>(*rk, PacketSeal::Side::kRelay)};
+}
+
+std::vector<uint8_t> Packet(size_t size, uint8_t fill) {
+  std::vector<uint8_t> p(size, fill);
+  WritePacketPrefix(PacketType::kData, 0x1234, p);
+  return p;
+}
+
+TEST(PacketSeal, RoundTripsBothWaysAndHidesTheBody) {
+  Pair p = Connect();
+  for (size_t size : {kPacketPrefixSize, size_t{18}, size_t{600}, kMaxPacketSize}) {
+    auto plain = Packet(size, 0xab);
+    std::vector<uint8_t> sealed(kMaxDatagramSize), opened(kMaxDatagramSize);
+    size_t n = p.client->Seal(plain, sealed);
+    ASSERT_EQ(n, size + kSealOverhead);
+    EXPECT_EQ(std::vector<uint8_t>(sealed.begin(), sealed.begin() + kPacketPrefixSize),
+              std::vector<uint8_t>(plain.begin(), plain.begin() + kPacketPrefixSize));
+    if (size > 40) {
+      EXPECT_NE(sealed[30], 0xab);
+    }
+    DropReason why{};
+    size_t m = p.relay->Open({sealed.data(), n}, opened, &why);
+    ASSERT_EQ(m, size);
+    EXPECT_EQ(std::vector<uint8_t>(opened.begin(), opened.begin() + m), plain);
+    n = p.relay->Seal(plain, sealed);
+    ASSERT_EQ(p.client->Open({sealed.data(), n}, opened, &why), size);
+    // A packet sealed for the other direction never opens (direction in the nonce and key).
+    n = p.client->Seal(plain, sealed);
+    EXPECT_EQ(p.client->Open({sealed.data(), n}, opened, &why), 0u);
+    EXPECT_EQ(why, DropReason::kBadAuth);
+    ASSERT_EQ(p.relay->Open({sealed.data(), n}, opened, &why), size);
+  }
+}
+
+TEST(PacketSeal, ForgedCorruptedAndOtherKeysAreRefused) {
+  Pair p = Connect(), other = Connect();
+  auto plain = Packet(100, 7);
+  std::vector<uint8_t> sealed(kMaxDatagramSize), opened(kMaxDatagramSize);
+  size_t n = p.client->Seal(plain, sealed);
+  DropReason why{};
+  for (size_t i = 0; i < n; ++i) {  // every single bit flip, prefix and sequence included
+    auto bad = sealed;
+    bad[i] ^= 0x10;
+    EXPECT_EQ(p.relay->Open({bad.data(), n}, opened, &why), 0u) << i;
+  }
+  // The right address and connection id but no key: an unsealed packet or another key's.
+  auto forged = Packet(100 + kSealOverhead, 0);
+  EXPECT_EQ(p.relay->Open(forged, opened, &why), 0u);
+  EXPECT_EQ(why, DropReason::kBadAuth);
+  size_t m = other.client->Seal(plain, forged);
+  EXPECT_EQ(p.relay->Open({forged.data(), m}, opened, &why), 0u);
+  EXPECT_EQ(why, DropReason::kBadAuth);
+  EXPECT_EQ(p.relay->Open({sealed.data(), n}, opened, &why), 100u);  // the real one still opens
+  EXPECT_EQ(p.relay->Open({sealed.data(), 20}, opened, &why), 0u);
+  EXPECT_EQ(why, DropReason::kBadAuth);
+}
+
+TEST(PacketSeal, ReplayWindowAcceptsReorderingOnceAndRefusesRepeatsAndTheTooOld) {
+  Pair p = Connect();
+  auto plain = Packet(50, 1);
+  std::vector<std::vector<uint8_t>> sent;
+  for (int i = 0; i < 600; ++i) {
+    std::vector<uint8_t> d(kMaxDatagramSize);
+    d.resize(p.client->Seal(plain, d));
+    sent.push_back(d);
+  }
+  std::vector<uint8_t> out(kMaxDatagramSize);
+  DropReason why{};
+  EXPECT_EQ(p.relay->Open(sent[10], out, &why), 50u);
+  EXPECT_EQ(p.relay->Open(sent[5], out, &why), 50u);  // reordered: fine
+  EXPECT_EQ(p.relay->Open(sent[10], out, &why), 0u);
+  EXPECT_EQ(why, DropReason::kReplayed);
+  EXPECT_EQ(p.relay->Open(sent[5], out, &why), 0u);
+  EXPECT_EQ(p.relay->Open(sent[500], out, &why), 50u);
+  EXPECT_EQ(p.relay->Open(sent[200], out, &why), 0u);  // older than the window
+  EXPECT_EQ(why, DropReason::kReplayed);
+  EXPECT_EQ(p.relay->Open(sent[300], out, &why), 50u);  // inside it
+  EXPECT_EQ(p.relay->Open(sent[300], out, &why), 0u);
+}
+
+TEST(KeyExchange, RefusesBadPeerKeysAndBindsTheToken) {
+  auto c = KeyExchange::Generate();
+  auto r = KeyExchange::Generate();
+  ASSERT_TRUE(c.ok() && r.ok());
+  std::vector<uint8_t> short_key(31, 1), zero(32, 0);
+  EXPECT_FALSE(c->Derive(short_key, true, {}, 1, 1).ok());
+  EXPECT_FALSE(c->Derive(zero, true, {}, 1, 1).ok());  // small-order point
+  std::vector<uint8_t> t1{1}, t2{2};
+  auto a = c->Derive(r->public_key(), true, t1, 1, 1);
+  auto b = r->Derive(c->public_key(), false, t2, 1, 1);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_NE(a->client_to_relay, b->client_to_relay);
+}
+
+}  // namespace
+}  // namespace edgephys

@@ -1,0 +1,141 @@
+// Hostile clients against a live relay on loopback (issue 14): what one player with a valid
+// join token can do to a room must not make the room unjoinable.
+#include <gtest/gtest.h>
+
+#include "tests/integration/harness.h"
+
+namespace edgephys::testing {
+namespace {
+
+constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
+
+// Finding 2: persistent entities with huge names (each under --max-spawn-bytes) summed past a
+// joiner's reliable queue, and every late joiner was disconnected with ReliableOverflow. The
+// join now streams paced within the joiner's reliable budget.
+TEST(Hostile, HugeRoomStateStreamsToALateJoinerInsteadOfOverflowingIt) {
+  RelayConfig config = LoopbackWorld::DefaultConfig();
+  config.connection.max_pending_reliable_bytes = 4u << 20;  // the relay's queue per client
+  config.limits.bytes_per_s = 0;
+  config.limits.packets_per_s = 0;
+  config.room_defaults.budgets.max_name_bytes = 300000;  // the attack's names, allowed here
+  LoopbackWorld world(config);
+  Client& attacker = world.AddClient(MintToken("r", 1));
+  ASSERT_TRUE(world.RunUntil([&] { return attacker.state() == ClientState::kConnected; }, 3.0));
+  ASSERT_TRUE(attacker.JoinRoom("r").ok());
+  ASSERT_TRUE(world.RunUntil([&] { return attacker.joined(); }, 3.0));
+  constexpr int kEntities = 18;  // 18 x 250 KB = 4.5 MB > the joiner's 4 MB queue
+  for (int i = 0; i < kEntities; ++i) {
+    auto id = attacker.Spawn({.position = {float(i), 0, 0}, .flags = kPersistent,
+                              .name = std::string(250000, char('a' + i))});
+    ASSERT_TRUE(id.ok()) << id.status().ToString();
+    ASSERT_TRUE(world.RunUntil([&] { return world.relay().FindRoom("r")->entities().size() ==
+                                            size_t(i + 1); }, 5.0)) << i;
+  }
+  Client& joiner = world.AddClient(MintToken("r", 2));
+  ASSERT_TRUE(world.RunUntil([&] { return joiner.state() == ClientState::kConnected; }, 3.0));
+  ASSERT_TRUE(joiner.JoinRoom("r").ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    return joiner.entities().size() == kEntities || joiner.state() != ClientState::kConnected;
+  }, 20.0));
+  EXPECT_EQ(joiner.state(), ClientState::kConnected)
+      << "disconnected: " << static_cast<int>(joiner.disconnect_reason());
+  EXPECT_EQ(joiner.entities().size(), size_t(kEntities));
+  EXPECT_EQ(world.counters().disconnects[size_t(DisconnectReason::kReliableOverflow)].load(), 0u);
+}
+
+// Records what a client sends (its sealed datagrams) and lets the test send from the very same
+// address, as an on-path attacker spoofing the victim would.
+class RecordingSocket final : public DatagramSocket {
+ public:
+  explicit RecordingSocket(std::unique_ptr<UdpSocket> inner) : inner_(std::move(inner)) {}
+  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
+    if (data.size() > kPacketPrefixSize && data[5] == static_cast<uint8_t>(PacketType::kData)) {
+      sent.emplace_back(data.begin(), data.end());
+    }
+    return inner_->SendTo(to, data);
+  }
+  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
+    return inner_->ReceiveFrom(from, buffer);
+  }
+  Endpoint LocalEndpoint() const override { return inner_->LocalEndpoint(); }
+  Status Forge(const Endpoint& to, std::span<const uint8_t> data) { return inner_->SendTo(to, data); }
+  std::vector<std::vector<uint8_t>> sent;
+
+ private:
+  std::unique_ptr<UdpSocket> inner_;
+};
+
+// Finding 5: a packet forged with the victim's exact address and connection id ended its
+// session and despawned its entities. Every packet after the handshake is now sealed: forged
+// and replayed packets are dropped, counted, and change nothing.
+TEST(Hostile, ForgedAndReplayedPacketsFromTheVictimsAddressChangeNothing) {
+  LoopbackWorld world;
+  RecordingSocket victim_socket(
+      std::move(*UdpSocket::Open(Endpoint(world.relay_endpoint().address(), 0))));
+  Client victim(ClientConfig{}, &victim_socket);
+  ASSERT_TRUE(victim.Connect(world.relay_endpoint(), MintToken("r", 1), world.Now()).ok());
+  Client& other = world.AddClient(MintToken("r", 2));
+  auto pump = [&](double seconds, const std::function<bool()>& done) {
+    return world.RunUntil([&] {
+      victim.Update(world.Now());
+      return done();
+    }, seconds);
+  };
+  ASSERT_TRUE(pump(3.0, [&] { return victim.state() == ClientState::kConnected &&
+                                     other.state() == ClientState::kConnected; }));
+  ASSERT_TRUE(victim.JoinRoom("r").ok());
+  ASSERT_TRUE(other.JoinRoom("r").ok());
+  ASSERT_TRUE(pump(3.0, [&] { return victim.joined() && other.joined(); }));
+  auto id = victim.Spawn({.position = {1, 2, 3}});
+  ASSERT_TRUE(id.ok());
+  ASSERT_TRUE(pump(3.0, [&] { return other.entities().count(*id) == 1; }));
+  ASSERT_FALSE(victim_socket.sent.empty());
+  const std::vector<uint8_t> real = victim_socket.sent.back();
+  const uint32_t connection_id = real[6] | real[7] << 8 | real[8] << 16 | uint32_t(real[9]) << 24;
+
+  // 1. An unsealed Disconnect with the exact address and connection id (what ended the
+  //    session before), and Data packets with garbage in place of the seal.
+  std::vector<uint8_t> disconnect(kConnectionHeaderSize + 1, 0);
+  WritePacketPrefix(PacketType::kDisconnect, connection_id, disconnect);
+  disconnect.back() = static_cast<uint8_t>(DisconnectReason::kClientLeft);
+  const uint64_t bad_auth = Rejected(world.counters(), DropReason::kBadAuth);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(victim_socket.Forge(world.relay_endpoint(), disconnect).ok());
+  std::vector<uint8_t> forged = real;
+  for (size_t i = kPacketPrefixSize + 8; i < forged.size(); ++i) forged[i] ^= 0x5a;
+  forged[kPacketPrefixSize + 7] = 0x7f;  // a fresh sequence: past the replay check
+  ASSERT_TRUE(victim_socket.Forge(world.relay_endpoint(), forged).ok());
+  // 2. Replays of every packet the victim sent so far.
+  const uint64_t replayed = Rejected(world.counters(), DropReason::kReplayed);
+  for (const auto& d : std::vector<std::vector<uint8_t>>(victim_socket.sent)) {
+    ASSERT_TRUE(victim_socket.Forge(world.relay_endpoint(), d).ok());
+  }
+  const size_t replays = victim_socket.sent.size();
+  pump(0.5, [] { return false; });
+  EXPECT_EQ(Rejected(world.counters(), DropReason::kBadAuth) - bad_auth, 4u);
+  // Replays inside the window and older ones are both refused as replays.
+  EXPECT_EQ(Rejected(world.counters(), DropReason::kReplayed) - replayed, replays);
+  EXPECT_EQ(victim.state(), ClientState::kConnected);
+  EXPECT_EQ(world.relay().session_count(), 2u);
+  EXPECT_EQ(world.relay().FindRoom("r")->entities().count(*id), 1u);
+  EXPECT_EQ(other.entities().count(*id), 1u);
+  // The victim's session still works.
+  ASSERT_TRUE(victim.PublishTransform(*id, {4, 5, 6}, {}).ok());
+  EXPECT_TRUE(pump(3.0, [&] {
+    auto it = other.entities().find(*id);
+    return it != other.entities().end() && std::abs(it->second.state.position.x - 4) < 0.01f;
+  }));
+}
+
+// With --packet-auth false (measurement only) the relay accepts unsealed connections.
+TEST(Hostile, PacketAuthCanBeTurnedOffForMeasurement) {
+  RelayConfig config = LoopbackWorld::DefaultConfig();
+  config.packet_auth = false;
+  LoopbackWorld world(config);
+  Client& a = world.AddClient(MintToken("r", 1));
+  ASSERT_TRUE(world.RunUntil([&] { return a.state() == ClientState::kConnected; }, 3.0));
+  ASSERT_TRUE(a.JoinRoom("r").ok());
+  EXPECT_TRUE(world.RunUntil([&] { return a.joined(); }, 3.0));
+}
+
+}  // namespace
+}  // namespace edgephys::testing
