@@ -70,6 +70,7 @@ void Client::SendHandshake(double now) {
     // A lost Hello is like a lost datagram: Update() sends it again after handshake_resend_s.
     (void)socket_->SendTo(server_, packet);
   } else {
+    if (key_exchange_ == nullptr) return;  // no key pair (generation failed): cannot Connect
     const KeyExchangePublic& key = key_exchange_->public_key();
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie_),
                                              fbb.CreateVector(token_), nonce_,
@@ -373,6 +374,12 @@ void Client::RestartHandshake(const Endpoint& server, double now) {
   server_ = server;
   cookie_.clear();
   nonce_ = SecureRandom64();
+  // A new handshake (a redirect, or a resume on another relay) agrees new packet keys: a fresh
+  // key pair, and the previous connection's seal is dropped.
+  seal_.reset();
+  if (Result<KeyExchange> kx = KeyExchange::Generate(); kx.ok()) {
+    key_exchange_ = std::make_unique<KeyExchange>(std::move(*kx));
+  }
   handshake_started_ = now;
   state_ = ClientState::kHandshaking;
   SendHandshake(now);

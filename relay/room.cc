@@ -22,9 +22,7 @@ uint32_t Room::AddMember(uint32_t player_id, MemberLink* link) {
     bool taken = false;
     for (const auto& [id, m] : members_) taken = taken || m.slot == slot;
     if (!taken) {
-      uint32_t owned = 0;
-      for (const auto& [id, e] : entities_) owned += e.owner == player_id;
-      members_[player_id] = Member{player_id, slot, link, owned, {}};
+      members_[player_id] = Member{player_id, slot, link, {}};
       return slot;
     }
   }

@@ -416,6 +416,8 @@ size_t RoomHost::Restore(std::vector<Entity> entities, const std::map<uint32_t, 
       continue;
     }
     physics = physics || e.physics != PhysicsRole::kNone;
+    // Charged to its creator again, as when it was spawned (budgets survive a failover).
+    e.cost = EntityCost::Of(*c, e.spawn.size(), e.physics != PhysicsRole::kNone);
     room_.AdvanceSpawnSeq(e.spawn_seq);
     e.changed_at = now;
     room_.AddEntity(std::move(e));
