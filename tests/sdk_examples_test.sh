@@ -11,6 +11,7 @@
 set -euo pipefail
 relay="$1"; watcher="$2"; shift 2
 source "$(dirname "$0")/../scripts/lib/stop_process.sh"
+source "$(dirname "$0")/../scripts/lib/start_relay.sh"
 case "$1" in
   mono|python3) command -v "$1" >/dev/null || { echo "SKIPPED: $1 is not installed"; exit 0; } ;;
 esac
@@ -19,16 +20,8 @@ relay_pid=""; watch_pid=""
 cleanup() { stop "$watch_pid"; stop "$relay_pid"; rm -rf "$work"; }
 trap cleanup EXIT
 
-"$relay" --bind 127.0.0.1:0 --metrics off --run-for 120 --log-level info >"$work/relay.log" 2>&1 &
-relay_pid=$!
-address=""
-for _ in $(seq 1 50); do
-  address=$(grep -o "listening on udp [0-9.:]*" "$work/relay.log" | awk '{print $4}' || true)
-  [ -n "$address" ] && break
-  kill -0 "$relay_pid" 2>/dev/null || break
-  sleep 0.1
-done
-[ -n "$address" ] || { echo "FAIL: the relay did not start"; cat "$work/relay.log"; exit 1; }
+start_relay "$relay" "$work/relay.log" 120 || exit 1
+address="$relay_address"
 room="sdk$RANDOM"
 token1=$("$relay" token --player 1 --room "$room" --ttl 300)
 token2=$("$relay" token --player 2 --room "$room" --ttl 300)

@@ -7,6 +7,7 @@
 set -euo pipefail
 relay="$1"; shift
 source "$(dirname "$0")/../scripts/lib/stop_process.sh"
+source "$(dirname "$0")/../scripts/lib/start_relay.sh"
 case "$1" in
   mono|python3) command -v "$1" >/dev/null || { echo "SKIPPED: $1 is not installed"; exit 0; } ;;
 esac
@@ -14,16 +15,8 @@ work=$(mktemp -d)
 relay_pid=""
 cleanup() { stop "$relay_pid"; rm -rf "$work"; }
 trap cleanup EXIT
-"$relay" --bind 127.0.0.1:0 --metrics off --run-for 300 --log-level info >"$work/relay.log" 2>&1 &
-relay_pid=$!
-EDGEPHYS_RELAY=""
-for _ in $(seq 1 50); do
-  EDGEPHYS_RELAY=$(grep -o "listening on udp [0-9.:]*" "$work/relay.log" | awk '{print $4}' || true)
-  [ -n "$EDGEPHYS_RELAY" ] && break
-  kill -0 "$relay_pid" 2>/dev/null || break
-  sleep 0.1
-done
-[ -n "$EDGEPHYS_RELAY" ] || { echo "FAIL: the relay did not start"; cat "$work/relay.log"; exit 1; }
+start_relay "$relay" "$work/relay.log" 300 || exit 1
+EDGEPHYS_RELAY="$relay_address"
 export EDGEPHYS_RELAY
 export EDGEPHYS_ROOM="r$RANDOM"
 EDGEPHYS_TOKEN_1=$("$relay" token --player 1 --room "$EDGEPHYS_ROOM" --ttl 600)
