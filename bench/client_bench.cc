@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "client/snapshot_buffer.h"
 #include "protocol/byte_io.h"
 #include "protocol/testing/connection_doubles.h"
@@ -102,7 +103,7 @@ struct Fixture {
 
   explicit Fixture(size_t entities) {
     const Bytes token(64, 1);
-    (void)client.Connect(server, token, now);
+    (void)client.Connect(ToRelayAddress(server), token, now);
     {
       flatbuffers::FlatBufferBuilder fbb(64);
       const Bytes cookie(kCookieSize, 2);

@@ -1,16 +1,17 @@
-#include "client/client.h"
+#include "client/client_impl.h"
 
 #include <time.h>
 
 #include <algorithm>
 #include <cstring>
 
+#include "client/client_endpoint.h"
+#include "protocol/container_builder.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/redirect.h"
-#include "protocol/soft_body_codec.h"
 
 namespace edgephys {
 namespace {
@@ -29,7 +30,7 @@ uint64_t UnixNowS() { return static_cast<uint64_t>(RealtimeNow()); }
 
 }  // namespace
 
-Client::Client(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener)
+Client::Impl::Impl(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener)
     : config_(config),
       socket_(socket),
       listener_(listener != nullptr ? listener : &null_listener_),
@@ -38,14 +39,22 @@ Client::Client(const ClientConfig& config, DatagramSocket* socket, ClientListene
   batch_.states.reserve(64);
 }
 
-Client::~Client() = default;
-
-Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, double now) {
+Status Client::Impl::Connect(const RelayAddress& address, std::span<const uint8_t> token,
+                             double now) {
   if (state_ != ClientState::kIdle) {
     return Status::InvalidArgument("Connect() called twice");
   }
-  server_ = server;
-  entry_server_ = server;
+  Result<Endpoint> server = ToEndpoint(address);
+  if (!server.ok()) return server.status();
+  std::vector<Endpoint> relays;
+  for (const RelayAddress& r : config_.relays) {
+    Result<Endpoint> e = ToEndpoint(r);
+    if (!e.ok()) return e.status();
+    relays.push_back(*e);
+  }
+  relays_ = std::move(relays);
+  server_ = *server;
+  entry_server_ = *server;
   redirects_this_handshake_ = 0;
   token_.assign(token.begin(), token.end());
   nonce_ = SecureRandom64();
@@ -61,7 +70,7 @@ Status Client::Connect(const Endpoint& server, std::span<const uint8_t> token, d
   return Status::Ok();
 }
 
-void Client::SendHandshake(double now) {
+void Client::Impl::SendHandshake(double now) {
   last_handshake_send_ = now;
   flatbuffers::FlatBufferBuilder fbb(256);
   if (cookie_.empty()) {
@@ -81,7 +90,7 @@ void Client::SendHandshake(double now) {
   }
 }
 
-void Client::Update(double now) {
+void Client::Impl::Update(double now) {
   now_ = now;
   for (int i = 0; i < 4096; ++i) {
     Endpoint from;
@@ -140,7 +149,7 @@ void Client::Update(double now) {
       // Next candidate: the first relay, then the configured ones, round robin.
       std::vector<Endpoint> candidates;
       if (entry_server_ != lost_server_) candidates.push_back(entry_server_);
-      for (const Endpoint& e : config_.relays) {
+      for (const Endpoint& e : relays_) {
         if (e != entry_server_ && e != lost_server_) candidates.push_back(e);
       }
       if (candidates.empty()) candidates.push_back(lost_server_);
@@ -177,7 +186,7 @@ void Client::Update(double now) {
   }
 }
 
-void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) {
+void Client::Impl::HandleHandshakePacket(std::span<const uint8_t> packet, double now) {
   if (state_ != ClientState::kHandshaking) return;
   PacketPrefix prefix{};
   DropReason reason{};
@@ -223,7 +232,7 @@ void Client::HandleHandshakePacket(std::span<const uint8_t> packet, double now) 
   }
 }
 
-Status Client::JoinRoom(std::string_view room) {
+Status Client::Impl::JoinRoom(std::string_view room) {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   if (room.empty() || room.size() > kMaxRoomNameSize) {
     return Status::InvalidArgument("room name must be 1..64 bytes");
@@ -233,7 +242,7 @@ Status Client::JoinRoom(std::string_view room) {
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
-Status Client::LeaveRoom() {
+Status Client::Impl::LeaveRoom() {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateLeaveRoom(fbb));
@@ -242,7 +251,7 @@ Status Client::LeaveRoom() {
   return st;
 }
 
-void Client::ResetRoom() {
+void Client::Impl::ResetRoom() {
   joined_ = false;
   room_.clear();
   entities_.clear();
@@ -252,7 +261,7 @@ void Client::ResetRoom() {
   tracker_ = ReplicationTracker();
 }
 
-Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
+Result<uint32_t> Client::Impl::Spawn(const SpawnDesc& desc) {
   if (state_ != ClientState::kConnected || !joined_) {
     return Status::NotConnected("join a room first");
   }
@@ -292,7 +301,7 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) {
   return id;
 }
 
-Status Client::Despawn(uint32_t entity_id) {
+Status Client::Impl::Despawn(uint32_t entity_id) {
   if (owned_.erase(entity_id) == 0) return Status::NotFound("not an owned entity");
   tracker_.Forget(entity_id);
   flatbuffers::FlatBufferBuilder fbb(32);
@@ -300,21 +309,22 @@ Status Client::Despawn(uint32_t entity_id) {
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
-Status Client::Grab(uint32_t entity_id, uint32_t hand_id) {
+Status Client::Impl::Grab(uint32_t entity_id, uint32_t hand_id) {
   if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateGrab(fbb, entity_id, hand_id));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
-Status Client::Release(uint32_t entity_id) {
+Status Client::Impl::Release(uint32_t entity_id) {
   if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreateRelease(fbb, entity_id));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
-Status Client::PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation) {
+Status Client::Impl::PublishTransform(uint32_t entity_id, const Vec3f& position,
+                                      const Quatf& rotation) {
   auto it = owned_.find(entity_id);
   if (it == owned_.end()) return Status::NotFound("not an owned entity");
   EntityState st{entity_id, position, rotation};
@@ -324,7 +334,7 @@ Status Client::PublishTransform(uint32_t entity_id, const Vec3f& position, const
   return Status::Ok();
 }
 
-void Client::Publish(double now) {
+void Client::Impl::Publish(double now) {
   if (owned_.empty()) return;
   const double resend_after = connection_->stats().rtt_s * 1.25 + 1.0 / config_.publish_rate_hz;
   const uint32_t time_ms = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
@@ -351,7 +361,7 @@ void Client::Publish(double now) {
   flush();
 }
 
-Status Client::SendStateUnchecked(const EntityState& state, double now) {
+Status Client::Impl::SendStateUnchecked(const EntityState& state, double now) {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   FloatStateEncoder encoder;
   encoder.Begin(payload_buffer_, static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0)));
@@ -360,17 +370,17 @@ Status Client::SendStateUnchecked(const EntityState& state, double now) {
   return connection_->SendUnreliable({payload_buffer_.data(), size}, now, *this).status();
 }
 
-Status Client::SendUnreliableRaw(std::span<const uint8_t> payload, double now) {
+Status Client::Impl::SendUnreliableRaw(std::span<const uint8_t> payload, double now) {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   return connection_->SendUnreliable(payload, now, *this).status();
 }
 
-Status Client::SendReliableUnchecked(std::span<const uint8_t> message) {
+Status Client::Impl::SendReliableUnchecked(std::span<const uint8_t> message) {
   if (state_ != ClientState::kConnected) return Status::NotConnected("not connected");
   return connection_->SendReliable(message);
 }
 
-void Client::RestartHandshake(const Endpoint& server, double now) {
+void Client::Impl::RestartHandshake(const Endpoint& server, double now) {
   server_ = server;
   cookie_.clear();
   nonce_ = SecureRandom64();
@@ -385,7 +395,7 @@ void Client::RestartHandshake(const Endpoint& server, double now) {
   SendHandshake(now);
 }
 
-void Client::HandleRedirect(const schema::ControlMessage& msg, double now) {
+void Client::Impl::HandleRedirect(const schema::ControlMessage& msg, double now) {
   auto ticket = ParseRedirect(*msg.body_as_Redirect());
   if (!ticket.ok() || redirects_this_handshake_ >= config_.max_redirects ||
       !VerifyRedirect(*ticket, token_, UnixNowS()).ok()) {
@@ -402,7 +412,7 @@ void Client::HandleRedirect(const schema::ControlMessage& msg, double now) {
   RestartHandshake(*target, now);
 }
 
-void Client::StartResume(double now) {
+void Client::Impl::StartResume(double now) {
   resuming_ = true;
   resume_room_ = room_;
   resume_base_ = entity_id_base_;
@@ -416,7 +426,7 @@ void Client::StartResume(double now) {
   RestartHandshake(server_, now);
 }
 
-void Client::Disconnect() {
+void Client::Impl::Disconnect() {
   resuming_ = false;
   if (connection_ && connection_->connected()) {
     connection_->Disconnect(DisconnectReason::kClientLeft, *this);
@@ -428,16 +438,16 @@ void Client::Disconnect() {
   joined_ = false;
 }
 
-const ConnectionStats* Client::stats() const {
+const ConnectionStats* Client::Impl::stats() const {
   return connection_ ? &connection_->stats() : nullptr;
 }
 
-const RemoteEntity* Client::FindEntity(uint32_t id) const {
+const RemoteEntity* Client::Impl::FindEntity(uint32_t id) const {
   auto it = entities_.find(id);
   return it == entities_.end() ? nullptr : &it->second;
 }
 
-void Client::OnReliableMessage(std::span<const uint8_t> message) {
+void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
   const auto* msg = VerifyControlMessage(message);
   if (msg == nullptr) return;  // a relay bug or a corrupted peer; nothing to apply
   switch (msg->body_type()) {
@@ -558,12 +568,12 @@ void Client::OnReliableMessage(std::span<const uint8_t> message) {
       break;
     }
     default:
-      listener_->OnOtherMessage(*msg);
+      if (control_listener_ != nullptr) control_listener_->OnOtherMessage(*msg);
       break;
   }
 }
 
-Status Client::DecodeStates(std::span<const uint8_t> payload) {
+Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
   if (payload.empty()) return Status::Malformed("empty state payload");
   switch (payload[0]) {
     case kFormatPhoton:
@@ -587,7 +597,7 @@ Status Client::DecodeStates(std::span<const uint8_t> payload) {
   }
 }
 
-void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
+void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {
   if (!joined_) {
     // Not decodable without the room's Joined (format, quantisation). The relay holds a
     // member's states until the member has acknowledged Joined, so these come only from a
@@ -633,9 +643,9 @@ void Client::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t>
   }
 }
 
-void Client::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
+void Client::Impl::OnPacketAcked(uint16_t sequence) { tracker_.OnAcked(sequence); }
 
-void Client::WritePacket(std::span<const uint8_t> packet) {
+void Client::Impl::WritePacket(std::span<const uint8_t> packet) {
   if (seal_ != nullptr) {
     const size_t n = seal_->Seal(packet, seal_buffer_);
     if (n == 0) return;

@@ -5,7 +5,7 @@
 //
 //   auto socket = edgephys::UdpSocket::Open(*edgephys::ParseEndpoint("0.0.0.0:0"));
 //   edgephys::Client client(edgephys::ClientConfig{}, socket->get(), &my_listener);
-//   client.Connect(relay_endpoint, token_bytes, now);
+//   client.Connect(*edgephys::ParseRelayAddress("127.0.0.1:7777"), token_bytes, now);
 //   // every frame:
 //   client.Update(now);                       // handshake, receive, resend, publish
 //   if (client.state() == ClientState::kConnected && !client.joined()) client.JoinRoom("lobby");
@@ -27,33 +27,47 @@
 // (bench/client_bench.cc).
 // Latency: with ClientConfig::record_arrival_times each received state carries the time its
 // datagram reached the host (RemoteEntity::arrival_unix_s), unaffected by how late Update() runs.
+//
+// Dependencies: this header includes neither Asio nor FlatBuffers (nor any generated schema
+// header) nor the codecs: the client's state lives behind a pointer (Client::Impl, client.cc),
+// addresses are RelayAddress values, entity specs are the plain structs of
+// protocol/entity_spec.h. The socket is the one seam that needs Asio (DatagramSocket,
+// protocol/datagram_socket.h, only declared here); client/client_endpoint.h converts between
+// RelayAddress and its Endpoint. Test-only senders and the raw control-message hook of tools
+// (the PhyS worker) are in client/client_testing.h. tests/public_header_test.sh checks this.
 #pragma once
 
 #include <cstdint>
-#include <functional>
 #include <memory>
-#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
-#include "protocol/packet_seal.h"
-#include "protocol/connection.h"
-#include "protocol/container_builder.h"
-#include "edgephys/schema/control_generated.h"
-#include "protocol/delta_codec.h"
-#include "protocol/shared_delta_codec.h"
-#include "protocol/datagram_socket.h"
-#include "protocol/replication_tracker.h"
-#include "protocol/soft_body_codec.h"
-#include "protocol/state_codec.h"
+#include "protocol/connection_types.h"
+#include "protocol/entity_spec.h"
 #include "protocol/status.h"
 #include "protocol/types.h"
 
 namespace edgephys {
+
+class DatagramSocket;  // protocol/datagram_socket.h
+
+// A relay's UDP address: a numeric IPv4 or IPv6 address (no name lookup) and a port.
+// Equal addresses compare equal as written: use ParseRelayAddress or client_endpoint.h's
+// ToRelayAddress for a canonical host text.
+struct RelayAddress {
+  std::string host;  // "127.0.0.1", "::1"
+  uint16_t port = 0;
+  bool operator==(const RelayAddress&) const = default;
+};
+
+// Parses "a.b.c.d:port" or "[v6]:port" into a canonical RelayAddress; kInvalidArgument on
+// anything else (names, missing or out-of-range port).
+Result<RelayAddress> ParseRelayAddress(std::string_view text);
+// "a.b.c.d:port" or "[v6]:port".
+std::string FormatRelayAddress(const RelayAddress& address);
 
 // Largest soft body (particles) a client accepts from the relay.
 inline constexpr uint32_t kMaxSoftBodyNodes = 1 << 16;
@@ -86,7 +100,7 @@ struct ClientConfig {
   // If the room comes back with another id block, the owned entities are dropped and the game
   // gets OnJoined again.
   bool resume = false;
-  std::vector<Endpoint> relays;
+  std::vector<RelayAddress> relays;  // Connect() fails with kInvalidArgument on a bad one
   double resume_attempt_s = 1.0;
   double resume_timeout_s = 15.0;
 };
@@ -139,17 +153,14 @@ class ClientListener {
   }
   // A soft body's particles changed (entity.nodes).
   virtual void OnSoftBodyUpdated(const RemoteEntity& entity) { (void)entity; }
-  // A verified control message the SDK does not handle itself (tools and the PhyS worker
-  // build on this).
-  virtual void OnOtherMessage(const schema::ControlMessage& message) { (void)message; }
   // The relay refused a request (RejectReason code, schema/control.fbs).
   virtual void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
     (void)reason, (void)entity_id, (void)detail;
   }
 };
 
-// What Spawn() sends: an EntitySpec (protocol/container_builder.h) — the entity's transform,
-// hierarchy (parent_id) and flags (schema::EntityFlags: Persistent, Offloaded, Hand, ...) and,
+// What Spawn() sends: an EntitySpec (protocol/entity_spec.h) — the entity's transform,
+// hierarchy (parent_id) and flags (entity_flags::kPersistent, kOffloaded, kHand, ...) and,
 // the paper's dissection, its physics components. Spawn() ignores `id` and `owner`: it picks the
 // id from this player's block and the owner is this player.
 // With the Offloaded flag, a dynamic rigid body or a soft body is handed to PhyS: the relay
@@ -159,17 +170,20 @@ class ClientListener {
 // pushes PhyS-owned objects.
 using SpawnDesc = EntitySpec;
 
-class Client final : private ConnectionHandler, private PacketWriter {
+class Client final {
  public:
-  // `socket` (and `listener`, if given) are not owned and must outlive the client.
+  // `socket` (and `listener`, if given) are not owned and must outlive the client. Allocates
+  // the client's state (receive buffers, tables); nothing else happens until Connect().
   Client(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener = nullptr);
-  ~Client() override;
+  ~Client();
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
 
   // Starts the handshake with the relay at `server`. `token` is the binary join token (decode
-  // the printable form with Base64UrlDecode). kInvalidArgument if already started.
-  Status Connect(const Endpoint& server, std::span<const uint8_t> token, double now);
+  // the printable form with Base64UrlDecode); copied. `now`: seconds on any monotonic clock,
+  // the same clock as every later call. kInvalidArgument if already started, or if `server`
+  // or an entry of ClientConfig::relays is not a numeric address (nothing is sent then).
+  Status Connect(const RelayAddress& server, std::span<const uint8_t> token, double now);
 
   // Receives everything pending, advances the handshake, resends, publishes due transforms.
   void Update(double now);
@@ -195,136 +209,57 @@ class Client final : private ConnectionHandler, private PacketWriter {
   // Sends a disconnect (kClientLeft) to the relay.
   void Disconnect();
 
-  ClientState state() const { return state_; }
-  bool joined() const { return joined_; }
-  uint32_t player_id() const { return player_id_; }
-  uint32_t entity_id_base() const { return entity_id_base_; }
-  const std::string& room() const { return room_; }
-  uint16_t reject_reason() const { return reject_reason_; }
-  DisconnectReason disconnect_reason() const { return disconnect_reason_; }
+  ClientState state() const;
+  bool joined() const;
+  uint32_t player_id() const;
+  uint32_t entity_id_base() const;
+  const std::string& room() const;
+  uint16_t reject_reason() const;
+  DisconnectReason disconnect_reason() const;
   // The relay's text for why it is ending this connection (an operator's kick, room close or
   // drain: ControlMessage Disconnecting, docs/protocol.md), set when that message arrives,
   // before the Disconnect itself (so it is there when OnDisconnected runs). Empty otherwise.
-  const std::string& disconnect_detail() const { return disconnect_detail_; }
-  // nullptr before kConnected.
+  const std::string& disconnect_detail() const;
+  // nullptr before kConnected; points into the client (valid until the next non-const call).
   const ConnectionStats* stats() const;
-  // Others' entities (and own entities are not listed).
-  const std::unordered_map<uint32_t, RemoteEntity>& entities() const { return entities_; }
+  // Others' entities (and own entities are not listed). References and pointers into the
+  // table stay valid until the next Update() or room change.
+  const std::unordered_map<uint32_t, RemoteEntity>& entities() const;
   const RemoteEntity* FindEntity(uint32_t id) const;
-  const std::vector<uint32_t>& players() const { return players_; }
+  const std::vector<uint32_t>& players() const;
   // Bytes of state payload received (all formats), for bandwidth measurements.
-  uint64_t state_bytes_received() const { return bytes_state_received_; }
+  uint64_t state_bytes_received() const;
   // State payloads that arrived while not in a room, and were dropped. The relay sends a
   // member states only after it has acknowledged its Joined message, so in a room this stays 0;
   // late payloads from a room just left land here.
-  uint64_t state_payloads_outside_room() const { return state_payloads_outside_room_; }
+  uint64_t state_payloads_outside_room() const;
   // Arrival time (as RemoteEntity::arrival_unix_s: Unix seconds, CLOCK_REALTIME) of the
   // datagram Update() read last. Inside a listener callback run by Update() it is the datagram
   // that delivered what the callback reports (for a reliable message: the datagram that
   // completed it or, after a loss, the resend that let it through in order). 0 before any
   // datagram or unless ClientConfig::record_arrival_times.
-  double packet_arrival_unix_s() const { return packet_arrival_unix_s_; }
+  double packet_arrival_unix_s() const;
   // Datagrams whose arrival time is the time of the read, because the socket gave none
   // (arrival times unsupported, e.g. a simulated network, or no timestamp from the OS). Only
   // counted with ClientConfig::record_arrival_times.
-  uint64_t arrival_time_fallbacks() const { return arrival_time_fallbacks_; }
+  uint64_t arrival_time_fallbacks() const;
   // Cluster: signed redirects followed and refused (forged, expired, or too many); sessions
   // resumed after a relay was lost (ClientConfig::resume); whether one is under way; the relay
   // this client talks to now.
-  uint64_t redirects_followed() const { return redirects_followed_; }
-  uint64_t redirects_refused() const { return redirects_refused_; }
-  uint64_t resumes() const { return resumes_; }
-  bool resuming() const { return resuming_; }
-  const Endpoint& server() const { return server_; }
+  uint64_t redirects_followed() const;
+  uint64_t redirects_refused() const;
+  uint64_t resumes() const;
+  bool resuming() const;
+  RelayAddress server() const;
   // Datagrams from the relay's address that failed authentication or were replays (dropped).
-  uint64_t packets_refused() const { return packets_refused_; }
+  uint64_t packets_refused() const;
 
  private:
-  // Raw senders (unchecked state, reliable bytes, unreliable payloads) for tests, fuzzers and
-  // the PhyS worker: client/client_testing.h.
+  // Raw senders and the control-message hook for tests, fuzzers and the PhyS worker:
+  // client/client_testing.h.
   friend class ClientTesting;
-  Status SendStateUnchecked(const EntityState& state, double now);
-  Status SendReliableUnchecked(std::span<const uint8_t> message);
-  Status SendUnreliableRaw(std::span<const uint8_t> payload, double now);
-
-  struct OwnedEntity {
-    EntityState state;
-    uint32_t version = 1;
-  };
-  void OnReliableMessage(std::span<const uint8_t> message) override;
-  void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override;
-  void OnPacketAcked(uint16_t sequence) override;
-  void WritePacket(std::span<const uint8_t> packet) override;
-  Status DecodeStates(std::span<const uint8_t> payload);
-  void HandleHandshakePacket(std::span<const uint8_t> packet, double now);
-  void SendHandshake(double now);
-  void Publish(double now);
-  void ResetRoom();
-  // Cluster: follows a Redirect datagram (checked against the token); starts/advances resume.
-  void HandleRedirect(const schema::ControlMessage& msg, double now);
-  void RestartHandshake(const Endpoint& server, double now);
-  void StartResume(double now);
-
-  ClientConfig config_;
-  DatagramSocket* socket_;
-  ClientListener* listener_;
-  ClientListener null_listener_;
-  ClientState state_ = ClientState::kIdle;
-  Endpoint server_;
-  std::vector<uint8_t> token_;
-  std::vector<uint8_t> cookie_;
-  uint64_t nonce_ = 0;
-  double handshake_started_ = 0;
-  double last_handshake_send_ = -1e9;
-  std::unique_ptr<Connection> connection_;
-  // Packet authentication (protocol/packet_seal.h): this connection's key pair until Accept,
-  // then the seal every packet goes through (null if the relay does not seal).
-  std::unique_ptr<KeyExchange> key_exchange_;
-  std::unique_ptr<PacketSeal> seal_;
-  std::vector<uint8_t> seal_buffer_, open_buffer_;
-  uint64_t packets_refused_ = 0;
-  uint32_t player_id_ = 0;
-  uint16_t reject_reason_ = 0;
-  DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
-  std::string disconnect_detail_;
-
-  bool joined_ = false;
-  std::string room_;
-  uint32_t entity_id_base_ = 0;
-  uint32_t next_local_id_ = 1;
-  std::vector<uint32_t> players_;
-  std::unordered_map<uint32_t, RemoteEntity> entities_;
-  std::unordered_set<uint32_t> despawned_;  // tombstones: late states for these are ignored
-  std::unordered_map<uint32_t, OwnedEntity> owned_;
-  ReplicationTracker tracker_;
-  double next_publish_ = 0;
-  double now_ = 0;
-
-  std::vector<uint8_t> receive_buffer_;
-  std::vector<uint8_t> payload_buffer_;
-  std::vector<std::pair<uint32_t, uint32_t>> sent_scratch_;
-  StateBatch batch_;
-  FloatStateEncoder encoder_;
-  std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
-  std::unique_ptr<SharedDeltaDecoder> shared_decoder_;  // rooms using format 9
-  float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
-  SoftBodyChunk soft_chunk_;
-  uint64_t bytes_state_received_ = 0;
-  uint64_t state_payloads_outside_room_ = 0;
-  double packet_arrival_unix_s_ = 0;
-  uint64_t arrival_time_fallbacks_ = 0;
-  // Cluster.
-  Endpoint entry_server_;  // the relay Connect() was given
-  Endpoint lost_server_;   // the relay whose connection ended (resume tries it first only)
-  int redirects_this_handshake_ = 0;
-  uint64_t redirects_followed_ = 0;
-  uint64_t redirects_refused_ = 0;
-  bool resuming_ = false;
-  std::string resume_room_;
-  uint32_t resume_base_ = 0;
-  double resume_started_ = 0;
-  size_t resume_index_ = 0;
-  uint64_t resumes_ = 0;
+  class Impl;  // client.cc
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace edgephys

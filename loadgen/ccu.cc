@@ -15,6 +15,7 @@
 #include <unordered_map>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "loadgen/avatar.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/motion.h"
@@ -306,7 +307,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
         if (now < b->start_at) continue;
         b->socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
         b->client = std::make_unique<Client>(cc, b->socket.get(), b.get());
-        (void)b->client->Connect(relay.endpoint(), token(*b), now);
+        (void)b->client->Connect(ToRelayAddress(relay.endpoint()), token(*b), now);
       }
       // Publish first, then Update: the client sends what was just published in this pass
       // (Update receives, then sends), instead of one whole pass over the bots later.

@@ -24,6 +24,7 @@
 #include <thread>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "loadgen/stats.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -190,7 +191,7 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
     token.player_id = i + 1;
     token.expiry_unix_s = UnixNow() + 600;
     token.nonce = SecureRandom64();
-    (void)b.client->Connect(endpoint, *SignJoinToken(token, secret), now());
+    (void)b.client->Connect(ToRelayAddress(endpoint), *SignJoinToken(token, secret), now());
   }
   auto pump = [&](double t) {
     for (Bot& b : bots) b.client->Update(t);

@@ -26,6 +26,7 @@
 #include <thread>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "cluster/redis_client.h"
 #include "cluster/testing/redis_server.h"
 #include "protocol/endpoint.h"
@@ -147,7 +148,7 @@ int main(int argc, char** argv) {
     ClientConfig cc;
     cc.publish_rate_hz = publish_hz;
     cc.resume = true;
-    cc.relays = endpoints;
+    for (const Endpoint& e : endpoints) cc.relays.push_back(ToRelayAddress(e));
     cc.resume_attempt_s = 0.5;
     cc.handshake_timeout_s = join_timeout_s;
     b.client = std::make_unique<Client>(cc, b.socket.get());
@@ -156,7 +157,7 @@ int main(int argc, char** argv) {
     t.player_id = b.player;
     t.expiry_unix_s = UnixNow() + 3600;
     t.nonce = SecureRandom64();
-    (void)b.client->Connect(endpoints[i % relays], *SignJoinToken(t, secret), now_s());
+    (void)b.client->Connect(ToRelayAddress(endpoints[i % relays]), *SignJoinToken(t, secret), now_s());
   }
   // Latency samples: (receive time, one-way latency s).
   std::vector<std::pair<double, double>> samples;
@@ -238,7 +239,7 @@ int main(int argc, char** argv) {
   for (const Bot& b : bots) {
     auto it = placed.find(b.room);
     if (it == placed.end() || relay_index.count(it->second) == 0 ||
-        b.client->server() != endpoints[relay_index[it->second]]) {
+        b.client->server() != ToRelayAddress(endpoints[relay_index[it->second]])) {
       ++misplaced;
     }
   }
@@ -290,7 +291,7 @@ int main(int argc, char** argv) {
       bool back = true;
       for (Bot* b : lost_bots) {
         back = back && b->client->joined() && b->client->resumes() > 0 &&
-               last_seen[b->player] > kill_s + 0.1 && b->client->server() != endpoints[victim];
+               last_seen[b->player] > kill_s + 0.1 && b->client->server() != ToRelayAddress(endpoints[victim]);
       }
       if (back) users_back_s = t - kill_s;
     }

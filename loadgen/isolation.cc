@@ -15,6 +15,7 @@
 #include <unordered_set>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "loadgen/avatar.h"
 #include "loadgen/loopback_room.h"
 #include "loadgen/stats.h"
@@ -192,7 +193,7 @@ class RoomB : public ClientListener {
   void Connect(Member& m, uint32_t player, const ClientConfig& cc, ClientListener* listener) {
     m.socket = OpenLoopbackSocket();
     m.client = std::make_unique<Client>(cc, m.socket.get(), listener);
-    (void)m.client->Connect(relay_->endpoint(), relay_->Token(kRoomB, player), Now());
+    (void)m.client->Connect(ToRelayAddress(relay_->endpoint()), relay_->Token(kRoomB, player), Now());
   }
   void Update(Member& m, double now) {
     if (!m.client) return;
@@ -460,7 +461,7 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
         if (now < b->start_at) continue;
         b->socket = OpenLoopbackSocket();
         b->client = std::make_unique<Client>(cc, b->socket.get(), b.get());
-        (void)b->client->Connect(relay.endpoint(), relay.Token(kRoomA, b->index_ + 1), now);
+        (void)b->client->Connect(ToRelayAddress(relay.endpoint()), relay.Token(kRoomA, b->index_ + 1), now);
       }
       b->Tick(now);
       b->client->Update(now);

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <thread>
 
+#include "client/client_endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 
@@ -47,7 +48,7 @@ bool LoopbackRoom::ConnectAndJoin(double timeout_s) {
     t.player_id = static_cast<uint32_t>(i + 1);
     t.expiry_unix_s = UnixNow() + 3600;
     t.nonce = SecureRandom64();
-    (void)clients_[i]->Connect(relay_socket_->LocalEndpoint(), *SignJoinToken(t, secret_), Now());
+    (void)clients_[i]->Connect(ToRelayAddress(relay_socket_->LocalEndpoint()), *SignJoinToken(t, secret_), Now());
   }
   auto run_until = [&](auto&& done, double timeout) {
     const double end = Now() + timeout;

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "loadgen/stats.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -149,7 +150,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     }
     clients.push_back(std::make_unique<Client>(i == 0 ? host_config : ClientConfig{},
                                                sockets.back().get(), listener));
-    (void)clients.back()->Connect(relay_endpoint, token(i + 1), Now(start));
+    (void)clients.back()->Connect(ToRelayAddress(relay_endpoint), token(i + 1), Now(start));
   }
   auto step = [&] {
     double now = Now(start);

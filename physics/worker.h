@@ -14,16 +14,20 @@
 #include <memory>
 #include <vector>
 
-#include "client/client.h"
+#include "client/client_testing.h"
 #include "physics/room_physics.h"
 
 namespace edgephys {
 
-class PhysicsWorker final : public ClientListener {
+class PhysicsWorker final : public ClientListener, public ControlMessageListener {
  public:
-  // `client` is not owned; this worker must be its listener (pass it to the Client).
+  // `client` is not owned; this worker must be its listener (pass it to the Client). Attach
+  // also routes the client's Worker* messages here (ClientTesting::SetControlMessageListener).
   explicit PhysicsWorker(const physics::PhysicsConfig& config) : config_(config) {}
-  void Attach(Client* client) { client_ = client; }
+  void Attach(Client* client) {
+    client_ = client;
+    ClientTesting::SetControlMessageListener(*client, this);
+  }
 
   void OnConnected(uint32_t player_id) override;
   void OnOtherMessage(const schema::ControlMessage& message) override;

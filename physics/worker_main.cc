@@ -9,6 +9,7 @@
 #include <csignal>
 #include <thread>
 
+#include "client/client_endpoint.h"
 #include "physics/worker.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
@@ -68,7 +69,7 @@ int main(int argc, char** argv) {
     cc.handshake_timeout_s = 3.0;
     Client client(cc, socket->get(), &worker);
     worker.Attach(&client);
-    (void)client.Connect(*endpoint, *signed_token, now());
+    (void)client.Connect(ToRelayAddress(*endpoint), *signed_token, now());
     while (!g_stop.load()) {
       (*socket)->WaitReadable(0.001);
       double t = now();

@@ -8,6 +8,28 @@
 namespace edgephys {
 namespace {
 
+// protocol/entity_spec.h names the schema's values without the generated header.
+static_assert(collider_shape::kBox == schema::ColliderShape::Box);
+static_assert(collider_shape::kSphere == schema::ColliderShape::Sphere);
+static_assert(collider_shape::kCapsule == schema::ColliderShape::Capsule);
+static_assert(collider_shape::kCylinder == schema::ColliderShape::Cylinder);
+static_assert(collider_shape::kConvexHull == schema::ColliderShape::ConvexHull);
+static_assert(collider_shape::kTriangleMesh == schema::ColliderShape::TriangleMesh);
+static_assert(schema::ColliderShape::MAX == schema::ColliderShape::TriangleMesh);
+static_assert(joint_kind::kFixed == schema::JointKind::Fixed);
+static_assert(joint_kind::kHinge == schema::JointKind::Hinge);
+static_assert(joint_kind::kSpring == schema::JointKind::Spring);
+static_assert(schema::JointKind::MAX == schema::JointKind::Spring);
+constexpr uint32_t Bit(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
+static_assert(entity_flags::kPersistent == Bit(schema::EntityFlags::Persistent));
+static_assert(entity_flags::kKinematic == Bit(schema::EntityFlags::Kinematic));
+static_assert(entity_flags::kInteractable == Bit(schema::EntityFlags::Interactable));
+static_assert(entity_flags::kAvatar == Bit(schema::EntityFlags::Avatar));
+static_assert(entity_flags::kHand == Bit(schema::EntityFlags::Hand));
+static_assert(entity_flags::kOffloaded == Bit(schema::EntityFlags::Offloaded));
+static_assert(entity_flags::kReportContacts == Bit(schema::EntityFlags::ReportContacts));
+static_assert(Bit(schema::EntityFlags::ANY) == (entity_flags::kReportContacts << 1) - 1);
+
 schema::Vec3 ToFb(const Vec3f& v) { return schema::Vec3(v.x, v.y, v.z); }
 schema::Quat ToFb(const Quatf& q) { return schema::Quat(q.x, q.y, q.z, q.w); }
 

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "cluster/redis_client.h"
 #include "cluster/testing/redis_server.h"
 #include "protocol/container_builder.h"
@@ -87,9 +88,9 @@ class ClusterWorld {
     ClientConfig cc;
     cc.resume = true;
     cc.resume_attempt_s = 0.5;
-    for (auto& n : nodes_) cc.relays.push_back(n->socket->LocalEndpoint());
+    for (auto& n : nodes_) cc.relays.push_back(ToRelayAddress(n->socket->LocalEndpoint()));
     clients_.push_back(std::make_unique<Client>(cc, client_sockets_.back().get(), listener));
-    (void)clients_.back()->Connect(endpoint(via), token, Now());
+    (void)clients_.back()->Connect(ToRelayAddress(endpoint(via)), token, Now());
     return *clients_.back();
   }
 
@@ -387,7 +388,7 @@ TEST(ClusterRedirect, ForgedAndExpiredRedirectsAreRefusedByTheSdk) {
   auto now = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  ASSERT_TRUE(client.Connect(fake.endpoint(), token, now()).ok());
+  ASSERT_TRUE(client.Connect(ToRelayAddress(fake.endpoint()), token, now()).ok());
   const std::string target_address = FormatEndpoint(target.endpoint());
   std::vector<std::function<std::vector<uint8_t>()>> replies = {
       // Signed with another token (an attacker who does not hold this one).
@@ -411,7 +412,7 @@ TEST(ClusterRedirect, ForgedAndExpiredRedirectsAreRefusedByTheSdk) {
     EXPECT_EQ(client.redirects_refused(), i + 1) << i;
     EXPECT_GT(fake.connects, connects_before);
     EXPECT_EQ(client.redirects_followed(), 0u);
-    EXPECT_EQ(client.server(), fake.endpoint());
+    EXPECT_EQ(client.server(), ToRelayAddress(fake.endpoint()));
     EXPECT_EQ(client.state(), ClientState::kHandshaking);
   }
   // A genuine one is followed: the handshake moves to the target.
@@ -422,7 +423,7 @@ TEST(ClusterRedirect, ForgedAndExpiredRedirectsAreRefusedByTheSdk) {
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   EXPECT_EQ(client.redirects_followed(), 1u);
-  EXPECT_EQ(client.server(), target.endpoint());
+  EXPECT_EQ(client.server(), ToRelayAddress(target.endpoint()));
   EXPECT_GT(target.connects, 0);
 }
 

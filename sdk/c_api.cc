@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
 #include "edgephys/edgephys.h"
@@ -404,7 +405,7 @@ edgephys_status edgephys_client_connect(edgephys_client* client, const char* rel
       return Fail(EDGEPHYS_E_MALFORMED, "token is not a base64url join token");
     }
     if (edgephys_status s = CheckNow(client, now_s); s != EDGEPHYS_OK) return s;
-    Status st = client->client->Connect(*server, *bytes, now_s);
+    Status st = client->client->Connect(ToRelayAddress(*server), *bytes, now_s);
     return st.ok() ? Ok() : FailStatus(st);
   });
 }

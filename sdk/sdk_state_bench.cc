@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "edgephys/edgephys.h"
 #include "protocol/endpoint.h"
 #include "protocol/join_token.h"
@@ -58,7 +59,7 @@ class CppReceiver final : public Receiver {
  public:
   CppReceiver(const Endpoint& relay, const std::vector<uint8_t>& token)
       : socket_(std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")))), client_({}, socket_.get(), &counter_) {
-    (void)client_.Connect(relay, token, Now());
+    (void)client_.Connect(ToRelayAddress(relay), token, Now());
   }
   void Update(double now) override { client_.Update(now); }
   uint64_t states() const override { return counter_.states; }
@@ -121,7 +122,7 @@ int main(int argc, char** argv) {
 
   auto sender_socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
   Client sender({}, sender_socket.get());
-  (void)sender.Connect(*relay, *t1, Now());
+  (void)sender.Connect(ToRelayAddress(*relay), *t1, Now());
   std::unique_ptr<Receiver> receiver;
   if (std::strcmp(argv[1], "cpp") == 0) {
     receiver = std::make_unique<CppReceiver>(*relay, *Base64UrlDecode(Env("EDGEPHYS_TOKEN_2")));

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -52,7 +53,7 @@ int main(int argc, char** argv) {
   auto now = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  (void)client.Connect(*server, *bytes, now());
+  (void)client.Connect(ToRelayAddress(*server), *bytes, now());
   bool join_sent = false, announced = false;
   std::optional<uint32_t> entity;
   while (now() < run_for) {

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/packet_seal.h"
 #include "protocol/testing/in_memory_network.h"
@@ -156,7 +157,7 @@ class World {
     clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get(), listener));
     Client& c = *clients_.back();
     auto token = MintToken(player, permissions);
-    (void)c.Connect(relay_endpoint_, token, now_);
+    (void)c.Connect(ToRelayAddress(relay_endpoint_), token, now_);
     return c;
   }
 

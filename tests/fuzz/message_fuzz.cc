@@ -20,6 +20,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "client/client_endpoint.h"
 #include "physics/worker.h"
 #include "protocol/delta_codec.h"
 #include "tests/fuzz/fuzz_world.h"
@@ -182,7 +183,7 @@ void RunClient(Reader& in, uint8_t mode) {
   worker.Attach(&client);
   double now = 1.0;
   auto token = MintToken(FakeRelay::kPlayer, kDefaultPermissions);
-  (void)client.Connect(relay_at, token, now);
+  (void)client.Connect(ToRelayAddress(relay_at), token, now);
   bool accepted = false;
   for (int i = 0; i < 10 && client.state() != ClientState::kConnected; ++i) {
     accepted = relay.Handshake(now) || accepted;

@@ -21,6 +21,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "client/client_endpoint.h"
 #include "tests/fuzz/fuzz_world.h"
 
 namespace edgephys::fuzz {
@@ -115,7 +116,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   auto b_socket = world.network().CreateSocket(Ep("10.0.2.3", 40000));
   Client b(ClientConfig{}, b_socket.get());
   auto b_token = MintToken(2, kDefaultPermissions);
-  (void)b.Connect(silent_server, b_token, world.now());
+  (void)b.Connect(ToRelayAddress(silent_server), b_token, world.now());
 
   auto stranger = world.network().CreateSocket(Ep("10.0.0.9", 5555));
   for (size_t i = 0; i < kMaxRecords && !in.empty(); ++i) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
@@ -65,7 +66,7 @@ class LoopbackWorld {
     auto address = relay_socket_->LocalEndpoint().address();
     sockets_.push_back(std::move(*UdpSocket::Open(Endpoint(address, 0))));
     clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get(), listener));
-    (void)clients_.back()->Connect(relay_socket_->LocalEndpoint(), token, Now());
+    (void)clients_.back()->Connect(ToRelayAddress(relay_socket_->LocalEndpoint()), token, Now());
     return *clients_.back();
   }
 

@@ -2,6 +2,7 @@
 // join token can do to a room must not make the room unjoinable.
 #include <gtest/gtest.h>
 
+#include "client/client_endpoint.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -73,7 +74,7 @@ TEST(Hostile, ForgedAndReplayedPacketsFromTheVictimsAddressChangeNothing) {
   RecordingSocket victim_socket(
       std::move(*UdpSocket::Open(Endpoint(world.relay_endpoint().address(), 0))));
   Client victim(ClientConfig{}, &victim_socket);
-  ASSERT_TRUE(victim.Connect(world.relay_endpoint(), MintToken("r", 1), world.Now()).ok());
+  ASSERT_TRUE(victim.Connect(ToRelayAddress(world.relay_endpoint()), MintToken("r", 1), world.Now()).ok());
   Client& other = world.AddClient(MintToken("r", 2));
   auto pump = [&](double seconds, const std::function<bool()>& done) {
     return world.RunUntil([&] {

@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "client/client_endpoint.h"
 #include "protocol/testing/in_memory_network.h"
 #include "protocol/testing/network_simulator.h"
 #include "tests/integration/harness.h"
@@ -28,7 +29,7 @@ class SimWorld {
     raws_.push_back(network_.CreateSocket(Endpoint(asio::ip::make_address("10.0.0.2"), port)));
     sims_.push_back(std::make_unique<NetworkSimulator>(raws_.back().get(), Seeded(100 + port)));
     clients_.push_back(std::make_unique<Client>(ClientConfig{}, sims_.back().get(), listener));
-    (void)clients_.back()->Connect(relay_endpoint_, token, now_);
+    (void)clients_.back()->Connect(ToRelayAddress(relay_endpoint_), token, now_);
     return *clients_.back();
   }
 

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "protocol/container_builder.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
@@ -172,7 +173,7 @@ int main(int argc, char** argv) {
   Client client(cc, socket->get(), &probe);
   const auto t0 = std::chrono::steady_clock::now();
   auto mono = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-  (void)client.Connect(*server, *signed_token, mono());
+  (void)client.Connect(ToRelayAddress(*server), *signed_token, mono());
 
   bool join_sent = false, spawned = false, ever_connected = false;
   double connected_at = -1;

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -190,7 +191,7 @@ int main(int argc, char** argv) {
         t.nonce = SecureRandom64();
         ClientConfig cc;
         b.client = std::make_unique<Client>(cc, b.socket.get(), &b);
-        (void)b.client->Connect(*server, *SignJoinToken(t, secret), now);
+        (void)b.client->Connect(ToRelayAddress(*server), *SignJoinToken(t, secret), now);
         ++totals.sessions;
       }
       b.client->Update(now);

@@ -1,0 +1,134 @@
+// Client::Impl: the client SDK's state and protocol work behind the pointer of
+// client/client.h. Internal to client/: client.cc holds the protocol work, client_public.cc the
+// public forwarders, the address conversions and ClientTesting. Contracts are Client's.
+#pragma once
+
+#include <memory>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+#include "client/client.h"
+#include "client/client_testing.h"
+#include "edgephys/schema/control_generated.h"
+#include "protocol/connection.h"
+#include "protocol/datagram_socket.h"
+#include "protocol/delta_codec.h"
+#include "protocol/packet_seal.h"
+#include "protocol/replication_tracker.h"
+#include "protocol/shared_delta_codec.h"
+#include "protocol/soft_body_codec.h"
+#include "protocol/state_codec.h"
+
+namespace edgephys {
+
+// The client's state and protocol work. Client forwards to it; the per-state path
+// (OnUnreliablePayload) runs entirely inside it, so the pointer costs one indirection per
+// public call, none per received state.
+class Client::Impl final : private ConnectionHandler, private PacketWriter {
+ public:
+  Impl(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener);
+
+  Status Connect(const RelayAddress& server, std::span<const uint8_t> token, double now);
+  void Update(double now);
+  Status JoinRoom(std::string_view room);
+  Status LeaveRoom();
+  Result<uint32_t> Spawn(const SpawnDesc& desc);
+  Status Despawn(uint32_t entity_id);
+  Status Grab(uint32_t entity_id, uint32_t hand_id);
+  Status Release(uint32_t entity_id);
+  Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
+  void Disconnect();
+  const ConnectionStats* stats() const;
+  const RemoteEntity* FindEntity(uint32_t id) const;
+
+  Status SendStateUnchecked(const EntityState& state, double now);
+  Status SendReliableUnchecked(std::span<const uint8_t> message);
+  Status SendUnreliableRaw(std::span<const uint8_t> payload, double now);
+
+  struct OwnedEntity {
+    EntityState state;
+    uint32_t version = 1;
+  };
+  void OnReliableMessage(std::span<const uint8_t> message) override;
+  void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override;
+  void OnPacketAcked(uint16_t sequence) override;
+  void WritePacket(std::span<const uint8_t> packet) override;
+  Status DecodeStates(std::span<const uint8_t> payload);
+  void HandleHandshakePacket(std::span<const uint8_t> packet, double now);
+  void SendHandshake(double now);
+  void Publish(double now);
+  void ResetRoom();
+  // Cluster: follows a Redirect datagram (checked against the token); starts/advances resume.
+  void HandleRedirect(const schema::ControlMessage& msg, double now);
+  void RestartHandshake(const Endpoint& server, double now);
+  void StartResume(double now);
+
+  ClientConfig config_;
+  std::vector<Endpoint> relays_;  // config_.relays, parsed by Connect()
+  DatagramSocket* socket_;
+  ClientListener* listener_;
+  ClientListener null_listener_;
+  ControlMessageListener* control_listener_ = nullptr;  // ClientTesting
+  ClientState state_ = ClientState::kIdle;
+  Endpoint server_;
+  std::vector<uint8_t> token_;
+  std::vector<uint8_t> cookie_;
+  uint64_t nonce_ = 0;
+  double handshake_started_ = 0;
+  double last_handshake_send_ = -1e9;
+  std::unique_ptr<Connection> connection_;
+  // Packet authentication (protocol/packet_seal.h): this connection's key pair until Accept,
+  // then the seal every packet goes through (null if the relay does not seal).
+  std::unique_ptr<KeyExchange> key_exchange_;
+  std::unique_ptr<PacketSeal> seal_;
+  std::vector<uint8_t> seal_buffer_, open_buffer_;
+  uint64_t packets_refused_ = 0;
+  uint32_t player_id_ = 0;
+  uint16_t reject_reason_ = 0;
+  DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
+  std::string disconnect_detail_;
+
+  bool joined_ = false;
+  std::string room_;
+  uint32_t entity_id_base_ = 0;
+  uint32_t next_local_id_ = 1;
+  std::vector<uint32_t> players_;
+  std::unordered_map<uint32_t, RemoteEntity> entities_;
+  std::unordered_set<uint32_t> despawned_;  // tombstones: late states for these are ignored
+  std::unordered_map<uint32_t, OwnedEntity> owned_;
+  ReplicationTracker tracker_;
+  double next_publish_ = 0;
+  double now_ = 0;
+
+  std::vector<uint8_t> receive_buffer_;
+  std::vector<uint8_t> payload_buffer_;
+  std::vector<std::pair<uint32_t, uint32_t>> sent_scratch_;
+  StateBatch batch_;
+  FloatStateEncoder encoder_;
+  std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
+  std::unique_ptr<SharedDeltaDecoder> shared_decoder_;  // rooms using format 9
+  float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
+  SoftBodyChunk soft_chunk_;
+  uint64_t bytes_state_received_ = 0;
+  uint64_t state_payloads_outside_room_ = 0;
+  double packet_arrival_unix_s_ = 0;
+  uint64_t arrival_time_fallbacks_ = 0;
+  // Cluster.
+  Endpoint entry_server_;  // the relay Connect() was given
+  Endpoint lost_server_;   // the relay whose connection ended (resume tries it first only)
+  int redirects_this_handshake_ = 0;
+  uint64_t redirects_followed_ = 0;
+  uint64_t redirects_refused_ = 0;
+  bool resuming_ = false;
+  std::string resume_room_;
+  uint32_t resume_base_ = 0;
+  double resume_started_ = 0;
+  size_t resume_index_ = 0;
+  uint64_t resumes_ = 0;
+};
+
+}  // namespace edgephys

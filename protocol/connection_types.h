@@ -1,0 +1,50 @@
+// The plain value types of a Connection (protocol/connection.h) that its users configure and
+// read: why a connection ended, its limits and timers, and its live statistics. Apart so that
+// the client SDK's public header (client/client.h) can expose them without the connection's
+// machinery.
+//
+// Thread-safety: values. Units: seconds, bytes, fractions in 0..1.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace edgephys {
+
+// Stable numbers (they travel in kDisconnect packets and in schema/control.fbs).
+enum class DisconnectReason : uint8_t {
+  kNone = 0,
+  kTimeout,
+  kClientLeft,
+  kServerShutdown,
+  kKicked,
+  kProtocolError,     // the peer broke the protocol (oversized message, window overrun)
+  kReliableOverflow,  // our own reliable queue for this peer is full
+};
+
+struct ConnectionConfig {
+  double keepalive_interval_s = 0.1;  // send at least one packet this often
+  double timeout_s = 5.0;             // nothing received for this long: disconnect (kTimeout)
+  size_t max_message_size = 1 << 20;  // reliable message limit, both ways (bytes)
+  size_t max_pending_reliable_bytes = 8 << 20;  // SendReliable() beyond this: kQueueFull
+  double min_resend_s = 0.03;         // floor of the RTT-based resend timeout
+  double max_resend_s = 1.0;          // ceiling of the resend timeout
+};
+
+// Real-time status of one connection (GameNetworkingSockets style); the relay exports it.
+struct ConnectionStats {
+  double rtt_s = 0;             // smoothed round-trip time
+  double rtt_var_s = 0;         // round-trip time variation
+  double loss = 0;              // smoothed fraction of our packets not acknowledged (0..1)
+  uint64_t packets_sent = 0;
+  uint64_t packets_received = 0;
+  uint64_t bytes_sent = 0;
+  uint64_t bytes_received = 0;
+  uint64_t reliable_resends = 0;    // reliable units sent more than once
+  uint64_t reliable_delivered = 0;  // whole reliable messages delivered to the handler
+  uint64_t stale_dropped = 0;       // unreliable payloads dropped as older than delivered
+  uint64_t duplicates_dropped = 0;  // packets or reliable units received twice
+  size_t pending_reliable_bytes = 0;  // queued or unacknowledged reliable bytes
+};
+
+}  // namespace edgephys
