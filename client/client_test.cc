@@ -12,6 +12,8 @@
 #include <memory>
 #include <vector>
 
+#include "client/client_endpoint.h"
+#include "client/client_testing.h"
 #include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
@@ -130,7 +132,7 @@ class ClientReceiveTest : public ::testing::Test {
       : client_(config, &socket_, &listener_) {}
 
   void SetUp() override {
-    ASSERT_TRUE(client_.Connect(server_, Bytes(64, 1), now_).ok());
+    ASSERT_TRUE(client_.Connect(ToRelayAddress(server_), Bytes(64, 1), now_).ok());
     flatbuffers::FlatBufferBuilder challenge(64);
     FinishControl(challenge, schema::CreateChallenge(
                                  challenge, challenge.CreateVector(Bytes(kCookieSize, 2))));
@@ -350,6 +352,39 @@ TEST_F(ClientReceiveTest, ArrivalTimesAreNotRecordedByDefault) {
   EXPECT_EQ(client_.packet_arrival_unix_s(), 0.0);
   EXPECT_EQ(client_.arrival_time_fallbacks(), 0u);
   EXPECT_FALSE(socket_.arrival_times_requested);
+}
+
+// Control messages the SDK does not handle (Worker*) reach only a ControlMessageListener set
+// through client_testing.h, in order; without one they are dropped and the client carries on.
+class RecordingControlListener final : public ControlMessageListener {
+ public:
+  void OnOtherMessage(const schema::ControlMessage& message) override {
+    rooms.push_back(message.body_type() == schema::Body::WorkerUnassign
+                        ? message.body_as_WorkerUnassign()->room()
+                        : 0);
+  }
+  std::vector<uint32_t> rooms;
+};
+
+TEST_F(ClientReceiveTest, UnhandledControlMessagesGoOnlyToTheInternalHook) {
+  auto unassign = [&](uint32_t room) {
+    flatbuffers::FlatBufferBuilder fbb(32);
+    FinishControl(fbb, schema::CreateWorkerUnassign(fbb, room));
+    SendReliable(fbb);
+    Pump();
+  };
+  unassign(7);  // no hook: dropped
+  RecordingControlListener hook;
+  ClientTesting::SetControlMessageListener(client_, &hook);
+  unassign(8);
+  unassign(9);
+  Spawn(kOtherBase + 1);  // handled by the SDK, not passed on
+  EXPECT_EQ(hook.rooms, (std::vector<uint32_t>{8, 9}));
+  EXPECT_EQ(listener_.spawned, std::vector<uint32_t>{kOtherBase + 1});
+  ClientTesting::SetControlMessageListener(client_, nullptr);
+  unassign(10);
+  EXPECT_EQ(hook.rooms, (std::vector<uint32_t>{8, 9}));
+  EXPECT_EQ(client_.state(), ClientState::kConnected);
 }
 
 // The same scripted relay, with ClientConfig::record_arrival_times and a socket answering

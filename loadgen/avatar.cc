@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "protocol/container_builder.h"
+
 namespace edgephys::loadgen {
 namespace {
 

@@ -20,6 +20,7 @@
 #include "client/snapshot_buffer.h"
 #include "loadgen/motion.h"
 #include "loadgen/stats.h"
+#include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/udp_socket.h"

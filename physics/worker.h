@@ -16,6 +16,7 @@
 
 #include "client/client_testing.h"
 #include "physics/room_physics.h"
+#include "protocol/connection.h"
 
 namespace edgephys {
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "client/client.h"
+#include "client/client_endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/packet.h"
@@ -89,7 +90,7 @@ class ShardedWorld {
     EXPECT_TRUE(socket.ok()) << address;
     sockets_.push_back(std::move(*socket));
     clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get()));
-    (void)clients_.back()->Connect(socket_->LocalEndpoint(), token, Now());
+    (void)clients_.back()->Connect(ToRelayAddress(socket_->LocalEndpoint()), token, Now());
     return *clients_.back();
   }
   UdpSocket& client_socket(size_t i) { return *sockets_[i]; }

@@ -17,7 +17,6 @@
 #include <vector>
 
 #include "client/client.h"
-#include "client/client_endpoint.h"
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
 #include "edgephys/edgephys.h"
@@ -398,14 +397,14 @@ edgephys_status edgephys_client_connect(edgephys_client* client, const char* rel
       return Fail(EDGEPHYS_E_ALREADY_EXISTS, "connect was already called on this client");
     }
     if (strnlen(token, 4096) >= 4096) return Fail(EDGEPHYS_E_TOO_LARGE, "token longer than 4095 bytes");
-    auto server = edgephys::ParseEndpoint(relay_address);
+    auto server = edgephys::ParseRelayAddress(relay_address);
     if (!server.ok()) return Fail(EDGEPHYS_E_MALFORMED, "relay_address: " + server.status().ToString());
     auto bytes = edgephys::Base64UrlDecode(token);
     if (!bytes.ok() || bytes->empty() || bytes->size() > edgephys::kMaxJoinTokenSize) {
       return Fail(EDGEPHYS_E_MALFORMED, "token is not a base64url join token");
     }
     if (edgephys_status s = CheckNow(client, now_s); s != EDGEPHYS_OK) return s;
-    Status st = client->client->Connect(ToRelayAddress(*server), *bytes, now_s);
+    Status st = client->client->Connect(*server, *bytes, now_s);
     return st.ok() ? Ok() : FailStatus(st);
   });
 }

@@ -19,6 +19,7 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
+#include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "protocol/packet_seal.h"
 #include "protocol/testing/in_memory_network.h"

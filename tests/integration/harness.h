@@ -12,6 +12,7 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
+#include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
