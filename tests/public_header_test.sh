@@ -56,8 +56,10 @@ for h in "${headers[@]}"; do
   if (( rc == 0 )); then
     echo "ok: $h includes no Asio, FlatBuffers, generated or codec header"
   elif (( rc == 1 )); then
-    echo "FAIL: $h includes $(echo "$out" | wc -l) forbidden headers, among them:"
-    echo "$out" | head -20 | sed 's/^/  /'
+    asio=$(echo "$out" | grep -cE '(^|/)asio(/|\.hpp$)')
+    echo "FAIL: $h includes $(echo "$out" | wc -l) forbidden headers ($asio of Asio):"
+    echo "$out" | grep -vE '(^|/)asio(/|\.hpp$)' | head -20 | sed 's/^/  /'
+    (( asio > 0 )) && echo "$out" | grep -E '(^|/)asio(/|\.hpp$)' | head -3 | sed 's/^/  /'
     failed=1
   else
     echo "FAIL: could not preprocess $h:"
