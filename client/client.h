@@ -3,6 +3,7 @@
 //
 // Usage (one thread; time and I/O injected, like the relay):
 //
+//   // protocol/udp_socket.h and protocol/endpoint.h (Asio; not included by this header):
 //   auto socket = edgephys::UdpSocket::Open(*edgephys::ParseEndpoint("0.0.0.0:0"));
 //   edgephys::Client client(edgephys::ClientConfig{}, socket->get(), &my_listener);
 //   client.Connect(*edgephys::ParseRelayAddress("127.0.0.1:7777"), token_bytes, now);
@@ -21,6 +22,8 @@
 //
 // Thread-safety: none; use a Client from one thread. Listener callbacks run inside Update()
 // and the public methods, on that thread; they must not call Update() re-entrantly.
+// Failure: calls return Status / Result (protocol/status.h) with the codes named at each
+// method; errors are returned, not thrown. Network trouble shows in state() and the listener.
 // Memory: O(entities in the room). No allocation per received state in steady state.
 // Cost: a received state of a known remote entity costs one hash lookup (plus one in the owned
 // table only for ids in this player's own block) besides decoding and the listener call
