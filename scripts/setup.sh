@@ -12,7 +12,7 @@ PACKAGES=(
   libcpp-httplib-dev chromium
   libhiredis-dev redis-server
   linux-perf
-  python3 mono-mcs mono-runtime dpkg-dev
+  python3 mono-mcs mono-runtime dpkg-dev debootstrap
 )
 
 # The monitor page's browser test (tests/browser) runs on node with npm; a machine that has
