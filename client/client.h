@@ -175,8 +175,9 @@ using SpawnDesc = EntitySpec;
 
 class Client final {
  public:
-  // `socket` (and `listener`, if given) are not owned and must outlive the client. Allocates
-  // the client's state (receive buffers, tables); nothing else happens until Connect().
+  // `socket` (and `listener`, if given) are not owned and must outlive the client; the socket
+  // is first used by Connect(). Allocates the client's state (receive buffers, tables);
+  // nothing else happens until Connect().
   Client(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener = nullptr);
   ~Client();
   Client(const Client&) = delete;
