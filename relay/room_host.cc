@@ -37,7 +37,8 @@ constexpr size_t kMaxEarlyStates = 1024;
 uint8_t StateFormatOf(const ReplicationConfig& config) {
   switch (config.mode) {
     case ReplicationMode::kEdgephys:
-      return config.shared_encoding ? kSharedDeltaStateFormat : kDeltaStateFormat;
+      if (config.shared_encoding) return kSharedDeltaStateFormat;
+      return config.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
     case ReplicationMode::kPhoton: return kFormatPhoton;
     case ReplicationMode::kPaper: return kFormatPaper;
     case ReplicationMode::kFloat: return 1;
