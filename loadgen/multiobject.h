@@ -76,7 +76,11 @@ struct MultiObjectOptions {
   float extrapolation_threshold_m = -1.f;
   float extrapolation_rotation_deg = -1.f;
   double extrapolation_max_hz = 0;
-  double playout_min_delay_s = 0.02;
+  // > 0: ReplicationConfig::hermite_max_interval_s (receivers interpolate instead).
+  double hermite_max_interval_s = 0;
+  // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
+  // interpolating.
+  double playout_min_delay_s = -1;
   bool progress = true;
 };
 

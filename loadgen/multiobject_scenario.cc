@@ -17,7 +17,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    receivers, duration_s, relay_settle_steps, relay_max_substeps,
                                    position_step_m, rotation_bound_deg, ambient_hz, velocities,
                                    extrapolation_threshold_m, extrapolation_rotation_deg,
-                                   extrapolation_max_hz, playout_min_delay_s)
+                                   extrapolation_max_hz, hermite_max_interval_s,
+                                   playout_min_delay_s)
 
 namespace {
 
@@ -196,8 +197,11 @@ class MultiObjectScenario final : public Scenario {
                    "Dead reckoning: rotation error (deg) that makes the relay send a box (<0: default)");
     cmd.add_option("--extrapolation-max-hz", o_.extrapolation_max_hz,
                    "Dead reckoning: how often the relay checks a box (0: default)");
+    cmd.add_option("--hermite-max-interval", o_.hermite_max_interval_s,
+                   "With --velocities: receivers interpolate (Hermite, sent tangents) and the relay "
+                   "sends a box when the curve strays or after this many seconds (0: dead reckoning)");
     cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
-                   "With --velocities: the display probe's smallest playout delay (s)");
+                   "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
     cmd.add_option("--ambient-hz", o_.ambient_hz,
                    "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)");
     cmd.add_flag("!--no-bench", o_.bench, "Skip the standalone PhyS vs raw Bullet steps");

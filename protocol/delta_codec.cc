@@ -782,6 +782,36 @@ DeltaEncoder::UpdateNeed DeltaEncoder::NeedExtrapolated(uint32_t id, const Entit
   return UpdateNeed::kSend;
 }
 
+bool DeltaEncoder::NewestSent(uint32_t id, EntityState* state, EntityVelocity* velocity,
+                              uint32_t* time_ms) const {
+  const Track* track = tracks_.Find(id);
+  if (track == nullptr || track->newest_sent == kNoSlot) return false;
+  const Entry& e = track->ring[track->newest_sent];
+  if (!e.valid || !e.sent) return false;
+  if (!e.has_float) {
+    e.position = DequantizePosition(params_, e.q.position);
+    e.rotation = DequantizeRotation(params_, e.q.rotation);
+    e.has_float = true;
+  }
+  state->entity_id = id;
+  state->position = e.position;
+  state->rotation = e.rotation;
+  *velocity = DequantizeVelocity(e.velocity);
+  *time_ms = e.hist.s[0].time_ms;
+  return true;
+}
+
+Vec3f HermitePosition(const Vec3f& p0, const Vec3f& v0, const Vec3f& p1, const Vec3f& v1,
+                      double h_s, double tau) {
+  const double t2 = tau * tau, t3 = t2 * tau;
+  const double a = 2 * t3 - 3 * t2 + 1, b = (t3 - 2 * t2 + tau) * h_s, c = -2 * t3 + 3 * t2,
+               d = (t3 - t2) * h_s;
+  auto f = [&](float x0, float m0, float x1, float m1) {
+    return static_cast<float>(a * x0 + b * m0 + c * x1 + d * m1);
+  };
+  return {f(p0.x, v0.x, p1.x, v1.x), f(p0.y, v0.y, p1.y, v1.y), f(p0.z, v0.z, p1.z, v1.z)};
+}
+
 // ================================ Decoder ================================
 
 DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities)

@@ -93,6 +93,10 @@ EntityVelocity DequantizeVelocity(const QuantizedVelocity& q);
 // Where a receiver shows a state `dt_s` seconds after its time: position + linear * t and
 // rotation turned by angular * t (world frame), t = clamp(dt_s, 0, kVelocityExtrapolationLimitS).
 EntityState ExtrapolateState(const EntityState& state, const EntityVelocity& velocity, double dt_s);
+// The cubic Hermite position between p0 (velocity v0) and p1 (v1), `h_s` seconds apart, at
+// tau in [0, 1]: what a receiver interpolating with the sent velocities as tangents shows.
+Vec3f HermitePosition(const Vec3f& p0, const Vec3f& v0, const Vec3f& p1, const Vec3f& v1,
+                      double h_s, double tau);
 
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by
@@ -211,6 +215,12 @@ class DeltaEncoder final : public StateEncoder {
   UpdateNeed NeedExtrapolated(uint32_t id, const EntityState& truth, float pos_threshold_m,
                               float rot_threshold_deg, double now, double resend_after_s,
                               uint32_t time_ms) const;
+
+  // The newest state of entity `id` put in a payload that went out (acknowledged or not): what
+  // the client holds dequantised, its velocity (format 12; else zero) and its time (ms). False
+  // if none.
+  bool NewestSent(uint32_t id, EntityState* state, EntityVelocity* velocity,
+                  uint32_t* time_ms) const;
 
   const DeltaEncoderStats& stats() const { return stats_; }
   const QuantizationParams& params() const { return params_; }

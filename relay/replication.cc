@@ -155,6 +155,55 @@ const EntityVelocity* ClientReplicator::VelocityOf(const Entity& e, double now) 
   return &velocity_;
 }
 
+bool ClientReplicator::HermiteDue(uint32_t id, const Entity& e, double now) {
+  EntityState sent;
+  EntityVelocity sent_velocity;
+  uint32_t sent_ms = 0;
+  if (!delta_->NewestSent(id, &sent, &sent_velocity, &sent_ms)) return true;
+  const double h = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
+  if (h <= 0) return false;
+  if (h >= config_.hermite_max_interval_s) return true;
+  const EntityVelocity* v = VelocityOf(e, now);
+  const Vec3f v1 = v != nullptr ? DequantizeVelocity(QuantizeVelocity(*v)).linear : Vec3f{};
+  const double thr2 = static_cast<double>(config_.extrapolation_position_threshold_m) *
+                      config_.extrapolation_position_threshold_m;
+  for (const Entity::RecentState& r : e.recent) {
+    // Relay times as the wire has them (ms, wrapping): the sample's offset into the segment.
+    const double into =
+        static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(r.t * 1000.0)) - sent_ms) /
+        1000.0;
+    if (!(into > 0 && into < h)) continue;
+    const Vec3f p = HermitePosition(sent.position, sent_velocity.linear, e.state.position, v1, h,
+                                    into / h);
+    const double dx = p.x - r.position.x, dy = p.y - r.position.y, dz = p.z - r.position.z;
+    if (dx * dx + dy * dy + dz * dz > thr2) return true;
+  }
+  return false;
+}
+
+DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entity& e,
+                                                        PriorityClass cls, double now,
+                                                        double resend_after) {
+  using Need = DeltaEncoder::UpdateNeed;
+  if (!config_.velocities) {
+    return delta_->Need(id, e.state, config_.position_threshold_m,
+                        config_.rotation_threshold_deg, now, resend_after);
+  }
+  if (!DeadReckoned(e, cls)) {
+    return delta_->NeedExtrapolated(id, e.state, config_.position_threshold_m,
+                                    config_.rotation_threshold_deg, now, resend_after, time_ms_);
+  }
+  if (config_.hermite_max_interval_s > 0) {  // receivers interpolate: selective sync, then the curve
+    const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
+                                   config_.rotation_threshold_deg, now, resend_after);
+    if (need != Need::kSend || HermiteDue(id, e, now)) return need;
+    return Need::kExtrapolatedWithin;  // not yet (not sticky)
+  }
+  return delta_->NeedExtrapolated(id, e.state, config_.extrapolation_position_threshold_m,
+                                  config_.extrapolation_rotation_threshold_deg, now, resend_after,
+                                  time_ms_);
+}
+
 void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
                             double now, Connection& connection, PacketWriter& out,
                             RelayCounters& counters) {
@@ -204,17 +253,7 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
                        ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
                                        config_.rotation_threshold_deg, now, resend_after)
                        : DeltaEncoder::UpdateNeed::kSend)
-                : config_.velocities
-                      ? (DeadReckoned(e, cls)
-                             ? delta_->NeedExtrapolated(
-                                   id, e.state, config_.extrapolation_position_threshold_m,
-                                   config_.extrapolation_rotation_threshold_deg, now,
-                                   resend_after, time_ms_)
-                             : delta_->NeedExtrapolated(id, e.state, config_.position_threshold_m,
-                                                        config_.rotation_threshold_deg, now,
-                                                        resend_after, time_ms_))
-                      : delta_->Need(id, e.state, config_.position_threshold_m,
-                                     config_.rotation_threshold_deg, now, resend_after);
+                : VelocityNeed(id, e, cls, now, resend_after);
         if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
         want = need == DeltaEncoder::UpdateNeed::kSend;
         break;

@@ -98,6 +98,12 @@ struct ReplicationConfig {
   float extrapolation_position_threshold_m = 0.005f;
   float extrapolation_rotation_threshold_deg = 2.0f;
   double extrapolation_max_hz = 30;
+  // > 0: instead of dead reckoning, receivers interpolate (cubic Hermite with the sent
+  // velocities as tangents, at a playout delay above this) and a PhyS body outside the critical
+  // class is sent when the curve from the newest state sent to its present state strays from
+  // PhyS's states in between by more than extrapolation_position_threshold_m, or when this
+  // long has passed since the newest state sent while it moves (selective sync still applies).
+  double hermite_max_interval_s = 0;
 };
 
 // True when rooms with `config` send format 12.
@@ -161,6 +167,11 @@ class ClientReplicator {
   // The velocity format 12 carries for `e`: PhyS's while it moves, nullptr (at rest) for
   // others and for a body whose state has not changed for a while.
   const EntityVelocity* VelocityOf(const Entity& e, double now);
+  // The interpolation check (hermite_max_interval_s > 0): true when `e` is to be sent.
+  bool HermiteDue(uint32_t id, const Entity& e, double now);
+  // The edgephys (format 2 / 12) send decision for `e` of class `cls`.
+  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, PriorityClass cls,
+                                        double now, double resend_after);
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Soft bodies (format 5): the latest particle set of each changed soft body, in chunks,
   // resent until every chunk of that version is acknowledged.
