@@ -11,6 +11,7 @@
 
 #include "protocol/bit_stream.h"
 #include "protocol/byte_io.h"
+#include "protocol/connection.h"
 #include "protocol/delta_codec.h"
 #include "protocol/testing/codec_test_util.h"
 
@@ -84,7 +85,7 @@ TEST(DeltaVelocityCodec, RandomStatesAndVelocitiesRoundTripWithinBounds) {
   DeltaDecoder dec(params);
   std::vector<uint8_t> buf(kMaxUnreliablePayload);
   std::uniform_real_distribution<float> ux(-50, 50), uy(-5, 20), small(-0.2f, 0.2f);
-  std::vector<EntityState> state(60);
+  std::vector<EntityState> state(32);  // keyframes with velocities: ~30 bytes each
   std::vector<EntityVelocity> velocity(state.size());
   for (size_t i = 0; i < state.size(); ++i) {
     state[i].entity_id = static_cast<uint32_t>(3 + i * 5);
@@ -267,7 +268,9 @@ TEST(DeltaVelocityCodec, ForgedAndGarbageInputIsCountedAndDropped) {
     for (const EntityVelocity& v : batch.velocities) {
       EXPECT_LE(std::fabs(v.linear.x), kMaxVelocityIndex * kLinearVelocityStep);
     }
-    if (!ok) EXPECT_TRUE(batch.states.empty());
+    if (!ok) {
+      EXPECT_TRUE(batch.states.empty());
+    }
   }
 }
 
