@@ -4,7 +4,7 @@
 # (a quarter-plus moving; everything stirred): the old curve (format 2, lerp/slerp at the SDK's
 # adaptive playout) at several ambient rates, the new one (format 12, velocities) at several
 # thresholds; then tabulates egress (ratio to the paper's Obj_N) against the display error and
-# charts it. Bounded: (old + new points) x 2 runs of about 30 s each.
+# charts it. Bounded: 7 points x 2 scenes = 14 runs of about 50 s each.
 #   usage: scripts/velocity_sweep.sh [loadgen binary] [out dir] [objects]
 set -euo pipefail
 loadgen=${1:-build/default/loadgen/edgephys-loadgen}
@@ -12,12 +12,16 @@ out=${2:-velocity-sweep}
 objects=${3:-1000}
 mkdir -p "$out"
 quarter=(--layers 1 --stirrer-reach 0.75 --stirrer-speed 1.0)
-# name | extra multiobject arguments. "old_6" is today's default.
+# name | extra multiobject arguments. "old_6" is today's default; "new_*" send format 12 and
+# dead-reckon (position / rotation threshold, checks per second, the probe's playout delay).
 points=(
   "old_12|--ambient-hz 12"
   "old_6|"
   "old_4|--ambient-hz 4"
-  ${VELOCITY_POINTS:-}
+  "new_10mm_60hz_p60|--velocities --extrapolation-threshold 0.01 --extrapolation-rotation-threshold 5 --extrapolation-max-hz 60 --playout-min-delay 0.06"
+  "new_10mm|--velocities --extrapolation-threshold 0.01 --extrapolation-rotation-threshold 5"
+  "new_20mm|--velocities --extrapolation-threshold 0.02 --extrapolation-rotation-threshold 8 --extrapolation-max-hz 20"
+  "new_40mm|--velocities --extrapolation-threshold 0.04 --extrapolation-rotation-threshold 10 --extrapolation-max-hz 12"
 )
 for p in "${points[@]}"; do
   name=${p%%|*}
