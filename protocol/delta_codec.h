@@ -50,6 +50,7 @@
 #include "protocol/quantize.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
+#include "protocol/velocity.h"
 
 namespace edgephys {
 
@@ -61,7 +62,7 @@ inline constexpr uint32_t kMaxReferenceDistance = 4096;
 // Fixed part of the payload header: format, time, counter, params (then a varint count).
 inline constexpr size_t kDeltaHeaderSize = 1 + 4 + 2 + 2;
 
-// State format 12, "quantized delta with velocities" (docs/protocol.md §5c): format 2 whose
+// State format 12, "quantized delta with velocities" (docs/protocol.md §5f): format 2 whose
 // params field also names the velocity coding (bits 12-15) and whose every record is followed
 // by the entity's velocity: 1 bit "moving"; if set, 3 linear then 3 angular components, each
 // a signed Exp-Golomb index on a fixed lattice. Velocities are absolute (not predicted), so a
@@ -70,33 +71,7 @@ inline constexpr size_t kDeltaHeaderSize = 1 + 4 + 2 + 2;
 // sender's dead-reckoning test (DeltaEncoder::NeedExtrapolated) models exactly that.
 inline constexpr uint8_t kVelocityDeltaStateFormat =
     static_cast<uint8_t>(StateFormat::kQuantizedDeltaVelocity);
-inline constexpr double kLinearVelocityStep = 1.0 / 256;   // m/s per index
-inline constexpr double kAngularVelocityStep = 1.0 / 256;  // rad/s per index
-inline constexpr int32_t kMaxVelocityIndex = 1 << 14;      // |index| <= this: 64 m/s, 64 rad/s
-inline constexpr double kVelocityExtrapolationLimitS = 1.0;
-
-// A velocity on format 12's lattice.
-struct QuantizedVelocity {
-  std::array<int32_t, 3> linear{};
-  std::array<int32_t, 3> angular{};
-  bool moving() const {
-    for (int a = 0; a < 3; ++a) {
-      if (linear[a] != 0 || angular[a] != 0) return true;
-    }
-    return false;
-  }
-  friend bool operator==(const QuantizedVelocity&, const QuantizedVelocity&) = default;
-};
-// Rounds to the lattice, clamping to +-kMaxVelocityIndex; a non-finite component becomes 0.
-QuantizedVelocity QuantizeVelocity(const EntityVelocity& v);
-EntityVelocity DequantizeVelocity(const QuantizedVelocity& q);
-// Where a receiver shows a state `dt_s` seconds after its time: position + linear * t and
-// rotation turned by angular * t (world frame), t = clamp(dt_s, 0, kVelocityExtrapolationLimitS).
-EntityState ExtrapolateState(const EntityState& state, const EntityVelocity& velocity, double dt_s);
-// The cubic Hermite position between p0 (velocity v0) and p1 (v1), `h_s` seconds apart, at
-// tau in [0, 1]: what a receiver interpolating with the sent velocities as tangents shows.
-Vec3f HermitePosition(const Vec3f& p0, const Vec3f& v0, const Vec3f& p1, const Vec3f& v1,
-                      double h_s, double tau);
+// (The velocity lattice and the receiver model: protocol/velocity.h.)
 
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by

@@ -23,7 +23,9 @@ points=(
   "new_20mm|--velocities --extrapolation-threshold 0.02 --extrapolation-rotation-threshold 8 --extrapolation-max-hz 20"
   "new_40mm|--velocities --extrapolation-threshold 0.04 --extrapolation-rotation-threshold 10 --extrapolation-max-hz 12"
 )
+# CHART_ONLY=1: tabulate and chart the JSON files already in the out dir.
 for p in "${points[@]}"; do
+  [[ ${CHART_ONLY:-0} == 1 ]] && break
   name=${p%%|*}
   read -r -a extra <<<"${p#*|}"
   for scene in quarter full; do
@@ -62,13 +64,13 @@ set key top right
 set grid
 set termoption noenhanced
 plot '$out/quarter_old.dat' using 1:2 with linespoints pt 7 title 'quarter-plus, format 2 (ambient Hz)', \
-     '' using 1:2:4 with labels offset 2,0.7 notitle, \
+     '' using 1:2:4 with labels font ',8' offset 0,0.8 notitle, \
      '$out/quarter_new.dat' using 1:2 with linespoints pt 5 title 'quarter-plus, format 12', \
-     '' using 1:2:4 with labels offset 2,-0.7 notitle, \
+     '' using 1:2:4 with labels font ',8' offset 0,-0.8 notitle, \
      '$out/full_old.dat' using 1:2 with linespoints pt 9 title 'full stir, format 2 (ambient Hz)', \
-     '' using 1:2:4 with labels offset 2,0.7 notitle, \
+     '' using 1:2:4 with labels font ',8' offset 0,0.8 notitle, \
      '$out/full_new.dat' using 1:2 with linespoints pt 11 title 'full stir, format 12', \
-     '' using 1:2:4 with labels offset 2,-0.7 notitle
+     '' using 1:2:4 with labels font ',8' offset 0,-0.8 notitle
 GP
   done
 fi
