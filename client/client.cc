@@ -476,7 +476,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       shared_decoder_.reset();
       position_step_m_ =
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
-      if (j->state_format() == kDeltaStateFormat ||
+      if (j->state_format() == kDeltaStateFormat || j->state_format() == kVelocityDeltaStateFormat ||
           j->state_format() == kSharedDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
@@ -585,7 +585,9 @@ Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
         return true;
       });
     case kDeltaStateFormat:
+    case kVelocityDeltaStateFormat:
       batch_.states.clear();
+      batch_.velocities.clear();
       if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");
       return delta_decoder_->Decode(payload, &batch_);
     case kSharedDeltaStateFormat:
@@ -624,7 +626,10 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
   // have ids in this player's block, and an id in entities_ is never a tombstone (Spawn erases
   // the tombstone, Despawn erases the entity), so owned_ and despawned_ are consulted only for
   // ids in our block and for ids not seen yet.
-  for (const EntityState& st : batch_.states) {
+  const bool with_velocity = batch_.velocities.size() == batch_.states.size() &&
+                             !payload.empty() && payload[0] == kVelocityDeltaStateFormat;
+  for (size_t i = 0; i < batch_.states.size(); ++i) {
+    const EntityState& st = batch_.states[i];
     const uint32_t id = st.entity_id;
     if (!IsValidState(st)) continue;
     if (id - entity_id_base_ < kEntityIdBlock && owned_.count(id) != 0) continue;
@@ -637,6 +642,8 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     RemoteEntity& e = it->second;
     e.state = st;
     e.has_state = true;
+    e.has_velocity = with_velocity;
+    e.velocity = with_velocity ? batch_.velocities[i] : EntityVelocity{};
     e.state_time_ms = batch_.time_ms;
     e.arrival_unix_s = packet_arrival_unix_s_;
     if (e.spawned) listener_->OnEntityUpdated(e);

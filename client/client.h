@@ -132,6 +132,10 @@ struct RemoteEntity {
   // ClientConfig::record_arrival_times (see there for the fallback when the OS gives none).
   double arrival_unix_s = 0;
   std::vector<Vec3f> nodes;    // soft body particles (PhyS-simulated soft bodies)
+  // State format 12 rooms: the velocity sent with `state` (extrapolate with it: see
+  // protocol/delta_codec.h ExtrapolateState); false and zero otherwise.
+  bool has_velocity = false;
+  EntityVelocity velocity;
 };
 
 // Callbacks, all optional. Called from Update() (or the call that caused them).

@@ -109,54 +109,121 @@ struct BoxTable {
 // compared with the relay's state at that same relay time (linear between the relay's
 // recorded states, which change at PhyS's 60 Hz). This is the accuracy a lower send rate
 // costs; the quantisation error alone is the "vs sent" error.
+//
+// With velocities (format 12) the receivers dead-reckon: the playout delay no longer follows
+// the send interval (a box may not be sent for a second), only the arrival jitter above
+// `min_delay_s`, and the displayed pose is Hermite with the sent tangents, extrapolated past
+// the newest state as far as the format allows.
 struct DisplayProbe {
   static constexpr size_t kMaxBoxes = 128;
+  struct Truth {
+    double t;  // relay time, s
+    Vec3f p;
+    Quatf q;
+  };
   std::unordered_map<size_t, size_t> slot;  // box index -> probe slot
   std::vector<SnapshotBuffer> buffers;
-  std::vector<std::vector<std::pair<double, Vec3f>>> truth;  // (relay time s, position)
-  std::vector<double> lerp_errors, hermite_errors, delays_ms;
+  std::vector<std::vector<Truth>> truth;
+  std::vector<double> lerp_errors, hermite_errors, rot_errors_deg, delays_ms, playout_ms;
   double local_now = 0;
+  bool velocities = false;
+  SampleOptions sample_options;
 
-  void Init(size_t boxes) {
+  void Init(size_t boxes, bool with_velocities, double min_delay_s, double hermite_max_interval_s) {
     const size_t n = std::min(boxes, kMaxBoxes);
-    buffers.assign(n, SnapshotBuffer());
+    velocities = with_velocities;
+    SnapshotBufferConfig config;
+    if (velocities) {
+      config.interval_multiplier = 0;
+      const double interval = std::max(hermite_max_interval_s, 0.0);
+      config.min_delay_s = min_delay_s >= 0 ? min_delay_s : interval + 0.02;
+      config.max_delay_s = std::max(config.max_delay_s, config.min_delay_s);
+      sample_options.max_extrapolation_s = kVelocityExtrapolationLimitS;
+      sample_options.max_gap_s = kVelocityExtrapolationLimitS + 1.0;
+    }
+    buffers.assign(n, SnapshotBuffer(config));
     truth.assign(n, {});
     for (size_t i = 0; i < n; ++i) slot[i * boxes / n] = i;
   }
-  void RecordTruth(size_t box, double relay_time, const Vec3f& p) {
+  void RecordTruth(size_t box, double relay_time, const EntityState& s) {
     auto it = slot.find(box);
-    if (it != slot.end()) truth[it->second].emplace_back(relay_time, p);
+    if (it != slot.end()) truth[it->second].push_back({relay_time, s.position, s.rotation});
   }
   void OnReceived(size_t box, const RemoteEntity& e) {
     auto it = slot.find(box);
     if (it == slot.end()) return;
-    (void)buffers[it->second].Insert({.sender_time_s = e.state_time_ms / 1000.0,
-                                      .position = e.state.position,
-                                      .rotation = e.state.rotation},
-                                     local_now);
+    Snapshot s{.sender_time_s = e.state_time_ms / 1000.0,
+               .position = e.state.position,
+               .rotation = e.state.rotation};
+    if (e.has_velocity) {
+      s.has_linear_velocity = s.has_angular_velocity = true;
+      s.linear_velocity = e.velocity.linear;
+      s.angular_velocity = e.velocity.angular;
+    }
+    (void)buffers[it->second].Insert(s, local_now);
   }
-  // The relay's position at relay time t (false if t is outside what was recorded).
-  bool TruthAt(size_t i, double t, Vec3f* out) const {
+  // At the start: what the receiver holds for each probed box (a box at rest may get nothing
+  // more), and the relay's truth then (recorded again only when it changes).
+  void Seed(const std::vector<uint32_t>& ids, const Client& receiver,
+            const std::vector<const Entity*>& relay, double relay_now) {
+    for (const auto& [box, i] : slot) {
+      RecordTruth(box, relay_now, relay[box]->state);
+      const RemoteEntity* e = receiver.FindEntity(ids[box]);
+      if (e == nullptr || !e->has_state) continue;
+      // Received long ago: as if it had arrived 1 ms after it was sent (relay and receivers
+      // share this process's clock), so that its age does not count as arrival jitter.
+      const double saved = local_now;
+      local_now = std::min(local_now, e->state_time_ms / 1000.0 + 0.001);
+      OnReceived(box, *e);
+      local_now = saved;
+    }
+  }
+  // The relay's pose at relay time t (false if t is outside what was recorded).
+  bool TruthAt(size_t i, double t, Pose* out) const {
     const auto& h = truth[i];
     auto it = std::lower_bound(h.begin(), h.end(), t,
-                               [](const std::pair<double, Vec3f>& a, double v) { return a.first < v; });
-    if (it == h.begin() || it == h.end()) return false;
-    const auto& [t1, p1] = *it;
-    const auto& [t0, p0] = *(it - 1);
-    const float u = t1 > t0 ? static_cast<float>((t - t0) / (t1 - t0)) : 1.f;
-    *out = {p0.x + (p1.x - p0.x) * u, p0.y + (p1.y - p0.y) * u, p0.z + (p1.z - p0.z) * u};
+                               [](const Truth& a, double v) { return a.t < v; });
+    if (it == h.begin()) return false;
+    if (it == h.end()) {  // unchanged since the last record
+      out->position = h.back().p;
+      out->rotation = h.back().q;
+      return true;
+    }
+    const Truth& b = *it;
+    const Truth& a = *(it - 1);
+    const float u = b.t > a.t ? static_cast<float>((t - a.t) / (b.t - a.t)) : 1.f;
+    out->position = {a.p.x + (b.p.x - a.p.x) * u, a.p.y + (b.p.y - a.p.y) * u,
+                     a.p.z + (b.p.z - a.p.z) * u};
+    out->rotation = FromEigen(Slerp(ToEigen(a.q), ToEigen(b.q), u));
     return true;
   }
   void Sample(double now) {
+    // A buffer with one state (a box at rest since the seed) has no clock of its own: it is
+    // shown at the relay time the others are (the lowest clock offset, the median delay).
+    double offset = 1e9;
+    std::vector<double> delays;
+    for (SnapshotBuffer& b : buffers) {
+      if (b.size() < 2) continue;
+      offset = std::min(offset, b.clock_offset_s());
+      (void)b.RenderTime(now);
+      delays.push_back(b.current_delay_s());
+    }
+    if (delays.empty()) return;
+    const double shared_render = now - offset - Percentile(delays, 50);
     for (size_t i = 0; i < buffers.size(); ++i) {
       SnapshotBuffer& b = buffers[i];
-      if (b.size() < 2) continue;
-      const double render = b.RenderTime(now);
-      Vec3f want;
+      if (b.empty()) continue;
+      const double render = b.size() >= 2 ? b.RenderTime(now) : shared_render;
+      Pose want;
       if (!TruthAt(i, render, &want)) continue;
-      lerp_errors.push_back(Dist(edgephys::Sample(b, render, Interpolator::kLerpSlerp).position, want));
-      hermite_errors.push_back(Dist(edgephys::Sample(b, render, Interpolator::kHermite).position, want));
+      const Pose lerp = edgephys::Sample(b, render, Interpolator::kLerpSlerp, sample_options);
+      const Pose hermite = edgephys::Sample(b, render, Interpolator::kHermite, sample_options);
+      const Pose& shown = velocities ? hermite : lerp;
+      lerp_errors.push_back(Dist(shown.position, want.position));
+      hermite_errors.push_back(Dist(hermite.position, want.position));
+      rot_errors_deg.push_back(Compare(shown, want).rot_deg);
       delays_ms.push_back((b.newest().sender_time_s - render) * 1000.0);
+      playout_ms.push_back((now - offset - render) * 1000.0);
     }
   }
 };
@@ -203,6 +270,12 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
     config.room_defaults.replication.rotation_threshold_deg = o.rotation_threshold_deg;
   }
   if (o.ambient_hz > 0) config.room_defaults.replication.ambient_hz = o.ambient_hz;
+  ReplicationConfig& rep = config.room_defaults.replication;
+  rep.velocities = o.velocities;
+  if (o.extrapolation_threshold_m > 0) rep.extrapolation_position_threshold_m = o.extrapolation_threshold_m;
+  if (o.extrapolation_rotation_deg > 0) rep.extrapolation_rotation_threshold_deg = o.extrapolation_rotation_deg;
+  if (o.extrapolation_max_hz > 0) rep.extrapolation_max_hz = o.extrapolation_max_hz;
+  if (o.hermite_max_interval_s > 0) rep.hermite_max_interval_s = o.hermite_max_interval_s;
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -247,7 +320,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   boxes.ring.resize(box_ids.size());
   boxes.count.assign(box_ids.size(), 0);
   DisplayProbe probe;
-  probe.Init(box_ids.size());
+  probe.Init(box_ids.size(), o.velocities, o.playout_min_delay_s, o.hermite_max_interval_s);
 
   auto drive_stirrer = [&] {
     Vec3f pos;
@@ -326,6 +399,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   bool have_prev = false;
   const Client& watcher = world.client(1);
   // Warm the probe's jitter buffers for a second before sampling them.
+  probe.local_now = world.Now();
+  probe.Seed(box_ids, world.client(1), relay_boxes, world.Now());
   receivers[0]->probe = &probe;
   double probe_from = t0 + 1.0, next_probe = probe_from;
   while (world.Now() < t_end) {
@@ -344,7 +419,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
         if (relay_boxes[k]->version == seen_version[k]) continue;
         seen_version[k] = relay_boxes[k]->version;
         boxes.ring[k][boxes.count[k]++ % kRing] = relay_boxes[k]->state.position;
-        probe.RecordTruth(k, relay_now, relay_boxes[k]->state.position);
+        probe.RecordTruth(k, relay_now, relay_boxes[k]->state);
       }
     }
     probe.local_now = world.Now();
@@ -438,6 +513,9 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->display_err_hermite_p50_m = Percentile(probe.hermite_errors, 50);
   r->display_err_hermite_p99_m = Percentile(probe.hermite_errors, 99);
   r->display_delay_ms_median = Percentile(probe.delays_ms, 50);
+  r->display_playout_ms_median = Percentile(probe.playout_ms, 50);
+  r->display_rot_err_p50_deg = Percentile(probe.rot_errors_deg, 50);
+  r->display_rot_err_p99_deg = Percentile(probe.rot_errors_deg, 99);
   r->display_samples = probe.lerp_errors.size();
 }
 

@@ -67,6 +67,20 @@ struct MultiObjectOptions {
   float rotation_threshold_deg = -1.f;
   // ReplicationConfig::ambient_hz (boxes nobody touches); <= 0: the relay's default.
   double ambient_hz = 0;
+  // Dead reckoning (ReplicationConfig::velocities, state format 12): the relay sends
+  // velocities and a box only when a receiver's extrapolation strays beyond the thresholds;
+  // the display probe's receivers extrapolate with them (Hermite with the sent tangents
+  // between states) at a playout delay of `playout_min_delay_s` plus the arrival jitter.
+  // Negative / 0: the relay's defaults.
+  bool velocities = false;
+  float extrapolation_threshold_m = -1.f;
+  float extrapolation_rotation_deg = -1.f;
+  double extrapolation_max_hz = 0;
+  // > 0: ReplicationConfig::hermite_max_interval_s (receivers interpolate instead).
+  double hermite_max_interval_s = 0;
+  // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
+  // interpolating.
+  double playout_min_delay_s = -1;
   bool progress = true;
 };
 
@@ -96,9 +110,13 @@ struct MultiObjectResult {
   uint64_t error_samples = 0;
   // What receiver 0 displays (jitter buffer + interpolation, up to 128 boxes sampled every
   // 50 ms) against the relay's state at the displayed relay time: lerp+slerp and Hermite.
+  // With velocities, the displayed pose is Hermite with the sent velocities (display_err_*
+  // and display_err_hermite_* are then the same figures) and extrapolates past the newest state.
   double display_err_p50_m = 0, display_err_p99_m = 0;
+  double display_rot_err_p50_deg = 0, display_rot_err_p99_deg = 0;  // the displayed method's
   double display_err_hermite_p50_m = 0, display_err_hermite_p99_m = 0;
   double display_delay_ms_median = 0;  // playout delay behind the newest received state
+  double display_playout_ms_median = 0;  // render time behind the estimated relay now
   uint64_t display_samples = 0;
   double spawn_s = 0;                       // wall time to spawn the scene everywhere
 };

@@ -15,7 +15,10 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    rotation_threshold_deg, stirrer_half_height, sleep_threshold,
                                    moving_speed_mps, bench_warmup_steps, bench_steps, bench_max_s,
                                    receivers, duration_s, relay_settle_steps, relay_max_substeps,
-                                   position_step_m, rotation_bound_deg)
+                                   position_step_m, rotation_bound_deg, ambient_hz, velocities,
+                                   extrapolation_threshold_m, extrapolation_rotation_deg,
+                                   extrapolation_max_hz, hermite_max_interval_s,
+                                   playout_min_delay_s)
 
 namespace {
 
@@ -66,6 +69,9 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
                 {"display_err_hermite_p50_m", r.display_err_hermite_p50_m},
                 {"display_err_hermite_p99_m", r.display_err_hermite_p99_m},
                 {"display_delay_ms_median", r.display_delay_ms_median},
+                {"display_playout_ms_median", r.display_playout_ms_median},
+                {"display_rot_err_p50_deg", r.display_rot_err_p50_deg},
+                {"display_rot_err_p99_deg", r.display_rot_err_p99_deg},
                 {"display_samples", r.display_samples},
                 {"spawn_s", r.spawn_s}});
     }
@@ -182,6 +188,20 @@ class MultiObjectScenario final : public Scenario {
                    "Send when the client's copy is off by more than this (m; <0: relay default 0.001)");
     cmd.add_option("--rotation-threshold", o_.rotation_threshold_deg,
                    "Send when the client's copy is off by more than this (deg; <0: relay default 0.1)");
+    cmd.add_flag("--velocities", o_.velocities,
+                 "Relay sends state format 12 (velocities) and dead-reckons PhyS boxes; receivers "
+                 "extrapolate (ReplicationConfig::velocities)");
+    cmd.add_option("--extrapolation-threshold", o_.extrapolation_threshold_m,
+                   "Dead reckoning: position error (m) that makes the relay send a box (<0: default)");
+    cmd.add_option("--extrapolation-rotation-threshold", o_.extrapolation_rotation_deg,
+                   "Dead reckoning: rotation error (deg) that makes the relay send a box (<0: default)");
+    cmd.add_option("--extrapolation-max-hz", o_.extrapolation_max_hz,
+                   "Dead reckoning: how often the relay checks a box (0: default)");
+    cmd.add_option("--hermite-max-interval", o_.hermite_max_interval_s,
+                   "With --velocities: receivers interpolate (Hermite, sent tangents) and the relay "
+                   "sends a box when the curve strays or after this many seconds (0: dead reckoning)");
+    cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
+                   "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
     cmd.add_option("--ambient-hz", o_.ambient_hz,
                    "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)");
     cmd.add_flag("!--no-bench", o_.bench, "Skip the standalone PhyS vs raw Bullet steps");

@@ -235,6 +235,19 @@ bool ReconstructDelta(const QuantizationParams& p, const History& h, const int o
 
 using namespace delta_internal;  // NOLINT
 
+// ================================ Velocities (format 12) ================================
+
+namespace {
+// Bits of one velocity group (3 components) at k.
+int VelocityGroupBits(const std::array<int32_t, 3>& c, int k) {
+  int bits = 0;
+  for (int32_t x : c) bits += ExpGolombBits(ZigZag(x), k);
+  return bits;
+}
+constexpr int VelocityK(int index) { return 2 * index + 1; }
+constexpr uint16_t kVelocityParamsShift = 12;
+}  // namespace
+
 // ================================ Encoder ================================
 
 DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderOptions& options)
@@ -259,6 +272,15 @@ const DeltaEncoder::Entry* DeltaEncoder::NewestAcked(const Track& t) const {
 }
 
 void DeltaEncoder::ChooseParams() {
+  for (int g = 0; g < 2 && options_.velocities; ++g) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < 4; ++i) {
+      if (velocity_costs_[g][i] > 0 && velocity_costs_[g][i] < best) {
+        best = velocity_costs_[g][i];
+        velocity_k_[g] = i;
+      }
+    }
+  }
   for (int f = 0; f < 2; ++f) {
     double best = std::numeric_limits<double>::infinity();
     for (int o = 0; o < 3; ++o) {
@@ -297,6 +319,7 @@ void DeltaEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
   packet_costs_ = CostTable{};
   packet_max_zigzag_[0] = packet_max_zigzag_[1] = 0;
   packet_residuals_[0] = packet_residuals_[1] = 0;
+  for (auto& g : packet_velocity_costs_) std::fill(std::begin(g), std::end(g), 0.0);
   ChooseParams();
   writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
 }
@@ -318,7 +341,8 @@ PreparedState PrepareState(const QuantizationParams& params, const EntityState& 
   return s;
 }
 
-bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) {
+bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
+                       const EntityVelocity* velocity) {
   if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
   const uint32_t id = truth.entity_id;
   if (count_ > 0 && id <= last_id_) return false;
@@ -447,9 +471,28 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) 
       n_residuals[1] = 3;
     }
   }
+  // Format 12: the velocity, absolute.
+  QuantizedVelocity qv;
+  double add_velocity[2][4] = {};
+  if (options_.velocities) {
+    if (velocity != nullptr) qv = QuantizeVelocity(*velocity);
+    const bool moving = qv.moving();
+    ok = ok && w.WriteBit(moving);
+    if (moving) {
+      for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(qv.linear[a], VelocityK(velocity_k_[0]));
+      for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(qv.angular[a], VelocityK(velocity_k_[1]));
+      for (int i = 0; i < 4; ++i) {
+        add_velocity[0][i] = VelocityGroupBits(qv.linear, VelocityK(i));
+        add_velocity[1][i] = VelocityGroupBits(qv.angular, VelocityK(i));
+      }
+    }
+  }
   if (!ok) {
     writer_.Rewind(mark);
     return false;
+  }
+  for (int g = 0; g < 2; ++g) {
+    for (int i = 0; i < 4; ++i) packet_velocity_costs_[g][i] += add_velocity[g][i];
   }
 
   // Committed: record the state as sent-in-this-payload.
@@ -491,6 +534,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) 
     e.rotation = prepared->rotation;
   }
   e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(q, prepared->rot4, time_ms_));
+  e.velocity = qv;
   pending_ids_.emplace_back(id, slot);
   payload_used_ = true;
   last_id_ = id;
@@ -502,10 +546,19 @@ size_t DeltaEncoder::Finish() {
   if (phase_ != Phase::kOpen || count_ == 0) return 0;
   phase_ = Phase::kFinished;
   uint8_t* p = out_.data();
-  p[0] = kDeltaStateFormat;
+  p[0] = options_.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
   StoreU32LE(p + 1, time_ms_);
   StoreU16LE(p + 5, static_cast<uint16_t>(counter_));
-  StoreU16LE(p + 7, PackParams(k_, mask_, order_));
+  uint16_t params = PackParams(k_, mask_, order_);
+  if (options_.velocities) {
+    params |= static_cast<uint16_t>((velocity_k_[0] | (velocity_k_[1] << 2)) << kVelocityParamsShift);
+    for (int g = 0; g < 2; ++g) {
+      for (int i = 0; i < 4; ++i) {
+        velocity_costs_[g][i] = 0.5 * velocity_costs_[g][i] + packet_velocity_costs_[g][i];
+      }
+    }
+  }
+  StoreU16LE(p + 7, params);
   uint8_t cnt[5];
   const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
   std::memcpy(p + kDeltaHeaderSize, cnt, cnt_size);
@@ -579,6 +632,8 @@ void DeltaEncoder::OnPacketAcked(uint16_t packet_sequence) {
       t.acked.has_float = e.has_float;
       t.acked.position = e.position;
       t.acked.rotation = e.rotation;
+      t.acked.velocity = e.velocity;
+      t.acked.time_ms = e.hist.s[0].time_ms;
     }
   }
 }
@@ -610,6 +665,87 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   return UpdateNeed::kSend;
 }
 
+DeltaEncoder::UpdateNeed DeltaEncoder::NeedExtrapolated(uint32_t id, const EntityState& truth,
+                                                        float pos_threshold_m,
+                                                        float rot_threshold_deg, double now,
+                                                        double resend_after_s,
+                                                        uint32_t time_ms) const {
+  const Track* track = tracks_.Find(id);
+  if (track == nullptr) return UpdateNeed::kSend;
+  const Track& t = *track;
+  auto moving = [&](const auto& held) { return options_.velocities && held.velocity.moving(); };
+  const bool acked_moving = t.newest_acked != kNoSlot && moving(t.acked);
+  const Entry* in_flight = nullptr;
+  if (t.newest_sent != kNoSlot) {
+    const Entry& newest = t.ring[t.newest_sent];
+    if (!newest.acked && now - newest.sent_at < resend_after_s) in_flight = &newest;
+  }
+  const bool flight_moving = in_flight != nullptr && moving(*in_flight);
+  if (!acked_moving && !flight_moving) {
+    return Need(id, truth, pos_threshold_m, rot_threshold_deg, now, resend_after_s);
+  }
+  // A moving held state, extrapolated to `time_ms` the way a receiver shows it.
+  const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
+  const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (std::numbers::pi / 360.0));
+  auto shown_within = [&](const auto& held, uint32_t held_time_ms) {
+    if (!held.has_float) {
+      held.position = DequantizePosition(params_, held.q.position);
+      held.rotation = DequantizeRotation(params_, held.q.rotation);
+      held.has_float = true;
+    }
+    EntityState base;
+    base.position = held.position;
+    base.rotation = held.rotation;
+    const double dt = static_cast<int32_t>(time_ms - held_time_ms) / 1000.0;
+    const EntityState shown = ExtrapolateState(base, DequantizeVelocity(held.velocity), dt);
+    const double dx = static_cast<double>(shown.position.x) - truth.position.x;
+    const double dy = static_cast<double>(shown.position.y) - truth.position.y;
+    const double dz = static_cast<double>(shown.position.z) - truth.position.z;
+    if (dx * dx + dy * dy + dz * dz > pos2) return false;
+    const Quatf& a = shown.rotation;
+    const Quatf& b = truth.rotation;
+    const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
+                       static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
+    return std::fabs(dot) >= min_dot;
+  };
+  if (t.newest_acked != kNoSlot) {
+    if (acked_moving) {
+      if (shown_within(t.acked, t.acked.time_ms)) return UpdateNeed::kExtrapolatedWithin;
+    } else {
+      WithinThresholds within(params_, truth, pos2, min_dot, lattice_reach2_, lattice_min_dot_);
+      if (within(t.acked)) return UpdateNeed::kAckedWithin;
+    }
+  }
+  if (in_flight != nullptr) {
+    if (flight_moving) {
+      if (shown_within(*in_flight, in_flight->hist.s[0].time_ms)) return UpdateNeed::kInFlightWithin;
+    } else {
+      WithinThresholds within(params_, truth, pos2, min_dot, lattice_reach2_, lattice_min_dot_);
+      if (within(*in_flight)) return UpdateNeed::kInFlightWithin;
+    }
+  }
+  return UpdateNeed::kSend;
+}
+
+bool DeltaEncoder::NewestSent(uint32_t id, EntityState* state, EntityVelocity* velocity,
+                              uint32_t* time_ms) const {
+  const Track* track = tracks_.Find(id);
+  if (track == nullptr || track->newest_sent == kNoSlot) return false;
+  const Entry& e = track->ring[track->newest_sent];
+  if (!e.valid || !e.sent) return false;
+  if (!e.has_float) {
+    e.position = DequantizePosition(params_, e.q.position);
+    e.rotation = DequantizeRotation(params_, e.q.rotation);
+    e.has_float = true;
+  }
+  state->entity_id = id;
+  state->position = e.position;
+  state->rotation = e.rotation;
+  *velocity = DequantizeVelocity(e.velocity);
+  *time_ms = e.hist.s[0].time_ms;
+  return true;
+}
+
 // ================================ Decoder ================================
 
 DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities)
@@ -618,18 +754,29 @@ DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities
 void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
 
 Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed = Status::Malformed("malformed format-2 state payload");
+  const Status malformed = Status::Malformed("malformed format-2/12 state payload");
   auto fail = [&]() {
     ++stats_.malformed;
     return malformed;
   };
-  if (payload.size() < kDeltaHeaderSize + 1 || payload[0] != kDeltaStateFormat) return fail();
+  if (payload.size() < kDeltaHeaderSize + 1 ||
+      (payload[0] != kDeltaStateFormat && payload[0] != kVelocityDeltaStateFormat)) {
+    return fail();
+  }
+  const bool velocities = payload[0] == kVelocityDeltaStateFormat;
   const uint32_t time_ms = LoadU32LE(payload.data() + 1);
   const uint16_t counter16 = LoadU16LE(payload.data() + 5);
   int k[2];
   bool mask[2];
   int order[2];
-  if (!UnpackParams(LoadU16LE(payload.data() + 7), k, mask, order)) return fail();
+  uint16_t params = LoadU16LE(payload.data() + 7);
+  int velocity_k[2] = {0, 0};
+  if (velocities) {
+    velocity_k[0] = VelocityK((params >> kVelocityParamsShift) & 3);
+    velocity_k[1] = VelocityK((params >> (kVelocityParamsShift + 2)) & 3);
+    params &= (uint16_t{1} << kVelocityParamsShift) - 1;
+  }
+  if (!UnpackParams(params, k, mask, order)) return fail();
   uint32_t count = 0;
   const size_t n = GetVarint32(payload.subspan(kDeltaHeaderSize), &count);
   if (n == 0 || count == 0) return fail();
@@ -650,6 +797,17 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     RecordFields f;
     if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f)) return fail();
     s.id = f.id;
+    if (velocities) {
+      bool moving = false;
+      if (!r.ReadBit(&moving)) return fail();
+      for (int a = 0; a < 6 && moving; ++a) {
+        int32_t x = 0;
+        if (!r.ReadSigned(velocity_k[a / 3], &x) || x < -kMaxVelocityIndex || x > kMaxVelocityIndex) {
+          return fail();
+        }
+        (a < 3 ? s.velocity.linear[a] : s.velocity.angular[a - 3]) = x;
+      }
+    }
     if (f.keyframe) {
       s.keyframe = true;
       s.q = f.q;
@@ -685,6 +843,7 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
   ++stats_.payloads;
   out->time_ms = time_ms;
   last_references_.clear();
+  if (velocities) out->velocities.resize(out->states.size());
   for (const Staged& s : staged_) {
     if (!s.resolved) {
       ++stats_.unresolved_references;
@@ -709,6 +868,7 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     StoreVersion(t.ring, &Entry::counter, counter, s.hist);
     if (OutputIfNewer(params_, s.id, s.q, counter, &t.newest_output, out)) {
       ++stats_.entities;
+      if (velocities) out->velocities.push_back(DequantizeVelocity(s.velocity));
     } else {
       ++stats_.stale_skipped;
     }

@@ -50,6 +50,7 @@
 #include "protocol/quantize.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
+#include "protocol/velocity.h"
 
 namespace edgephys {
 
@@ -61,11 +62,24 @@ inline constexpr uint32_t kMaxReferenceDistance = 4096;
 // Fixed part of the payload header: format, time, counter, params (then a varint count).
 inline constexpr size_t kDeltaHeaderSize = 1 + 4 + 2 + 2;
 
+// State format 12, "quantized delta with velocities" (docs/protocol.md §5f): format 2 whose
+// params field also names the velocity coding (bits 12-15) and whose every record is followed
+// by the entity's velocity: 1 bit "moving"; if set, 3 linear then 3 angular components, each
+// a signed Exp-Golomb index on a fixed lattice. Velocities are absolute (not predicted), so a
+// record's velocity depends on nothing else in the stream. Receivers extrapolate a state with
+// its velocity for at most kVelocityExtrapolationLimitS and hold the pose reached there; the
+// sender's dead-reckoning test (DeltaEncoder::NeedExtrapolated) models exactly that.
+inline constexpr uint8_t kVelocityDeltaStateFormat =
+    static_cast<uint8_t>(StateFormat::kQuantizedDeltaVelocity);
+// (The velocity lattice and the receiver model: protocol/velocity.h.)
+
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by
   // entity id). Bounds how long a broken baseline chain can last (see the header comment);
   // 0 disables. Cost: each refresh is a keyframe instead of a delta record.
   uint32_t keyframe_refresh_sends = 120;
+  // Send format 12: every record carries the entity's velocity (Add's `velocity`).
+  bool velocities = false;
 };
 
 struct DeltaEncoderStats {
@@ -124,12 +138,15 @@ class DeltaEncoder final : public StateEncoder {
   // fit, or if its id is not greater than the previous id in this payload (ids must be added
   // in increasing order; start a new payload otherwise). Out-of-bounds positions are clamped
   // and counted in stats(). Cost O(1); allocates only for an entity never seen before.
-  bool Add(const EntityState& truth) override { return Add(truth, nullptr); }
+  bool Add(const EntityState& truth) override { return Add(truth, nullptr, nullptr); }
   // Add with the quantisation already done: `prepared` = PrepareState(params(), truth) (it
   // must describe `truth`; one made with other parameters, or nullptr, is ignored and the
   // encoder quantises `truth` itself). Saves the quantisation and rotation expansion, and
   // with has_float the dequantisation NeedsUpdate would otherwise do per receiver.
-  bool Add(const EntityState& truth, const PreparedState* prepared);
+  // With DeltaEncoderOptions::velocities, `velocity` is the entity's (nullptr: at rest); it is
+  // quantised (QuantizeVelocity) and ignored without that option.
+  bool Add(const EntityState& truth, const PreparedState* prepared,
+           const EntityVelocity* velocity = nullptr);
   size_t count() const override { return count_; }
   // Completes the payload; returns its size in bytes (0 if nothing was added).
   size_t Finish() override;
@@ -160,9 +177,25 @@ class DeltaEncoder final : public StateEncoder {
   // NeedsUpdate with the reason for "no". kAckedWithin is sticky: it stays the answer for the
   // same `truth` until the entity is sent or forgotten (acknowledgements only make newer states
   // the reference), so a caller may skip asking again while `truth` is unchanged.
-  enum class UpdateNeed { kSend, kAckedWithin, kInFlightWithin };
+  // kExtrapolatedWithin (NeedExtrapolated only) is not sticky: the held state moves on.
+  enum class UpdateNeed { kSend, kAckedWithin, kInFlightWithin, kExtrapolatedWithin };
   UpdateNeed Need(uint32_t id, const EntityState& truth, float pos_threshold_m,
                   float rot_threshold_deg, double now, double resend_after_s) const;
+  // Dead reckoning (format 12): Need, but a held state whose velocity is not zero is compared
+  // where the receiver shows it at `time_ms` (the time of the payload about to be built):
+  // ExtrapolateState from the state's own time. Such a state within the thresholds answers
+  // kExtrapolatedWithin. A held state at rest is compared as Need does (same answers). Without
+  // DeltaEncoderOptions::velocities it is Need. Cost O(1) plus one quaternion exponential per
+  // moving held state looked at; no allocation.
+  UpdateNeed NeedExtrapolated(uint32_t id, const EntityState& truth, float pos_threshold_m,
+                              float rot_threshold_deg, double now, double resend_after_s,
+                              uint32_t time_ms) const;
+
+  // The newest state of entity `id` put in a payload that went out (acknowledged or not): what
+  // the client holds dequantised, its velocity (format 12; else zero) and its time (ms). False
+  // if none.
+  bool NewestSent(uint32_t id, EntityState* state, EntityVelocity* velocity,
+                  uint32_t* time_ms) const;
 
   const DeltaEncoderStats& stats() const { return stats_; }
   const QuantizationParams& params() const { return params_; }
@@ -191,6 +224,7 @@ class DeltaEncoder final : public StateEncoder {
     mutable Vec3f position;
     mutable Quatf rotation;
     History hist;
+    QuantizedVelocity velocity;  // format 12 only (else zero)
   };
   static constexpr int8_t kNoSlot = -1;
   struct Track {
@@ -206,6 +240,8 @@ class DeltaEncoder final : public StateEncoder {
       mutable bool has_float = false;
       mutable Vec3f position;
       mutable Quatf rotation;
+      QuantizedVelocity velocity;
+      uint32_t time_ms = 0;
     } acked;
     int8_t newest_sent = kNoSlot;   // ring slot of the sent entry with the highest counter
   };
@@ -242,6 +278,11 @@ class DeltaEncoder final : public StateEncoder {
   CostTable packet_costs_;
   uint32_t packet_max_zigzag_[2] = {0, 0};
   uint64_t packet_residuals_[2] = {0, 0};
+  // Format 12: velocity coding cost per group (0 linear, 1 angular) and k index (k = 2i + 1),
+  // decayed per payload like costs_, and this payload's additions; the k indices in use.
+  double velocity_costs_[2][4] = {};
+  double packet_velocity_costs_[2][4] = {};
+  int velocity_k_[2] = {1, 1};
 
   // Current payload.
   std::span<uint8_t> out_;
@@ -270,12 +311,13 @@ struct DeltaDecoderStats {
   uint64_t capacity_dropped = 0;       // keyframes for new entities beyond max_entities
 };
 
-// Receiver side, one per format-2 stream.
+// Receiver side, one per format-2 or format-12 stream (the payload's first byte says which;
+// format 12 also fills StateBatch::velocities).
 class DeltaDecoder {
  public:
   explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
 
-  // Decodes one format-2 payload (untrusted). On success sets out->time_ms and APPENDS the
+  // Decodes one format-2 or format-12 payload (untrusted). On success sets out->time_ms and APPENDS the
   // decoded states that are newer than any state output before for their entity (in
   // increasing id order). Malformed input (truncation, trailing bits, bad header, values out
   // of range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder are
@@ -314,6 +356,7 @@ class DeltaDecoder {
     Track* track = nullptr;  // the entity's track if it existed when resolved (node-stable)
     QuantizedState q;
     DeltaEncoder::History hist;
+    QuantizedVelocity velocity;
   };
 
   QuantizationParams params_;

@@ -39,6 +39,9 @@ enum class StateFormat : uint8_t {
   kPhoton = 3,
   kPaper = 4,
   kSoftBody = 5,
+  // Format 2 with each entity's linear and angular velocity (protocol/delta_codec.h,
+  // DeltaEncoderOptions::velocities): receivers extrapolate with them (dead reckoning).
+  kQuantizedDeltaVelocity = 12,
 };
 
 // Writes entity states into datagram payloads. Usage per payload:
@@ -86,9 +89,19 @@ class FloatStateEncoder final : public ByteStateEncoder {
   size_t Finish() override;
 };
 
+// An entity's velocity as carried by format 12: m/s and rad/s, room (world) frame.
+struct EntityVelocity {
+  Vec3f linear;
+  Vec3f angular;
+};
+
 struct StateBatch {
   uint32_t time_ms = 0;
   std::vector<EntityState> states;  // reused by the caller between decodes
+  // Format 12 only: velocities[i] is states[i]'s. A format-12 decode first pads it with zeros
+  // to states.size(), then appends one per state it appends; other formats leave it alone
+  // (callers that reuse a batch clear both).
+  std::vector<EntityVelocity> velocities;
 };
 
 // Decodes the stateless formats (format 1). Untrusted input: kMalformed on truncation,

@@ -53,6 +53,15 @@ struct Entity {
   // Format 9 rooms (ReplicationConfig::shared_encoding): the entity's recent versions and this
   // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
   std::shared_ptr<SharedEntity> shared;
+  // Rooms with ReplicationConfig::hermite_max_interval_s: PhyS's recent states of a simulated
+  // entity (relay time, position), a ring of up to kRecentStates, for the interpolation check.
+  static constexpr size_t kRecentStates = 32;
+  struct RecentState {
+    double t = 0;
+    Vec3f position;
+  };
+  std::vector<RecentState> recent;
+  uint32_t recent_next = 0;  // slot of the next push
 };
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;

@@ -115,6 +115,19 @@ int main(int argc, char** argv) {
                "edgephys mode: state format 9 (shared delta: each entity delta encoded once per "
                "room tick for every receiver on the same baseline) instead of format 2; "
                "experimental, off by default");
+  app.add_flag("--velocities", rep.velocities,
+               "edgephys mode: state format 12 (format 2 plus velocities): receivers extrapolate "
+               "and PhyS bodies are sent only when that strays beyond the extrapolation "
+               "thresholds (dead reckoning); off by default");
+  app.add_option("--extrapolation-threshold", rep.extrapolation_position_threshold_m,
+                 "Dead reckoning: position error (m) that makes a PhyS body be sent")
+      ->capture_default_str()->check(CLI::Range(1e-4, 1.0));
+  app.add_option("--extrapolation-rotation-threshold", rep.extrapolation_rotation_threshold_deg,
+                 "Dead reckoning: rotation error (deg) that makes a PhyS body be sent")
+      ->capture_default_str()->check(CLI::Range(0.01, 90.0));
+  app.add_option("--extrapolation-max-hz", rep.extrapolation_max_hz,
+                 "Dead reckoning: how often a PhyS body is checked (and at most sent)")
+      ->capture_default_str()->check(CLI::Range(1.0, 240.0));
   app.add_option("--position-step", rep.position_step_m, "Position quantisation step (m)")
       ->capture_default_str()->check(CLI::Range(1e-5, 1.0));
   app.add_option("--rotation-bound", rep.rotation_bound_deg, "Rotation error bound (deg)")

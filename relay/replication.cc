@@ -15,6 +15,9 @@ constexpr double kEpsilon = 1e-6;
 constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
 // Entities assumed per datagram when estimating a selection's size.
 constexpr size_t kEntitiesPerPacketEstimate = 64;
+// Format 12: a body whose state has not changed for this long is sent at rest (PhyS reports
+// only bodies that moved, so its last velocity may be a sleeping body's leftover).
+constexpr double kRestingVelocityAfterS = 0.1;
 
 double Weight(PriorityClass c) {
   switch (c) {
@@ -91,7 +94,9 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
         break;
       }
       if (params.ok()) {
-        auto delta = std::make_unique<DeltaEncoder>(*params);
+        DeltaEncoderOptions options;
+        options.velocities = config_.velocities;
+        auto delta = std::make_unique<DeltaEncoder>(*params, options);
         delta_ = delta.get();
         encoder_ = std::move(delta);
         break;
@@ -126,6 +131,77 @@ double ClientReplicator::IntervalOf(PriorityClass c) const {
     case PriorityClass::kAmbient: return 1.0 / config_.ambient_hz;
     default: return 1.0 / config_.normal_hz;
   }
+}
+
+bool ClientReplicator::DeadReckoned(const Entity& e, PriorityClass c) const {
+  return delta_ != nullptr && config_.velocities && e.physics == PhysicsRole::kSimulated &&
+         c != PriorityClass::kCritical;
+}
+
+double ClientReplicator::IntervalFor(const Entity& e, PriorityClass c) const {
+  if (DeadReckoned(e, c) && config_.extrapolation_max_hz > 0) {
+    return 1.0 / config_.extrapolation_max_hz;
+  }
+  return IntervalOf(c);
+}
+
+const EntityVelocity* ClientReplicator::VelocityOf(const Entity& e, double now) {
+  if (!config_.velocities || e.physics != PhysicsRole::kSimulated ||
+      now - e.changed_at > kRestingVelocityAfterS) {
+    return nullptr;
+  }
+  velocity_.linear = e.linear_velocity;
+  velocity_.angular = e.angular_velocity;
+  return &velocity_;
+}
+
+bool ClientReplicator::HermiteDue(uint32_t id, const Entity& e, double now) {
+  EntityState sent;
+  EntityVelocity sent_velocity;
+  uint32_t sent_ms = 0;
+  if (!delta_->NewestSent(id, &sent, &sent_velocity, &sent_ms)) return true;
+  const double h = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
+  if (h <= 0) return false;
+  if (h >= config_.hermite_max_interval_s) return true;
+  const EntityVelocity* v = VelocityOf(e, now);
+  const Vec3f v1 = v != nullptr ? DequantizeVelocity(QuantizeVelocity(*v)).linear : Vec3f{};
+  const double thr2 = static_cast<double>(config_.extrapolation_position_threshold_m) *
+                      config_.extrapolation_position_threshold_m;
+  for (const Entity::RecentState& r : e.recent) {
+    // Relay times as the wire has them (ms, wrapping): the sample's offset into the segment.
+    const double into =
+        static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(r.t * 1000.0)) - sent_ms) /
+        1000.0;
+    if (!(into > 0 && into < h)) continue;
+    const Vec3f p = HermitePosition(sent.position, sent_velocity.linear, e.state.position, v1, h,
+                                    into / h);
+    const double dx = p.x - r.position.x, dy = p.y - r.position.y, dz = p.z - r.position.z;
+    if (dx * dx + dy * dy + dz * dz > thr2) return true;
+  }
+  return false;
+}
+
+DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entity& e,
+                                                        PriorityClass cls, double now,
+                                                        double resend_after) {
+  using Need = DeltaEncoder::UpdateNeed;
+  if (!config_.velocities) {
+    return delta_->Need(id, e.state, config_.position_threshold_m,
+                        config_.rotation_threshold_deg, now, resend_after);
+  }
+  if (!DeadReckoned(e, cls)) {
+    return delta_->NeedExtrapolated(id, e.state, config_.position_threshold_m,
+                                    config_.rotation_threshold_deg, now, resend_after, time_ms_);
+  }
+  if (config_.hermite_max_interval_s > 0) {  // receivers interpolate: selective sync, then the curve
+    const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
+                                   config_.rotation_threshold_deg, now, resend_after);
+    if (need != Need::kSend || HermiteDue(id, e, now)) return need;
+    return Need::kExtrapolatedWithin;  // not yet (not sticky)
+  }
+  return delta_->NeedExtrapolated(id, e.state, config_.extrapolation_position_threshold_m,
+                                  config_.extrapolation_rotation_threshold_deg, now, resend_after,
+                                  time_ms_);
 }
 
 void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
@@ -177,15 +253,14 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
                        ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
                                        config_.rotation_threshold_deg, now, resend_after)
                        : DeltaEncoder::UpdateNeed::kSend)
-                : delta_->Need(id, e.state, config_.position_threshold_m,
-                               config_.rotation_threshold_deg, now, resend_after);
+                : VelocityNeed(id, e, cls, now, resend_after);
         if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
         want = need == DeltaEncoder::UpdateNeed::kSend;
         break;
       }
     }
     if (!want) continue;
-    double waiting = std::max(now - v.last_sent, IntervalOf(cls));
+    double waiting = std::max(now - v.last_sent, IntervalFor(e, cls));
     candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
   }
   if (candidates_.empty()) return;
@@ -217,7 +292,8 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
       }
       if (delta_ != nullptr) {  // the room quantised it once for every receiver
         return delta_->Add(c.entity->state,
-                           c.entity->prepared_valid ? &c.entity->prepared : nullptr);
+                           c.entity->prepared_valid ? &c.entity->prepared : nullptr,
+                           VelocityOf(*c.entity, now));
       }
       return encoder_->Add(c.entity->state);
     };
@@ -229,7 +305,7 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
     in_payload_.emplace_back(c.id, c.entity->version);
     View& v = views_[c.id];
     v.last_sent = now;
-    double interval = IntervalOf(ClassOf(*c.entity, now));
+    double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
     // Due times advance by exactly the interval, so the long-run rate is exact whatever the
     // tick rate; after a pause (or the first send) the schedule restarts from now.
     v.next_due += interval;

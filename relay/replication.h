@@ -87,7 +87,29 @@ struct ReplicationConfig {
   // once per tick for every receiver on that baseline; each receiver only appends bits. Off by
   // default until measured at scale; clients learn the format from Joined.
   bool shared_encoding = false;
+  // edgephys mode without shared_encoding: send state format 12 (format 2 plus velocities,
+  // protocol/delta_codec.h) and dead-reckon: a receiver extrapolates each state with its
+  // velocity, and a PhyS-simulated entity outside the critical class is sent only when that
+  // extrapolation (from the newest state the client acknowledged) strays from the truth by
+  // more than the extrapolation thresholds, checked up to `extrapolation_max_hz`. Critical
+  // and non-PhyS entities keep the thresholds above (those with a velocity are compared
+  // extrapolated too). Off by default; clients learn the format from Joined.
+  bool velocities = false;
+  float extrapolation_position_threshold_m = 0.005f;
+  float extrapolation_rotation_threshold_deg = 2.0f;
+  double extrapolation_max_hz = 30;
+  // > 0: instead of dead reckoning, receivers interpolate (cubic Hermite with the sent
+  // velocities as tangents, at a playout delay above this) and a PhyS body outside the critical
+  // class is sent when the curve from the newest state sent to its present state strays from
+  // PhyS's states in between by more than extrapolation_position_threshold_m, or when this
+  // long has passed since the newest state sent while it moves (selective sync still applies).
+  double hermite_max_interval_s = 0;
 };
+
+// True when rooms with `config` send format 12.
+inline bool UsesVelocities(const ReplicationConfig& config) {
+  return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding && config.velocities;
+}
 
 // True when rooms with `config` send format 9.
 inline bool UsesSharedEncoding(const ReplicationConfig& config) {
@@ -138,6 +160,18 @@ class ClientReplicator {
   };
   PriorityClass ClassOf(const Entity& e, double now) const;
   double IntervalOf(PriorityClass c) const;
+  // IntervalOf, but dead-reckoned entities (format 12) are checked at extrapolation_max_hz.
+  double IntervalFor(const Entity& e, PriorityClass c) const;
+  // Whether `e` is dead-reckoned (format 12, PhyS-simulated, not critical).
+  bool DeadReckoned(const Entity& e, PriorityClass c) const;
+  // The velocity format 12 carries for `e`: PhyS's while it moves, nullptr (at rest) for
+  // others and for a body whose state has not changed for a while.
+  const EntityVelocity* VelocityOf(const Entity& e, double now);
+  // The interpolation check (hermite_max_interval_s > 0): true when `e` is to be sent.
+  bool HermiteDue(uint32_t id, const Entity& e, double now);
+  // The edgephys (format 2 / 12) send decision for `e` of class `cls`.
+  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, PriorityClass cls,
+                                        double now, double resend_after);
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Soft bodies (format 5): the latest particle set of each changed soft body, in chunks,
   // resent until every chunk of that version is acknowledged.
@@ -179,6 +213,7 @@ class ClientReplicator {
   double bytes_per_entity_ = 16;  // running estimate of one encoded entity
   double last_tick_ = -1;
   uint32_t time_ms_ = 0;
+  EntityVelocity velocity_;  // VelocityOf's result
 };
 
 }  // namespace edgephys

@@ -37,7 +37,8 @@ constexpr size_t kMaxEarlyStates = 1024;
 uint8_t StateFormatOf(const ReplicationConfig& config) {
   switch (config.mode) {
     case ReplicationMode::kEdgephys:
-      return config.shared_encoding ? kSharedDeltaStateFormat : kDeltaStateFormat;
+      if (config.shared_encoding) return kSharedDeltaStateFormat;
+      return config.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
     case ReplicationMode::kPhoton: return kFormatPhoton;
     case ReplicationMode::kPaper: return kFormatPaper;
     case ReplicationMode::kFloat: return 1;
@@ -366,6 +367,10 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
     Entity* e = room_.FindEntity(m.state.entity_id);
     if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
     e->state = m.state;
+    if (room_.config().replication.hermite_max_interval_s > 0) {
+      if (e->recent.size() < Entity::kRecentStates) e->recent.resize(Entity::kRecentStates);
+      e->recent[e->recent_next++ % Entity::kRecentStates] = {now, m.state.position};
+    }
     e->linear_velocity = m.linear;
     e->angular_velocity = m.angular;
     ++e->version;

@@ -337,6 +337,27 @@ TEST(RoomHostSharedEncoding, JoinedCarriesTheFormatAndBeginTickPreparesSharedVer
   }
 }
 
+// Velocities on the wire: format 12 unless the room shares its encoding (format 9 wins).
+TEST(RoomHostVelocities, JoinedCarriesFormat12OnlyWithVelocitiesAndWithoutSharedEncoding) {
+  for (int variant = 0; variant < 3; ++variant) {
+    AbuseLimits limits;
+    RelayCounters counters;
+    ScriptedPlacement placement;
+    RoomConfig config;
+    config.replication.velocities = variant >= 1;
+    config.replication.shared_encoding = variant == 2;
+    RoomHost host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0);
+    RecordingMember a(7);
+    ASSERT_TRUE(host.Join(a, 0));
+    const auto* joined = a.Of(Body::Joined)[0]->body_as_Joined();
+    const uint8_t want = variant == 0   ? kDeltaStateFormat
+                         : variant == 1 ? kVelocityDeltaStateFormat
+                                        : kSharedDeltaStateFormat;
+    EXPECT_EQ(joined->state_format(), want) << variant;
+    EXPECT_EQ(UsesVelocities(config.replication), variant == 1);
+  }
+}
+
 TEST_F(RoomHostTest, BeginTickPicksReadyMembersAndSchedulesTheNextTick) {
   RecordingMember a(1), b(2);
   ASSERT_TRUE(host_->Join(a, 0));

@@ -169,6 +169,11 @@ struct edgephys_client final : edgephys::ClientListener {
     snap.sender_time_s = track->sender_time_s;
     snap.position = e.state.position;
     snap.rotation = e.state.rotation;
+    if (e.has_velocity) {  // format 12 rooms: true tangents for interpolation and extrapolation
+      snap.has_linear_velocity = snap.has_angular_velocity = true;
+      snap.linear_velocity = e.velocity.linear;
+      snap.angular_velocity = e.velocity.angular;
+    }
     (void)track->buffer.Insert(snap, last_now);
     if (config.queue_state_events) {
       if (auto* ev = Push(EDGEPHYS_EVENT_STATE)) {
