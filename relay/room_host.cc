@@ -450,7 +450,11 @@ void RoomHost::FailOver(double now) {
                     added.ToString());
       continue;
     }
-    if (e->physics == PhysicsRole::kSimulated) {
+    if (e->physics == PhysicsRole::kSimulated && !e->nodes.empty()) {
+      // A soft body restarts from the deformed particles the relay last received, not from
+      // its spawn shape (they are what every receiver shows).
+      link.RestoreSoftBody(e->id, e->nodes);
+    } else if (e->physics == PhysicsRole::kSimulated) {
       link.Restore(e->id, e->state, e->linear_velocity, e->angular_velocity);
     } else {
       link.Drive(e->id, e->state);
