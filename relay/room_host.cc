@@ -457,6 +457,10 @@ void RoomHost::FailOver(double now) {
     } else if (e->physics == PhysicsRole::kSimulated) {
       link.Restore(e->id, e->state, e->linear_velocity, e->angular_velocity);
     } else {
+      // A mirrored body is teleported to where its owner last put it: driven from its spawn
+      // pose instead, a kinematic body would sweep the room in one step and slam whatever it
+      // met (a plate pressing a soft body pushed it through the floor).
+      link.Restore(e->id, e->state, {}, {});
       link.Drive(e->id, e->state);
     }
   }
