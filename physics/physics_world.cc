@@ -334,6 +334,32 @@ Status PhysicsWorld::GetSoftBodyNodes(uint32_t id, std::vector<Vec3f>* out) cons
   return Status::Ok();
 }
 
+Status PhysicsWorld::SetSoftBodyNodes(uint32_t id, uint32_t first, std::span<const Vec3f> nodes) {
+  Entity* e = Find(id);
+  if (e == nullptr || !e->soft) return Status(StatusCode::kNotFound, "no such soft body");
+  btSoftBody::tNodeArray& body = e->soft->m_nodes;
+  const size_t total = static_cast<size_t>(body.size());
+  if (first > total || nodes.size() > total - first) {
+    return Status::InvalidArgument("nodes beyond the soft body's node count");
+  }
+  for (const Vec3f& n : nodes) {
+    if (!Finite(n)) return Status(StatusCode::kInvalidArgument, "non-finite node position");
+  }
+  const btVector3 zero(0, 0, 0);
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    btSoftBody::Node& node = body[static_cast<int>(first + i)];
+    node.m_x = node.m_q = ToBt(nodes[i]);
+    node.m_v = zero;
+    node.m_f = zero;
+    if (first + i < e->soft_good.size()) e->soft_good[first + i] = node.m_x;
+  }
+  e->soft->updateBounds();
+  e->soft->updateNormals();
+  e->soft->activate(true);
+  MarkDirty(e);
+  return Status::Ok();
+}
+
 // ---------------------------------------------------------------------------------------------
 // Stepping
 

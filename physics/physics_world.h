@@ -57,6 +57,7 @@
 #include <memory>
 #include <string_view>
 #include <unordered_map>
+#include <span>
 #include <vector>
 
 #include "protocol/state_codec.h"
@@ -235,6 +236,13 @@ class PhysicsWorld {
   Status GetState(uint32_t id, EntityState* state) const;  // current transform
   // Node positions of a soft body (room frame); `out` is resized. kNotFound if not soft.
   Status GetSoftBodyNodes(uint32_t id, std::vector<Vec3f>* out) const;
+  // Failover restore of a deformed soft body: nodes [first, first + nodes.size()) take these
+  // positions (room frame, m) at rest (zero velocity and force); the rest lengths stay those of
+  // the spawn shape, so the body keeps the deformation it had and relaxes from there as it would
+  // have. The stability guard's last good state becomes these positions. Errors: kNotFound (not
+  // a soft body), kInvalidArgument (first + size above the body's node count, or a non-finite
+  // position); nothing changes on error. O(nodes given).
+  Status SetSoftBodyNodes(uint32_t id, uint32_t first, std::span<const Vec3f> nodes);
 
   // Advances exactly one fixed step of config().fixed_dt: applies pending kinematic moves and
   // grab drives, steps Bullet, runs the stability guard, diffs contact pairs into events.

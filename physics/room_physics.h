@@ -57,6 +57,11 @@ class RoomPhysics {
 
   // Restores a simulated entity's pose and velocities (failover onto a fresh world).
   void Restore(uint32_t id, const EntityState& state, const Vec3f& linear, const Vec3f& angular);
+  // Restores particles [first, first + nodes.size()) of a soft body to their deformed positions
+  // (failover onto a fresh world; PhysicsWorld::SetSoftBodyNodes). Errors as that function's.
+  Status RestoreSoftBody(uint32_t id, uint32_t first, std::span<const Vec3f> nodes) {
+    return world_.SetSoftBodyNodes(id, first, nodes);
+  }
 
   struct MovedBody {
     EntityState state;

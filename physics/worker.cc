@@ -87,6 +87,13 @@ void PhysicsWorker::OnOtherMessage(const schema::ControlMessage& msg) {
     case schema::Body::WorkerRestore: {
       const auto* m = msg.body_as_WorkerRestore();
       RoomPhysics* room = room_of(m->room());
+      if (room != nullptr && m->nodes() != nullptr) {
+        restore_nodes_.clear();
+        for (const schema::Vec3* v : *m->nodes()) restore_nodes_.push_back({v->x(), v->y(), v->z()});
+        Status st = room->RestoreSoftBody(m->entity_id(), m->first_node(), restore_nodes_);
+        if (!st.ok()) spdlog::warn("soft body {} not restored: {}", m->entity_id(), st.ToString());
+        break;
+      }
       if (room == nullptr || m->pose() == nullptr) break;
       Vec3f lin = m->linear() ? Vec3f{m->linear()->x(), m->linear()->y(), m->linear()->z()} : Vec3f{};
       Vec3f ang = m->angular() ? Vec3f{m->angular()->x(), m->angular()->y(), m->angular()->z()} : Vec3f{};

@@ -52,6 +52,7 @@ class PhysicsWorker final : public ClientListener, public ControlMessageListener
   RoomPhysics::StepOutput out_;
   std::vector<RoomPhysics::MovedBody> snapshot_;
   std::vector<uint8_t> payload_ = std::vector<uint8_t>(kMaxUnreliablePayload);
+  std::vector<Vec3f> restore_nodes_;  // a WorkerRestore's soft-body particles, reused
   double now_ = 0;
   uint64_t steps_ = 0;
 };

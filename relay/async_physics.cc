@@ -264,6 +264,12 @@ void AsyncPhysicsRoom::Apply(PhysicsCommand& c) {
     case K::kGrab: physics_->RequestGrab(c.id, c.hand, !c.force); break;
     case K::kRelease: (void)physics_->Release(c.id); break;
     case K::kRestore: physics_->Restore(c.id, c.state, c.linear, c.angular); break;
+    case K::kRestoreNodes: {
+      Status st = physics_->RestoreSoftBody(c.id, 0, c.nodes);
+      if (!st.ok()) spdlog::warn("PhyS: soft body {} not restored: {}", c.id, st.ToString());
+      c.nodes = {};
+      break;
+    }
   }
 }
 

@@ -45,7 +45,7 @@ namespace edgephys {
 
 // One input for a room's PhyS, in the order the relay issued it.
 struct PhysicsCommand {
-  enum class Kind : uint8_t { kAdd, kRemove, kDrive, kGrab, kRelease, kRestore };
+  enum class Kind : uint8_t { kAdd, kRemove, kDrive, kGrab, kRelease, kRestore, kRestoreNodes };
   Kind kind = Kind::kRemove;
   PhysicsRole role = PhysicsRole::kNone;  // kAdd
   bool force = false;                     // kGrab: skip the hover check (failover)
@@ -53,6 +53,7 @@ struct PhysicsCommand {
   uint32_t hand = 0;                      // kGrab
   EntityState state{};                    // kDrive, kRestore
   Vec3f linear{}, angular{};              // kRestore
+  std::vector<Vec3f> nodes;               // kRestoreNodes: every particle of the soft body
   flatbuffers::DetachedBuffer container;  // kAdd: a finished buffer whose root is a Container
 };
 

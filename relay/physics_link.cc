@@ -1,5 +1,7 @@
 #include "relay/physics_link.h"
 
+#include <spdlog/spdlog.h>
+
 #include "protocol/handshake.h"
 
 namespace edgephys {
@@ -97,6 +99,19 @@ void EmbeddedPhysicsLink::Restore(uint32_t id, const EntityState& s, const Vec3f
   command.state = s;
   command.linear = l;
   command.angular = a;
+  room_->Post(std::move(command));
+}
+
+void EmbeddedPhysicsLink::RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) {
+  if (room_ == nullptr) {
+    Status st = physics_->RestoreSoftBody(id, 0, nodes);
+    if (!st.ok()) spdlog::warn("PhyS: soft body {} not restored: {}", id, st.ToString());
+    return;
+  }
+  PhysicsCommand command;
+  command.kind = PhysicsCommand::Kind::kRestoreNodes;
+  command.id = id;
+  command.nodes.assign(nodes.begin(), nodes.end());
   room_->Post(std::move(command));
 }
 
@@ -207,6 +222,27 @@ void RemotePhysicsLink::Restore(uint32_t id, const EntityState& s, const Vec3f& 
   schema::Vec3 lin(l.x, l.y, l.z), ang(a.x, a.y, a.z);
   FinishControl(fbb, schema::CreateWorkerRestore(fbb, handle_, id, &pose, &lin, &ang));
   Send(fbb);
+}
+
+void RemotePhysicsLink::RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) {
+  for (size_t first = 0; first < nodes.size(); first += kRestoreNodesPerMessage) {
+    const size_t n = std::min(kRestoreNodesPerMessage, nodes.size() - first);
+    flatbuffers::FlatBufferBuilder fbb(64 + n * sizeof(schema::Vec3));
+    std::vector<schema::Vec3> chunk;
+    chunk.reserve(n);
+    for (size_t i = 0; i < n; ++i) {
+      const Vec3f& v = nodes[first + i];
+      chunk.emplace_back(v.x, v.y, v.z);
+    }
+    auto vec = fbb.CreateVectorOfStructs(chunk);
+    schema::WorkerRestoreBuilder b(fbb);
+    b.add_room(handle_);
+    b.add_entity_id(id);
+    b.add_nodes(vec);
+    b.add_first_node(static_cast<uint32_t>(first));
+    FinishControl(fbb, b.Finish());
+    Send(fbb);
+  }
 }
 
 void RemotePhysicsLink::Advance(double now, StepOutput* out) {

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <span>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
@@ -52,6 +53,10 @@ class PhysicsLink {
   virtual void Release(uint32_t entity) = 0;
   virtual void Restore(uint32_t id, const EntityState& state, const Vec3f& linear,
                        const Vec3f& angular) = 0;
+  // Restores a soft body's deformed particles (every one, room frame) after Add (failover);
+  // remote links send them in messages of at most kRestoreNodesPerMessage particles.
+  virtual void RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) = 0;
+  static constexpr size_t kRestoreNodesPerMessage = 4096;
   // Steps (embedded) or collects what the worker sent (remote) up to `now`.
   virtual void Advance(double now, StepOutput* out) = 0;
   // False when the link cannot go on (its worker disconnected or stopped answering).
@@ -87,6 +92,7 @@ class EmbeddedPhysicsLink final : public PhysicsLink {
   void RequestGrab(uint32_t entity, uint32_t hand, bool force) override;
   void Release(uint32_t entity) override;
   void Restore(uint32_t id, const EntityState& s, const Vec3f& l, const Vec3f& a) override;
+  void RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) override;
   // Synchronous: runs the steps due by `now`. Asynchronous: the steps finished since the last
   // call, merged into one output (MergeStepOutput; empty if none), and `now` as the new target.
   void Advance(double now, StepOutput* out) override;
@@ -131,6 +137,7 @@ class RemotePhysicsLink final : public PhysicsLink {
   void RequestGrab(uint32_t entity, uint32_t hand, bool force) override;
   void Release(uint32_t entity) override;
   void Restore(uint32_t id, const EntityState& s, const Vec3f& l, const Vec3f& a) override;
+  void RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) override;
   void Advance(double now, StepOutput* out) override;
   bool Healthy(double now) const override;
   uint32_t worker() const override { return worker_id_; }

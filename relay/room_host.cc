@@ -455,9 +455,17 @@ void RoomHost::FailOver(double now) {
                     added.ToString());
       continue;
     }
-    if (e->physics == PhysicsRole::kSimulated) {
+    if (e->physics == PhysicsRole::kSimulated && !e->nodes.empty()) {
+      // A soft body restarts from the deformed particles the relay last received, not from
+      // its spawn shape (they are what every receiver shows).
+      link.RestoreSoftBody(e->id, e->nodes);
+    } else if (e->physics == PhysicsRole::kSimulated) {
       link.Restore(e->id, e->state, e->linear_velocity, e->angular_velocity);
     } else {
+      // A mirrored body is teleported to where its owner last put it: driven from its spawn
+      // pose instead, a kinematic body would sweep the room in one step and slam whatever it
+      // met (a plate pressing a soft body pushed it through the floor).
+      link.Restore(e->id, e->state, {}, {});
       link.Drive(e->id, e->state);
     }
   }

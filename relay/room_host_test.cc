@@ -300,11 +300,57 @@ TEST_F(RoomHostTest, FailOverRebuildsPhysSElsewhereFromWhatTheRoomHolds) {
   EXPECT_EQ(second.restored_state.at(ball).position.x, 3.0f);
   EXPECT_EQ(second.restored_linear.at(ball).x, 2.0f);
   EXPECT_EQ(second.driven.at(hand).position.x, 0.5f);
+  EXPECT_EQ(second.restored_state.at(hand).position.x, 0.5f);  // teleported there first
   ASSERT_EQ(second.grabs.size(), 1u);
   EXPECT_TRUE(second.grabs[0].force);
   EXPECT_EQ(second.grabs[0].entity, cube);
   EXPECT_EQ(counters_.physics_failovers.load(), 1u);
   EXPECT_EQ(host_->room().entities().size(), 3u);  // nothing lost
+}
+
+// A soft body fails over with the particles the relay last received (its deformed state), not
+// with its spawn shape; a soft body PhyS never reported is re-added from its spawn alone.
+TEST_F(RoomHostTest, FailOverRestoresASoftBodyFromItsLastParticles) {
+  RecordingMember a(1);
+  ASSERT_TRUE(host_->Join(a, 0));
+  const uint32_t jelly = Base(a) + 1, fresh = Base(a) + 2;
+  for (uint32_t id : {jelly, fresh}) {
+    EntitySpec s;
+    s.id = id;
+    s.owner = 1;
+    s.flags = kOffloaded;
+    s.soft_body = SoftBodySpec{};
+    s.soft_body->particles = {0, 1, 0, 0.1f, 1, 0, 0, 1.1f, 0, 0, 1, 0.1f};
+    s.soft_body->masses = {0.1f, 0.1f, 0.1f, 0.1f};
+    s.soft_body->springs = {0, 1, 0, 2, 0, 3, 1, 2};
+    s.soft_body->stiffness = 100;
+    s.soft_body->damping = 0.1f;
+    Spawn(a, s);
+  }
+  ASSERT_EQ(host_->room().entities().size(), 2u) << "the soft bodies were refused";
+  ScriptedPhysics& first = *placement_.links.at(0);
+  PhysicsLink::StepOutput out;
+  const std::vector<Vec3f> squashed = {{0, 0.5f, 0}, {0.12f, 0.5f, 0}, {0, 0.52f, 0}, {0, 0.5f, 0.12f}};
+  // Reported in two parts, as PhyS may cut a large body.
+  out.soft.push_back({jelly, 4, 0, {squashed[0], squashed[1]}});
+  out.soft.push_back({jelly, 4, 2, {squashed[2], squashed[3]}});
+  host_->ApplyPhysics(out, 1.0);
+  first.healthy = false;
+  host_->PreparePhysics(2.0);
+  ASSERT_EQ(placement_.links.size(), 2u);
+  ScriptedPhysics& second = *placement_.links[1];
+  ASSERT_EQ(second.added.size(), 2u);
+  ASSERT_EQ(second.restored_nodes.count(jelly), 1u);
+  const std::vector<Vec3f>& got = second.restored_nodes.at(jelly);
+  ASSERT_EQ(got.size(), squashed.size());
+  for (size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].x, squashed[i].x);
+    EXPECT_EQ(got[i].y, squashed[i].y);
+    EXPECT_EQ(got[i].z, squashed[i].z);
+  }
+  EXPECT_EQ(second.restored_state.count(jelly), 0u);  // no rigid pose restore for a soft body
+  EXPECT_EQ(second.restored_nodes.count(fresh), 0u);  // nothing reported: its spawn shape
+  EXPECT_EQ(counters_.physics_failovers.load(), 1u);
 }
 
 // The state format a room tells its members follows the shared-encoding flag, and a format-9

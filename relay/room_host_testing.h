@@ -124,6 +124,10 @@ class ScriptedPhysics final : public PhysicsLink {
     restored_state[id] = s;
     restored_linear[id] = l;
   }
+  void RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) override {
+    restored.push_back(id);
+    restored_nodes[id].assign(nodes.begin(), nodes.end());
+  }
   void Advance(double, StepOutput* out) override { out->Clear(); }
   bool Healthy(double) const override { return healthy; }
   uint32_t worker() const override { return worker_; }
@@ -137,6 +141,7 @@ class ScriptedPhysics final : public PhysicsLink {
   std::vector<uint32_t> removed, released, restored;
   std::map<uint32_t, EntityState> driven, restored_state;
   std::map<uint32_t, Vec3f> restored_linear;
+  std::map<uint32_t, std::vector<Vec3f>> restored_nodes;
   std::vector<GrabCall> grabs;
   bool healthy = true;
   bool refuse_adds = false;
