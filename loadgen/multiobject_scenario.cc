@@ -181,7 +181,7 @@ class MultiObjectScenario final : public Scenario {
     cmd.add_option("--stirrer-half-height", o_.stirrer_half_height,
                    "Stirrer paddle half height (m; 0.4 at y 0.4 spans the ~0.6 m pile)");
     cmd.add_option("--sleep-threshold", o_.sleep_threshold,
-                   "PhyS sleeping thresholds (m/s, rad/s); Bullet's defaults are 0.8 / 1.0");
+                   "PhyS sleeping thresholds (m/s, rad/s); the raw Bullet run keeps Bullet's 0.8 / 1.0");
     cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
     cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "edgephys rotation bound (deg)");
     cmd.add_option("--position-threshold", o_.position_threshold_m,

@@ -178,6 +178,7 @@ btRigidBody::btRigidBodyConstructionInfo BodyInfo(const schema::RigidBody* rb, b
 void ConfigureDynamic(btRigidBody* body, const schema::RigidBody& rb, btCollisionShape* shape,
                       const PhysicsConfig& config, PhysicsWorld::Entity* e) {
   if (!config.sleeping) body->setActivationState(DISABLE_DEACTIVATION);
+  body->setContactProcessingThreshold(config.contact_processing_threshold);
   btVector3 center;
   btScalar bound_radius;
   shape->getBoundingSphere(center, bound_radius);

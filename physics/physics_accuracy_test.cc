@@ -271,7 +271,7 @@ double RawBulletStackDrift(int substeps, int iterations, bool sleeping, double s
 // (cost, and slow oscillations sleeping early: see docs/benchmarks.md, "PhyS: accuracy and
 // stability").
 TEST(PhysicsAccuracyTest, TenBoxStackStandsSixtySeconds) {
-  PhysicsConfig cfg;  // defaults (dt 1/60, 10 iterations, sleeping on) plus 4 substeps and
+  PhysicsConfig cfg;  // defaults (dt 1/60, 7 iterations, sleeping on) plus 4 substeps and
   cfg.substeps = 4;   // Bullet's default sleep thresholds
   cfg.sleep_linear_threshold = 0.8f;
   cfg.sleep_angular_threshold = 1.0f;

@@ -28,13 +28,16 @@ void EntityMotionState::setWorldTransform(const btTransform& in) {
 }
 
 PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
+  btDefaultCollisionConstructionInfo pools;
+  pools.m_defaultMaxPersistentManifoldPoolSize = std::max(64, config_.contact_pool_size);
+  pools.m_defaultMaxCollisionAlgorithmPoolSize = std::max(64, config_.contact_pool_size);
   if (config_.soft_body_world) {
-    collision_config_ = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
+    collision_config_ = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>(pools);
   } else {
-    collision_config_ = std::make_unique<btDefaultCollisionConfiguration>();
+    collision_config_ = std::make_unique<btDefaultCollisionConfiguration>(pools);
   }
   dispatcher_ = std::make_unique<btCollisionDispatcher>(collision_config_.get());
-  broadphase_ = std::make_unique<btDbvtBroadphase>();
+  broadphase_ = NewBroadphase(kInitialSweepHandles);
   solver_ = std::make_unique<btSequentialImpulseConstraintSolver>();
   if (config_.soft_body_world) {
     auto w = std::make_unique<btSoftRigidDynamicsWorld>(dispatcher_.get(), broadphase_.get(),
@@ -52,7 +55,18 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
     soft_info_->air_density = 0;
     soft_info_->water_density = 0;
   }
-  world_->getSolverInfo().m_numIterations = config_.solver_iterations;
+  btContactSolverInfo& solver_info = world_->getSolverInfo();
+  solver_info.m_numIterations = config_.solver_iterations;
+  solver_info.m_splitImpulse = config_.split_impulse;
+  solver_info.m_warmstartingFactor = config_.warmstarting_factor;
+  if (config_.warmstarting_factor <= 0) solver_info.m_solverMode &= ~SOLVER_USE_WARMSTARTING;
+  if (config_.randomize_solver_order) solver_info.m_solverMode |= SOLVER_RANDMIZE_ORDER;
+  solver_info.m_leastSquaresResidualThreshold = config_.solver_residual_threshold;
+  // gDeactivationTime is Bullet's process-wide constant; other values are emulated per body
+  // (RunGuard scales the time a body has been below the thresholds).
+  deactivation_scale_ = config_.deactivation_time > 0
+                            ? btScalar(2.0) / config_.deactivation_time - btScalar(1)
+                            : btScalar(0);
   // Static AABBs never change unless we move them (we then update them explicitly).
   world_->setForceUpdateAllAabbs(false);
   // CCD creates predictive contacts; without this they silently drop restitution.
@@ -66,6 +80,52 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
   new_pairs_.reserve(reserve);
   events_.reserve(256);
   step_events_.reserve(256);
+}
+
+std::unique_ptr<btBroadphaseInterface> PhysicsWorld::NewBroadphase(int handles) {
+  sweep_handles_ = 0;
+  if (config_.broadphase != PhysicsConfig::Broadphase::kAxisSweep) {
+    return std::make_unique<btDbvtBroadphase>();
+  }
+  sweep_handles_ = handles;
+  const btScalar b = config_.world_half_extent;
+  return std::make_unique<bt32BitAxisSweep3>(btVector3(-b, -b, -b), btVector3(b, b, b),
+                                             static_cast<unsigned int>(handles));
+}
+
+void PhysicsWorld::ReserveBroadphase(int more) {
+  if (sweep_handles_ == 0) return;  // btDbvtBroadphase grows by itself
+  const int needed = world_->getNumCollisionObjects() + more;
+  if (needed <= sweep_handles_ - 2) return;  // the sweep keeps two sentinel handles
+  int handles = sweep_handles_;
+  while (handles - 2 < needed) handles *= 2;
+  // Re-home every collision object: its pairs, algorithms and manifolds go with the old
+  // broadphase (contacts are found again by the next step).
+  btCollisionObjectArray& objects = world_->getCollisionObjectArray();
+  struct Filter {
+    int group;
+    int mask;
+  };
+  std::vector<Filter> filters(static_cast<size_t>(objects.size()));
+  for (int i = 0; i < objects.size(); ++i) {
+    btBroadphaseProxy* proxy = objects[i]->getBroadphaseHandle();
+    filters[i] = Filter{proxy->m_collisionFilterGroup, proxy->m_collisionFilterMask};
+    broadphase_->getOverlappingPairCache()->cleanProxyFromPairs(proxy, dispatcher_.get());
+    broadphase_->destroyProxy(proxy, dispatcher_.get());
+    objects[i]->setBroadphaseHandle(nullptr);
+  }
+  std::unique_ptr<btBroadphaseInterface> grown = NewBroadphase(handles);
+  world_->setBroadphase(grown.get());
+  for (int i = 0; i < objects.size(); ++i) {
+    btCollisionObject* o = objects[i];
+    btVector3 mn, mx;
+    o->getCollisionShape()->getAabb(o->getWorldTransform(), mn, mx);
+    o->setBroadphaseHandle(grown->createProxy(mn, mx, o->getCollisionShape()->getShapeType(), o,
+                                              filters[i].group, filters[i].mask,
+                                              dispatcher_.get()));
+  }
+  broadphase_ = std::move(grown);
+  for (int i = 0; i < objects.size(); ++i) world_->updateSingleAabb(objects[i]);
 }
 
 PhysicsWorld::~PhysicsWorld() {
@@ -116,6 +176,7 @@ Status PhysicsWorld::AddEntity(const schema::Container& c, InvalidReason* reason
     ++stats_.rejected_containers;
     return internal::RejectionStatus(why);
   }
+  ReserveBroadphase(2);  // a body and a trigger object at most
   std::unique_ptr<Entity> owned = NewEntity(c);
   Entity* e = owned.get();
   if (c.soft_body() != nullptr) {

@@ -91,7 +91,11 @@ struct PhysicsConfig {
   // across them). Cost: every substep is a full Bullet step, so Step() grows with substeps.
   // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy and stability").
   int substeps = 1;
-  int solver_iterations = 10;         // sequential impulse iterations (per substep)
+  // Sequential impulse iterations (per substep). 7 keeps the accuracy suite passing in fixed
+  // order, 5 does not (a never-sleeping stack creeps 0.27 m in 60 s; 6 not measured); each
+  // iteration is ~1.5 % of a 2,000-box MultiObject step (docs/benchmarks.md, "PhyS: model no more than
+  // the scene needs").
+  int solver_iterations = 7;
   int max_substeps = 4;               // Advance(): most fixed steps per call (backlog dropped)
   Vec3f gravity{0.0f, -9.81f, 0.0f};  // m/s^2
   bool soft_body_world = true;        // btSoftRigidDynamicsWorld; false: btDiscreteDynamicsWorld
@@ -100,6 +104,9 @@ struct PhysicsConfig {
   // (smallest half extent) whenever they move more than ccd_motion_fraction * (smallest half
   // extent) in one step, i.e. only small fast bodies pay for it.
   bool ccd = true;
+  // Measured at 1.0 (sweep only bodies that move more than their smallest half extent per
+  // step): no step time saved within the noise at 2,000 boxes, and 1-4 of 2,000 stirred boxes
+  // were squeezed out of the full-stir container where 0.5 kept all in, so 0.5 stays.
   float ccd_motion_fraction = 0.5f;
   float ccd_swept_radius_fraction = 0.9f;
   bool sleeping = true;               // false: bodies never deactivate
@@ -108,6 +115,43 @@ struct PhysicsConfig {
   float sleep_linear_threshold = 0.1f;   // m/s
   float sleep_angular_threshold = 0.1f;  // rad/s
   float world_half_extent = 1000.0f;  // world bounds: axis-aligned cube, metres from the origin
+  // --- What a scene does not need, PhyS does not compute. Each setting below was measured as
+  // step time (2,000-box MultiObject) against the accuracy suite (docs/benchmarks.md, "PhyS:
+  // model no more than the scene needs"); the defaults are the picks from that chart.
+  // Seconds an island stays below both sleep thresholds before it sleeps (Bullet: 2 s, a
+  // process-wide global; PhyS emulates other values per body, O(active bodies) per step).
+  // Shorter: settled piles stop costing sooner; slow damped motion freezes sooner.
+  float deactivation_time = 2.0f;
+  // Broadphase. kDbvt (Bullet's default): dynamic AABB trees; every step re-finds the
+  // overlaps of every moving body in a tree fattened by 5 cm and hashes them again.
+  // kAxisSweep: bt32BitAxisSweep3 over the world bounds (the cube of world_half_extent):
+  // sweep and prune, pairs change only when AABB ends pass each other, so coherent motion in a
+  // bounded room is cheap; a teleport across the room costs O(objects). Its capacity starts at
+  // 1,024 collision objects and doubles when AddEntity needs more (O(objects) once per
+  // doubling; contacts are found again by the next step). ~150 bytes per capacity slot.
+  enum class Broadphase : uint8_t { kDbvt, kAxisSweep };
+  Broadphase broadphase = Broadphase::kAxisSweep;
+  // Split impulse (Bullet's default: on): penetration is resolved by a separate position-only
+  // pass, so it adds no energy; off folds it into the velocity (Baumgarte), one solver pass
+  // fewer per iteration.
+  // Off by default: the accuracy suite passes unchanged without it and the step is cheaper.
+  bool split_impulse = false;
+  // SOLVER_RANDMIZE_ORDER: shuffles the rows every iteration, so no contact is always solved
+  // last. Holds a never-sleeping stack to 1.5 cm at 5 iterations, but the shuffle costs more
+  // than the 5 iterations it saves (+10 % step time at 2,000 boxes), so it is off.
+  bool randomize_solver_order = false;
+  // Warm starting scales last step's impulses into the first iteration (Bullet's default
+  // 0.85; 0 turns warm starting off).
+  float warmstarting_factor = 0.85f;
+  // The solver stops iterating when the squared residual falls below this (0: always
+  // solver_iterations). Cost saved only when islands converge early.
+  float solver_residual_threshold = 0.0f;
+  // Manifolds and collision algorithms preallocated (Bullet's default: 4,096 each); beyond
+  // them Bullet allocates per new contact pair, i.e. per step in a busy pile.
+  int contact_pool_size = 4096;
+  // Contact points farther apart than this (m) get no solver constraint (Bullet's default:
+  // unlimited, i.e. every manifold point within the breaking threshold is solved).
+  float contact_processing_threshold = 1e18f;
   float contact_distance = 0.005f;    // a manifold point closer than this counts as touching (m)
   // Stability guard thresholds.
   float max_linear_speed = 200.0f;      // m/s
@@ -290,6 +334,11 @@ class PhysicsWorld {
   void ApplyCommands();
   void RemoveJointsOf(uint32_t id);
   void ReportTree(Entity* e, std::vector<EntityState>* moved);
+  // The configured broadphase; kAxisSweep with `handles` proxies.
+  std::unique_ptr<btBroadphaseInterface> NewBroadphase(int handles);
+  // kAxisSweep: grows (doubles) the sweep so that `more` collision objects fit. O(objects).
+  void ReserveBroadphase(int more);
+  static constexpr int kInitialSweepHandles = 1024;
   // AddEntity's steps after validation (body_builder.cc).
   std::unique_ptr<Entity> NewEntity(const schema::Container& c);
   void AddSoftBody(Entity* e, const schema::Container& c);
@@ -330,6 +379,8 @@ class PhysicsWorld {
   size_t dynamic_bodies_ = 0;
   size_t bodies_ = 0;
   size_t last_active_ = 0;
+  int sweep_handles_ = 0;          // kAxisSweep: capacity of the sweep (0: btDbvtBroadphase)
+  float deactivation_scale_ = 0;  // extra below-threshold seconds per second (deactivation_time)
   PhysicsCounters stats_;
 
   friend class EntityMotionState;

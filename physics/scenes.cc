@@ -137,26 +137,18 @@ RawBulletMultiObjectScene::RawBulletMultiObjectScene(const MultiObjectParams& pa
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.params = params;
-  const PhysicsConfig& cfg = params.config;
-  if (cfg.soft_body_world) {
-    m.collision_config = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
-  } else {
-    m.collision_config = std::make_unique<btDefaultCollisionConfiguration>();
-  }
+  // Bullet as its examples set it up, every setting at its default: btDefaultCollisionConfiguration,
+  // btDbvtBroadphase, btSequentialImpulseConstraintSolver (10 iterations, split impulse, warm
+  // starting), btDiscreteDynamicsWorld, sleeping at 0.8 m/s / 1.0 rad/s after 2 s, no CCD,
+  // motion states on every body. Only the scene (shapes, masses, friction, restitution, gravity,
+  // the step length) comes from `params`.
+  m.collision_config = std::make_unique<btDefaultCollisionConfiguration>();
   m.dispatcher = std::make_unique<btCollisionDispatcher>(m.collision_config.get());
   m.broadphase = std::make_unique<btDbvtBroadphase>();
   m.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
-  if (cfg.soft_body_world) {
-    m.world = std::make_unique<btSoftRigidDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
-                                                         m.solver.get(), m.collision_config.get());
-  } else {
-    m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
-                                                        m.solver.get(), m.collision_config.get());
-  }
-  m.world->setGravity(Bt(cfg.gravity));
-  m.world->getSolverInfo().m_numIterations = cfg.solver_iterations;
-  m.world->setForceUpdateAllAabbs(false);
-  m.world->setApplySpeculativeContactRestitution(true);
+  m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
+                                                      m.solver.get(), m.collision_config.get());
+  m.world->setGravity(Bt(params.config.gravity));
 
   for (const EntitySpec& spec : MultiObjectSpecs(params)) {
     const ColliderSpec& col = spec.colliders[0];
@@ -172,24 +164,13 @@ RawBulletMultiObjectScene::RawBulletMultiObjectScene(const MultiObjectParams& pa
     btRigidBody::btRigidBodyConstructionInfo ci(mass, motion.get(), shape.get(), inertia);
     ci.m_friction = spec.rigid_body ? spec.rigid_body->friction : 0.5f;
     ci.m_restitution = spec.rigid_body ? spec.rigid_body->restitution : 0.0f;
-    ci.m_linearSleepingThreshold = cfg.sleep_linear_threshold;
-    ci.m_angularSleepingThreshold = cfg.sleep_angular_threshold;
     auto body = std::make_unique<btRigidBody>(ci);
     if (kinematic) {
       body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
       body->setActivationState(DISABLE_DEACTIVATION);
       m.stirrer = body.get();
     }
-    if (dynamic) {
-      if (!cfg.sleeping) body->setActivationState(DISABLE_DEACTIVATION);
-      if (cfg.ccd) {
-        const btScalar inner =
-            std::min({col.half_extents.x, col.half_extents.y, col.half_extents.z});
-        body->setCcdMotionThreshold(inner * cfg.ccd_motion_fraction);
-        body->setCcdSweptSphereRadius(inner * cfg.ccd_swept_radius_fraction);
-      }
-      m.boxes.push_back(body.get());
-    }
+    if (dynamic) m.boxes.push_back(body.get());
     m.world->addRigidBody(body.get());
     m.shapes.push_back(std::move(shape));
     m.motion_states.push_back(std::move(motion));
@@ -207,26 +188,10 @@ void RawBulletMultiObjectScene::Step() {
   ++m.steps;
   Vec3f pos;
   Quatf rot;
-  // Same stepping as PhysicsWorld::Step(): `substeps` Bullet steps, the kinematic stirrer
-  // moving along the straight line towards its end-of-step pose.
-  const PhysicsConfig& cfg = m.params.config;
-  StirrerPose(m.params, static_cast<double>(m.steps) * cfg.fixed_dt, &pos, &rot);
-  const btTransform target(Bt(rot), Bt(pos));
-  const int n = std::max(1, cfg.substeps);
-  const btScalar h = cfg.fixed_dt / static_cast<btScalar>(n);
-  btTransform from;
-  m.stirrer->getMotionState()->getWorldTransform(from);
-  for (int k = 1; k <= n; ++k) {
-    if (k == n) {
-      m.stirrer->getMotionState()->setWorldTransform(target);
-    } else {
-      const btScalar f = static_cast<btScalar>(k) / static_cast<btScalar>(n);
-      m.stirrer->getMotionState()->setWorldTransform(
-          btTransform(from.getRotation().slerp(target.getRotation(), f),
-                      from.getOrigin().lerp(target.getOrigin(), f)));
-    }
-    m.world->stepSimulation(h, 0, h);
-  }
+  const btScalar dt = m.params.config.fixed_dt;
+  StirrerPose(m.params, static_cast<double>(m.steps) * dt, &pos, &rot);
+  m.stirrer->getMotionState()->setWorldTransform(btTransform(Bt(rot), Bt(pos)));
+  m.world->stepSimulation(dt, 1, dt);  // Bullet's default call (one fixed step of dt)
 }
 
 size_t RawBulletMultiObjectScene::MovingBoxes(float min_speed) const {

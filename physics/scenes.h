@@ -34,7 +34,7 @@ struct MultiObjectParams {
   float stirrer_center_y = 0.4f;      // m; the pile is ~0.6 m deep (3 layers of 0.2 m boxes)
   float stirrer_half_height = 0.4f;   // m; 0.4 at 0.4 spans the whole pile
   uint32_t seed = 1;
-  PhysicsConfig config;               // dt, iterations, gravity, sleeping, CCD (both variants)
+  PhysicsConfig config;               // PhyS settings; raw Bullet takes only dt and gravity
 };
 
 // Entity ids used by the scene.
@@ -67,6 +67,10 @@ class PhysSMultiObjectScene {
   std::vector<PhysicsEvent> events_;
 };
 
+// The baseline: the same scene in Bullet with every Bullet setting at its default (no CCD,
+// Bullet's sleep thresholds and pools, 10 iterations, btDiscreteDynamicsWorld). Only the scene
+// itself (shapes, masses, friction, restitution, gravity, dt) is taken from the params;
+// params.config's PhyS settings do not apply to it.
 class RawBulletMultiObjectScene {
  public:
   explicit RawBulletMultiObjectScene(const MultiObjectParams& params);

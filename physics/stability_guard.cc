@@ -91,6 +91,13 @@ void PhysicsWorld::RunGuard() {
     const GuardCause cause = CheckRigid(*e->body, e->radius, config_);
     if (cause == GuardCause::kNone) {
       e->last_good = e->body->getWorldTransform();
+      // Bullet counted this step below the sleep thresholds (time > 0): scale it so that the
+      // island sleeps after config_.deactivation_time instead of Bullet's global 2 s.
+      const btScalar below = e->body->getDeactivationTime();
+      if (deactivation_scale_ != 0 && below > 0) {
+        e->body->setDeactivationTime(
+            std::max(below + deactivation_scale_ * config_.fixed_dt, btScalar(1e-6)));
+      }
     } else {
       ResetRigid(e, cause);
     }
