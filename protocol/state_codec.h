@@ -89,12 +89,6 @@ class FloatStateEncoder final : public ByteStateEncoder {
   size_t Finish() override;
 };
 
-// An entity's velocity as carried by format 12: m/s and rad/s, room (world) frame.
-struct EntityVelocity {
-  Vec3f linear;
-  Vec3f angular;
-};
-
 struct StateBatch {
   uint32_t time_ms = 0;
   std::vector<EntityState> states;  // reused by the caller between decodes

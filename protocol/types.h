@@ -29,6 +29,12 @@ struct EntityState {
   Quatf rotation;   // unit quaternion
 };
 
+// An entity's velocity as carried by format 12: m/s and rad/s, room (world) frame.
+struct EntityVelocity {
+  Vec3f linear;
+  Vec3f angular;
+};
+
 // Entity ids are divided into blocks of kEntityIdBlock ids, one block per player slot of a
 // room: slot s owns the ids s * kEntityIdBlock .. s * kEntityIdBlock + 65535 (the relay tells a
 // player its block base in Joined.entity_id_base). Slot 0 is the room's own: no player is given
