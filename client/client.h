@@ -49,6 +49,7 @@
 #include "protocol/datagram_socket.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/soft_body_codec.h"
+#include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
 #include "protocol/types.h"
@@ -309,6 +310,7 @@ class Client final : private ConnectionHandler, private PacketWriter {
   std::unique_ptr<SharedDeltaDecoder> shared_decoder_;  // rooms using format 9
   float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
   SoftBodyChunk soft_chunk_;
+  std::unique_ptr<SoftDeltaReceiver> soft_decoder_;  // format 11; per room (reset on Joined)
   uint64_t bytes_state_received_ = 0;
   uint64_t state_payloads_outside_room_ = 0;
   double packet_arrival_unix_s_ = 0;
