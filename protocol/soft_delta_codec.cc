@@ -21,14 +21,14 @@ constexpr size_t kMaxRecordHeader = 6 * 5 + 1 + 2 * 5 + 3 * 5 + 5;
 
 // Adaptive models of one record's residual stream (both sides start from the same state).
 struct ResidualModel {
-  RangeProb zero[3][6];
+  RangeProb zero[3][6][3];  // [axis][context][motion]
   RangeProb sign[3][6];
-  RangeProb length[3][3][kMaxLength];
+  RangeProb length[3][3][3][kMaxLength];  // [axis][previous particle's bucket][motion][bit]
   RangeProb mantissa[3][kMaxLength + 1];
   ResidualModel() {
-    std::fill_n(&zero[0][0], sizeof zero / sizeof(RangeProb), kRangeProbInit);
+    std::fill_n(&zero[0][0][0], sizeof zero / sizeof(RangeProb), kRangeProbInit);
     std::fill_n(&sign[0][0], sizeof sign / sizeof(RangeProb), kRangeProbInit);
-    std::fill_n(&length[0][0][0], sizeof length / sizeof(RangeProb), kRangeProbInit);
+    std::fill_n(&length[0][0][0][0], sizeof length / sizeof(RangeProb), kRangeProbInit);
     std::fill_n(&mantissa[0][0], sizeof mantissa / sizeof(RangeProb), kRangeProbInit);
   }
 };
@@ -41,27 +41,27 @@ int Context(int64_t prev_same_axis, bool earlier_nonzero) {
   return Bucket(prev_same_axis) + (earlier_nonzero ? 3 : 0);
 }
 
-void EncodeResidual(RangeEncoder& rc, ResidualModel& m, int axis, int ctx, int64_t v) {
-  rc.EncodeBit(&m.zero[axis][ctx], v != 0);
+void EncodeResidual(RangeEncoder& rc, ResidualModel& m, int axis, int ctx, int mc, int64_t v) {
+  rc.EncodeBit(&m.zero[axis][ctx][mc], v != 0);
   if (v == 0) return;
   rc.EncodeBit(&m.sign[axis][ctx], v < 0);
   const uint32_t mag = static_cast<uint32_t>(v < 0 ? -v : v);
   const int n = std::bit_width(mag) - 1;  // 0..30
   const int cb = ctx % 3;
-  for (int i = 0; i < n; ++i) rc.EncodeBit(&m.length[axis][cb][i], true);
-  if (n < kMaxLength) rc.EncodeBit(&m.length[axis][cb][n], false);
+  for (int i = 0; i < n; ++i) rc.EncodeBit(&m.length[axis][cb][mc][i], true);
+  if (n < kMaxLength) rc.EncodeBit(&m.length[axis][cb][mc][n], false);
   if (n >= 1) {
     rc.EncodeBit(&m.mantissa[axis][n], ((mag >> (n - 1)) & 1u) != 0);
     for (int j = n - 2; j >= 0; --j) rc.EncodeDirect(((mag >> j) & 1u) != 0);
   }
 }
 
-int64_t DecodeResidual(RangeDecoder& rc, ResidualModel& m, int axis, int ctx) {
-  if (!rc.DecodeBit(&m.zero[axis][ctx])) return 0;
+int64_t DecodeResidual(RangeDecoder& rc, ResidualModel& m, int axis, int ctx, int mc) {
+  if (!rc.DecodeBit(&m.zero[axis][ctx][mc])) return 0;
   const bool negative = rc.DecodeBit(&m.sign[axis][ctx]);
   const int cb = ctx % 3;
   int n = 0;
-  while (n < kMaxLength && rc.DecodeBit(&m.length[axis][cb][n])) ++n;
+  while (n < kMaxLength && rc.DecodeBit(&m.length[axis][cb][mc][n])) ++n;
   uint32_t mag = 1;
   if (n >= 1) {
     mag = (mag << 1) | (rc.DecodeBit(&m.mantissa[axis][n]) ? 1u : 0u);
@@ -183,8 +183,14 @@ Choice ChooseMode(const SoftDeltaRecordInput& in, uint32_t n, std::vector<int64_
   return best;
 }
 
+// Motion context of coordinate k: how far it moved between the two baselines (0, 1, more).
+int MotionContext(const SoftDeltaRefs& r, bool enabled, size_t k) {
+  return enabled ? Bucket(static_cast<int64_t>(r.base[k]) - r.base2[k]) : 0;
+}
+
 // The coded size, or SIZE_MAX if it does not fit `out` (an all-zero stream codes to 0 bytes).
-size_t CodeResiduals(const std::vector<int64_t>& residuals, std::span<uint8_t> out) {
+size_t CodeResiduals(const std::vector<int64_t>& residuals, const SoftDeltaRefs& refs,
+                     bool motion, size_t first, std::span<uint8_t> out) {
   RangeEncoder rc(out);
   ResidualModel model;
   int64_t prev[3] = {0, 0, 0};
@@ -192,7 +198,8 @@ size_t CodeResiduals(const std::vector<int64_t>& residuals, std::span<uint8_t> o
     bool earlier = false;
     for (int a = 0; a < 3; ++a) {
       const int64_t v = residuals[i + static_cast<size_t>(a)];
-      EncodeResidual(rc, model, a, Context(prev[a], earlier), v);
+      EncodeResidual(rc, model, a, Context(prev[a], earlier),
+                     MotionContext(refs, motion, first * 3 + i + static_cast<size_t>(a)), v);
       prev[a] = v;
       earlier |= v != 0;
     }
@@ -235,7 +242,12 @@ size_t EncodeSoftDeltaRecord(const SoftDeltaRecordInput& in, std::span<uint8_t> 
   uint32_t n = static_cast<uint32_t>(std::min<size_t>(in.max_count, total - in.first));
   scratch->coded.resize(out.size());
   for (int attempt = 0; attempt < 24 && n >= 1; ++attempt) {
-    const Choice c = ChooseMode(in, n, &scratch->residuals);
+    Choice c = ChooseMode(in, n, &scratch->residuals);
+    const size_t size = in.q.size();
+    if ((c.mode & 3) != kSoftKeyframe && in.refs.base2.size() == size && in.refs.base2_distance > 0) {
+      c.mode |= kSoftModeMotion;  // the second baseline is held: code with motion contexts
+    }
+    const bool motion = (c.mode & kSoftModeMotion) != 0;
     if (!Residuals(in, n, c.mode, c.offset, &scratch->residuals)) return 0;  // keyframes always fit the range
     uint8_t header[kMaxRecordHeader];
     size_t h = 0;
@@ -249,12 +261,12 @@ size_t EncodeSoftDeltaRecord(const SoftDeltaRecordInput& in, std::span<uint8_t> 
     header[h++] = c.mode;
     const uint8_t predictor = c.mode & 3;
     if (predictor >= kSoftBaseline) put(in.refs.base_distance);
-    if (predictor == kSoftExtrapolate) put(in.refs.base2_distance);
+    if (SoftModeUsesBase2(c.mode)) put(in.refs.base2_distance);
     if (c.mode & kSoftModeOffset) {
       for (int32_t o : c.offset) put(ZigZag(o));
     }
     const size_t room = out.size() - h;
-    const size_t coded = CodeResiduals(scratch->residuals,
+    const size_t coded = CodeResiduals(scratch->residuals, in.refs, motion, in.first,
                                        std::span<uint8_t>(scratch->coded.data(), room));
     const size_t length_bytes = coded < 128 ? 1 : coded < 16384 ? 2 : 3;
     if (coded != SIZE_MAX) {
@@ -291,14 +303,17 @@ Status ParseSoftDeltaRecord(std::span<const uint8_t> payload, uint32_t payload_t
   }
   r->mode = payload[(*pos)++];
   const uint8_t predictor = r->mode & 3;
-  if ((r->mode & ~uint8_t{0x0F}) != 0 || predictor > kSoftExtrapolate) return malformed;
+  if ((r->mode & ~uint8_t{0x1F}) != 0 || predictor > kSoftExtrapolate ||
+      (predictor == kSoftKeyframe && (r->mode & kSoftModeMotion) != 0)) {
+    return malformed;
+  }
   r->base_version = r->base2_version = 0;
   if (predictor >= kSoftBaseline) {
     uint32_t d = 0;
     if (!GetVarint(payload, pos, &d) || d == 0 || d >= r->version) return malformed;
     r->base_version = r->version - d;
   }
-  if (predictor == kSoftExtrapolate) {
+  if (SoftModeUsesBase2(r->mode)) {
     uint32_t d = 0;
     if (!GetVarint(payload, pos, &d) || d == 0 || d >= r->base_version) return malformed;
     r->base2_version = r->base_version - d;
@@ -326,10 +341,9 @@ Status DecodeSoftDeltaResiduals(const SoftDeltaRecord& r, const SoftDeltaRefs& r
   const uint8_t predictor = r.mode & 3;
   if (q_out.size() != size) return Status::InvalidArgument("output of another size");
   if (predictor >= kSoftBaseline && refs.base.size() != size) return Status::NotFound("baseline missing");
-  if (predictor == kSoftExtrapolate &&
-      (refs.base2.size() != size || !ExtrapolationAllowed(refs))) {
-    return malformed;
-  }
+  if (SoftModeUsesBase2(r.mode) && refs.base2.size() != size) return Status::NotFound("second baseline missing");
+  if (predictor == kSoftExtrapolate && !ExtrapolationAllowed(refs)) return malformed;
+  const bool motion = (r.mode & kSoftModeMotion) != 0;
   RangeDecoder rc(r.coded);
   ResidualModel model;
   int64_t prev_r[3] = {0, 0, 0};
@@ -338,7 +352,8 @@ Status DecodeSoftDeltaResiduals(const SoftDeltaRecord& r, const SoftDeltaRefs& r
     const size_t p = size_t{r.first} + i;
     bool earlier = false;
     for (int a = 0; a < 3; ++a) {
-      const int64_t v = DecodeResidual(rc, model, a, Context(prev_r[a], earlier));
+      const int64_t v = DecodeResidual(rc, model, a, Context(prev_r[a], earlier),
+                                       MotionContext(refs, motion, p * 3 + static_cast<size_t>(a)));
       prev_r[a] = v;
       earlier |= v != 0;
       int64_t e = v;

@@ -18,7 +18,8 @@
 // particles move together. Residuals are coded per particle x, y, z with adaptive binary models
 // (zero flag, sign, Elias-gamma length, first mantissa bit) whose context is the size of the
 // previous particle's residual on that axis and whether an earlier axis of this particle was
-// non-zero; a body at rest codes ~0.01 bit per axis.
+// non-zero, and (mode bit 4) how far the coordinate moved between the two baselines; a body at
+// rest codes ~0.01 bit per axis.
 //
 // The encoder estimates the cost of every predictor it has references for, with and without
 // differencing and offset, and codes the cheapest; it shrinks `count` until the record fits.
@@ -46,6 +47,13 @@ inline constexpr uint32_t kSoftMaxExtrapolationMs = 60000;
 enum SoftPredictor : uint8_t { kSoftKeyframe = 0, kSoftBaseline = 1, kSoftExtrapolate = 2 };
 inline constexpr uint8_t kSoftModeDiff = 1u << 2;    // neighbour differencing
 inline constexpr uint8_t kSoftModeOffset = 1u << 3;  // a mean-motion offset follows
+// Residual contexts also use each coordinate's motion between the two baselines (a second
+// baseline distance follows; predictor 1 or 2 only).
+inline constexpr uint8_t kSoftModeMotion = 1u << 4;
+// Whether a record of `mode` references a second baseline.
+inline bool SoftModeUsesBase2(uint8_t mode) {
+  return (mode & 3) == 2 || ((mode & kSoftModeMotion) != 0 && (mode & 3) != 0);
+}
 
 // Lattice coordinates of a position (clamped into the lattice limit).
 int32_t SoftLattice(float v, float step_m);
@@ -97,7 +105,7 @@ struct SoftDeltaRecord {
   uint32_t count = 0;
   uint8_t mode = 0;
   uint32_t base_version = 0;   // predictor >= 1
-  uint32_t base2_version = 0;  // predictor 2
+  uint32_t base2_version = 0;  // predictor 2, or motion contexts
   int32_t offset[3] = {0, 0, 0};
   std::span<const uint8_t> coded;
 };

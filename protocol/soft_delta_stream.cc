@@ -67,6 +67,15 @@ bool SoftDeltaSender::Prepare(uint32_t id, uint32_t version, std::span<const Vec
     }
     if (t.versions[s].version < t.versions[slot].version) slot = s;
   }
+  // Sticky lattice: a particle keeps the baseline's lattice point while the truth is within
+  // kSoftStickyBound steps of it (Euclidean; the nearest point's own bound is sqrt(3)/2), so
+  // particles jittering about a cell boundary cost nothing; otherwise the nearest point.
+  const Version* base = NewestAcked(t, version, size, 0, false);
+  if (base != nullptr) {
+    sticky_.assign(base->q.begin(), base->q.end());  // a copy: `slot` may be the baseline's
+  } else {
+    sticky_.clear();
+  }
   Version& v = t.versions[slot];
   v.version = version;
   v.time_ms = time_ms;
@@ -74,7 +83,18 @@ bool SoftDeltaSender::Prepare(uint32_t id, uint32_t version, std::span<const Vec
   v.acked_count = 0;
   v.q.resize(size);
   v.acked.assign(nodes.size(), 0);
+  const double step = config_.step_m;
+  const double bound2 = kSoftStickyBound * kSoftStickyBound * step * step;
   for (size_t i = 0; i < nodes.size(); ++i) {
+    if (!sticky_.empty()) {
+      const double dx = nodes[i].x - sticky_[i * 3] * step;
+      const double dy = nodes[i].y - sticky_[i * 3 + 1] * step;
+      const double dz = nodes[i].z - sticky_[i * 3 + 2] * step;
+      if (dx * dx + dy * dy + dz * dz <= bound2) {
+        std::copy_n(sticky_.begin() + static_cast<ptrdiff_t>(i * 3), 3, v.q.begin() + static_cast<ptrdiff_t>(i * 3));
+        continue;
+      }
+    }
     v.q[i * 3] = SoftLattice(nodes[i].x, config_.step_m);
     v.q[i * 3 + 1] = SoftLattice(nodes[i].y, config_.step_m);
     v.q[i * 3 + 2] = SoftLattice(nodes[i].z, config_.step_m);
@@ -248,8 +268,9 @@ Status SoftDeltaReceiver::Apply(const SoftDeltaRecord& r) {
   SoftDeltaRefs refs;
   if (predictor >= kSoftBaseline) {
     const Held* base = Find(b, r.base_version, r.first, r.count);
-    const Held* base2 = predictor == kSoftExtrapolate ? Find(b, r.base2_version, r.first, r.count) : nullptr;
-    if (base == nullptr || (predictor == kSoftExtrapolate && base2 == nullptr)) {
+    const bool uses2 = SoftModeUsesBase2(r.mode);
+    const Held* base2 = uses2 ? Find(b, r.base2_version, r.first, r.count) : nullptr;
+    if (base == nullptr || (uses2 && base2 == nullptr)) {
       ++stats_.unknown_baseline;
       return Status::Ok();
     }

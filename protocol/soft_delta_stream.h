@@ -42,6 +42,10 @@
 namespace edgephys {
 
 inline constexpr size_t kSoftHistory = 16;
+// Sticky quantisation bound, in lattice steps: a particle keeps its baseline lattice point while
+// the truth is within this (Euclidean) of it. Just under the nearest point's own worst case
+// (sqrt(3)/2 = 0.866), so the error against what was sent stays within the lattice bound.
+inline constexpr double kSoftStickyBound = 0.86;
 
 struct SoftDeltaSenderConfig {
   float step_m = 0.001f;       // lattice step (the room's position step)
@@ -115,6 +119,7 @@ class SoftDeltaSender {
   std::unordered_map<uint32_t, Track> tracks_;
   std::vector<PacketRecord> records_;
   std::vector<Entry> pending_;
+  std::vector<int32_t> sticky_;  // Prepare's copy of the baseline
   std::span<uint8_t> out_;
   size_t pos_ = 0;
   uint32_t time_ms_ = 0;
