@@ -331,9 +331,13 @@ bool ClientReplicator::SoftTouched(const Entity& e) const {
   }
   const float m = config_.soft_touch_margin_m;
   for (const Vec3f& h : hands_) {
-    if (h.x >= lo.x - m && h.x <= hi.x + m && h.y >= lo.y - m && h.y <= hi.y + m &&
-        h.z >= lo.z - m && h.z <= hi.z + m) {
-      return true;
+    if (h.x < lo.x - m || h.x > hi.x + m || h.y < lo.y - m || h.y > hi.y + m ||
+        h.z < lo.z - m || h.z > hi.z + m) {
+      continue;
+    }
+    for (const Vec3f& p : e.nodes) {  // within reach of a particle
+      const float dx = p.x - h.x, dy = p.y - h.y, dz = p.z - h.z;
+      if (dx * dx + dy * dy + dz * dz <= m * m) return true;
     }
   }
   return false;

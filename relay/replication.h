@@ -90,8 +90,8 @@ struct ReplicationConfig {
   bool shared_encoding = false;
   // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
   // versions, protocol/soft_delta_stream.h) at critical_hz while a hand touches them (held,
-  // an open touch event, or a Hand entity within this distance of the particles' bounding
-  // box: PhyS reports no contact events for soft bodies), else at normal_hz; other modes send
+  // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
+  // reports no contact events for soft bodies), else at normal_hz; other modes send
   // format 5 (absolute particles) at normal_hz.
   float soft_touch_margin_m = 0.1f;
 };
