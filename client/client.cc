@@ -474,6 +474,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       if (!resumed) next_local_id_ = 1;
       delta_decoder_.reset();
       shared_decoder_.reset();
+      soft_decoder_.reset();
       position_step_m_ =
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
       if (j->state_format() == kDeltaStateFormat || j->state_format() == kVelocityDeltaStateFormat ||
@@ -535,6 +536,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       entities_.erase(id);
       if (delta_decoder_) delta_decoder_->Forget(id);
       if (shared_decoder_) shared_decoder_->Forget(id);
+      if (soft_decoder_) soft_decoder_->Forget(id);
       despawned_.insert(id);
       listener_->OnEntityDespawned(id);
       break;
@@ -619,6 +621,24 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     std::copy(soft_chunk_.positions.begin(), soft_chunk_.positions.end(),
               e.nodes.begin() + soft_chunk_.first);
     listener_->OnSoftBodyUpdated(e);
+    return;
+  }
+  if (!payload.empty() && payload[0] == kSoftDeltaFormat) {
+    // Decoded whatever the entity table holds: the relay counts this packet's versions as held
+    // once it is acknowledged, so they must be stored even for a body not spawned yet.
+    if (!soft_decoder_) {
+      soft_decoder_ = std::make_unique<SoftDeltaReceiver>(position_step_m_, kMaxSoftBodyNodes);
+    }
+    (void)soft_decoder_->Decode(payload);  // malformed / undecodable records: counted, dropped
+    for (const SoftDeltaUpdate& u : soft_decoder_->updates()) {
+      auto it = entities_.find(u.id);
+      if (it == entities_.end()) continue;
+      RemoteEntity& e = it->second;
+      const std::span<const Vec3f> shown = soft_decoder_->Display(u.id);
+      e.nodes.resize(shown.size());
+      std::copy(shown.begin() + u.first, shown.begin() + u.first + u.count, e.nodes.begin() + u.first);
+      listener_->OnSoftBodyUpdated(e);
+    }
     return;
   }
   if (!joined_ || !DecodeStates(payload).ok()) return;

@@ -62,7 +62,7 @@ inline constexpr uint32_t kMaxReferenceDistance = 4096;
 // Fixed part of the payload header: format, time, counter, params (then a varint count).
 inline constexpr size_t kDeltaHeaderSize = 1 + 4 + 2 + 2;
 
-// State format 12, "quantized delta with velocities" (docs/protocol.md §5f): format 2 whose
+// State format 12, "quantized delta with velocities" (docs/protocol.md §5g): format 2 whose
 // params field also names the velocity coding (bits 12-15) and whose every record is followed
 // by the entity's velocity: 1 bit "moving"; if set, 3 linear then 3 angular components, each
 // a signed Exp-Golomb index on a fixed lattice. Velocities are absolute (not predicted), so a

@@ -1,4 +1,4 @@
-// Velocities as state format 12 carries them (docs/protocol.md §5f), and the receiver model the
+// Velocities as state format 12 carries them (docs/protocol.md §5g), and the receiver model the
 // relay's send decisions rely on: how a receiver shows a state with its velocity after it
 // (ExtrapolateState, dead reckoning) and between two states (HermitePosition). Both ends use
 // these functions, so what the relay bounds is what a receiver displays.

@@ -108,6 +108,10 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
       encoder_ = std::make_unique<FloatStateEncoder>();
       break;
   }
+  if (config_.mode == ReplicationMode::kEdgephys) {
+    soft_ = std::make_unique<SoftDeltaSender>(
+        SoftDeltaSenderConfig{config_.position_step_m, config_.position_threshold_m});
+  }
   candidates_.reserve(256);
   in_payload_.reserve(kMaxUnreliablePayload / 8);
 }
@@ -358,6 +362,10 @@ void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>
                                       uint32_t self, double now, double resend_after,
                                       Connection& connection, PacketWriter& out,
                                       RelayCounters& counters) {
+  if (soft_ != nullptr) {
+    TickSoftDeltas(entities, self, now, resend_after, connection, out, counters);
+    return;
+  }
   for (const auto& [id, e] : entities) {
     if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
     SoftView& v = soft_views_[id];
@@ -389,7 +397,81 @@ void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>
   }
 }
 
+bool ClientReplicator::SoftTouched(const Entity& e) const {
+  if (e.held_by != 0 || e.touching > 0) return true;
+  if (hands_.empty()) return false;
+  Vec3f lo = e.nodes[0], hi = e.nodes[0];
+  for (const Vec3f& p : e.nodes) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  const float m = config_.soft_touch_margin_m;
+  for (const Vec3f& h : hands_) {
+    if (h.x < lo.x - m || h.x > hi.x + m || h.y < lo.y - m || h.y > hi.y + m ||
+        h.z < lo.z - m || h.z > hi.z + m) {
+      continue;
+    }
+    for (const Vec3f& p : e.nodes) {  // within reach of a particle
+      const float dx = p.x - h.x, dy = p.y - h.y, dz = p.z - h.z;
+      if (dx * dx + dy * dy + dz * dz <= m * m) return true;
+    }
+  }
+  return false;
+}
+
+bool ClientReplicator::FlushSoft(double now, Connection& connection, PacketWriter& out,
+                                 RelayCounters& counters) {
+  const size_t size = soft_->FinishPayload();
+  if (size == 0) return false;
+  Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
+  if (seq.ok()) {
+    soft_->OnSent(*seq, now);
+    RelayCounters::Inc(counters.entity_updates_sent);
+  } else {
+    soft_->OnNotSent();
+  }
+  budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
+  soft_->BeginPayload(payload_, time_ms_);
+  return true;
+}
+
+void ClientReplicator::TickSoftDeltas(const std::unordered_map<uint32_t, Entity>& entities,
+                                      uint32_t self, double now, double resend_after,
+                                      Connection& connection, PacketWriter& out,
+                                      RelayCounters& counters) {
+  hands_.clear();
+  soft_due_.clear();
+  for (const auto& [id, e] : entities) {
+    if (e.flags & kFlagHand) hands_.push_back(e.state.position);
+    if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
+    SoftView& v = soft_views_[id];
+    if (now + kEpsilon < v.next_due) continue;
+    soft_due_.emplace_back(id, &e);
+  }
+  if (soft_due_.empty()) return;
+  std::sort(soft_due_.begin(), soft_due_.end());
+  soft_->BeginPayload(payload_, time_ms_);
+  for (const auto& [id, e] : soft_due_) {
+    if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) break;
+    if (!soft_->Prepare(id, e->nodes_version, e->nodes, time_ms_, now, resend_after)) continue;
+    uint32_t first = 0;
+    for (int chunks = 0; first < e->nodes.size() && chunks < 64; ++chunks) {
+      if (soft_->AddRecords(id, &first)) continue;
+      if (!FlushSoft(now, connection, out, counters)) break;  // not even an empty payload fits one
+    }
+    SoftView& v = soft_views_[id];
+    const double hz = config_.fixed_rate_hz > 0 ? config_.fixed_rate_hz
+                      : SoftTouched(*e)         ? config_.critical_hz
+                                                : config_.normal_hz;
+    const double interval = 1.0 / hz;
+    v.next_due += interval;
+    if (v.next_due < now - interval || v.next_due > now + interval) v.next_due = now + interval;
+  }
+  (void)FlushSoft(now, connection, out, counters);
+}
+
 void ClientReplicator::OnPacketAcked(uint16_t sequence) {
+  if (soft_ != nullptr && soft_->OnAcked(sequence)) return;
   SoftRecord& r = soft_records_[sequence % soft_records_.size()];
   if (r.valid && r.sequence == sequence) {
     r.valid = false;
@@ -416,6 +498,7 @@ void ClientReplicator::OnPacketAcked(uint16_t sequence) {
 void ClientReplicator::Forget(uint32_t entity_id) {
   tracker_.Forget(entity_id);
   soft_views_.erase(entity_id);
+  if (soft_ != nullptr) soft_->Forget(entity_id);
   if (delta_ != nullptr) delta_->Forget(entity_id);
   if (shared_ != nullptr) shared_->Forget(entity_id);
   views_.Erase(entity_id);

@@ -38,6 +38,7 @@
 #include "protocol/replication_tracker.h"
 #include "protocol/shared_delta_codec.h"
 #include "protocol/soft_body_codec.h"
+#include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
 #include "relay/relay_counters.h"
 
@@ -104,6 +105,12 @@ struct ReplicationConfig {
   // PhyS's states in between by more than extrapolation_position_threshold_m, or when this
   // long has passed since the newest state sent while it moves (selective sync still applies).
   double hermite_max_interval_s = 0;
+  // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
+  // versions, protocol/soft_delta_stream.h) at critical_hz while a hand touches them (held,
+  // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
+  // reports no contact events for soft bodies), else at normal_hz; other modes send
+  // format 5 (absolute particles) at normal_hz.
+  float soft_touch_margin_m = 0.1f;
 };
 
 // True when rooms with `config` send format 12.
@@ -173,8 +180,8 @@ class ClientReplicator {
   DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, PriorityClass cls,
                                         double now, double resend_after);
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
-  // Soft bodies (format 5): the latest particle set of each changed soft body, in chunks,
-  // resent until every chunk of that version is acknowledged.
+  // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
+  // changed soft body, in chunks, resent until every chunk of that version is acknowledged.
   void TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
                       double now, double resend_after, Connection& connection, PacketWriter& out,
                       RelayCounters& counters);
@@ -193,7 +200,15 @@ class ClientReplicator {
     uint32_t version = 0;
     uint32_t chunk = 0;
   };
+  void TickSoftDeltas(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
+                      double now, double resend_after, Connection& connection, PacketWriter& out,
+                      RelayCounters& counters);
+  bool FlushSoft(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
+  bool SoftTouched(const Entity& e) const;
   std::unordered_map<uint32_t, SoftView> soft_views_;
+  std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
+  std::vector<std::pair<uint32_t, const Entity*>> soft_due_;
+  std::vector<Vec3f> hands_;                         // this tick's Hand entity positions
   std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence
 
   ReplicationConfig config_;

@@ -18,6 +18,7 @@
 #include "protocol/join_token.h"
 #include "protocol/quantize.h"
 #include "protocol/soft_body_codec.h"
+#include "protocol/soft_delta_stream.h"
 #include "tests/fuzz/fuzz_world.h"
 
 namespace edgephys::fuzz {
@@ -202,6 +203,26 @@ Bytes SoftChunk(uint32_t id) {
   return out;
 }
 
+// Two format-11 payloads: a keyframe, then a delta against it.
+std::vector<Bytes> SoftDeltaPayloads(uint32_t id) {
+  SoftDeltaSender sender({0.001f, 0.0f});
+  std::vector<Vec3f> nodes{{0, 1, 0}, {0.1f, 1, 0}, {0, 1.1f, 0}, {0, 1, 0.1f}};
+  std::vector<Bytes> out;
+  for (uint32_t v = 1; v <= 2; ++v) {
+    Bytes buf(kMaxUnreliablePayload);
+    if (!sender.Prepare(id, v, nodes, 100 * v, v, 0.1)) break;
+    sender.BeginPayload(buf, 100 * v);
+    uint32_t first = 0;
+    (void)sender.AddRecords(id, &first);
+    buf.resize(sender.FinishPayload());
+    sender.OnSent(static_cast<uint16_t>(v), v);
+    (void)sender.OnAcked(static_cast<uint16_t>(v));
+    out.push_back(buf);
+    for (Vec3f& n : nodes) n.y += 0.004f;
+  }
+  return out;
+}
+
 // Three format-2 payloads: a keyframe, then deltas against acknowledged states.
 std::vector<Bytes> DeltaPayloads() {
   auto params = *MakeQuantizationParams(QuantizationConfig{});
@@ -342,6 +363,7 @@ void StateCorpus() {
   for (const Bytes& p : DeltaPayloads()) all.Add(1, p);
   all.Add(2, Photon()).Add(2 | 8, Paper()).Add(3 | 8, SoftChunk(65541));
   all.Add(4, WorkerStates(1)).Add(5, WorkerSoft(1));
+  for (const Bytes& p : SoftDeltaPayloads(65541)) all.Add(17, p);  // 17 % 7 == 3, bit 4: format 11
   Write("state_fuzz", "all_formats", all.bytes);
   Input delta(0);
   for (const Bytes& p : DeltaPayloads()) delta.Add(1, p);

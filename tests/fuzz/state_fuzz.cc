@@ -10,7 +10,9 @@
 //      client builds it from the relay's Joined message), when MakeQuantizationParams accepts.
 //   2: DecodeEmulationBatch (tag bit 3: format 4 "paper", else 3 "photon"), looking up the
 //      states decoded so far by this input
-//   3: DecodeSoftBodyChunk (format 5)
+//   3: DecodeSoftBodyChunk (format 5), or with tag bit 4 SoftDeltaReceiver::Decode (format 11;
+//      one receiver per input sees every such record in order, so later payloads resolve
+//      baselines decoded earlier)
 //   4: DecodeWorkerStates (format 6)
 //   5: DecodeWorkerSoftChunk (format 8)
 //   6: VerifyJoinToken on the bytes; Base64UrlDecode of the bytes as text (and the token in
@@ -28,6 +30,7 @@
 #include "protocol/quantize.h"
 #include "protocol/shared_delta_codec.h"
 #include "protocol/soft_body_codec.h"
+#include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
 #include "tests/fuzz/fuzz_world.h"
 
@@ -110,6 +113,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   StateBatch batch;
   std::unordered_map<uint32_t, EntityState> known;  // for format 4 lookups
   SoftBodyChunk chunk;
+  SoftDeltaReceiver soft(0.001f, 1 << 16, /*max_bodies=*/64, /*max_held_particles=*/1 << 16);
   std::vector<RoomPhysics::MovedBody> bodies;
   for (size_t i = 0; i < kMaxRecords && !in.empty(); ++i) {
     const uint8_t tag = in.U8();
@@ -159,6 +163,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         break;
       }
       case 3: {
+        if (tag & 16) {
+          auto payload = WithFormat(bytes, kSoftDeltaFormat);
+          (void)soft.Decode(payload);
+          for (const SoftDeltaUpdate& u : soft.updates()) {
+            const auto shown = soft.Display(u.id);
+            EDGEPHYS_FUZZ_CHECK(u.count >= 1 && size_t{u.first} + u.count <= shown.size());
+            for (uint32_t k = u.first; k < u.first + u.count; ++k) {
+              EDGEPHYS_FUZZ_CHECK(std::isfinite(shown[k].x) && std::isfinite(shown[k].y) &&
+                                  std::isfinite(shown[k].z));
+            }
+          }
+          break;
+        }
         auto payload = WithFormat(bytes, kSoftBodyFormat);
         const float step = (tag & 8) ? 0.001f : 0.0001f;
         if (DecodeSoftBodyChunk(payload, step, 1 << 16, &chunk).ok()) {
