@@ -126,7 +126,9 @@ TEST(Hostile, ForgedAndReplayedPacketsFromTheVictimsAddressChangeNothing) {
   }));
 }
 
-// With --packet-auth false (measurement only) the relay accepts unsealed connections.
+// With --packet-auth false (measurement only) the relay accepts unsealed connections, from
+// clients that allow it (ClientConfig::require_packet_auth false, as the harness sets for such
+// a relay). A client with the default setting refuses the relay and says why.
 TEST(Hostile, PacketAuthCanBeTurnedOffForMeasurement) {
   RelayConfig config = LoopbackWorld::DefaultConfig();
   config.packet_auth = false;
@@ -135,6 +137,80 @@ TEST(Hostile, PacketAuthCanBeTurnedOffForMeasurement) {
   ASSERT_TRUE(world.RunUntil([&] { return a.state() == ClientState::kConnected; }, 3.0));
   ASSERT_TRUE(a.JoinRoom("r").ok());
   EXPECT_TRUE(world.RunUntil([&] { return a.joined(); }, 3.0));
+
+  auto socket = std::move(*UdpSocket::Open(Endpoint(world.relay_endpoint().address(), 0)));
+  Client strict(ClientConfig{}, socket.get());
+  ASSERT_TRUE(strict.Connect(world.relay_endpoint(), MintToken("r", 2), world.Now()).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    strict.Update(world.Now());
+    return strict.state() != ClientState::kHandshaking;
+  }, 3.0));
+  EXPECT_EQ(strict.state(), ClientState::kRejected);
+  EXPECT_EQ(strict.reject_reason(), static_cast<uint16_t>(schema::RejectReason::AuthRequired));
+  // It told the relay: the session the relay had opened for it is gone at once.
+  EXPECT_TRUE(world.RunUntil([&] { return world.relay().session_count() == 1; }, 2.0));
+}
+
+// Rewrites the relay's Accept on its way to the client without the relay's key, as an on-path
+// attacker downgrading the session to unauthenticated packets would.
+class KeyStrippingSocket final : public DatagramSocket {
+ public:
+  explicit KeyStrippingSocket(std::unique_ptr<UdpSocket> inner) : inner_(std::move(inner)) {}
+  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
+    return inner_->SendTo(to, data);
+  }
+  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
+    const size_t n = inner_->ReceiveFrom(from, buffer);
+    if (n <= kPacketPrefixSize || buffer[5] != static_cast<uint8_t>(PacketType::kAccept)) return n;
+    const auto* msg = VerifyControlMessage(buffer.subspan(kPacketPrefixSize, n - kPacketPrefixSize));
+    if (msg == nullptr || msg->body_type() != schema::Body::Accept) return n;
+    const auto* a = msg->body_as_Accept();
+    flatbuffers::FlatBufferBuilder fbb(128);
+    FinishControl(fbb, schema::CreateAccept(fbb, a->connection_id(), a->player_id(),
+                                            a->keepalive_ms(), a->timeout_ms()));
+    const std::vector<uint8_t> packet = BuildHandshakePacket(PacketType::kAccept, fbb);
+    std::copy(packet.begin(), packet.end(), buffer.begin());
+    ++stripped;
+    return packet.size();
+  }
+  Endpoint LocalEndpoint() const override { return inner_->LocalEndpoint(); }
+  int stripped = 0;
+
+ private:
+  std::unique_ptr<UdpSocket> inner_;
+};
+
+// The downgrade: the relay seals, but its key is stripped from the Accept on the way. Before
+// ClientConfig::require_packet_auth the SDK then talked unsealed (and forged packets would have
+// been its to accept); now the connect fails with AuthRequired and nothing is sent unsealed.
+TEST(Hostile, AStrippedRelayKeyFailsTheConnectInsteadOfDowngrading) {
+  LoopbackWorld world;
+  auto connect = [&](bool require, KeyStrippingSocket* socket, uint32_t player) {
+    ClientConfig cc;
+    cc.require_packet_auth = require;
+    auto c = std::make_unique<Client>(cc, socket);
+    EXPECT_TRUE(c->Connect(world.relay_endpoint(), MintToken("r", player), world.Now()).ok());
+    EXPECT_TRUE(world.RunUntil([&] {
+      c->Update(world.Now());
+      return c->state() != ClientState::kHandshaking;
+    }, 3.0));
+    return c;
+  };
+  auto open = [&] {
+    return std::make_unique<KeyStrippingSocket>(
+        std::move(*UdpSocket::Open(Endpoint(world.relay_endpoint().address(), 0))));
+  };
+  auto strict_socket = open();
+  auto strict = connect(true, strict_socket.get(), 1);
+  EXPECT_GE(strict_socket->stripped, 1);
+  EXPECT_EQ(strict->state(), ClientState::kRejected);
+  EXPECT_EQ(strict->reject_reason(), static_cast<uint16_t>(schema::RejectReason::AuthRequired));
+  EXPECT_EQ(strict->JoinRoom("r").code(), StatusCode::kNotConnected);
+  // What the option prevents: a client that allows it accepts the downgraded session.
+  auto lax_socket = open();
+  auto lax = connect(false, lax_socket.get(), 2);
+  EXPECT_GE(lax_socket->stripped, 1);
+  EXPECT_EQ(lax->state(), ClientState::kConnected);
 }
 
 }  // namespace
