@@ -218,7 +218,9 @@ class HonestRoom {
       m.join_sent = true;
     }
     if (c.joined() && m.entity == 0) {
-      auto id = c.Spawn({.position = PoseOf(0, m.index)});
+      // An avatar: the critical class (48 Hz by default), as a player's head or hand.
+      auto id = c.Spawn({.position = PoseOf(0, m.index),
+                         .flags = static_cast<uint32_t>(schema::EntityFlags::Avatar)});
       if (id.ok()) {
         m.entity = *id;
         owners_[*id] = &m;
@@ -443,29 +445,27 @@ HostileAttackResult RunOne(const HostileOptions& o, const HostileAttackInfo& inf
     r.baseline.other = b.EndPhase(end, nullptr);
     Differences(m0, scrape(), &r.baseline);
   }
-  // Attack: the probe joins halfway, or once the attack has run its course (at most
-  // --phase x 4 in); the phase lasts --phase, and half a phase after the probe started.
+  // Attack: lasts --phase after the attack has run its course (continuous attacks: from the
+  // start; at most --attack-max in), the probe joining halfway through that.
   {
     progress("attack");
     const auto m1 = scrape();
     const double start = now();
     a.BeginPhase(start);
     b.BeginPhase(start);
-    double probe_at = -1;
-    const double latest_probe = start + std::max(half, 4 * o.phase_s);
+    double done_at = -1, probe_at = -1;
     while (true) {
       const double t = now();
       attack->Step(t);
-      if (probe_at < 0 && t >= start + half && (attack->Done(t) || t >= latest_probe)) {
-        a.StartProbe();
-        probe_at = t;
-      }
-      if (probe_at >= 0 && t >= start + o.phase_s && t >= probe_at + half &&
-          (a.ProbeFinished() || t >= probe_at + half + 10)) {
+      if (done_at < 0 && (attack->Done(t) || t >= start + o.attack_max_s)) done_at = t;
+      if (probe_at < 0 && done_at >= 0 && t >= done_at + half) a.StartProbe(), probe_at = t;
+      if (probe_at >= 0 && t >= done_at + o.phase_s &&
+          (a.ProbeFinished() || t >= done_at + o.phase_s + 10)) {
         break;
       }
       Sleep();
     }
+    r.attack_done_s = done_at - start;
     const double end = now();
     r.attack_phase.name = "attack";
     r.attack_phase.seconds = end - start;

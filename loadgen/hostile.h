@@ -10,7 +10,9 @@
 // sender, p50/p99 latency publish -> receiver's callback, and the longest gap between two
 // updates of one sender. Two phases of --phase seconds each:
 //   baseline  the attacker is connected (where its attack needs it) and idle;
-//   attack    the attacker attacks for the whole phase.
+//   attack    the attacker attacks; the phase lasts --phase after the attack has run its
+//             course (everything sent and answered: physics, names; the others at once), at
+//             most --attack-max after its start.
 // In each phase, halfway, a late joiner (the probe) connects to room A from the honest address
 // and joins: its time to Joined and to holding every entity an honest member of A holds.
 // The relay's refusal counters with their reason labels (edgephys_budget_refusals_total,
@@ -42,6 +44,7 @@ struct HostileOptions {
   std::vector<std::string> attacks;  // loadgen/hostile_attacks.h names, in order
   uint32_t honest = 3;               // honest clients per room
   double phase_s = 4;                // baseline and attack, each
+  double attack_max_s = 40;          // an attack that has not run its course by then is cut
   double publish_hz = 60;            // honest poses per second
   // Attack sizes (the figures by default).
   uint32_t soft_bodies = 20;
@@ -93,6 +96,7 @@ struct HostileAttackResult {
   std::string error;  // why it did not run or what went wrong
   HostilePhase baseline, attack_phase;
   double same_ratio = kUnknown, other_ratio = kUnknown;  // attack rate / baseline rate
+  double attack_done_s = 0;  // when the attack had run its course, from the phase's start
   nlohmann::json notes;  // the attacker's own view (sent, refused with reasons, ...)
 };
 

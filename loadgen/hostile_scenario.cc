@@ -23,6 +23,7 @@ nlohmann::json Json(const HostileOptions& o, const HostileResult& r) {
   nlohmann::json j;
   j["scenario"] = "hostile";
   j["options"] = {{"attacks", o.attacks},       {"honest", o.honest},
+                  {"attack_max_s", o.attack_max_s},
                   {"phase_s", o.phase_s},       {"publish_hz", o.publish_hz},
                   {"soft_bodies", o.soft_bodies}, {"particles", o.particles},
                   {"huge_names", o.huge_names}, {"name_bytes", o.name_bytes},
@@ -51,6 +52,7 @@ nlohmann::json Json(const HostileOptions& o, const HostileResult& r) {
     if (a.ran) {
       x["baseline"] = a.baseline;
       x["attack_phase"] = a.attack_phase;
+      x["attack_done_s"] = a.attack_done_s;
       x["same_room_rate_ratio"] = a.same_ratio;
       x["other_room_rate_ratio"] = a.other_ratio;
       x["attacker"] = a.notes;
@@ -92,8 +94,8 @@ void FillTable(const HostileOptions& o, const HostileResult& r, Table* t) {
     };
     std::snprintf(join, sizeof join, "%s/%s", probe(b.probe).c_str(), probe(x.probe).c_str());
     t->Line("%-8s %-21s %-21s %-15s %-15s %-15s\n", a.attack.c_str(), same, other, lat_a, lat_b, join);
-    t->Line("         %.1f s; honest connected A %u/%u B %u/%u; max gap A %.2f s B %.2f s; "
-            "refused: %s\n", x.seconds, x.same.connected, x.same.members, x.other.connected,
+    t->Line("         %.1f s (done at %.1f s); honest connected A %u/%u B %u/%u; max gap A %.2f s B %.2f s; "
+            "refused: %s\n", x.seconds, a.attack_done_s, x.same.connected, x.same.members, x.other.connected,
             x.other.members, x.same.max_gap_s, x.other.max_gap_s, Refusals(x.refusals).c_str());
   }
   t->Text("(upd/s: updates received per second per sender, baseline > attack (ratio); latencies "
@@ -117,6 +119,8 @@ class HostileScenario final : public Scenario {
     cmd.add_option("--attacks", attacks_, "Attacks to run, in order (" + names + ")");
     cmd.add_option("--honest", o_.honest, "Honest clients per room (at least 2)");
     cmd.add_option("--phase", o_.phase_s, "Seconds of the baseline and of the attack phase");
+    cmd.add_option("--attack-max", o_.attack_max_s,
+                   "Seconds after which an attack still sending is taken as done");
     cmd.add_option("--publish-hz", o_.publish_hz, "Honest pose updates per second");
     cmd.add_option("--soft-bodies", o_.soft_bodies, "physics: offloaded soft bodies");
     cmd.add_option("--particles", o_.particles, "physics: particles per soft body (target)");
@@ -141,6 +145,7 @@ class HostileScenario final : public Scenario {
     if (o_.attacks.empty()) return "--attacks: none given";
     if (o_.honest < 2 || o_.honest > 50) return "--honest must be 2 .. 50";
     if (!(o_.phase_s > 0 && o_.phase_s <= 120)) return "--phase must be in (0, 120]";
+    if (!(o_.attack_max_s > 0 && o_.attack_max_s <= 600)) return "--attack-max must be in (0, 600]";
     if (!(o_.publish_hz > 0 && o_.publish_hz <= 240)) return "--publish-hz must be in (0, 240]";
     if (o_.soft_bodies > 1000 || o_.particles == 0 || o_.particles > 65536) {
       return "--soft-bodies at most 1000, --particles 1 .. 65536";
