@@ -204,6 +204,19 @@ void Client::Impl::HandleHandshakePacket(std::span<const uint8_t> packet, double
     if (accept->keepalive_ms() > 0) cc.keepalive_interval_s = accept->keepalive_ms() / 1000.0;
     if (accept->timeout_ms() > 0) cc.timeout_s = accept->timeout_ms() / 1000.0;
     const auto* relay_key = accept->relay_key();
+    if (relay_key == nullptr && config_.require_packet_auth) {
+      if (resuming_) return;  // as a Reject while resuming: try the next relay
+      // A downgrade (or a relay without --packet-auth): refuse it, and tell the relay.
+      std::vector<uint8_t> bye(kConnectionHeaderSize + 1, 0);
+      WritePacketPrefix(PacketType::kDisconnect, accept->connection_id(), bye);
+      bye.back() = static_cast<uint8_t>(DisconnectReason::kClientLeft);
+      (void)socket_->SendTo(server_, bye);
+      key_exchange_.reset();
+      reject_reason_ = static_cast<uint16_t>(schema::RejectReason::AuthRequired);
+      state_ = ClientState::kRejected;
+      listener_->OnRejected(reject_reason_);
+      return;
+    }
     if (relay_key != nullptr) {
       Result<ConnectionKeys> keys = key_exchange_->Derive(
           std::span<const uint8_t>(relay_key->data(), relay_key->size()), /*own_is_client=*/true,

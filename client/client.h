@@ -106,6 +106,13 @@ struct ClientConfig {
   std::vector<RelayAddress> relays;  // Connect() fails with kInvalidArgument on a bad one
   double resume_attempt_s = 1.0;
   double resume_timeout_s = 15.0;
+  // Refuse a relay that does not seal packets (docs/protocol.md §3a). An Accept without the
+  // relay's key (a relay run with --packet-auth false, or an on-path attacker who stripped the
+  // key to downgrade the session to unauthenticated packets) ends the handshake at once in
+  // kRejected with reject_reason() AuthRequired, and the SDK sends the relay a Disconnect;
+  // nothing is ever sent unsealed. false: such an Accept connects without packet
+  // authentication (only to measure a relay run with --packet-auth false).
+  bool require_packet_auth = true;
 };
 
 enum class ClientState {

@@ -129,7 +129,12 @@ class RecordingListener final : public ClientListener {
 class ClientReceiveTest : public ::testing::Test {
  protected:
   explicit ClientReceiveTest(const ClientConfig& config = ClientConfig{})
-      : client_(config, &socket_, &listener_) {}
+      : client_(Unsealed(config), &socket_, &listener_) {}
+  // The scripted relay does not seal: its Accept carries no key.
+  static ClientConfig Unsealed(ClientConfig config) {
+    config.require_packet_auth = false;
+    return config;
+  }
 
   void SetUp() override {
     ASSERT_TRUE(client_.Connect(ToRelayAddress(server_), Bytes(64, 1), now_).ok());

@@ -285,6 +285,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   auto token = [&](const Bot& b) { return relay.Token("ccu-" + std::to_string(b.room_), b.index_ + 1); };
   ClientConfig cc;
   cc.publish_rate_hz = 240;  // the bot paces itself; the SDK adds no batching delay
+  cc.require_packet_auth = false;  // bots: also --packet-auth false
   cc.handshake_timeout_s = 10;
   cc.record_arrival_times = true;  // kernel receive timestamps: the arrival latencies
 

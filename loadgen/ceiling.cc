@@ -180,6 +180,7 @@ CeilingRelayRun RunRelay(const CeilingOptions& o, size_t io_threads) {
 
   ClientConfig client_config;
   client_config.publish_rate_hz = o.publish_hz;
+  client_config.require_packet_auth = false;  // a measurement bot: also a relay without it
   std::vector<Bot> bots(o.clients);
   for (uint32_t i = 0; i < o.clients; ++i) {
     Bot& b = bots[i];

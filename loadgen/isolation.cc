@@ -217,6 +217,8 @@ class RoomB : public ClientListener {
     host_config.handshake_timeout_s = 10;
     ClientConfig cc;
     cc.handshake_timeout_s = 10;
+    // Measurement bots: also against a relay run with --packet-auth false.
+    host_config.require_packet_auth = cc.require_packet_auth = false;
     Member host;
     std::vector<Member> receivers(o_.b_receivers);
     Member late;
@@ -368,6 +370,7 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
   ClientConfig cc;
   cc.publish_rate_hz = 240;  // the bot paces itself
   cc.handshake_timeout_s = 10;
+  cc.require_packet_auth = false;  // bots: also --packet-auth false
   cc.record_arrival_times = true;
 
   RoomB room_b(o, &relay, world.start);

@@ -141,6 +141,9 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   std::vector<std::unique_ptr<Receiver>> receivers;
   ClientConfig host_config;
   host_config.publish_rate_hz = 240;  // the host's own pacing is --rate; the SDK adds no delay
+  ClientConfig receiver_config;
+  // Measurement bots: also against a relay run with --packet-auth false.
+  receiver_config.require_packet_auth = host_config.require_packet_auth = false;
   for (uint32_t i = 0; i <= o.receivers; ++i) {
     sockets.push_back(std::move(*UdpSocket::Open(Endpoint(loopback, 0))));
     ClientListener* listener = nullptr;
@@ -148,7 +151,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
       receivers.push_back(std::make_unique<Receiver>(&truth));
       listener = receivers.back().get();
     }
-    clients.push_back(std::make_unique<Client>(i == 0 ? host_config : ClientConfig{},
+    clients.push_back(std::make_unique<Client>(i == 0 ? host_config : receiver_config,
                                                sockets.back().get(), listener));
     (void)clients.back()->Connect(ToRelayAddress(relay_endpoint), token(i + 1), Now(start));
   }

@@ -108,6 +108,8 @@ class RelayTarget {
   RelayFigures Read() const;
   // In-process only (nullptr for an external relay).
   RelayThread* thread() const { return thread_.get(); }
+  // The external relay's Prometheus HOST:PORT ("off": none); "" in-process.
+  const std::string& metrics_address() const { return external_.metrics; }
   // Where relay CPU comes from: "relay thread", "/proc/<pid>" or "unknown".
   std::string cpu_source() const;
   // The "relay" object of a scenario's JSON: external or not, addresses, sources.

@@ -19,6 +19,7 @@
 #include "client/client.h"
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
+#include "edgephys/schema/control_generated.h"
 #include "edgephys/edgephys.h"
 #include "protocol/endpoint.h"
 #include "protocol/join_token.h"
@@ -119,7 +120,13 @@ struct edgephys_client final : edgephys::ClientListener {
     if (auto* ev = Push(EDGEPHYS_EVENT_CONNECTED)) ev->player_id = player_id;
   }
   void OnRejected(uint16_t reason) override {
-    if (auto* ev = Push(EDGEPHYS_EVENT_REJECTED)) ev->code = reason;
+    auto* ev = Push(EDGEPHYS_EVENT_REJECTED);
+    if (ev == nullptr) return;
+    ev->code = reason;
+    if (reason == static_cast<uint16_t>(edgephys::schema::RejectReason::AuthRequired)) {
+      CopyDetail("no packet authentication: the relay's handshake carried no key "
+                 "(require_packet_auth)", ev);
+    }
   }
   void OnDisconnected(edgephys::DisconnectReason reason) override {
     if (auto* ev = Push(EDGEPHYS_EVENT_DISCONNECTED)) ev->code = static_cast<uint32_t>(reason);
@@ -319,6 +326,7 @@ edgephys_status edgephys_client_config_init(edgephys_client_config* config) {
   config->event_queue_capacity = 4096;
   config->queue_state_events = 0;
   config->snapshot_capacity = 32;
+  config->require_packet_auth = 1;
   return Ok();
 }
 
@@ -339,6 +347,7 @@ edgephys_status edgephys_client_create(const edgephys_client_config* config, edg
       return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "event_queue_capacity must be 16 .. 1<<20");
     }
     if (c.queue_state_events > 1) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "queue_state_events must be 0 or 1");
+    if (c.require_packet_auth > 1) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "require_packet_auth must be 0 or 1");
     if (c.snapshot_capacity < 2 || c.snapshot_capacity > 1024) {
       return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "snapshot_capacity must be 2 .. 1024");
     }
@@ -356,6 +365,7 @@ edgephys_status edgephys_client_create(const edgephys_client_config* config, edg
     edgephys::ClientConfig cc;
     cc.publish_rate_hz = c.publish_rate_hz;
     cc.handshake_timeout_s = c.handshake_timeout_s;
+    cc.require_packet_auth = c.require_packet_auth != 0;
     handle->client = std::make_unique<edgephys::Client>(cc, handle->socket.get(), handle.get());
     {
       std::lock_guard lock(g_registry_mutex);

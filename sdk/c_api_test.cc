@@ -117,6 +117,8 @@ TEST(CApi, CreateRejectsBadConfigs) {
   bad([](auto& b) { b.event_queue_capacity = 0; }, EDGEPHYS_E_INVALID_ARGUMENT);
   bad([](auto& b) { b.event_queue_capacity = 0xFFFFFFFFu; }, EDGEPHYS_E_INVALID_ARGUMENT);
   bad([](auto& b) { b.queue_state_events = 7; }, EDGEPHYS_E_INVALID_ARGUMENT);
+  EXPECT_EQ(cfg.require_packet_auth, 1u);  // sealing required unless turned off
+  bad([](auto& b) { b.require_packet_auth = 2; }, EDGEPHYS_E_INVALID_ARGUMENT);
   bad([](auto& b) { b.snapshot_capacity = 1; }, EDGEPHYS_E_INVALID_ARGUMENT);
   bad([](auto& b) { b.snapshot_capacity = 1u << 30; }, EDGEPHYS_E_INVALID_ARGUMENT);
   bad([](auto& b) { b.bind_address = "not an address"; }, EDGEPHYS_E_MALFORMED);

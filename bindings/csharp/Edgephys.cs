@@ -133,7 +133,7 @@ public struct ClientConfig {
   public uint StructSize;
   public IntPtr BindAddress;
   public double PublishRateHz, HandshakeTimeoutS;
-  public uint EventQueueCapacity, QueueStateEvents, SnapshotCapacity;
+  public uint EventQueueCapacity, QueueStateEvents, SnapshotCapacity, RequirePacketAuth;
 }
 
 [StructLayout(LayoutKind.Sequential)]

@@ -226,9 +226,14 @@ typedef struct edgephys_client_config {
   uint32_t queue_state_events; /* 0 or 1: also queue an EDGEPHYS_EVENT_STATE per received
                                   state (off: read states with edgephys_client_get_entity) */
   uint32_t snapshot_capacity;  /* states buffered per entity for interpolation; 2 .. 1024 */
+  uint32_t require_packet_auth; /* 0 or 1: refuse a relay that does not seal packets (its
+                                   handshake carries no key: run with --packet-auth false, or
+                                   stripped on path to downgrade): EDGEPHYS_EVENT_REJECTED with
+                                   code AuthRequired (18) instead of connecting unauthenticated */
 } edgephys_client_config;
 
-/* Defaults: any local address, 30 Hz, 5 s, 4096 events, no state events, 32 snapshots. */
+/* Defaults: any local address, 30 Hz, 5 s, 4096 events, no state events, 32 snapshots,
+ * packet authentication required. */
 EDGEPHYS_API edgephys_status edgephys_client_config_init(edgephys_client_config* config);
 
 /* Creates a client and its UDP socket. On success *out is a new handle the caller owns; free it

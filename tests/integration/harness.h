@@ -48,6 +48,7 @@ class LoopbackWorld {
     auto address = asio::ip::make_address(host);
     relay_socket_ = std::move(*UdpSocket::Open(Endpoint(address, 0)));
     relay_ = std::make_unique<Relay>(config, relay_socket_.get(), &counters_);
+    client_config_.require_packet_auth = config.packet_auth;  // a relay without it: accept that
     start_ = std::chrono::steady_clock::now();
   }
 
@@ -66,7 +67,7 @@ class LoopbackWorld {
   Client& AddClient(const std::vector<uint8_t>& token, ClientListener* listener = nullptr) {
     auto address = relay_socket_->LocalEndpoint().address();
     sockets_.push_back(std::move(*UdpSocket::Open(Endpoint(address, 0))));
-    clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get(), listener));
+    clients_.push_back(std::make_unique<Client>(client_config_, sockets_.back().get(), listener));
     (void)clients_.back()->Connect(ToRelayAddress(relay_socket_->LocalEndpoint()), token, Now());
     return *clients_.back();
   }
@@ -104,6 +105,7 @@ class LoopbackWorld {
   RelayCounters counters_;
   std::unique_ptr<UdpSocket> relay_socket_;
   std::unique_ptr<Relay> relay_;
+  ClientConfig client_config_;  // AddClient's
   std::vector<std::unique_ptr<UdpSocket>> sockets_;
   std::vector<std::unique_ptr<Client>> clients_;
   std::chrono::steady_clock::time_point start_;

@@ -2,7 +2,11 @@
 // join token can do to a room must not make the room unjoinable.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <map>
+
 #include "client/client_endpoint.h"
+#include "physics/scenes.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -42,6 +46,116 @@ TEST(Hostile, HugeRoomStateStreamsToALateJoinerInsteadOfOverflowingIt) {
       << "disconnected: " << static_cast<int>(joiner.disconnect_reason());
   EXPECT_EQ(joiner.entities().size(), size_t(kEntities));
   EXPECT_EQ(world.counters().disconnects[size_t(DisconnectReason::kReliableOverflow)].load(), 0u);
+}
+
+// Counts one entity's updates and the longest wait between two of them; and Error replies.
+struct UpdateWatch : ClientListener {
+  uint32_t entity = 0;
+  double start = -1, last = -1, max_gap = 0;
+  uint64_t updates = 0;
+  std::map<uint16_t, uint64_t> errors;
+  std::function<double()> now;
+  void OnEntityUpdated(const RemoteEntity& e) override {
+    if (e.id != entity || start < 0) return;
+    const double t = now();
+    max_gap = std::max(max_gap, t - (last >= 0 ? last : start));
+    last = t;
+    ++updates;
+  }
+  void OnError(uint16_t reason, uint32_t, std::string_view) override { ++errors[reason]; }
+  void Begin(double t) { start = t, last = -1, max_gap = 0, updates = 0; }
+  double Gap(double t) const { return std::max(max_gap, t - (last >= 0 ? last : start)); }
+};
+
+// Finding 1, live: one player offloads 20 soft bodies of ~4,096 particles (each within the
+// per-body limits) into its room. The room's PhyS budget (default 8,192 particles per player)
+// refuses all but what fits, each refusal an OverBudget Error and a counted reason, and an
+// honest client in another room keeps receiving its peer's updates throughout (a generous
+// bound on the longest gap; the rate ratio is measured by `edgephys-loadgen hostile`).
+TEST(Hostile, SoftBodyLoadIsRefusedByBudgetWhileAnotherRoomKeepsReceiving) {
+  RelayConfig config = LoopbackWorld::DefaultConfig();  // default budgets
+  config.physics_threads = 2;    // PhyS off the relay's loop, as on a 2-core host
+  config.limits.bytes_per_s = 0;  // the attack's ~10 MB arrive at once: the budget must hold
+  LoopbackWorld world(config);
+  UpdateWatch attacker_watch, b_watch;
+  attacker_watch.now = b_watch.now = [&] { return world.Now(); };
+  Client& attacker = world.AddClient(MintToken("a", 1), &attacker_watch);
+  Client& b_sender = world.AddClient(MintToken("b", 2));
+  Client& b_receiver = world.AddClient(MintToken("b", 3), &b_watch);
+  for (auto [c, room] : {std::pair{&attacker, "a"}, {&b_sender, "b"}, {&b_receiver, "b"}}) {
+    ASSERT_TRUE(world.RunUntil([&] { return c->state() == ClientState::kConnected; }, 5.0));
+    ASSERT_TRUE(c->JoinRoom(room).ok());
+  }
+  ASSERT_TRUE(world.RunUntil([&] {
+    return attacker.joined() && b_sender.joined() && b_receiver.joined();
+  }, 5.0));
+  auto id = b_sender.Spawn({.position = {0, 1, 0}});
+  ASSERT_TRUE(id.ok());
+  b_watch.entity = *id;
+  auto wave = [&](double now) {
+    (void)b_sender.PublishTransform(*id, {static_cast<float>(std::sin(3 * now)), 1, 0}, {});
+  };
+  b_watch.Begin(world.Now());
+  world.RunFor(1.0, wave);
+  ASSERT_GT(b_watch.updates, 5u) << "room B's receiver gets no steady stream";
+
+  // The attack, built beforehand so the pump is not held up building it.
+  physics::BunnyParams bp;
+  bp.target_particles = 4096;
+  const SoftBodySpec body = physics::MakeBunnySoftBody(bp);
+  const size_t particles = body.particles.size() / 3;
+  ASSERT_GT(particles, 3500u);
+  ASSERT_LE(particles, 4600u);
+  const uint32_t offloaded = static_cast<uint32_t>(schema::EntityFlags::Offloaded);
+  SpawnDesc floor{.position = {0, -0.1f, 0}, .flags = offloaded};
+  floor.colliders.push_back(BoxCollider({10, 0.1f, 10}));
+  ASSERT_TRUE(attacker.Spawn(floor).ok());
+  std::vector<SpawnDesc> bodies(20, SpawnDesc{.flags = offloaded});
+  for (size_t i = 0; i < bodies.size(); ++i) {
+    bodies[i].soft_body = body;
+    for (size_t k = 0; k < body.particles.size(); k += 3) {
+      bodies[i].soft_body->particles[k] += static_cast<float>(i % 5) * 0.9f;
+      bodies[i].soft_body->particles[k + 2] += static_cast<float>(i / 5) * 0.9f;
+    }
+  }
+  const size_t fit = config.room_defaults.budgets.max_particles_per_player / particles;
+  const uint64_t refused_before =
+      world.counters().budget_refusals[static_cast<size_t>(BudgetKind::kPlayerParticles)].load();
+  const uint64_t steps_before = RelayCounters::Get(world.counters().physics_steps);
+  const uint16_t over_budget = static_cast<uint16_t>(schema::RejectReason::OverBudget);
+  size_t next = 0;
+  b_watch.Begin(world.Now());
+  const bool answered = world.RunUntil([&] {
+    wave(world.Now());
+    if (next < bodies.size()) {
+      auto spawned = attacker.Spawn(bodies[next]);
+      if (spawned.ok()) {
+        ++next;
+      } else {
+        EXPECT_EQ(spawned.status().code(), StatusCode::kQueueFull) << spawned.status().ToString();
+      }
+    }
+    return next == bodies.size() && attacker_watch.errors[over_budget] >= bodies.size() - fit;
+  }, 60.0);
+  world.RunFor(3.0, wave);  // the accepted bodies simulate; B keeps going
+  const double gap = b_watch.Gap(world.Now());
+  const double seconds = world.Now() - b_watch.start;
+  std::printf("soft bodies of %zu particles: %zu fit, %llu refused; room B: %llu updates in %.1f s, "
+              "longest gap %.3f s\n", particles, fit,
+              static_cast<unsigned long long>(attacker_watch.errors[over_budget]),
+              static_cast<unsigned long long>(b_watch.updates), seconds, gap);
+  ASSERT_TRUE(answered) << "the relay did not answer every spawn";
+  EXPECT_EQ(attacker_watch.errors[over_budget], bodies.size() - fit);
+  EXPECT_EQ(attacker_watch.errors.size(), 1u) << "refused for another reason too";
+  EXPECT_EQ(world.counters().budget_refusals[static_cast<size_t>(BudgetKind::kPlayerParticles)]
+                    .load() - refused_before, bodies.size() - fit);
+  EXPECT_GE(RequestsRejected(world.counters(), schema::RejectReason::OverBudget), bodies.size() - fit);
+  EXPECT_LE(world.relay().FindRoom("a")->ledger().Of(1).particles, 8192u);
+  EXPECT_GT(RelayCounters::Get(world.counters().physics_steps), steps_before) << "PhyS stopped";
+  // Room B throughout: still connected, updates all along (1 s is ~30 ticks at 30 Hz).
+  EXPECT_EQ(b_receiver.state(), ClientState::kConnected);
+  EXPECT_LT(gap, 1.0) << "room B's receiver waited " << gap << " s for an update";
+  EXPECT_GT(static_cast<double>(b_watch.updates), 5.0 * seconds);
 }
 
 // Records what a client sends (its sealed datagrams) and lets the test send from the very same
@@ -127,7 +241,9 @@ TEST(Hostile, ForgedAndReplayedPacketsFromTheVictimsAddressChangeNothing) {
   }));
 }
 
-// With --packet-auth false (measurement only) the relay accepts unsealed connections.
+// With --packet-auth false (measurement only) the relay accepts unsealed connections, from
+// clients that allow it (ClientConfig::require_packet_auth false, as the harness sets for such
+// a relay). A client with the default setting refuses the relay and says why.
 TEST(Hostile, PacketAuthCanBeTurnedOffForMeasurement) {
   RelayConfig config = LoopbackWorld::DefaultConfig();
   config.packet_auth = false;
@@ -136,6 +252,80 @@ TEST(Hostile, PacketAuthCanBeTurnedOffForMeasurement) {
   ASSERT_TRUE(world.RunUntil([&] { return a.state() == ClientState::kConnected; }, 3.0));
   ASSERT_TRUE(a.JoinRoom("r").ok());
   EXPECT_TRUE(world.RunUntil([&] { return a.joined(); }, 3.0));
+
+  auto socket = std::move(*UdpSocket::Open(Endpoint(world.relay_endpoint().address(), 0)));
+  Client strict(ClientConfig{}, socket.get());
+  ASSERT_TRUE(strict.Connect(ToRelayAddress(world.relay_endpoint()), MintToken("r", 2), world.Now()).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    strict.Update(world.Now());
+    return strict.state() != ClientState::kHandshaking;
+  }, 3.0));
+  EXPECT_EQ(strict.state(), ClientState::kRejected);
+  EXPECT_EQ(strict.reject_reason(), static_cast<uint16_t>(schema::RejectReason::AuthRequired));
+  // It told the relay: the session the relay had opened for it is gone at once.
+  EXPECT_TRUE(world.RunUntil([&] { return world.relay().session_count() == 1; }, 2.0));
+}
+
+// Rewrites the relay's Accept on its way to the client without the relay's key, as an on-path
+// attacker downgrading the session to unauthenticated packets would.
+class KeyStrippingSocket final : public DatagramSocket {
+ public:
+  explicit KeyStrippingSocket(std::unique_ptr<UdpSocket> inner) : inner_(std::move(inner)) {}
+  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
+    return inner_->SendTo(to, data);
+  }
+  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
+    const size_t n = inner_->ReceiveFrom(from, buffer);
+    if (n <= kPacketPrefixSize || buffer[5] != static_cast<uint8_t>(PacketType::kAccept)) return n;
+    const auto* msg = VerifyControlMessage(buffer.subspan(kPacketPrefixSize, n - kPacketPrefixSize));
+    if (msg == nullptr || msg->body_type() != schema::Body::Accept) return n;
+    const auto* a = msg->body_as_Accept();
+    flatbuffers::FlatBufferBuilder fbb(128);
+    FinishControl(fbb, schema::CreateAccept(fbb, a->connection_id(), a->player_id(),
+                                            a->keepalive_ms(), a->timeout_ms()));
+    const std::vector<uint8_t> packet = BuildHandshakePacket(PacketType::kAccept, fbb);
+    std::copy(packet.begin(), packet.end(), buffer.begin());
+    ++stripped;
+    return packet.size();
+  }
+  Endpoint LocalEndpoint() const override { return inner_->LocalEndpoint(); }
+  int stripped = 0;
+
+ private:
+  std::unique_ptr<UdpSocket> inner_;
+};
+
+// The downgrade: the relay seals, but its key is stripped from the Accept on the way. Before
+// ClientConfig::require_packet_auth the SDK then talked unsealed (and forged packets would have
+// been its to accept); now the connect fails with AuthRequired and nothing is sent unsealed.
+TEST(Hostile, AStrippedRelayKeyFailsTheConnectInsteadOfDowngrading) {
+  LoopbackWorld world;
+  auto connect = [&](bool require, KeyStrippingSocket* socket, uint32_t player) {
+    ClientConfig cc;
+    cc.require_packet_auth = require;
+    auto c = std::make_unique<Client>(cc, socket);
+    EXPECT_TRUE(c->Connect(ToRelayAddress(world.relay_endpoint()), MintToken("r", player), world.Now()).ok());
+    EXPECT_TRUE(world.RunUntil([&] {
+      c->Update(world.Now());
+      return c->state() != ClientState::kHandshaking;
+    }, 3.0));
+    return c;
+  };
+  auto open = [&] {
+    return std::make_unique<KeyStrippingSocket>(
+        std::move(*UdpSocket::Open(Endpoint(world.relay_endpoint().address(), 0))));
+  };
+  auto strict_socket = open();
+  auto strict = connect(true, strict_socket.get(), 1);
+  EXPECT_GE(strict_socket->stripped, 1);
+  EXPECT_EQ(strict->state(), ClientState::kRejected);
+  EXPECT_EQ(strict->reject_reason(), static_cast<uint16_t>(schema::RejectReason::AuthRequired));
+  EXPECT_EQ(strict->JoinRoom("r").code(), StatusCode::kNotConnected);
+  // What the option prevents: a client that allows it accepts the downgraded session.
+  auto lax_socket = open();
+  auto lax = connect(false, lax_socket.get(), 2);
+  EXPECT_GE(lax_socket->stripped, 1);
+  EXPECT_EQ(lax->state(), ClientState::kConnected);
 }
 
 }  // namespace

@@ -97,7 +97,7 @@ class ClientConfig(ctypes.Structure):
     _fields_ = [("struct_size", ctypes.c_uint32), ("bind_address", ctypes.c_char_p),
                 ("publish_rate_hz", ctypes.c_double), ("handshake_timeout_s", ctypes.c_double),
                 ("event_queue_capacity", ctypes.c_uint32), ("queue_state_events", ctypes.c_uint32),
-                ("snapshot_capacity", ctypes.c_uint32)]
+                ("snapshot_capacity", ctypes.c_uint32), ("require_packet_auth", ctypes.c_uint32)]
 
 
 class Event(ctypes.Structure):
