@@ -179,7 +179,11 @@ void RunClient(Reader& in, uint8_t mode) {
   FakeRelay relay(net, relay_at);
   auto socket = net.CreateSocket(Ep("10.0.0.2", 40000));
   PhysicsWorker worker{physics::PhysicsConfig{}};
-  Client client(ClientConfig{}, socket.get(), &worker);
+  // The fake relay's Accept carries no packet key (it fuzzes messages, not the seal, which
+  // packet_fuzz covers): the client must accept an unsealed relay.
+  ClientConfig config;
+  config.require_packet_auth = false;
+  Client client(config, socket.get(), &worker);
   worker.Attach(&client);
   double now = 1.0;
   auto token = MintToken(FakeRelay::kPlayer, kDefaultPermissions);
