@@ -258,6 +258,8 @@ Status SoftDeltaReceiver::Apply(const SoftDeltaRecord& r) {
   }
   Body& b = it->second;
   if (b.total != r.total) {  // a new body (or a new shape): nothing held applies
+    // Updates this payload already reported for the old shape name particles it no longer has.
+    std::erase_if(updates_, [&](const SoftDeltaUpdate& u) { return u.id == r.entity_id; });
     Release(b);
     b.total = r.total;
     b.display.assign(r.total, Vec3f{});
