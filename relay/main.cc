@@ -257,7 +257,10 @@ int main(int argc, char** argv) {
       return 1;
     }
     exporter = std::move(*started);
-    spdlog::info("metrics on http://{}/metrics", metrics);
+    // The port actually bound (an ephemeral one for port 0), so scripts can bind :0 and read it.
+    const size_t colon = metrics.rfind(':');
+    const std::string host = colon == std::string::npos ? "0.0.0.0" : metrics.substr(0, colon);
+    spdlog::info("metrics on http://{}:{}/metrics", host, exporter->port());
   }
   if (io_threads > 1 && !redis.empty()) {
     spdlog::error("--redis is not supported with --io-threads > 1");

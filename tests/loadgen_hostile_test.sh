@@ -6,45 +6,21 @@
 set -euo pipefail
 lg="$1"
 relay_bin="$2"
+source "$(dirname "$0")/../scripts/lib/stop_process.sh"
+source "$(dirname "$0")/../scripts/lib/start_relay.sh"
 work=$(mktemp -d)
 relay_pid=""
-cleanup() {
-  if [ -n "$relay_pid" ]; then kill "$relay_pid" 2>/dev/null || true; fi
-  rm -rf "$work"
-}
+cleanup() { stop "$relay_pid"; rm -rf "$work"; }
 trap cleanup EXIT
 fail() { echo "FAIL: $*"; [ -f "$work/relay.log" ] && tail -20 "$work/relay.log"; exit 1; }
 cd "$work"
 
-free_port() {  # a random port nothing listens on ($1: -u UDP or -t TCP)
-  local p
-  for _ in $(seq 100); do
-    p=$((20000 + RANDOM % 40000))
-    [ -z "$(ss -Hln "$1" "sport = :$p" 2>/dev/null)" ] && { echo "$p"; return; }
-  done
-  return 1
-}
 secret="hostile-$RANDOM$RANDOM"
-for attempt in 1 2 3; do  # a port taken between the check and the bind: try others
-  udp_port=$(free_port -u) && tcp_port=$(free_port -t) || fail "no free port"
-  "$relay_bin" --bind "127.0.0.1:$udp_port" --metrics "127.0.0.1:$tcp_port" --secret "$secret" \
-    --run-for 120 --log-level warn >relay.log 2>&1 &
-  relay_pid=$!
-  up=""
-  for _ in $(seq 50); do  # up to 5 s for /metrics to answer
-    if curl -sf -m 1 "http://127.0.0.1:$tcp_port/metrics" >/dev/null; then up=1; break; fi
-    kill -0 "$relay_pid" 2>/dev/null || break
-    sleep 0.1
-  done
-  [ -n "$up" ] && break
-  kill "$relay_pid" 2>/dev/null || true
-  relay_pid=""
-done
-[ -n "$relay_pid" ] || fail "edgephys-relay did not start"
+start_relay_with_metrics "$relay_bin" relay.log 120 --secret "$secret" || fail "edgephys-relay did not start"
 
 # Small attacks (4 soft bodies: 2 fit the default per-player particle budget; 2 huge names).
 timeout 100 "$lg" hostile --phase 1 --honest 2 --soft-bodies 4 --huge-names 2 --flood-rate 2000 \
-  --relay "127.0.0.1:$udp_port" --secret "$secret" --metrics "127.0.0.1:$tcp_port" \
+  --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
   --no-progress --json hostile.json >hostile.txt 2>&1 || { cat hostile.txt; fail "hostile exited with an error"; }
 cat hostile.txt
 

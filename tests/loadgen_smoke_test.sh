@@ -8,11 +8,10 @@ set -euo pipefail
 lg="$1"
 relay_bin="${2:-}"
 relay_pid=""
+source "$(dirname "$0")/../scripts/lib/stop_process.sh"
+source "$(dirname "$0")/../scripts/lib/start_relay.sh"
 work=$(mktemp -d)
-cleanup() {
-  if [ -n "$relay_pid" ]; then kill "$relay_pid" 2>/dev/null || true; wait "$relay_pid" 2>/dev/null || true; fi
-  rm -rf "$work"
-}
+cleanup() { stop "$relay_pid"; rm -rf "$work"; }
 trap cleanup EXIT
 cd "$work"
 fail() { echo "FAIL: $*"; exit 1; }
@@ -108,49 +107,27 @@ echo "isolation ok"
 # An external relay: edgephys-relay on free loopback ports with a secret, ccu against it with
 # server-side figures from its /metrics; the relay stopped by PID (and bounded by --run-for).
 if [ -n "$relay_bin" ]; then
-  free_port() {  # a random port nothing listens on ($1: -u UDP or -t TCP)
-    local p
-    for _ in $(seq 100); do
-      p=$((20000 + RANDOM % 40000))
-      [ -z "$(ss -Hln "$1" "sport = :$p" 2>/dev/null)" ] && { echo "$p"; return; }
-    done
-    return 1
-  }
   secret="smoke-$RANDOM$RANDOM"
-  for attempt in 1 2 3; do  # a port taken between the check and the bind: try others
-    udp_port=$(free_port -u) && tcp_port=$(free_port -t) || fail "no free port"
-    # --packet-auth false: the egress check below compares the relay's wire bytes with what the
-    # receivers' connections counted, which is the opened packets (24 bytes less per sealed
-    # datagram, docs/protocol.md §3a).
-    "$relay_bin" --bind "127.0.0.1:$udp_port" --metrics "127.0.0.1:$tcp_port" --secret "$secret" \
-      --max-connections-per-address 256 --max-handshakes-per-s 10000 --run-for 120 \
-      --packet-auth false \
-      --log-level warn >relay.log 2>&1 &
-    relay_pid=$!
-    up=""
-    for _ in $(seq 50); do  # up to 5 s for /metrics to answer
-      if curl -sf -m 1 "http://127.0.0.1:$tcp_port/metrics" >/dev/null; then up=1; break; fi
-      kill -0 "$relay_pid" 2>/dev/null || break
-      sleep 0.1
-    done
-    [ -n "$up" ] && break
-    kill "$relay_pid" 2>/dev/null || true; wait "$relay_pid" 2>/dev/null || true; relay_pid=""
-  done
-  [ -n "$relay_pid" ] || { cat relay.log; fail "edgephys-relay did not start"; }
-  "$lg" ccu --users 4 --ramp 1 --duration 3 --relay "127.0.0.1:$udp_port" --secret "$secret" \
-    --metrics "127.0.0.1:$tcp_port" --relay-pid "$relay_pid" --no-progress --charts '' \
+  # --packet-auth false: the egress check below compares the relay's wire bytes with what the
+  # receivers' connections counted, which is the opened packets (24 bytes less per sealed
+  # datagram, docs/protocol.md §3a).
+  start_relay_with_metrics "$relay_bin" relay.log 120 --secret "$secret" \
+    --max-connections-per-address 256 --max-handshakes-per-s 10000 --packet-auth false ||
+    fail "edgephys-relay did not start"
+  "$lg" ccu --users 4 --ramp 1 --duration 3 --relay "$relay_address" --secret "$secret" \
+    --metrics "$metrics_address" --relay-pid "$relay_pid" --no-progress --charts '' \
     --json ext.json >/dev/null || fail "ccu against the external relay exited with an error"
   # relay-compare on the same relay (its --replication-mode: the default, edgephys): egress to
   # the receivers from /metrics agrees with what their sockets received (loopback, no loss).
   "$lg" relay-compare --objects 32 --modes edgephys --duration 2 --receivers 1 \
-    --relay "127.0.0.1:$udp_port" --secret "$secret" --metrics "127.0.0.1:$tcp_port" \
+    --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
     --no-progress --charts '' --json rcext.json >/dev/null || fail "relay-compare external exited with an error"
   # isolation on the same relay: both rooms there, per-phase relay figures from /metrics.
   "$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --late-join-timeout 20 \
-    --relay "127.0.0.1:$udp_port" --secret "$secret" --metrics "127.0.0.1:$tcp_port" \
+    --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
     --relay-pid "$relay_pid" --no-progress --charts '' --json isoext.json >/dev/null ||
     fail "isolation external exited with an error"
-  kill "$relay_pid"; wait "$relay_pid" 2>/dev/null || true; relay_pid=""
+  stop "$relay_pid"; relay_pid=""
   [ "$(num '.summary.late_join_ok' isoext.json)" = "true" ] || fail "isolation external: late joiner"
   le 1 "$(num '.phases[1].egress_bytes_per_s' isoext.json)" || fail "isolation external: no egress"
   le 0.000001 "$(num '.phases[1].physics_steps_per_s' isoext.json)" || fail "isolation external: no PhyS steps"
