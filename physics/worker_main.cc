@@ -26,10 +26,15 @@ int main(int argc, char** argv) {
   CLI::App app{"edgephys-phys: remote PhyS worker for an edgephys relay"};
   std::string relay = "127.0.0.1:7777", key, log_level = "info";
   double run_for_s = 0;
+  bool require_packet_auth = true;
   app.add_option("--relay", relay, "Relay UDP address:port")->capture_default_str();
   app.add_option("--worker-key", key, "The relay's token secret (default: $EDGEPHYS_SECRET)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
   app.add_option("--run-for", run_for_s, "Exit after this many seconds (0: until a signal)");
+  app.add_option("--require-packet-auth", require_packet_auth,
+                 "Refuse a relay that does not seal its packets (edgephys-relay --packet-auth "
+                 "false); false accepts one, e.g. a test relay")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::from_str(log_level));
   if (key.empty()) {
@@ -67,6 +72,7 @@ int main(int argc, char** argv) {
     PhysicsWorker worker{physics::PhysicsConfig{}};
     ClientConfig cc;
     cc.handshake_timeout_s = 3.0;
+    cc.require_packet_auth = require_packet_auth;
     Client client(cc, socket->get(), &worker);
     worker.Attach(&client);
     (void)client.Connect(ToRelayAddress(*endpoint), *signed_token, now());
