@@ -393,7 +393,10 @@ Status Relay::CreateRoom(const std::string& name, const RoomConfig& config, doub
 
 void Relay::OnJoinRoom(Session& s, std::string_view room_name, double now) {
   if (s.room() != nullptr && s.room()->name() == room_name) return;  // already there
-  if (room_name.empty() || room_name != s.token_room()) {
+  if (room_name.empty() || room_name.size() > kMaxRoomNameSize) {
+    return s.SendError(RejectReason::InvalidMessage, 0, "room name must be 1..64 bytes");
+  }
+  if (room_name != s.token_room()) {
     return s.SendError(RejectReason::WrongRoom, 0, "the join token does not grant this room");
   }
   if (!admitting_) return s.SendError(RejectReason::ServerFull, 0, "the relay is draining");

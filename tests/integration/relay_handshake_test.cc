@@ -162,6 +162,33 @@ TEST(RelayHandshake, ClientSdkReportsRejectionAndWrongRoom) {
   EXPECT_EQ(world.relay().FindRoom("room-b"), nullptr);
 }
 
+// A join naming no room, or a name longer than any room's, is a malformed request (counted as
+// invalid_message), not a room the token lacks; the sender stays in its room.
+TEST(RelayHandshake, EmptyOrOversizedRoomNamesAreInvalidMessagesNotWrongRooms) {
+  LoopbackWorld world;
+  struct ErrorListener : ClientListener {
+    std::vector<uint16_t> reasons;
+    void OnError(uint16_t reason, uint32_t, std::string_view) override { reasons.push_back(reason); }
+  } listener;
+  Client& c = world.AddClient(MintToken("room-a", 2), &listener);
+  ASSERT_TRUE(world.RunUntil([&] { return c.state() == ClientState::kConnected; }, 3.0));
+  ASSERT_TRUE(c.JoinRoom("room-a").ok());
+  ASSERT_TRUE(world.RunUntil([&] { return c.joined(); }, 3.0));
+  EXPECT_FALSE(c.JoinRoom("").ok());  // the SDK refuses it before sending
+  const auto invalid = static_cast<size_t>(RejectReason::InvalidMessage);
+  const uint64_t before = world.counters().requests_rejected[invalid].load();
+  for (const std::string& name : {std::string(), std::string(kMaxRoomNameSize + 1, 'r')}) {
+    flatbuffers::FlatBufferBuilder fbb(128);
+    FinishControl(fbb, schema::CreateJoinRoom(fbb, fbb.CreateString(name)));
+    ASSERT_TRUE(ClientTesting::SendReliableUnchecked(c, {fbb.GetBufferPointer(), fbb.GetSize()}).ok());
+  }
+  ASSERT_TRUE(world.RunUntil([&] { return listener.reasons.size() == 2; }, 3.0));
+  for (uint16_t r : listener.reasons) EXPECT_EQ(r, static_cast<uint16_t>(RejectReason::InvalidMessage));
+  EXPECT_EQ(world.counters().requests_rejected[invalid].load(), before + 2);
+  EXPECT_TRUE(c.joined());
+  ASSERT_NE(world.relay().FindRoom("room-a"), nullptr);
+}
+
 TEST(RelayHandshake, RoomCapacityAndServerCapacity) {
   RelayConfig config = LoopbackWorld::DefaultConfig();
   config.room_defaults.capacity = 2;
