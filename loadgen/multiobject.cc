@@ -540,7 +540,11 @@ std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& o) {
     r.objects = n;
     r.paper_mbit_per_s = PaperObjMbitPerS(n);
     if (o.bench) Bench(o, n, &r);
-    if (o.relay) RelayRun(o, n, &r);
+    if (o.relay && o.external.enabled()) {
+      ExternalMultiObjectRun(o, n, &r);
+    } else if (o.relay) {
+      RelayRun(o, n, &r);
+    }
     if (o.progress) std::fprintf(stderr, "\r%78s\r", "");
     results.push_back(r);
   }

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "loadgen/loopback_room.h"
+#include "loadgen/relay_target.h"
 
 namespace edgephys::loadgen {
 
@@ -55,6 +56,13 @@ struct MultiObjectOptions {
   int bench_min_steps = 30;        // ...but at least this many
   // Relay.
   bool relay = true;
+  // --relay/--secret/--metrics/--relay-pid: run the relay part against an external
+  // edgephys-relay (multiobject_external.cc) instead of an in-process one. The scene, the host
+  // and the receivers are the same; the relay's own options (ambient rate, thresholds,
+  // velocities, substeps, sleeping) are its command line's, not these; server-side figures come
+  // from its /metrics, and what needs its entity table (errors against its truth, the display
+  // probe) is unknown (JSON null).
+  ExternalRelayOptions external;
   uint32_t receivers = 2;
   double duration_s = 5;           // measured wall seconds
   int relay_settle_steps = 120;    // PhyS steps after the spawns before measuring
@@ -119,9 +127,14 @@ struct MultiObjectResult {
   double display_playout_ms_median = 0;  // render time behind the estimated relay now
   uint64_t display_samples = 0;
   double spawn_s = 0;                       // wall time to spawn the scene everywhere
+  double external_cpu_cores = kUnknown;     // external relay: its CPU (needs --relay-pid)
 };
 
 std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& options);
+
+// The relay part of one size against options.external (multiobject_external.cc).
+void ExternalMultiObjectRun(const MultiObjectOptions& options, uint32_t objects,
+                            MultiObjectResult* result);
 
 // The paper's PhyS throughput for Obj_N, Mb/s (0 where the paper has none).
 double PaperObjMbitPerS(uint32_t objects);

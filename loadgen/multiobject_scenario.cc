@@ -28,6 +28,16 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
   j["scenario"] = "multiobject";
   j["options"] = o;
   j["options"].update({{"tick_rate_hz", 60}, {"mode", "edgephys"}});
+  if (o.external.enabled()) {
+    j["relay"] = {{"external", true},
+                  {"relay", o.external.relay},
+                  {"metrics", o.external.metrics},
+                  {"cpu_source", o.external.relay_pid > 0
+                                     ? "/proc/" + std::to_string(o.external.relay_pid)
+                                     : std::string("unknown")}};
+  } else {
+    j["relay"] = {{"external", false}};
+  }
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
     nlohmann::json e = {{"objects", r.objects}};
@@ -74,6 +84,7 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
                 {"display_rot_err_p99_deg", r.display_rot_err_p99_deg},
                 {"display_samples", r.display_samples},
                 {"spawn_s", r.spawn_s}});
+      if (o.external.enabled()) e["relay_cpu_cores"] = r.external_cpu_cores;
     }
     j["results"].push_back(e);
   }
@@ -206,6 +217,7 @@ class MultiObjectScenario final : public Scenario {
                    "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)");
     cmd.add_flag("!--no-bench", o_.bench, "Skip the standalone PhyS vs raw Bullet steps");
     cmd.add_flag("!--no-relay", o_.relay, "Skip the relay run");
+    AddExternalRelayOptions(cmd, &o_.external);
   }
 
   std::string Validate() override {
@@ -218,6 +230,8 @@ class MultiObjectScenario final : public Scenario {
       return "invalid --duration, --receivers, --bench-steps, --bench-warmup, --settle-steps "
              "or --relay-max-substeps";
     }
+    if (std::string e = ValidateExternalRelay(o_.external); !e.empty()) return e;
+    if (o_.external.enabled() && !o_.relay) return "--relay needs the relay run (drop --no-relay)";
     return "";
   }
 

@@ -127,6 +127,11 @@ if [ -n "$relay_bin" ]; then
     --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
     --relay-pid "$relay_pid" --no-progress --charts '' --json isoext.json >/dev/null ||
     fail "isolation external exited with an error"
+  # multiobject on the same relay: its embedded PhyS steps the scene, figures from /metrics.
+  "$lg" multiobject --objects 200 --no-bench --duration 2 --settle-steps 30 \
+    --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
+    --relay-pid "$relay_pid" --no-progress --charts '' --json moext.json >/dev/null ||
+    fail "multiobject external exited with an error"
   stop "$relay_pid"; relay_pid=""
   [ "$(num '.summary.late_join_ok' isoext.json)" = "true" ] || fail "isolation external: late joiner"
   le 1 "$(num '.phases[1].egress_bytes_per_s' isoext.json)" || fail "isolation external: no egress"
@@ -137,6 +142,17 @@ if [ -n "$relay_bin" ]; then
   le "$(awk -v s="$sock_b" 'BEGIN { print s * 0.9 }')" "$relay_b" &&
     le "$relay_b" "$(awk -v s="$sock_b" 'BEGIN { print s * 1.1 + 100 }')" ||
     fail "relay-compare external: /metrics egress $relay_b B/s vs socket $sock_b B/s"
+  [ "$(num '.relay.external' moext.json)" = "true" ] || fail "multiobject external: not marked external"
+  [ "$(num '.results[0].relay_ok' moext.json)" = "true" ] || fail "multiobject external: no relay run"
+  le 0.000001 "$(num '.results[0].sim_speed' moext.json)" || fail "multiobject external: no PhyS steps"
+  le 0.000001 "$(num '.results[0].relay_step_ms_mean' moext.json)" || fail "multiobject external: no step time"
+  [ "$(num '.results[0].pos_err_max_m' moext.json)" = null ] || fail "multiobject external: an error it cannot know"
+  mo_relay=$(num '.results[0].egress_mbit_per_s_per_client' moext.json)
+  mo_sock=$(num '.results[0].socket_mbit_per_s_per_client' moext.json)
+  le 0.0001 "$mo_sock" || fail "multiobject external: the receivers got nothing"
+  le "$(awk -v s="$mo_sock" 'BEGIN { print s * 0.9 }')" "$mo_relay" &&
+    le "$mo_relay" "$(awk -v s="$mo_sock" 'BEGIN { print s * 1.25 }')" ||
+    fail "multiobject external: /metrics egress $mo_relay Mb/s vs socket $mo_sock Mb/s"
   [ "$(num '.relay.external' ext.json)" = "true" ] || fail "ccu external: not marked external"
   [ "$(num '.summary.connected' ext.json)" = "4" ] || fail "ccu external: not every bot joined"
   [ "$(num '.summary.reliable_lost' ext.json)" = "0" ] || fail "ccu external: reliable messages lost"

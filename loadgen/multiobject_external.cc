@@ -1,0 +1,280 @@
+// multiobject against an EXTERNAL edgephys-relay (--relay HOST:PORT --secret S): the same scene
+// and clients as the in-process run, over real sockets, with the server-side figures read
+// from the relay's /metrics (loadgen/relay_target.h). What needs the relay's own entity table
+// (errors against its truth, the display probe) is unknown here and reported as null.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <thread>
+#include <unordered_map>
+
+#include "client/client_endpoint.h"
+#include "loadgen/loopback_room.h"
+#include "loadgen/multiobject.h"
+#include "loadgen/relay_target.h"
+#include "loadgen/stats.h"
+#include "physics/scenes.h"
+#include "protocol/endpoint.h"
+#include "protocol/handshake.h"
+
+namespace edgephys::loadgen {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// A receiver: counts the boxes it holds and the updates it receives while measuring.
+struct ExternalReceiver : ClientListener {
+  explicit ExternalReceiver(const std::unordered_map<uint32_t, size_t>* box_index) : boxes(box_index) {}
+  void OnEntitySpawned(const RemoteEntity& e) override {
+    if (boxes->count(e.id) != 0) ++spawned;
+  }
+  void OnEntityUpdated(const RemoteEntity& e) override {
+    if (measuring && boxes->count(e.id) != 0) ++updates;
+  }
+  void OnPhysicsEvent(uint8_t, uint32_t, uint32_t) override {
+    if (measuring) ++events;
+  }
+  const std::unordered_map<uint32_t, size_t>* boxes;
+  size_t spawned = 0;
+  bool measuring = false;
+  uint64_t updates = 0, events = 0;
+};
+
+uint64_t ReceivedBytes(const Client& c) {
+  const ConnectionStats* stats = c.stats();
+  return stats != nullptr ? stats->bytes_received : 0;
+}
+
+struct Member {
+  std::unique_ptr<UdpSocket> socket;
+  std::unique_ptr<Client> client;
+  bool join_requested = false;
+};
+
+void Unknown(MultiObjectResult* r) {
+  r->pos_err_max_m = r->pos_err_p99_m = r->pos_err_sent_max_m = r->pos_err_sent_p99_m = kUnknown;
+  r->display_err_p50_m = r->display_err_p99_m = kUnknown;
+  r->display_err_hermite_p50_m = r->display_err_hermite_p99_m = kUnknown;
+  r->display_rot_err_p50_deg = r->display_rot_err_p99_deg = kUnknown;
+  r->display_delay_ms_median = r->display_playout_ms_median = kUnknown;
+}
+
+}  // namespace
+
+void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
+  Unknown(r);
+  physics::MultiObjectParams p;
+  p.num_objects = static_cast<int>(n);
+  p.seed = o.seed;
+  p.layers = o.layers;
+  p.stirrer_angular_speed = o.stirrer_angular_speed;
+  p.stirrer_reach = o.stirrer_reach;
+  p.stirrer_center_y = o.stirrer_center_y;
+  p.stirrer_half_height = o.stirrer_half_height;
+  const double dt = p.config.fixed_dt;
+  const Clock::time_point t0 = Clock::now();
+  auto now = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
+  RelayTarget relay(o.external, t0);
+  // A fresh room and fresh player ids per size: a rerun against the same relay never lands in
+  // (or kicks the sessions of) an earlier run's room.
+  const uint64_t salt = SecureRandom64();
+  const std::string room = "multiobject-" + std::to_string(n) + "-" + std::to_string(salt % 1000000);
+  const uint32_t first_player = 1 + static_cast<uint32_t>((salt >> 20) % 1000000) * 64;
+
+  std::unordered_map<uint32_t, size_t> box_index;
+  std::vector<std::unique_ptr<ExternalReceiver>> listeners;
+  std::vector<Member> members(o.receivers + 1);  // [0]: the host
+  ClientConfig cc;
+  cc.handshake_timeout_s = 10;
+  cc.require_packet_auth = false;  // measurement bots: also against a --packet-auth false relay
+  ClientConfig host_config = cc;
+  host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
+  for (size_t i = 0; i < members.size(); ++i) {
+    Member& m = members[i];
+    m.socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
+    ClientListener* listener = nullptr;
+    if (i > 0) {
+      listeners.push_back(std::make_unique<ExternalReceiver>(&box_index));
+      listener = listeners.back().get();
+    }
+    m.client = std::make_unique<Client>(i == 0 ? host_config : cc, m.socket.get(), listener);
+    (void)m.client->Connect(ToRelayAddress(relay.endpoint()),
+                            relay.Token(room, first_player + static_cast<uint32_t>(i)), now());
+  }
+  auto update_all = [&] {
+    const double t = now();
+    for (Member& m : members) {
+      m.client->Update(t);
+      if (m.client->state() == ClientState::kConnected && !m.join_requested) {
+        (void)m.client->JoinRoom(room);
+        m.join_requested = true;
+      }
+    }
+  };
+  auto disconnect_all = [&] {
+    for (Member& m : members) m.client->Disconnect();
+    for (int i = 0; i < 20; ++i) update_all();
+  };
+  const double join_deadline = now() + 15;
+  while (now() < join_deadline &&
+         !std::all_of(members.begin(), members.end(), [](const Member& m) { return m.client->joined(); })) {
+    update_all();
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+  for (size_t i = 0; i < members.size(); ++i) {
+    if (!members[i].client->joined()) {
+      std::fprintf(stderr, "multiobject: client %zu did not join room %s on %s (state %d, reject %u)\n",
+                   i, room.c_str(), FormatEndpoint(relay.endpoint()).c_str(),
+                   static_cast<int>(members[i].client->state()), members[i].client->reject_reason());
+      disconnect_all();
+      return;
+    }
+  }
+
+  // The host dissects the scene as in the in-process run.
+  Client& host = *members[0].client;
+  const double spawn_start = now();
+  uint32_t stirrer = 0;
+  for (const EntitySpec& s : physics::MultiObjectSpecs(p)) {
+    auto id = host.Spawn(OffloadedSpawn(s));
+    if (!id.ok()) {
+      std::fprintf(stderr, "multiobject: spawn %zu refused by the relay: %s (raise its budgets: "
+                   "see docs/operations.md)\n", box_index.size(),
+                   std::string(id.status().message()).c_str());
+      disconnect_all();
+      return;
+    }
+    if (s.id == physics::kSceneStirrerId) stirrer = *id;
+    if (s.id >= physics::kSceneFirstBoxId) box_index.emplace(*id, box_index.size());
+  }
+
+  // PhyS time from the relay's step counter (scraped every 0.2 s, extrapolated between reads at
+  // the last rate), so a relay stepping slower than real time slows the paddle with it. The
+  // counter is the relay's: other physics rooms on it would speed the paddle up.
+  RelayFigures last = relay.Read();
+  double steps_base = last.ok ? last.physics_steps : 0, steps_at = now(), steps_rate = 0;
+  double sim_t0 = -1;
+  auto sim_steps = [&] { return steps_base + steps_rate * (now() - steps_at); };
+  auto poll = [&] {
+    if (now() - steps_at < 0.2) return;
+    RelayFigures f = relay.Read();
+    if (!f.ok) return;
+    const double t = now();
+    steps_rate = std::max(0.0, (f.physics_steps - steps_base) / (t - steps_at));
+    steps_base = f.physics_steps;
+    steps_at = t;
+  };
+  auto round = [&] {
+    poll();
+    if (sim_t0 < 0) sim_t0 = sim_steps();
+    Vec3f pos;
+    Quatf rot;
+    physics::StirrerPose(p, (sim_steps() - sim_t0) * dt, &pos, &rot);
+    (void)host.PublishTransform(stirrer, pos, rot);
+    update_all();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  };
+
+  // Everyone has the whole scene.
+  bool spawned = false;
+  while (now() - spawn_start < 120.0) {
+    round();
+    spawned = std::all_of(listeners.begin(), listeners.end(),
+                          [&](const auto& l) { return l->spawned >= box_index.size(); });
+    if (spawned) break;
+    if (o.progress) {
+      std::fprintf(stderr, "\r  %6u objects  external relay: spawning (%zu / %zu at receiver 1)  ",
+                   n, listeners[0]->spawned, box_index.size());
+    }
+  }
+  if (!spawned) {
+    std::fprintf(stderr, "\nmultiobject: the scene did not reach every client within 120 s\n");
+    disconnect_all();
+    return;
+  }
+  r->spawn_s = now() - spawn_start;
+
+  // Settle: relay_settle_steps PhyS steps (by the relay's counter), at most relay_settle_max_s.
+  if (o.progress) std::fprintf(stderr, "\r  %6u objects  external relay: settling             ", n);
+  const double settle_from = sim_steps(), settle_start = now();
+  while (sim_steps() - settle_from < o.relay_settle_steps && now() - settle_start < o.relay_settle_max_s) {
+    round();
+  }
+
+  // Measure.
+  const size_t R = o.receivers;
+  std::vector<uint64_t> socket0(R), state0(R);
+  for (size_t k = 0; k < R; ++k) {
+    socket0[k] = ReceivedBytes(*members[k + 1].client);
+    state0[k] = members[k + 1].client->state_bytes_received();
+    listeners[k]->measuring = true;
+  }
+  const RelayFigures a = relay.Read();
+  const double m0 = now();
+  std::vector<Vec3f> prev(box_index.size());
+  double prev_steps = -1, next_moving = m0;
+  std::vector<double> moving;
+  const Client& watcher = *members[1].client;
+  while (now() < m0 + o.duration_s) {
+    round();
+    if (now() < next_moving) continue;
+    next_moving += 0.5;
+    std::vector<Vec3f> pos(box_index.size());
+    for (const auto& [id, k] : box_index) {
+      if (const RemoteEntity* e = watcher.FindEntity(id); e != nullptr) pos[k] = e->state.position;
+    }
+    const double steps = sim_steps();
+    if (prev_steps >= 0 && steps > prev_steps) {
+      const double sim_dt = (steps - prev_steps) * dt;
+      size_t count = 0;
+      for (size_t k = 0; k < pos.size(); ++k) count += Dist(pos[k], prev[k]) / sim_dt > o.moving_speed_mps;
+      moving.push_back(static_cast<double>(count) / static_cast<double>(pos.size()));
+    }
+    prev = std::move(pos);
+    prev_steps = steps;
+  }
+  const RelayFigures b = relay.Read();
+  const double elapsed = now() - m0;
+  for (size_t i = 0; i < members.size(); ++i) {
+    if (members[i].client->state() != ClientState::kConnected) {
+      std::fprintf(stderr, "\nmultiobject: %u objects: client %zu lost its connection; results void\n",
+                   n, i);
+      disconnect_all();
+      return;
+    }
+  }
+  double socket_total = 0, state_total = 0, updates = 0, events = 0;
+  for (size_t k = 0; k < R; ++k) {
+    socket_total += static_cast<double>(ReceivedBytes(*members[k + 1].client) - socket0[k]);
+    state_total += static_cast<double>(members[k + 1].client->state_bytes_received() - state0[k]);
+    updates += static_cast<double>(listeners[k]->updates);
+    events += static_cast<double>(listeners[k]->events);
+  }
+  disconnect_all();
+  const double per = static_cast<double>(R) * elapsed;
+  const bool metrics = a.ok && b.ok;
+  // The relay's bytes sent over the window, per member: PhyS drives the boxes, so the host is
+  // sent the scene as the receivers are (the in-process run counts the receivers' connections
+  // only; the two agree within the host's acks). Any other traffic on that relay counts too.
+  const double relay_bytes = metrics ? b.bytes_sent - a.bytes_sent : kUnknown;
+  r->relay_ok = true;
+  r->egress_mbit_per_s_per_client = relay_bytes * 8 / 1e6 / (static_cast<double>(R + 1) * elapsed);
+  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->updates_per_s_per_client = updates / per;
+  r->bytes_per_update = updates > 0 ? relay_bytes / updates : kUnknown;
+  r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
+  r->events_per_s_per_client = events / per;
+  const double step_count = metrics ? b.physics_step_count - a.physics_step_count : 0;
+  r->relay_step_ms_mean =
+      step_count > 0 ? (b.physics_step_seconds_sum - a.physics_step_seconds_sum) / step_count * 1e3 : kUnknown;
+  r->sim_speed = metrics ? (b.physics_steps - a.physics_steps) * dt / elapsed : kUnknown;
+  double sum = 0;
+  for (double x : moving) sum += x;
+  r->relay_moving_fraction = moving.empty() ? 0 : sum / static_cast<double>(moving.size());
+  r->relay_moving_fraction_min = moving.empty() ? 0 : *std::min_element(moving.begin(), moving.end());
+  r->external_cpu_cores = metrics ? (b.cpu_s - a.cpu_s) / (b.t - a.t) : kUnknown;
+}
+
+}  // namespace edgephys::loadgen
