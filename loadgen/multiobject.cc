@@ -19,13 +19,7 @@ namespace edgephys::loadgen {
 // ---------------------------------------------------------------------------------------------
 // The scenario
 
-namespace {
-
-constexpr size_t kRing = 16;  // recent relay states kept per box (at 60 Hz: 0.27 s)
-constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
-
-// The scene both runs build: same boxes, container and stirrer from the options.
-physics::MultiObjectParams SceneParams(const MultiObjectOptions& o, uint32_t n) {
+physics::MultiObjectParams MultiObjectSceneParams(const MultiObjectOptions& o, uint32_t n) {
   physics::MultiObjectParams p;
   p.num_objects = static_cast<int>(n);
   p.seed = o.seed;
@@ -37,8 +31,13 @@ physics::MultiObjectParams SceneParams(const MultiObjectOptions& o, uint32_t n) 
   return p;
 }
 
+namespace {
+
+constexpr size_t kRing = 16;  // recent relay states kept per box (at 60 Hz: 0.27 s)
+constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
+
 void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
-  physics::MultiObjectParams p = SceneParams(o, n);
+  physics::MultiObjectParams p = MultiObjectSceneParams(o, n);
   p.config.sleep_linear_threshold = o.sleep_threshold;
   p.config.sleep_angular_threshold = o.sleep_threshold;
   physics::PhysSMultiObjectScene phys(p);
@@ -258,7 +257,7 @@ class BoxReceiver : public ClientListener {
 };
 
 void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
-  physics::MultiObjectParams p = SceneParams(o, n);
+  physics::MultiObjectParams p = MultiObjectSceneParams(o, n);
   const double dt = p.config.fixed_dt;
 
   RelayConfig config =

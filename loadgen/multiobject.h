@@ -34,6 +34,7 @@
 
 #include "loadgen/loopback_room.h"
 #include "loadgen/relay_target.h"
+#include "physics/scenes.h"
 
 namespace edgephys::loadgen {
 
@@ -131,6 +132,9 @@ struct MultiObjectResult {
 };
 
 std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& options);
+
+// The scene of both runs for `objects` boxes: container, boxes and stirrer from the options.
+physics::MultiObjectParams MultiObjectSceneParams(const MultiObjectOptions& options, uint32_t objects);
 
 // The relay part of one size against options.external (multiobject_external.cc).
 void ExternalMultiObjectRun(const MultiObjectOptions& options, uint32_t objects,

@@ -10,19 +10,15 @@
 #include <thread>
 #include <unordered_map>
 
-#include "client/client_endpoint.h"
+#include "loadgen/external_room.h"
 #include "loadgen/loopback_room.h"
 #include "loadgen/multiobject.h"
 #include "loadgen/relay_target.h"
 #include "loadgen/stats.h"
 #include "physics/scenes.h"
-#include "protocol/endpoint.h"
-#include "protocol/handshake.h"
 
 namespace edgephys::loadgen {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 // A receiver: counts the boxes it holds and the updates it receives while measuring.
 struct ExternalReceiver : ClientListener {
@@ -42,17 +38,6 @@ struct ExternalReceiver : ClientListener {
   uint64_t updates = 0, events = 0;
 };
 
-uint64_t ReceivedBytes(const Client& c) {
-  const ConnectionStats* stats = c.stats();
-  return stats != nullptr ? stats->bytes_received : 0;
-}
-
-struct Member {
-  std::unique_ptr<UdpSocket> socket;
-  std::unique_ptr<Client> client;
-  bool join_requested = false;
-};
-
 void Unknown(MultiObjectResult* r) {
   r->pos_err_max_m = r->pos_err_p99_m = r->pos_err_sent_max_m = r->pos_err_sent_p99_m = kUnknown;
   r->display_err_p50_m = r->display_err_p99_m = kUnknown;
@@ -65,76 +50,27 @@ void Unknown(MultiObjectResult* r) {
 
 void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   Unknown(r);
-  physics::MultiObjectParams p;
-  p.num_objects = static_cast<int>(n);
-  p.seed = o.seed;
-  p.layers = o.layers;
-  p.stirrer_angular_speed = o.stirrer_angular_speed;
-  p.stirrer_reach = o.stirrer_reach;
-  p.stirrer_center_y = o.stirrer_center_y;
-  p.stirrer_half_height = o.stirrer_half_height;
+  const physics::MultiObjectParams p = MultiObjectSceneParams(o, n);
   const double dt = p.config.fixed_dt;
-  const Clock::time_point t0 = Clock::now();
-  auto now = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
-  RelayTarget relay(o.external, t0);
-  // A fresh room and fresh player ids per size: a rerun against the same relay never lands in
-  // (or kicks the sessions of) an earlier run's room.
-  const uint64_t salt = SecureRandom64();
-  const std::string room = "multiobject-" + std::to_string(n) + "-" + std::to_string(salt % 1000000);
-  const uint32_t first_player = 1 + static_cast<uint32_t>((salt >> 20) % 1000000) * 64;
-
+  RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> box_index;
-  std::vector<std::unique_ptr<ExternalReceiver>> listeners;
-  std::vector<Member> members(o.receivers + 1);  // [0]: the host
+  std::vector<std::unique_ptr<ExternalReceiver>> receivers;
+  std::vector<ClientListener*> listeners = {nullptr};  // the host
+  for (uint32_t i = 0; i < o.receivers; ++i) {
+    receivers.push_back(std::make_unique<ExternalReceiver>(&box_index));
+    listeners.push_back(receivers.back().get());
+  }
   ClientConfig cc;
   cc.handshake_timeout_s = 10;
-  cc.require_packet_auth = false;  // measurement bots: also against a --packet-auth false relay
   ClientConfig host_config = cc;
   host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
-  for (size_t i = 0; i < members.size(); ++i) {
-    Member& m = members[i];
-    m.socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
-    ClientListener* listener = nullptr;
-    if (i > 0) {
-      listeners.push_back(std::make_unique<ExternalReceiver>(&box_index));
-      listener = listeners.back().get();
-    }
-    m.client = std::make_unique<Client>(i == 0 ? host_config : cc, m.socket.get(), listener);
-    (void)m.client->Connect(ToRelayAddress(relay.endpoint()),
-                            relay.Token(room, first_player + static_cast<uint32_t>(i)), now());
-  }
-  auto update_all = [&] {
-    const double t = now();
-    for (Member& m : members) {
-      m.client->Update(t);
-      if (m.client->state() == ClientState::kConnected && !m.join_requested) {
-        (void)m.client->JoinRoom(room);
-        m.join_requested = true;
-      }
-    }
-  };
-  auto disconnect_all = [&] {
-    for (Member& m : members) m.client->Disconnect();
-    for (int i = 0; i < 20; ++i) update_all();
-  };
-  const double join_deadline = now() + 15;
-  while (now() < join_deadline &&
-         !std::all_of(members.begin(), members.end(), [](const Member& m) { return m.client->joined(); })) {
-    update_all();
-    std::this_thread::sleep_for(std::chrono::microseconds(500));
-  }
-  for (size_t i = 0; i < members.size(); ++i) {
-    if (!members[i].client->joined()) {
-      std::fprintf(stderr, "multiobject: client %zu did not join room %s on %s (state %d, reject %u)\n",
-                   i, room.c_str(), FormatEndpoint(relay.endpoint()).c_str(),
-                   static_cast<int>(members[i].client->state()), members[i].client->reject_reason());
-      disconnect_all();
-      return;
-    }
-  }
+  ExternalRoom world(&relay, "multiobject-" + std::to_string(n), o.receivers + 1, host_config, cc,
+                     listeners);
+  if (!world.JoinAll(15)) return;
+  auto now = [&] { return world.Now(); };
 
   // The host dissects the scene as in the in-process run.
-  Client& host = *members[0].client;
+  Client& host = world.client(0);
   const double spawn_start = now();
   uint32_t stirrer = 0;
   for (const EntitySpec& s : physics::MultiObjectSpecs(p)) {
@@ -143,37 +79,22 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
       std::fprintf(stderr, "multiobject: spawn %zu refused by the relay: %s (raise its budgets: "
                    "see docs/operations.md)\n", box_index.size(),
                    std::string(id.status().message()).c_str());
-      disconnect_all();
       return;
     }
     if (s.id == physics::kSceneStirrerId) stirrer = *id;
     if (s.id >= physics::kSceneFirstBoxId) box_index.emplace(*id, box_index.size());
   }
 
-  // PhyS time from the relay's step counter (scraped every 0.2 s, extrapolated between reads at
-  // the last rate), so a relay stepping slower than real time slows the paddle with it. The
-  // counter is the relay's: other physics rooms on it would speed the paddle up.
-  RelayFigures last = relay.Read();
-  double steps_base = last.ok ? last.physics_steps : 0, steps_at = now(), steps_rate = 0;
+  // The stirrer runs on the relay's PhyS clock (ExternalRoom::PhysicsSteps).
   double sim_t0 = -1;
-  auto sim_steps = [&] { return steps_base + steps_rate * (now() - steps_at); };
-  auto poll = [&] {
-    if (now() - steps_at < 0.2) return;
-    RelayFigures f = relay.Read();
-    if (!f.ok) return;
-    const double t = now();
-    steps_rate = std::max(0.0, (f.physics_steps - steps_base) / (t - steps_at));
-    steps_base = f.physics_steps;
-    steps_at = t;
-  };
+  auto sim_steps = [&] { return world.PhysicsSteps(); };
   auto round = [&] {
-    poll();
     if (sim_t0 < 0) sim_t0 = sim_steps();
     Vec3f pos;
     Quatf rot;
     physics::StirrerPose(p, (sim_steps() - sim_t0) * dt, &pos, &rot);
     (void)host.PublishTransform(stirrer, pos, rot);
-    update_all();
+    world.Update();
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   };
 
@@ -181,17 +102,16 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   bool spawned = false;
   while (now() - spawn_start < 120.0) {
     round();
-    spawned = std::all_of(listeners.begin(), listeners.end(),
+    spawned = std::all_of(receivers.begin(), receivers.end(),
                           [&](const auto& l) { return l->spawned >= box_index.size(); });
     if (spawned) break;
     if (o.progress) {
       std::fprintf(stderr, "\r  %6u objects  external relay: spawning (%zu / %zu at receiver 1)  ",
-                   n, listeners[0]->spawned, box_index.size());
+                   n, receivers[0]->spawned, box_index.size());
     }
   }
   if (!spawned) {
     std::fprintf(stderr, "\nmultiobject: the scene did not reach every client within 120 s\n");
-    disconnect_all();
     return;
   }
   r->spawn_s = now() - spawn_start;
@@ -207,16 +127,16 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   const size_t R = o.receivers;
   std::vector<uint64_t> socket0(R), state0(R);
   for (size_t k = 0; k < R; ++k) {
-    socket0[k] = ReceivedBytes(*members[k + 1].client);
-    state0[k] = members[k + 1].client->state_bytes_received();
-    listeners[k]->measuring = true;
+    socket0[k] = world.ReceivedBytes(k + 1);
+    state0[k] = world.client(k + 1).state_bytes_received();
+    receivers[k]->measuring = true;
   }
   const RelayFigures a = relay.Read();
   const double m0 = now();
   std::vector<Vec3f> prev(box_index.size());
   double prev_steps = -1, next_moving = m0;
   std::vector<double> moving;
-  const Client& watcher = *members[1].client;
+  const Client& watcher = world.client(1);
   while (now() < m0 + o.duration_s) {
     round();
     if (now() < next_moving) continue;
@@ -237,22 +157,18 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   }
   const RelayFigures b = relay.Read();
   const double elapsed = now() - m0;
-  for (size_t i = 0; i < members.size(); ++i) {
-    if (members[i].client->state() != ClientState::kConnected) {
-      std::fprintf(stderr, "\nmultiobject: %u objects: client %zu lost its connection; results void\n",
-                   n, i);
-      disconnect_all();
-      return;
-    }
+  if (!world.AllConnected()) {
+    std::fprintf(stderr, "\nmultiobject: %u objects: a client lost its connection; results void\n", n);
+    return;
   }
   double socket_total = 0, state_total = 0, updates = 0, events = 0;
   for (size_t k = 0; k < R; ++k) {
-    socket_total += static_cast<double>(ReceivedBytes(*members[k + 1].client) - socket0[k]);
-    state_total += static_cast<double>(members[k + 1].client->state_bytes_received() - state0[k]);
-    updates += static_cast<double>(listeners[k]->updates);
-    events += static_cast<double>(listeners[k]->events);
+    socket_total += static_cast<double>(world.ReceivedBytes(k + 1) - socket0[k]);
+    state_total += static_cast<double>(world.client(k + 1).state_bytes_received() - state0[k]);
+    updates += static_cast<double>(receivers[k]->updates);
+    events += static_cast<double>(receivers[k]->events);
   }
-  disconnect_all();
+  world.DisconnectAll();
   const double per = static_cast<double>(R) * elapsed;
   const bool metrics = a.ok && b.ok;
   // The relay's bytes sent over the window, per member: PhyS drives the boxes, so the host is

@@ -26,6 +26,8 @@
 #include <string>
 #include <vector>
 
+#include "loadgen/relay_target.h"
+
 namespace edgephys::loadgen {
 
 // The members --json echoes under "options" appear there under their own names.
@@ -44,6 +46,10 @@ struct SoftBodyOptions {
   double relay_settle_max_s = 30;
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
+  // --relay/--secret/--metrics/--relay-pid: the relay part against an external edgephys-relay
+  // (softbody_external.cc); its replication and PhyS settings are its own flags. Particle
+  // errors against the relay's particles are then unknown (null).
+  ExternalRelayOptions external;
   bool progress = true;
 };
 
@@ -69,6 +75,8 @@ struct SoftBodyResult {
 };
 
 std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& options);
+// The relay part of one size against options.external (softbody_external.cc).
+void ExternalSoftBodyRun(const SoftBodyOptions& options, uint32_t bunnies, SoftBodyResult* result);
 double PaperBunnyMbitPerS(uint32_t bunnies);
 
 }  // namespace edgephys::loadgen

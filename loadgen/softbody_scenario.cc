@@ -30,6 +30,8 @@ nlohmann::json Json(const SoftBodyOptions& o, const std::vector<SoftBodyResult>&
   j["options"] = o;
   j["options"].update(
       {{"particles_per_bunny_target", o.particles}, {"tick_rate_hz", 60}, {"mode", "edgephys"}});
+  j["relay"] = {{"external", o.external.enabled()}};
+  if (o.external.enabled()) j["relay"].update({{"relay", o.external.relay}, {"metrics", o.external.metrics}});
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
     nlohmann::json e = r;
@@ -110,6 +112,7 @@ class SoftBodyScenario final : public Scenario {
     cmd.add_option("--bench-warmup", o_.bench_warmup_steps, "Standalone: settling steps");
     cmd.add_option("--bench-steps", o_.bench_steps, "Standalone: measured steps");
     cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
+    AddExternalRelayOptions(cmd, &o_.external);
   }
 
   std::string Validate() override {
@@ -121,7 +124,7 @@ class SoftBodyScenario final : public Scenario {
         o_.bench_steps <= 0) {
       return "invalid --duration, --receivers, --particles, --poke-period or --bench-steps";
     }
-    return "";
+    return ValidateExternalRelay(o_.external);
   }
 
   std::optional<Report> Run() override {

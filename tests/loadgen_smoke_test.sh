@@ -132,6 +132,10 @@ if [ -n "$relay_bin" ]; then
     --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
     --relay-pid "$relay_pid" --no-progress --charts '' --json moext.json >/dev/null ||
     fail "multiobject external exited with an error"
+  "$lg" softbody --bunnies 1 --duration 2 --bench-steps 30 --bench-warmup 30 --settle-steps 30 \
+    --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
+    --relay-pid "$relay_pid" --no-progress --charts '' --json sbext.json >/dev/null ||
+    fail "softbody external exited with an error"
   stop "$relay_pid"; relay_pid=""
   [ "$(num '.summary.late_join_ok' isoext.json)" = "true" ] || fail "isolation external: late joiner"
   le 1 "$(num '.phases[1].egress_bytes_per_s' isoext.json)" || fail "isolation external: no egress"
@@ -153,6 +157,12 @@ if [ -n "$relay_bin" ]; then
   le "$(awk -v s="$mo_sock" 'BEGIN { print s * 0.9 }')" "$mo_relay" &&
     le "$mo_relay" "$(awk -v s="$mo_sock" 'BEGIN { print s * 1.25 }')" ||
     fail "multiobject external: /metrics egress $mo_relay Mb/s vs socket $mo_sock Mb/s"
+  [ "$(num '.relay.external' sbext.json)" = "true" ] || fail "softbody external: not marked external"
+  [ "$(num '.results[0].relay_ok' sbext.json)" = "true" ] || fail "softbody external: no relay run"
+  le 1 "$(num '.results[0].soft_updates_per_s_per_client' sbext.json)" || fail "softbody external: no soft-body updates"
+  le 0.0001 "$(num '.results[0].egress_mbit_per_s_per_client' sbext.json)" || fail "softbody external: no egress"
+  le 0.001 "$(num '.results[0].deformation_max_m' sbext.json)" || fail "softbody external: the hand never pokes"
+  [ "$(num '.results[0].node_err_max_m' sbext.json)" = null ] || fail "softbody external: an error it cannot know"
   [ "$(num '.relay.external' ext.json)" = "true" ] || fail "ccu external: not marked external"
   [ "$(num '.summary.connected' ext.json)" = "4" ] || fail "ccu external: not every bot joined"
   [ "$(num '.summary.reliable_lost' ext.json)" = "0" ] || fail "ccu external: reliable messages lost"

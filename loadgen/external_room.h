@@ -1,0 +1,71 @@
+// ExternalRoom: the clients of one scenario room on an EXTERNAL edgephys-relay (RelayTarget,
+// loadgen/relay_target.h), over real loopback UDP sockets, for the scenarios whose in-process
+// run uses a LoopbackRoom (multiobject, softbody).
+//
+// The room name and player ids are fresh per instance (a random salt), so a rerun against the
+// same relay never lands in an earlier run's room or replaces its sessions. The clients do not
+// require packet authentication (measurement bots: a `--packet-auth false` relay is accepted).
+//
+// PhysicsSteps() is the relay's PhyS clock for driving kinematic bodies (a stirrer, hands): its
+// edgephys_physics_steps_total, scraped at most every 0.2 s and extrapolated between scrapes at
+// the last rate, so a relay stepping slower than real time slows the driven bodies with it.
+// That counter covers every room of the relay.
+//
+// Thread-safety: none; one thread drives it. Cost: Update() is one Client::Update per member;
+// PhysicsSteps() one /metrics scrape (a few ms on loopback) per 0.2 s.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "client/client.h"
+#include "loadgen/relay_target.h"
+
+namespace edgephys::loadgen {
+
+class ExternalRoom {
+ public:
+  // `listeners[i]` (may be nullptr, or shorter than `members`) listens to member i; member 0
+  // is the host and gets `host_config`, the others `config` (require_packet_auth is turned off
+  // in both). Connects every member at once. `relay` must outlive the room.
+  ExternalRoom(RelayTarget* relay, const std::string& prefix, size_t members,
+               ClientConfig host_config, ClientConfig config,
+               const std::vector<ClientListener*>& listeners);
+  ~ExternalRoom();
+  ExternalRoom(const ExternalRoom&) = delete;
+  ExternalRoom& operator=(const ExternalRoom&) = delete;
+
+  // Updates until every member has joined; false (and a line on stderr naming the first member
+  // that did not, with its state and reject reason) after `timeout_s`.
+  bool JoinAll(double timeout_s);
+  // One Client::Update per member; a connected member that has not asked to join does.
+  void Update();
+  // Disconnects every member and flushes the Disconnects. Idempotent.
+  void DisconnectAll();
+  bool AllConnected() const;
+
+  size_t size() const;
+  Client& client(size_t i);
+  const Client& client(size_t i) const;
+  // Bytes member i's connection received (opened packets); 0 before it connected.
+  uint64_t ReceivedBytes(size_t i) const;
+  const std::string& room() const { return room_; }
+  // Seconds since construction.
+  double Now() const;
+  // The relay's PhyS steps now (see the header comment); 0 if /metrics cannot be read.
+  double PhysicsSteps();
+
+ private:
+  struct Member;
+  RelayTarget* relay_;
+  std::string room_;
+  std::vector<Member> members_;
+  std::chrono::steady_clock::time_point t0_;
+  bool disconnected_ = false;
+  double steps_base_ = 0, steps_at_ = -1, steps_rate_ = 0;
+};
+
+}  // namespace edgephys::loadgen
