@@ -128,15 +128,19 @@ struct DisplayProbe {
   bool velocities = false;
   SampleOptions sample_options;
 
-  void Init(size_t boxes, bool with_velocities, double min_delay_s, double hermite_max_interval_s) {
+  // `max_interval_s` > 0: the relay sends at irregular intervals up to this (Hermite or key
+  // samples); the playout delay is then that interval + 20 ms (or `min_delay_s`).
+  void Init(size_t boxes, bool with_velocities, double min_delay_s, double max_interval_s) {
     const size_t n = std::min(boxes, kMaxBoxes);
     velocities = with_velocities;
     SnapshotBufferConfig config;
-    if (velocities) {
+    if (velocities || max_interval_s > 0) {
       config.interval_multiplier = 0;
-      const double interval = std::max(hermite_max_interval_s, 0.0);
+      const double interval = std::max(max_interval_s, 0.0);
       config.min_delay_s = min_delay_s >= 0 ? min_delay_s : interval + 0.02;
       config.max_delay_s = std::max(config.max_delay_s, config.min_delay_s);
+    }
+    if (velocities) {
       sample_options.max_extrapolation_s = kVelocityExtrapolationLimitS;
       sample_options.max_gap_s = kVelocityExtrapolationLimitS + 1.0;
     }
@@ -275,6 +279,9 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   if (o.extrapolation_rotation_deg > 0) rep.extrapolation_rotation_threshold_deg = o.extrapolation_rotation_deg;
   if (o.extrapolation_max_hz > 0) rep.extrapolation_max_hz = o.extrapolation_max_hz;
   if (o.hermite_max_interval_s > 0) rep.hermite_max_interval_s = o.hermite_max_interval_s;
+  if (o.key_sample_threshold_m > 0) rep.key_sample_threshold_m = o.key_sample_threshold_m;
+  if (o.key_sample_rotation_deg > 0) rep.key_sample_rotation_deg = o.key_sample_rotation_deg;
+  if (o.key_sample_max_interval_s > 0) rep.key_sample_max_interval_s = o.key_sample_max_interval_s;
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -319,7 +326,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   boxes.ring.resize(box_ids.size());
   boxes.count.assign(box_ids.size(), 0);
   DisplayProbe probe;
-  probe.Init(box_ids.size(), o.velocities, o.playout_min_delay_s, o.hermite_max_interval_s);
+  probe.Init(box_ids.size(), o.velocities, o.playout_min_delay_s,
+             rep.key_sample_threshold_m > 0 ? rep.key_sample_max_interval_s : o.hermite_max_interval_s);
 
   auto drive_stirrer = [&] {
     Vec3f pos;

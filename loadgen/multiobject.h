@@ -87,6 +87,12 @@ struct MultiObjectOptions {
   double extrapolation_max_hz = 0;
   // > 0: ReplicationConfig::hermite_max_interval_s (receivers interpolate instead).
   double hermite_max_interval_s = 0;
+  // > 0: ReplicationConfig::key_sample_threshold_m (format 2, ambient boxes sent when the
+  // straight line strays, at most every key_sample_max_interval_s apart while moving); the
+  // display probe then plays out at that interval + 20 ms.
+  float key_sample_threshold_m = 0;
+  float key_sample_rotation_deg = -1.f;
+  double key_sample_max_interval_s = 0;
   // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
   // interpolating.
   double playout_min_delay_s = -1;

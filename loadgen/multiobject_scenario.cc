@@ -18,7 +18,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    position_step_m, rotation_bound_deg, ambient_hz, velocities,
                                    extrapolation_threshold_m, extrapolation_rotation_deg,
                                    extrapolation_max_hz, hermite_max_interval_s,
-                                   playout_min_delay_s)
+                                   playout_min_delay_s, key_sample_threshold_m,
+                                   key_sample_rotation_deg, key_sample_max_interval_s)
 
 namespace {
 
@@ -211,6 +212,14 @@ class MultiObjectScenario final : public Scenario {
     cmd.add_option("--hermite-max-interval", o_.hermite_max_interval_s,
                    "With --velocities: receivers interpolate (Hermite, sent tangents) and the relay "
                    "sends a box when the curve strays or after this many seconds (0: dead reckoning)");
+    cmd.add_option("--key-samples", o_.key_sample_threshold_m,
+                   "Format 2: send an untouched box when the straight line from its newest sent "
+                   "state strays from PhyS's by more than this (m; ReplicationConfig::"
+                   "key_sample_threshold_m; 0: the fixed ambient rate)");
+    cmd.add_option("--key-samples-rotation", o_.key_sample_rotation_deg,
+                   "Key samples: rotation deviation that sends a box (deg; <0: default 5)");
+    cmd.add_option("--key-samples-max-interval", o_.key_sample_max_interval_s,
+                   "Key samples: longest interval between a moving box's samples (s; 0: default 0.25)");
     cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
                    "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
     cmd.add_option("--ambient-hz", o_.ambient_hz,

@@ -53,12 +53,14 @@ struct Entity {
   // Format 9 rooms (ReplicationConfig::shared_encoding): the entity's recent versions and this
   // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
   std::shared_ptr<SharedEntity> shared;
-  // Rooms with ReplicationConfig::hermite_max_interval_s: PhyS's recent states of a simulated
-  // entity (relay time, position), a ring of up to kRecentStates, for the interpolation check.
+  // Rooms with ReplicationConfig::hermite_max_interval_s or key_sample_threshold_m: PhyS's recent
+  // states of a simulated entity (relay time, pose), a ring of up to kRecentStates, for the
+  // interpolation checks.
   static constexpr size_t kRecentStates = 32;
   struct RecentState {
     double t = 0;
     Vec3f position;
+    Quatf rotation;
   };
   std::vector<RecentState> recent;
   uint32_t recent_next = 0;  // slot of the next push

@@ -39,6 +39,16 @@ float AngleDeg(const Quatf& a, const Quatf& b) {
   return 2.0f * std::acos(std::min(1.0f, dot)) * 57.29578f;
 }
 
+// Normalised lerp on the shorter arc: within a fraction of a degree of the receivers' slerp at
+// the angles a key-sample segment spans.
+Quatf Nlerp(const Quatf& a, const Quatf& b, float u) {
+  const float sign = a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w < 0 ? -1.0f : 1.0f;
+  Quatf q{a.x + (sign * b.x - a.x) * u, a.y + (sign * b.y - a.y) * u,
+          a.z + (sign * b.z - a.z) * u, a.w + (sign * b.w - a.w) * u};
+  const float n = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+  return n > 0 ? Quatf{q.x / n, q.y / n, q.z / n, q.w / n} : a;
+}
+
 }  // namespace
 
 QuantizationConfig QuantizationOf(const ReplicationConfig& config) {
@@ -142,10 +152,16 @@ bool ClientReplicator::DeadReckoned(const Entity& e, PriorityClass c) const {
          c != PriorityClass::kCritical;
 }
 
+bool ClientReplicator::KeySampled(const Entity& e, PriorityClass c) const {
+  return delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0 &&
+         e.physics == PhysicsRole::kSimulated && c == PriorityClass::kAmbient;
+}
+
 double ClientReplicator::IntervalFor(const Entity& e, PriorityClass c) const {
   if (DeadReckoned(e, c) && config_.extrapolation_max_hz > 0) {
     return 1.0 / config_.extrapolation_max_hz;
   }
+  if (KeySampled(e, c)) return 0;  // checked every tick: a key sample goes when it is due
   return IntervalOf(c);
 }
 
@@ -185,13 +201,40 @@ bool ClientReplicator::HermiteDue(uint32_t id, const Entity& e, double now) {
   return false;
 }
 
+bool ClientReplicator::KeySampleDue(uint32_t id, const Entity& e) {
+  EntityState sent;
+  EntityVelocity unused;
+  uint32_t sent_ms = 0;
+  if (!delta_->NewestSent(id, &sent, &unused, &sent_ms)) return true;
+  const double h = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
+  if (h <= 0) return false;
+  if (h >= config_.key_sample_max_interval_s) return true;
+  const double thr = config_.key_sample_threshold_m;
+  const double rot_thr = config_.key_sample_rotation_deg;
+  for (const Entity::RecentState& r : e.recent) {
+    const double into =
+        static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(r.t * 1000.0)) - sent_ms) /
+        1000.0;
+    if (!(into > 0 && into < h)) continue;
+    const float u = static_cast<float>(into / h);
+    const Vec3f p{sent.position.x + (e.state.position.x - sent.position.x) * u,
+                  sent.position.y + (e.state.position.y - sent.position.y) * u,
+                  sent.position.z + (e.state.position.z - sent.position.z) * u};
+    if (Distance(p, r.position) > thr) return true;
+    if (AngleDeg(Nlerp(sent.rotation, e.state.rotation, u), r.rotation) > rot_thr) return true;
+  }
+  return false;
+}
+
 DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entity& e,
                                                         PriorityClass cls, double now,
                                                         double resend_after) {
   using Need = DeltaEncoder::UpdateNeed;
   if (!config_.velocities) {
-    return delta_->Need(id, e.state, config_.position_threshold_m,
-                        config_.rotation_threshold_deg, now, resend_after);
+    const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
+                                   config_.rotation_threshold_deg, now, resend_after);
+    if (need != Need::kSend || !KeySampled(e, cls) || KeySampleDue(id, e)) return need;
+    return Need::kExtrapolatedWithin;  // the line from the newest sent still holds (not sticky)
   }
   if (!DeadReckoned(e, cls)) {
     return delta_->NeedExtrapolated(id, e.state, config_.position_threshold_m,

@@ -105,6 +105,16 @@ struct ReplicationConfig {
   // PhyS's states in between by more than extrapolation_position_threshold_m, or when this
   // long has passed since the newest state sent while it moves (selective sync still applies).
   double hermite_max_interval_s = 0;
+  // > 0, edgephys format 2 (no velocities): "key samples" instead of a fixed ambient rate. An
+  // ambient PhyS body is sent when the straight line a receiver interpolates, from the newest
+  // state sent to its present state, strays from PhyS's states in between by more than this
+  // (or by key_sample_rotation_deg), or when key_sample_max_interval_s has passed while it
+  // moves (selective sync still applies). Receivers then play out at that interval (plus
+  // jitter). Cost: per receiver per tick, a check of up to Entity::kRecentStates states of
+  // each ambient body. Off by default (docs/benchmarks.md, "Key samples").
+  float key_sample_threshold_m = 0;
+  float key_sample_rotation_deg = 5.0f;
+  double key_sample_max_interval_s = 0.25;
   // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
   // versions, protocol/soft_delta_stream.h) at critical_hz while a hand touches them (held,
   // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
@@ -118,6 +128,11 @@ inline bool UsesVelocities(const ReplicationConfig& config) {
   return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding && config.velocities;
 }
 
+// True when rooms with `config` keep PhyS's recent states per entity (Entity::recent): the
+// Hermite and key-sample policies check the receivers' curves against them.
+inline bool KeepsRecentStates(const ReplicationConfig& config) {
+  return config.hermite_max_interval_s > 0 || config.key_sample_threshold_m > 0;
+}
 // True when rooms with `config` send format 9.
 inline bool UsesSharedEncoding(const ReplicationConfig& config) {
   return config.mode == ReplicationMode::kEdgephys && config.shared_encoding;
@@ -174,8 +189,11 @@ class ClientReplicator {
   // The velocity format 12 carries for `e`: PhyS's while it moves, nullptr (at rest) for
   // others and for a body whose state has not changed for a while.
   const EntityVelocity* VelocityOf(const Entity& e, double now);
-  // The interpolation check (hermite_max_interval_s > 0): true when `e` is to be sent.
+  // The interpolation checks: true when `e` is to be sent. Hermite (hermite_max_interval_s > 0,
+  // format 12) or straight lines (key_sample_threshold_m > 0, format 2).
   bool HermiteDue(uint32_t id, const Entity& e, double now);
+  bool KeySampleDue(uint32_t id, const Entity& e);
+  bool KeySampled(const Entity& e, PriorityClass c) const;
   // The edgephys (format 2 / 12) send decision for `e` of class `cls`.
   DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, PriorityClass cls,
                                         double now, double resend_after);

@@ -367,9 +367,9 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
     Entity* e = room_.FindEntity(m.state.entity_id);
     if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
     e->state = m.state;
-    if (room_.config().replication.hermite_max_interval_s > 0) {
+    if (KeepsRecentStates(room_.config().replication)) {
       if (e->recent.size() < Entity::kRecentStates) e->recent.resize(Entity::kRecentStates);
-      e->recent[e->recent_next++ % Entity::kRecentStates] = {now, m.state.position};
+      e->recent[e->recent_next++ % Entity::kRecentStates] = {now, m.state.position, m.state.rotation};
     }
     e->linear_velocity = m.linear;
     e->angular_velocity = m.angular;
