@@ -205,6 +205,9 @@ class ClientReplicator {
                       RelayCounters& counters);
   bool FlushSoft(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   bool SoftTouched(const Entity& e) const;
+  // The body's first particles after a failover (Entity::resumed_nodes) are not yet sent to
+  // this receiver: they go out at once.
+  static bool Resumed(const Entity& e, const SoftView& v, double now);
   std::unordered_map<uint32_t, SoftView> soft_views_;
   std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
   std::vector<std::pair<uint32_t, const Entity*>> soft_due_;
