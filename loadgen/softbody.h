@@ -44,6 +44,7 @@ struct SoftBodyOptions {
   double relay_settle_max_s = 30;
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
+  double soft_touched_hz = 0;      // > 0: the relay's ReplicationConfig::soft_touched_hz
   bool progress = true;
 };
 

@@ -474,7 +474,7 @@ void ClientReplicator::TickSoftDeltas(const std::unordered_map<uint32_t, Entity>
       if (!FlushSoft(now, connection, out, counters)) break;  // not even an empty payload fits one
     }
     const double hz = config_.fixed_rate_hz > 0 ? config_.fixed_rate_hz
-                      : SoftTouched(*e)         ? config_.critical_hz
+                      : SoftTouched(*e)         ? config_.soft_touched_hz
                                                 : config_.normal_hz;
     const double interval = 1.0 / hz;
     v.next_due += interval;
