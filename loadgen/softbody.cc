@@ -109,6 +109,7 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   SoftBodyScene scene = MakeSoftBodyScene(o, n);
   RelayConfig config =
       BenchmarkRelayConfig(o.receivers, 2 * n + 16, o.position_step_m, o.rotation_bound_deg);
+  if (o.soft_touched_hz > 0) config.room_defaults.replication.soft_touched_hz = o.soft_touched_hz;
   const double dt = config.physics.fixed_dt;
 
   BunnyTable bunnies;

@@ -50,6 +50,7 @@ struct SoftBodyOptions {
   // (softbody_external.cc); its replication and PhyS settings are its own flags. Particle
   // errors against the relay's particles are then unknown (null).
   ExternalRelayOptions external;
+  double soft_touched_hz = 0;      // > 0: the relay's ReplicationConfig::soft_touched_hz
   bool progress = true;
 };
 

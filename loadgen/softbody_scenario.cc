@@ -13,7 +13,8 @@ namespace edgephys::loadgen {
 // The options a report echoes, named as the members (with the particle target, the relay's tick
 // rate and mode added).
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyOptions, poke_period_s, bench_warmup_steps, bench_steps,
-                                   receivers, duration_s, relay_settle_steps, position_step_m)
+                                   receivers, duration_s, relay_settle_steps, position_step_m,
+                                   soft_touched_hz)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyResult, bunnies, particles, step_ms_median,
                                    step_ms_p99, bench_steps, relay_ok,
                                    egress_mbit_per_s_per_client, socket_mbit_per_s_per_client,
@@ -113,6 +114,8 @@ class SoftBodyScenario final : public Scenario {
     cmd.add_option("--bench-steps", o_.bench_steps, "Standalone: measured steps");
     cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
     AddExternalRelayOptions(cmd, &o_.external);
+    cmd.add_option("--soft-touched-hz", o_.soft_touched_hz,
+                   "Relay's send rate of a touched soft body (0: its default, 24)");
   }
 
   std::string Validate() override {
@@ -121,8 +124,9 @@ class SoftBodyScenario final : public Scenario {
       if (n == 0 || n > 64) return "--bunnies: counts must be in 1..64";
     }
     if (o_.duration_s <= 0 || o_.receivers == 0 || o_.particles < 10 || o_.poke_period_s <= 0 ||
-        o_.bench_steps <= 0) {
-      return "invalid --duration, --receivers, --particles, --poke-period or --bench-steps";
+        o_.bench_steps <= 0 || o_.soft_touched_hz < 0 || o_.soft_touched_hz > 240) {
+      return "invalid --duration, --receivers, --particles, --poke-period, --bench-steps or "
+             "--soft-touched-hz";
     }
     return ValidateExternalRelay(o_.external);
   }

@@ -31,6 +31,15 @@ struct Entity {
   uint32_t held_by = 0;          // hand entity holding it (grabbed), 0 if none
   std::vector<Vec3f> nodes;      // soft body particles (PhyS-simulated soft bodies)
   uint32_t nodes_version = 0;    // bumped when `nodes` change
+  // Soft bodies after a PhyS failover: `nodes_restored` is set when the room fails over; the
+  // first particles from the new world clear it and are kept as `resumed_nodes` (version
+  // `resumed_version`, relay time `nodes_resumed_at`) for kResumeWindowS, so replication sends
+  // every receiver that first version at once, not a later one at the next due time.
+  static constexpr double kResumeWindowS = 0.25;
+  bool nodes_restored = false;
+  double nodes_resumed_at = -1e9;
+  uint32_t resumed_version = 0;
+  std::vector<Vec3f> resumed_nodes;
   Vec3f linear_velocity;         // last reported by PhyS (restored on failover)
   Vec3f angular_velocity;
   uint64_t spawn_seq = 0;        // order of arrival in the room (parents before children)

@@ -136,6 +136,9 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(1.0, 240.0));
   app.add_option("--normal-hz", rep.normal_hz, "Send rate of other moving entities")
       ->capture_default_str()->check(CLI::Range(1.0, 240.0));
+  app.add_option("--soft-touched-hz", rep.soft_touched_hz,
+                 "Send rate of a soft body while a hand touches it (format 11)")
+      ->capture_default_str()->check(CLI::Range(1.0, 240.0));
   app.add_option("--ambient-hz", rep.ambient_hz,
                  "Send rate of PhyS-simulated entities no user interacts with")
       ->capture_default_str()->check(CLI::Range(1.0, 240.0));

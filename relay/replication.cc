@@ -440,6 +440,15 @@ void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>
   }
 }
 
+bool ClientReplicator::Resumed(const Entity& e, const SoftView& v, double now) {
+  // After a PhyS failover the receivers get the new world's first particles at once: the jump
+  // they see across the failover is then one physics step of the body's own motion, not the
+  // up to a send interval's worth a later version would carry.
+  return !e.resumed_nodes.empty() && e.nodes_resumed_at > v.sent_at &&
+         now - e.nodes_resumed_at <= Entity::kResumeWindowS &&
+         e.resumed_nodes.size() == e.nodes.size();
+}
+
 bool ClientReplicator::SoftTouched(const Entity& e) const {
   if (e.held_by != 0 || e.touching > 0) return true;
   if (hands_.empty()) return false;
@@ -488,7 +497,7 @@ void ClientReplicator::TickSoftDeltas(const std::unordered_map<uint32_t, Entity>
     if (e.flags & kFlagHand) hands_.push_back(e.state.position);
     if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
     SoftView& v = soft_views_[id];
-    if (now + kEpsilon < v.next_due) continue;
+    if (now + kEpsilon < v.next_due && !Resumed(e, v, now)) continue;
     soft_due_.emplace_back(id, &e);
   }
   if (soft_due_.empty()) return;
@@ -496,15 +505,19 @@ void ClientReplicator::TickSoftDeltas(const std::unordered_map<uint32_t, Entity>
   soft_->BeginPayload(payload_, time_ms_);
   for (const auto& [id, e] : soft_due_) {
     if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) break;
-    if (!soft_->Prepare(id, e->nodes_version, e->nodes, time_ms_, now, resend_after)) continue;
+    SoftView& v = soft_views_[id];
+    const bool resumed = Resumed(*e, v, now);
+    const std::vector<Vec3f>& nodes = resumed ? e->resumed_nodes : e->nodes;
+    const uint32_t version = resumed ? e->resumed_version : e->nodes_version;
+    v.sent_at = now;  // considered: a resumed version goes out once (or not, if settled)
+    if (!soft_->Prepare(id, version, nodes, time_ms_, now, resend_after)) continue;
     uint32_t first = 0;
-    for (int chunks = 0; first < e->nodes.size() && chunks < 64; ++chunks) {
+    for (int chunks = 0; first < nodes.size() && chunks < 64; ++chunks) {
       if (soft_->AddRecords(id, &first)) continue;
       if (!FlushSoft(now, connection, out, counters)) break;  // not even an empty payload fits one
     }
-    SoftView& v = soft_views_[id];
     const double hz = config_.fixed_rate_hz > 0 ? config_.fixed_rate_hz
-                      : SoftTouched(*e)         ? config_.critical_hz
+                      : SoftTouched(*e)         ? config_.soft_touched_hz
                                                 : config_.normal_hz;
     const double interval = 1.0 / hz;
     v.next_due += interval;

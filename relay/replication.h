@@ -116,11 +116,14 @@ struct ReplicationConfig {
   float key_sample_rotation_deg = 5.0f;
   double key_sample_max_interval_s = 0.25;
   // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
-  // versions, protocol/soft_delta_stream.h) at critical_hz while a hand touches them (held,
+  // versions, protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held,
   // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
   // reports no contact events for soft bodies), else at normal_hz; other modes send
-  // format 5 (absolute particles) at normal_hz.
+  // format 5 (absolute particles) at normal_hz. 24 Hz, not critical_hz: a poked bunny costs
+  // ~4 bits a particle per version, and the display error during pokes it adds against 48 Hz
+  // is measured in docs/benchmarks.md ("Touched rate: 24 Hz").
   float soft_touch_margin_m = 0.1f;
+  double soft_touched_hz = 24;
 };
 
 // True when rooms with `config` send format 12.
@@ -223,6 +226,9 @@ class ClientReplicator {
                       RelayCounters& counters);
   bool FlushSoft(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   bool SoftTouched(const Entity& e) const;
+  // The body's first particles after a failover (Entity::resumed_nodes) are not yet sent to
+  // this receiver: they go out at once.
+  static bool Resumed(const Entity& e, const SoftView& v, double now);
   std::unordered_map<uint32_t, SoftView> soft_views_;
   std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
   std::vector<std::pair<uint32_t, const Entity*>> soft_due_;

@@ -382,6 +382,14 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
     e->nodes.resize(part.total);
     std::copy(part.nodes.begin(), part.nodes.end(), e->nodes.begin() + part.first);
     ++e->nodes_version;
+    if (e->nodes_restored) {  // the new world's first particles after a failover
+      e->nodes_restored = false;
+      e->nodes_resumed_at = now;
+      e->resumed_version = e->nodes_version;
+      e->resumed_nodes = e->nodes;
+    } else if (!e->resumed_nodes.empty() && now - e->nodes_resumed_at > Entity::kResumeWindowS) {
+      e->resumed_nodes = {};
+    }
   }
   for (const RoomPhysics::GrabResult& g : out.grabs) {
     Entity* e = room_.FindEntity(g.entity);
@@ -459,6 +467,7 @@ void RoomHost::FailOver(double now) {
       // A soft body restarts from the deformed particles the relay last received, not from
       // its spawn shape (they are what every receiver shows).
       link.RestoreSoftBody(e->id, e->nodes);
+      e->nodes_restored = true;
     } else if (e->physics == PhysicsRole::kSimulated) {
       link.Restore(e->id, e->state, e->linear_velocity, e->angular_velocity);
     } else {

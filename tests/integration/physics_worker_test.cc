@@ -124,13 +124,22 @@ TEST(PhysicsWorker, KillMinusNineFailsOverWithinASecondKeepingEveryEntityContinu
   }
 }
 
+float MaxDistance(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b);
+
 struct SoftTrace : ClientListener {
   uint32_t id = 0;
   std::vector<Vec3f> nodes;  // the latest particles received
   double updated_at = -1;
   const LoopbackWorld* world = nullptr;
+  // While set: the largest particle move between two consecutive updates (the body's own
+  // motion as this receiver sees it in normal running).
+  bool track_jumps = false;
+  float largest_jump = 0;
   void OnSoftBodyUpdated(const RemoteEntity& e) override {
     if (e.id != id) return;
+    if (track_jumps && nodes.size() == e.nodes.size()) {
+      largest_jump = std::max(largest_jump, MaxDistance(nodes, e.nodes));
+    }
     nodes = e.nodes;
     updated_at = world->Now();
   }
@@ -158,8 +167,12 @@ float MaxDistance(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
 }
 
 // A plate squashes a bunny simulated on the worker; kill -9 of the worker while the plate holds
-// it: after the failover the receiver's particles are where they were before (within 1 cm), not
-// back at the spawn shape (issue 15).
+// it: after the failover the receiver's particles are where they were before, not back at the
+// spawn shape (issue 15). "Before" is the last version the receiver got from the dead worker;
+// "after" is the first version from the new world, which the relay sends at once. The squashed
+// body jitters under the plate on its own (its contact particles move 5-9 mm per 1/60 s step,
+// and 4-13 mm between two 12 Hz updates in normal running), so the bound for every particle is
+// that of the body's own motion over one or two steps; see docs/benchmarks.md.
 TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParticles) {
   LoopbackWorld world;
   pid_t worker = StartWorker(world.relay_endpoint());
@@ -223,20 +236,25 @@ TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParti
   ASSERT_LT(squashed_top, 0.9f * top) << "the plate did not squash the bunny";
 
   const std::vector<Vec3f> half_second_before = trace.nodes;  // how much it moves by itself
+  trace.track_jumps = true;
   world.RunFor(0.5, [&](double) { (void)a.PublishTransform(*plate_id, {0, plate_y, 0}, {}); });
-  const std::vector<Vec3f> before = trace.nodes;  // the last particles B saw from the worker
+  trace.track_jumps = false;
+  const std::vector<Vec3f> at_kill = trace.nodes;  // what B showed when the worker died
+  const double killed_at = world.Now();
   ASSERT_EQ(kill(worker, SIGKILL), 0);
   waitpid(worker, nullptr, 0);
   reaper.pid = 0;
   double failed_over_at = -1;
+  std::vector<Vec3f> before = at_kill;  // B's last particles from the dead worker
   std::vector<Vec3f> first_after;  // B's particles once a full version came from the new world
   double since = -1;
   world.RunFor(3.0, [&](double now) {
     (void)a.PublishTransform(*plate_id, {0, plate_y, 0}, {});  // the plate keeps holding
     if (failed_over_at < 0 && world.counters().physics_failovers.load() == 1) failed_over_at = now;
     // A version goes out as a few chunks in one tick: 20 ms after the first update from the
-    // new world, every particle B holds comes from it.
+    // new world, every particle B holds comes from it (the next is due 83 ms later).
     if (failed_over_at >= 0 && since < 0 && trace.updated_at > failed_over_at) since = now;
+    if (since < 0) before = trace.nodes;
     if (since >= 0 && first_after.empty() && now > since + 0.02) first_after = trace.nodes;
   });
   ASSERT_EQ(world.counters().physics_failovers.load(), 1u);
@@ -244,14 +262,23 @@ TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParti
   ASSERT_FALSE(first_after.empty()) << "no particles after the failover";
   const float jump = MaxDistance(before, first_after);
   const float p95 = DistanceQuantile(before, first_after, 0.95);
-  const float creep = MaxDistance(half_second_before, before);
-  std::printf("[soft failover] particles after vs before: p95 %.4f m, max %.4f m (the squashed "
-              "body itself moved up to %.4f m in the 0.5 s before the kill)\n", p95, jump, creep);
-  // 95 % of the particles within 1 cm; the rest within 3 cm: the squashed body keeps vibrating
-  // on its own (1-2 cm per 0.5 s at its fastest particles). From the spawn shape, as before this
-  // change, the particles were about 1 m off.
-  EXPECT_LT(p95, 0.01f) << "the soft body did not resume from its deformed state";
-  EXPECT_LT(jump, 0.03f) << "the soft body did not resume from its deformed state";
+  const float creep = MaxDistance(half_second_before, at_kill);
+  std::printf("[soft failover] detected %.3f s after the kill, first new version %.3f s after "
+              "that; particles after vs before: p95 %.4f m, max %.4f m (against B's particles "
+              "at the kill: p95 %.4f m, max %.4f m). The body's own motion before the kill: "
+              "largest move between two updates %.4f m, over 0.5 s %.4f m\n",
+              failed_over_at - killed_at, since - failed_over_at, p95, jump,
+              DistanceQuantile(at_kill, first_after, 0.95), MaxDistance(at_kill, first_after),
+              trace.largest_jump, creep);
+  // Every particle within 1 cm of the last version from the dead worker (from the spawn shape,
+  // as before issue 15, they were about 1 m off); 95 % within 5 mm. Against what B showed at
+  // the kill (printed, not asserted), B's lag of up to one 12 Hz update adds the body's own
+  // motion over it, which reached 17 mm in one run.
+  EXPECT_LT(p95, 0.005f) << "the soft body did not resume from its deformed state";
+  EXPECT_LT(jump, 0.01f) << "the soft body did not resume from its deformed state";
+  // At once: the first version from the new world within a room tick or two (30 Hz), not a
+  // send interval (83 ms) later.
+  EXPECT_LT(since - failed_over_at, 0.075);
   float top_after = -1e9f;
   for (const Vec3f& q : trace.nodes) top_after = std::max(top_after, q.y);
   EXPECT_LT(top_after, 0.9f * top) << "the bunny sprang back to its spawn shape";
