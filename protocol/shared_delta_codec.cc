@@ -103,6 +103,7 @@ void SharedDeltaRoom::BeginTick(uint32_t time_ms) {
 
 void SharedDeltaRoom::PrepareEntity(SharedEntity& e, const PreparedState& state) {
   e.room_ = this;
+  if (e.serial_ == 0) e.BindSlot(auto_slots_++, ++auto_serials_);
   // Fold last tick's bodies into the statistics (weighted by their users) and empty the cache.
   for (SharedEntity::Slot& s : e.slots_) {
     if (s.state.load(std::memory_order_relaxed) == kReady && s.sampled) {
@@ -329,8 +330,9 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   }
   if (count_ >= (size_t{1} << 21) - 1) return false;
 
-  auto [track_ptr, created] = tracks_.TryEmplace(id);
-  Track& track = *track_ptr;
+  if (entity.serial() == 0) return false;
+  bool created = false;
+  Track& track = ClaimTrack(id, entity, &created);
   if (created && options_.keyframe_refresh_sends > 0) {
     track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
   }
@@ -399,7 +401,7 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   e.key = keyframe ? SharedBaselineKey{tick_, tick_, tick_, 1}
                    : SharedBaselineKey{tick_, key.ref, key.s1,
                                        static_cast<uint8_t>(std::min(key.depth + 1, 3))};
-  pending_ids_.emplace_back(id, slot);
+  pending_ids_.push_back({entity.slot(), entity.serial(), slot});
   last_id_ = id;
   ++count_;
   return true;
@@ -434,10 +436,10 @@ void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
   max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
   if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);
   r.ids.assign(pending_ids_.begin(), pending_ids_.end());
-  for (const auto& [id, slot] : r.ids) {
-    Track* track = tracks_.Find(id);
-    if (track == nullptr) continue;
-    Track& t = *track;
+  for (const PacketEntry& p : r.ids) {
+    Track& t = tracks_[p.slot];
+    if (t.serial != p.serial) continue;
+    const uint8_t slot = p.ring;
     Entry& e = t.ring[slot];
     if (!e.valid || e.key.ref != tick_) continue;
     e.sent = true;
@@ -460,13 +462,13 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
     return;
   }
   r.valid = false;
-  for (const auto& [id, slot] : r.ids) {
-    Track* track = tracks_.Find(id);
-    if (track == nullptr) {
+  for (const PacketEntry& p : r.ids) {
+    Track& t = tracks_[p.slot];
+    if (t.serial != p.serial) {  // gone (Forget) or the slot has another occupant now
       ++stats_.acks_unmatched;
       continue;
     }
-    Track& t = *track;
+    const uint8_t slot = p.ring;
     Entry& e = t.ring[slot];
     if (!e.valid || e.key.ref != r.tick) continue;
     e.acked = true;
@@ -478,16 +480,45 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
   }
 }
 
-void SharedDeltaStream::Forget(uint32_t id) { tracks_.Erase(id); }
+SharedDeltaStream::Track& SharedDeltaStream::ClaimTrack(uint32_t id, const SharedEntity& entity,
+                                                         bool* created) {
+  const uint32_t s = entity.slot();
+  if (s >= tracks_.size()) tracks_.resize(s + 1);
+  Track& t = tracks_[s];
+  *created = t.serial != entity.serial();
+  if (!*created) return t;
+  FreeTrack(s);  // a previous occupant of the slot
+  if (const uint32_t* old = slot_of_.Find(id); old != nullptr && *old != s) FreeTrack(*old);
+  t.serial = entity.serial();
+  t.id = id;
+  *slot_of_.TryEmplace(id).first = s;
+  ++live_tracks_;
+  return t;
+}
+
+void SharedDeltaStream::FreeTrack(uint32_t slot) {
+  Track& t = tracks_[slot];
+  if (t.serial == 0) return;
+  if (const uint32_t* s = slot_of_.Find(t.id); s != nullptr && *s == slot) slot_of_.Erase(t.id);
+  t = Track{};
+  --live_tracks_;
+}
+
+void SharedDeltaStream::Forget(uint32_t id) {
+  if (const uint32_t* s = slot_of_.Find(id); s != nullptr) FreeTrack(*s);
+}
 
 SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedEntity& entity,
                                                       const EntityState& truth,
                                                       float pos_threshold_m,
                                                       float rot_threshold_deg, double now,
                                                       double resend_after_s) const {
-  const Track* track = tracks_.Find(id);
-  if (track == nullptr) return UpdateNeed::kSend;
-  const Track& t = *track;
+  (void)id;
+  const uint32_t s = entity.slot();
+  if (s >= tracks_.size() || tracks_[s].serial != entity.serial() || entity.serial() == 0) {
+    return UpdateNeed::kSend;
+  }
+  const Track& t = tracks_[s];
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   if (rot_threshold_deg != min_dot_for_deg_) {
     min_dot_for_deg_ = rot_threshold_deg;

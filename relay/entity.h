@@ -36,6 +36,11 @@ struct Entity {
   uint64_t spawn_seq = 0;        // order of arrival in the room (parents before children)
   uint32_t grab_requester = 0;   // player whose grab request is pending
   uint32_t flags = 0;            // schema::EntityFlags
+  // Room-local slot (Room::AddEntity: a dense index reused after the entity is removed) and
+  // the serial of this occupancy (unique in the room, never 0 once added). Receivers index
+  // their per-entity records by slot and trust one only while its serial matches.
+  uint32_t slot = 0;
+  uint32_t serial = 0;
   uint32_t version = 1;          // bumped on every accepted state change
   double changed_at = 0;         // relay time of the last accepted change (resting detection)
   // Relay time a user last interacted with it: grab, release, or a physics event naming it

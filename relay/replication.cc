@@ -226,7 +226,7 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
   candidates_.clear();
   for (const auto& [id, e] : entities) {
     if (e.owner == self) continue;
-    View& v = views_[id];
+    View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
@@ -307,7 +307,7 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
       if (!add()) continue;
     }
     in_payload_.emplace_back(c.id, c.entity->version);
-    View& v = views_[c.id];
+    View& v = views_[c.entity->slot];
     v.last_sent = now;
     double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
     // Due times advance by exactly the interval, so the long-run rate is exact whatever the
@@ -501,11 +501,37 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   if (soft_ != nullptr) soft_->Forget(entity_id);
   if (delta_ != nullptr) delta_->Forget(entity_id);
   if (shared_ != nullptr) shared_->Forget(entity_id);
-  views_.Erase(entity_id);
+  if (const uint32_t* slot = view_slot_of_.Find(entity_id); slot != nullptr) {
+    views_[*slot] = View{};
+    view_slot_of_.Erase(entity_id);
+    --live_views_;
+  }
+}
+
+ClientReplicator::View& ClientReplicator::ViewOf(const Entity& e) {
+  if (e.slot >= views_.size()) views_.resize(e.slot + 1);
+  View& v = views_[e.slot];
+  if (v.serial == e.serial) return v;
+  if (v.serial != 0) {  // the slot's previous occupant (not forgotten)
+    if (const uint32_t* s = view_slot_of_.Find(v.id); s != nullptr && *s == e.slot) {
+      view_slot_of_.Erase(v.id);
+    }
+    --live_views_;
+  }
+  if (const uint32_t* old = view_slot_of_.Find(e.id); old != nullptr && *old != e.slot) {
+    views_[*old] = View{};  // the id's previous entity, in another slot
+    --live_views_;
+  }
+  v = View{};
+  v.serial = e.serial;
+  v.id = e.id;
+  *view_slot_of_.TryEmplace(e.id).first = e.slot;
+  ++live_views_;
+  return v;
 }
 
 size_t ClientReplicator::tracked_entities() const {
-  return std::max(views_.size(), soft_views_.size());
+  return std::max(live_views_, soft_views_.size());
 }
 
 }  // namespace edgephys

@@ -149,7 +149,10 @@ class ClientReplicator {
   size_t tracked_entities() const;
 
  private:
+  // One per entity slot (Entity::slot), valid while `serial` equals the entity's.
   struct View {
+    uint32_t serial = 0;  // 0: free
+    uint32_t id = 0;
     double last_sent = -1e9;
     double next_due = -1e9;
     double accumulator = 0;
@@ -165,6 +168,9 @@ class ClientReplicator {
     const Entity* entity;
     uint8_t fields;
   };
+  // The view of `e` (a slot of views_), made afresh if the slot holds none or another
+  // occupant's. May grow views_ (invalidating references to other views).
+  View& ViewOf(const Entity& e);
   PriorityClass ClassOf(const Entity& e, double now) const;
   double IntervalOf(PriorityClass c) const;
   // IntervalOf, but dead-reckoned entities (format 12) are checked at extrapolation_max_hz.
@@ -219,7 +225,9 @@ class ClientReplicator {
   uint64_t shared_hits_counted_ = 0;        // shared_'s stats already added to the counters
   uint64_t shared_entities_counted_ = 0;
   ReplicationTracker tracker_;              // acks for float / emulation modes
-  FlatIdMap<View> views_;
+  std::vector<View> views_;            // by entity slot: walked densely, no lookups
+  FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
+  size_t live_views_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> selected_;
   std::vector<std::pair<uint32_t, uint32_t>> in_payload_;  // (id, version)

@@ -67,11 +67,31 @@ Entity* Room::FindEntity(uint32_t id) {
 
 Entity& Room::AddEntity(Entity entity) {
   uint32_t id = entity.id;
+  if (auto old = entities_.find(id); old != entities_.end()) ReleaseSlot(old->second);
   ledger_.Charge(entity.creator, entity.cost);
   if (Entity* parent = entity.parent != 0 ? FindEntity(entity.parent) : nullptr) {
     ++parent->children;
   }
-  return entities_[id] = std::move(entity);
+  if (free_slots_.empty()) {
+    entity.slot = static_cast<uint32_t>(slots_.size());
+    slots_.push_back(nullptr);
+  } else {
+    entity.slot = free_slots_.back();
+    free_slots_.pop_back();
+  }
+  if (++serials_ == 0) ++serials_;
+  entity.serial = serials_;
+  entity.shared.reset();  // a copy's: this occupancy gets its own (PrepareStates)
+  Entity& e = entities_[id] = std::move(entity);
+  slots_[e.slot] = &e;
+  return e;
+}
+
+void Room::ReleaseSlot(const Entity& e) {
+  if (e.slot < slots_.size() && slots_[e.slot] == &e) {
+    slots_[e.slot] = nullptr;
+    free_slots_.push_back(e.slot);
+  }
 }
 
 void Room::RemoveEntity(uint32_t id) {
@@ -83,6 +103,7 @@ void Room::RemoveEntity(uint32_t id) {
     if (parent->children > 0) --parent->children;
   }
   const bool had_children = e.children != 0;
+  ReleaseSlot(e);
   entities_.erase(it);
   if (physics_) physics_->Remove(id);
   if (!had_children) return;
@@ -125,7 +146,10 @@ void Room::PrepareStates(double now) {
       e.prepared_valid = true;
     }
     if (shared_) {
-      if (!e.shared) e.shared = std::make_shared<SharedEntity>();
+      if (!e.shared) {
+        e.shared = std::make_shared<SharedEntity>();
+        e.shared->BindSlot(e.slot, e.serial);
+      }
       shared_->PrepareEntity(*e.shared, e.prepared);
     }
   }
