@@ -336,20 +336,18 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (created && options_.keyframe_refresh_sends > 0) {
     track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
   }
-  const Entry* base = nullptr;
-  if (track.newest_acked != kNoSlot) {
-    const Entry& e = track.ring[track.newest_acked];
-    const uint32_t distance = tick_ - e.key.ref;
-    if (distance >= 1 && distance <= kMaxReferenceDistance) base = &e;
+  bool keyframe = true;
+  if (track.Usable(track.acked_no)) {
+    const uint32_t distance = tick_ - track.acked_key.ref;
+    keyframe = !(distance >= 1 && distance <= kMaxReferenceDistance);
   }
-  bool keyframe = base == nullptr;
   bool refresh = false;
   if (!keyframe && options_.keyframe_refresh_sends > 0 &&
       track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
     keyframe = refresh = true;
   }
   SharedBaselineKey key;
-  if (!keyframe) key = base->key;
+  if (!keyframe) key = track.acked_key;
   const uint8_t* bits = nullptr;
   size_t nbits = 0;
   bool hit = false;
@@ -390,18 +388,13 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
     prev_distance_ = distance;
     ++track.sends_since_keyframe;
   }
-  const auto slot = static_cast<uint8_t>(track.next % kDeltaBaselineWindow);
-  Entry& e = track.ring[slot];
-  ++track.next;
-  if (track.newest_acked == slot) track.newest_acked = kNoSlot;
-  if (track.newest_sent == slot) track.newest_sent = kNoSlot;
-  e.valid = true;
-  e.acked = false;
-  e.sent = false;
-  e.key = keyframe ? SharedBaselineKey{tick_, tick_, tick_, 1}
-                   : SharedBaselineKey{tick_, key.ref, key.s1,
-                                       static_cast<uint8_t>(std::min(key.depth + 1, 3))};
-  pending_ids_.push_back({entity.slot(), entity.serial(), slot});
+  const uint32_t send_no = track.next++;
+  if (keyframe) {
+    pending_ids_.push_back({entity.slot(), entity.serial(), send_no, tick_, tick_, 1});
+  } else {
+    pending_ids_.push_back({entity.slot(), entity.serial(), send_no, key.ref, key.s1,
+                            static_cast<uint8_t>(std::min(key.depth + 1, 3))});
+  }
   last_id_ = id;
   ++count_;
   return true;
@@ -438,19 +431,12 @@ void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
   r.ids.assign(pending_ids_.begin(), pending_ids_.end());
   for (const PacketEntry& p : r.ids) {
     Track& t = tracks_[p.slot];
-    if (t.serial != p.serial) continue;
-    const uint8_t slot = p.ring;
-    Entry& e = t.ring[slot];
-    if (!e.valid || e.key.ref != tick_) continue;
-    e.sent = true;
-    e.sent_at = now;
-    if (t.newest_sent == kNoSlot || static_cast<int32_t>(e.key.ref - t.sent_ref) > 0) {
-      t.newest_sent = static_cast<int8_t>(slot);
-    }
-    if (t.newest_sent == slot) {
-      t.sent_ref = e.key.ref;
-      t.sent_at = e.sent_at;
-      t.newest_sent_acked = e.acked;
+    if (t.serial != p.serial || !t.Usable(p.send_no + 1)) continue;
+    if (t.sent_no == 0 || p.send_no + 1 > t.sent_no) {
+      t.sent_no = p.send_no + 1;
+      t.sent_ref = tick_;
+      t.sent_at = now;
+      t.sent_acked = false;
     }
   }
 }
@@ -468,14 +454,12 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
       ++stats_.acks_unmatched;
       continue;
     }
-    const uint8_t slot = p.ring;
-    Entry& e = t.ring[slot];
-    if (!e.valid || e.key.ref != r.tick) continue;
-    e.acked = true;
-    if (t.newest_sent == slot) t.newest_sent_acked = true;
-    if (t.newest_acked == kNoSlot || static_cast<int32_t>(e.key.ref - t.acked_ref) > 0) {
-      t.newest_acked = static_cast<int8_t>(slot);
-      t.acked_ref = e.key.ref;
+    const uint32_t no = p.send_no + 1;
+    if (!t.Usable(no)) continue;  // overwritten: the client may no longer hold it
+    if (t.sent_no == no) t.sent_acked = true;
+    if (no > t.acked_no) {
+      t.acked_no = no;
+      t.acked_key = {r.tick, p.s1, p.s2, p.depth};
     }
   }
 }
@@ -530,8 +514,8 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
     return room->HeldWithin(entity, ref, truth, pos2, min_dot_, lattice_reach2_,
                             lattice_min_dot_);
   };
-  if (t.newest_acked != kNoSlot && within(t.acked_ref)) return UpdateNeed::kAckedWithin;
-  if (t.newest_sent != kNoSlot && !t.newest_sent_acked && now - t.sent_at < resend_after_s &&
+  if (t.Usable(t.acked_no) && within(t.acked_key.ref)) return UpdateNeed::kAckedWithin;
+  if (t.Usable(t.sent_no) && !t.sent_acked && now - t.sent_at < resend_after_s &&
       within(t.sent_ref)) {
     return UpdateNeed::kInFlightWithin;
   }

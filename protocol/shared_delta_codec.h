@@ -32,7 +32,7 @@
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
 // Memory: room ~7 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
-// times); stream ~0.5 KiB per (receiver, entity); decoder ~2 KiB per entity, bounded by
+// times); stream 48 bytes per (receiver, entity) plus 24 per record in flight; decoder ~2 KiB per entity, bounded by
 // max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
 // per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body
@@ -288,35 +288,31 @@ class SharedDeltaStream final : public StateEncoder {
   const SharedDeltaStreamStats& stats() const { return stats_; }
 
  private:
-  struct Entry {
-    bool valid = false;
-    bool acked = false;
-    bool sent = false;
-    SharedBaselineKey key;  // key.ref = the tick it was sent in; key as a reference
-    double sent_at = 0;
-    // No state: the room's versions of the entity hold it under key.ref.
-  };
-  static constexpr int8_t kNoSlot = -1;
-  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's.
+  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 48
+  // bytes, everything selection, Add and an ack touch. No ring of sent versions: a send is
+  // named by its send number, and the packet's record carries the key it was sent with (the
+  // room's versions hold its state). A send stays usable as a reference while it is among the
+  // last kDeltaBaselineWindow sends of the entity (the client keeps that many versions with
+  // the highest ticks, so an acknowledged one in that window is always held).
   struct Track {
-    // First, in one cache line: what Need reads every tick (copies of the newest acked and
-    // newest sent entries' fields, valid while the index is not kNoSlot).
     uint32_t serial = 0;  // 0: free
     uint32_t id = 0;
-    int8_t newest_acked = kNoSlot;
-    int8_t newest_sent = kNoSlot;
-    bool newest_sent_acked = false;
-    uint32_t acked_ref = 0;
+    uint32_t next = 0;    // sends so far (send numbers 0..next-1)
+    uint32_t sends_since_keyframe = 0;
+    uint32_t acked_no = 0;  // send number + 1 of the newest acknowledged send; 0: none
+    uint32_t sent_no = 0;   // send number + 1 of the newest sent one; 0: none
+    SharedBaselineKey acked_key;  // its key (acked_key.ref = the tick it was sent in)
+    bool sent_acked = false;
     uint32_t sent_ref = 0;
     double sent_at = 0;
-    uint32_t next = 0;
-    uint32_t sends_since_keyframe = 0;
-    std::array<Entry, kDeltaBaselineWindow> ring;
+    bool Usable(uint32_t no) const { return no != 0 && next - (no - 1) <= kDeltaBaselineWindow; }
   };
   struct PacketEntry {
-    uint32_t slot;    // entity slot (index into tracks_)
-    uint32_t serial;  // the slot's occupant when sent
-    uint8_t ring;     // its entry in the track's ring
+    uint32_t slot;     // entity slot (index into tracks_)
+    uint32_t serial;   // the slot's occupant when sent
+    uint32_t send_no;  // its send number
+    uint32_t s1, s2;   // its key (ref: the record's tick)
+    uint8_t depth;
   };
   struct PacketRecord {
     bool valid = false;
