@@ -427,9 +427,18 @@ void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
   r.sequence = packet_sequence;
   r.tick = tick_;
   max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
-  if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);
-  r.ids.assign(pending_ids_.begin(), pending_ids_.end());
-  for (const PacketEntry& p : r.ids) {
+  if (entries_.size() < kEntryRingPayloads * max_packet_ids_) {
+    // Grow (rarely: the largest payload so far grew); the payloads in flight lose their acks.
+    size_t capacity = 1024;
+    while (capacity < kEntryRingPayloads * max_packet_ids_) capacity *= 2;
+    entries_.assign(capacity, PacketEntry{});
+    for (PacketRecord& old : records_) old.valid = old.valid && &old == &r;
+  }
+  const size_t mask = entries_.size() - 1;
+  r.begin = entries_head_;
+  r.count = static_cast<uint32_t>(pending_ids_.size());
+  for (const PacketEntry& p : pending_ids_) entries_[entries_head_++ & mask] = p;
+  for (const PacketEntry& p : pending_ids_) {
     Track& t = tracks_[p.slot];
     if (t.serial != p.serial || !t.Usable(p.send_no + 1)) continue;
     if (t.sent_no == 0 || p.send_no + 1 > t.sent_no) {
@@ -448,7 +457,13 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
     return;
   }
   r.valid = false;
-  for (const PacketEntry& p : r.ids) {
+  if (entries_head_ - r.begin > entries_.size()) {  // overwritten: as if lost
+    ++stats_.acks_unmatched;
+    return;
+  }
+  const size_t mask = entries_.size() - 1;
+  for (uint64_t i = r.begin; i < r.begin + r.count; ++i) {
+    const PacketEntry& p = entries_[i & mask];
     Track& t = tracks_[p.slot];
     if (t.serial != p.serial) {  // gone (Forget) or the slot has another occupant now
       ++stats_.acks_unmatched;

@@ -314,11 +314,14 @@ class SharedDeltaStream final : public StateEncoder {
     uint32_t s1, s2;   // its key (ref: the record's tick)
     uint8_t depth;
   };
+  // A sent payload: its entries lie in entries_ from `begin` (absolute position, entries
+  // ever stored) for `count`; gone once overwritten (head - begin > capacity).
   struct PacketRecord {
     bool valid = false;
     uint16_t sequence = 0;
     uint32_t tick = 0;
-    std::vector<PacketEntry> ids;
+    uint32_t count = 0;
+    uint64_t begin = 0;
   };
   // The entity's track, made afresh if its slot holds none or another occupant's.
   Track& ClaimTrack(uint32_t id, const SharedEntity& entity, bool* created);
@@ -330,6 +333,13 @@ class SharedDeltaStream final : public StateEncoder {
   FlatIdMap<uint32_t> slot_of_;   // entity id -> slot of its live track (Forget)
   size_t live_tracks_ = 0;
   std::vector<PacketRecord> records_;
+  // The entries of the payloads in flight, a ring shared by all packet records (power-of-two
+  // capacity, at least kEntryRingPayloads of the largest payload: acknowledgements that come
+  // later than that many payloads are ignored, as a lost packet would be). Bounded memory
+  // whatever the payload sizes, no allocation per packet.
+  static constexpr size_t kEntryRingPayloads = 16;
+  std::vector<PacketEntry> entries_;
+  uint64_t entries_head_ = 0;
   std::vector<PacketEntry> pending_ids_;
   size_t max_packet_ids_ = 0;
   double lattice_reach2_ = 0;

@@ -71,6 +71,16 @@ struct Entity {
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;
 
+// What one room tick offers each of its receivers (Room::BuildFrame, once per room tick, so
+// that no receiver walks or sorts the room's entity table itself). Built on the room's thread
+// before the receivers' ticks; read-only during them (they may run in parallel). Pointers
+// into the room's entity table, valid until the room's entities change.
+struct ReplicationFrame {
+  std::vector<const Entity*> by_id;  // every entity, by increasing id
+  std::vector<const Entity*> soft;   // soft bodies with particles, by increasing id
+  std::vector<Vec3f> hands;          // positions of the Hand entities (soft-body touch test)
+};
+
 struct Member {
   uint32_t player_id = 0;
   uint32_t slot = 0;             // 1..capacity; entity ids slot<<16 .. +65535 are the player's

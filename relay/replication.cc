@@ -208,9 +208,8 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
                                   time_ms_);
 }
 
-void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
-                            double now, Connection& connection, PacketWriter& out,
-                            RelayCounters& counters) {
+void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double now,
+                            Connection& connection, PacketWriter& out, RelayCounters& counters) {
   double dt = last_tick_ < 0 ? 0 : now - last_tick_;
   last_tick_ = now;
   time_ms_ = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
@@ -221,10 +220,12 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
                              config_.bandwidth_budget_bytes_per_s * 0.25 + kMaxPacketSize);
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
-  TickSoftBodies(entities, self, now, resend_after, connection, out, counters);
+  TickSoftBodies(frame, self, now, resend_after, connection, out, counters);
 
   candidates_.clear();
-  for (const auto& [id, e] : entities) {
+  for (const Entity* entity : frame.by_id) {  // by id: candidates_ come out in id order
+    const Entity& e = *entity;
+    const uint32_t id = e.id;
     if (e.owner == self) continue;
     View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
@@ -268,22 +269,27 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
     candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
   }
   if (candidates_.empty()) return;
-  std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
-    return a.priority != b.priority ? a.priority > b.priority : a.id < b.id;
-  });
-  // Take the most urgent while the budget allows (by the running size estimate), then encode
-  // them in id order (the delta format codes ids as increasing gaps).
-  selected_.clear();
-  double estimate = 0;
-  for (const Candidate& c : candidates_) {
-    double cost = bytes_per_entity_ + (selected_.size() % kEntitiesPerPacketEstimate == 0
-                                           ? kPacketOverhead + 8 : 0.0);
-    if (budgeted && estimate + cost > budget_bytes_) break;
-    estimate += cost;
-    selected_.push_back(c);
+  // Without a budget every candidate goes, already in id order (the delta formats code ids as
+  // increasing gaps). With one: take the most urgent while the budget allows (by the running
+  // size estimate), then encode them in id order.
+  if (budgeted) {
+    std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+      return a.priority != b.priority ? a.priority > b.priority : a.id < b.id;
+    });
+    selected_.clear();
+    double estimate = 0;
+    for (const Candidate& c : candidates_) {
+      double cost = bytes_per_entity_ + (selected_.size() % kEntitiesPerPacketEstimate == 0
+                                             ? kPacketOverhead + 8 : 0.0);
+      if (estimate + cost > budget_bytes_) break;
+      estimate += cost;
+      selected_.push_back(c);
+    }
+    std::sort(selected_.begin(), selected_.end(),
+              [](const Candidate& a, const Candidate& b) { return a.id < b.id; });
+  } else {
+    selected_.swap(candidates_);
   }
-  std::sort(selected_.begin(), selected_.end(),
-            [](const Candidate& a, const Candidate& b) { return a.id < b.id; });
 
   encoder_->Begin(payload_, time_ms_);
   in_payload_.clear();
@@ -358,15 +364,16 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
   in_payload_.clear();
 }
 
-void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities,
-                                      uint32_t self, double now, double resend_after,
-                                      Connection& connection, PacketWriter& out,
-                                      RelayCounters& counters) {
+void ClientReplicator::TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
+                                      double resend_after, Connection& connection,
+                                      PacketWriter& out, RelayCounters& counters) {
   if (soft_ != nullptr) {
-    TickSoftDeltas(entities, self, now, resend_after, connection, out, counters);
+    TickSoftDeltas(frame, self, now, resend_after, connection, out, counters);
     return;
   }
-  for (const auto& [id, e] : entities) {
+  for (const Entity* entity : frame.soft) {
+    const Entity& e = *entity;
+    const uint32_t id = e.id;
     if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
     SoftView& v = soft_views_[id];
     if (now + kEpsilon < v.next_due || e.nodes_version <= v.acked_version) continue;
@@ -399,14 +406,14 @@ void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>
 
 bool ClientReplicator::SoftTouched(const Entity& e) const {
   if (e.held_by != 0 || e.touching > 0) return true;
-  if (hands_.empty()) return false;
+  if (hands_ == nullptr || hands_->empty()) return false;
   Vec3f lo = e.nodes[0], hi = e.nodes[0];
   for (const Vec3f& p : e.nodes) {
     lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
     hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
   }
   const float m = config_.soft_touch_margin_m;
-  for (const Vec3f& h : hands_) {
+  for (const Vec3f& h : *hands_) {
     if (h.x < lo.x - m || h.x > hi.x + m || h.y < lo.y - m || h.y > hi.y + m ||
         h.z < lo.z - m || h.z > hi.z + m) {
       continue;
@@ -435,21 +442,18 @@ bool ClientReplicator::FlushSoft(double now, Connection& connection, PacketWrite
   return true;
 }
 
-void ClientReplicator::TickSoftDeltas(const std::unordered_map<uint32_t, Entity>& entities,
-                                      uint32_t self, double now, double resend_after,
-                                      Connection& connection, PacketWriter& out,
-                                      RelayCounters& counters) {
-  hands_.clear();
+void ClientReplicator::TickSoftDeltas(const ReplicationFrame& frame, uint32_t self, double now,
+                                      double resend_after, Connection& connection,
+                                      PacketWriter& out, RelayCounters& counters) {
+  hands_ = &frame.hands;
   soft_due_.clear();
-  for (const auto& [id, e] : entities) {
-    if (e.flags & kFlagHand) hands_.push_back(e.state.position);
-    if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
-    SoftView& v = soft_views_[id];
+  for (const Entity* e : frame.soft) {  // by id
+    if (e->nodes_version == 0 || e->owner == self || e->nodes.empty()) continue;
+    SoftView& v = soft_views_[e->id];
     if (now + kEpsilon < v.next_due) continue;
-    soft_due_.emplace_back(id, &e);
+    soft_due_.emplace_back(e->id, e);
   }
   if (soft_due_.empty()) return;
-  std::sort(soft_due_.begin(), soft_due_.end());
   soft_->BeginPayload(payload_, time_ms_);
   for (const auto& [id, e] : soft_due_) {
     if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) break;

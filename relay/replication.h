@@ -45,6 +45,7 @@
 namespace edgephys {
 
 struct Entity;
+struct ReplicationFrame;
 
 enum class ReplicationMode : uint8_t { kFloat = 0, kEdgephys, kPhoton, kPaper };
 std::string_view ReplicationModeName(ReplicationMode mode);
@@ -134,9 +135,10 @@ class ClientReplicator {
   ~ClientReplicator();
 
   // Sends this tick's updates for the client `self` (player id) through `connection`.
-  // `entities` is the room's entity table.
-  void Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self, double now,
-            Connection& connection, PacketWriter& out, RelayCounters& counters);
+  // `frame` is the room's offer for this tick (Room::BuildFrame): its entities by id, soft
+  // bodies and hands, so the replicator neither walks the room's table nor sorts by id.
+  void Tick(const ReplicationFrame& frame, uint32_t self, double now, Connection& connection,
+            PacketWriter& out, RelayCounters& counters);
 
   void OnPacketAcked(uint16_t sequence);
   // Drops everything held for `entity_id` (despawned): its view, tracker entry or delta
@@ -188,8 +190,8 @@ class ClientReplicator {
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
   // changed soft body, in chunks, resent until every chunk of that version is acknowledged.
-  void TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
-                      double now, double resend_after, Connection& connection, PacketWriter& out,
+  void TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
+                      double resend_after, Connection& connection, PacketWriter& out,
                       RelayCounters& counters);
   struct SoftView {
     uint32_t sent_version = 0;
@@ -206,15 +208,15 @@ class ClientReplicator {
     uint32_t version = 0;
     uint32_t chunk = 0;
   };
-  void TickSoftDeltas(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
-                      double now, double resend_after, Connection& connection, PacketWriter& out,
+  void TickSoftDeltas(const ReplicationFrame& frame, uint32_t self, double now,
+                      double resend_after, Connection& connection, PacketWriter& out,
                       RelayCounters& counters);
   bool FlushSoft(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   bool SoftTouched(const Entity& e) const;
   std::unordered_map<uint32_t, SoftView> soft_views_;
   std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
   std::vector<std::pair<uint32_t, const Entity*>> soft_due_;
-  std::vector<Vec3f> hands_;                         // this tick's Hand entity positions
+  const std::vector<Vec3f>* hands_ = nullptr;        // this tick's Hand entity positions
   std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence
 
   ReplicationConfig config_;

@@ -76,6 +76,10 @@ class Room {
   // after the first call per entity. Not thread-safe: call on the room's thread before the
   // clients' ticks, which then only read the result (format 9 bodies are cached thread-safely).
   void PrepareStates(double now);
+  // Builds frame() from the entities as they are now. O(entities) plus a sort by id only when
+  // entities came or went since the last call. Room thread, before the receivers' ticks.
+  void BuildFrame();
+  const ReplicationFrame& frame() const { return frame_; }
   // Format 9 rooms: the tick clock and body cache; null otherwise (or before the first tick).
   const SharedDeltaRoom* shared_encoding() const { return shared_.get(); }
 
@@ -97,6 +101,8 @@ class Room {
   std::vector<Entity*> slots_;       // by Entity::slot (nodes of entities_: stable)
   std::vector<uint32_t> free_slots_;
   uint32_t serials_ = 0;             // Entity::serial of the last entity added
+  ReplicationFrame frame_;
+  bool frame_stale_ = true;          // entities came or went since BuildFrame
   RoomLedger ledger_;
   std::unique_ptr<PhysicsLink> physics_;
   uint64_t spawn_seq_ = 0;
