@@ -1,6 +1,7 @@
 #include "protocol/shared_delta_codec.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -31,8 +32,9 @@ const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
   const uint32_t held = static_cast<uint32_t>(std::min<size_t>(next_, size));
   // Ticks increase from the oldest held (logical 0) to the newest: binary search for the last
   // version prepared at or before `tick`.
+  const uint64_t mask = size - 1;  // a power of two (SharedDeltaRoom's constructor)
   auto at = [&](uint32_t j) -> const Version& {
-    return versions_[static_cast<size_t>((next_ - held + j) % size)];
+    return versions_[static_cast<size_t>((next_ - held + j) & mask)];
   };
   if (held == 0 || !TickAtOrBefore(at(0).tick, tick)) return nullptr;
   uint32_t lo = 0, hi = held;  // at(lo) <= tick; at(hi) > tick (or hi == held)
@@ -49,7 +51,7 @@ const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
 
 SharedDeltaRoom::SharedDeltaRoom(const QuantizationParams& params, size_t versions_per_entity)
     : q_(params),
-      versions_per_entity_(std::max<size_t>(versions_per_entity, 4)),
+      versions_per_entity_(std::bit_ceil(std::max<size_t>(versions_per_entity, 4))),
       tick_times_(kSharedTickWindow, 0) {}
 
 bool SharedDeltaRoom::TickTime(uint32_t t, uint32_t* time_ms) const {

@@ -316,10 +316,14 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     View& v = views_[c.entity->slot];
     v.last_sent = now;
     double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
-    // Due times advance by exactly the interval, so the long-run rate is exact whatever the
-    // tick rate; after a pause (or the first send) the schedule restarts from now.
-    v.next_due += interval;
-    if (v.next_due < now - interval) v.next_due = now + interval;
+    // Room-wide send schedule: the entity is due at the points of a grid of its interval,
+    // with a phase of its own (from its id) but the same for every receiver, so the room's
+    // receivers send it in the same ticks and reference the same versions (shared baseline
+    // keys: one body encode serves them all). One send per grid point while ticks come
+    // faster than the interval, so the long-run rate is exact; a receiver that sent late
+    // (loss, budget) is back on the grid after one send.
+    const double phase = static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
+    v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
     if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
     if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
     v.ever_sent = true;
