@@ -21,8 +21,9 @@
 // `photon` (format 3) and `paper` (format 4) for side-by-side comparison.
 //
 // Thread-safety: none; owned by the session, used on the room's thread.
-// Cost: O(entities in room) per tick plus O(k log k) for the k candidates; no allocation per
-// packet once the per-entity views exist.
+// Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
+// views in an array indexed by the entities' room-local slots), plus O(k log k) for the k
+// candidates only under a bandwidth budget; no allocation per packet once the views exist.
 #pragma once
 
 #include <cstdint>
