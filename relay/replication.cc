@@ -322,8 +322,13 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     // keys: one body encode serves them all). One send per grid point while ticks come
     // faster than the interval, so the long-run rate is exact; a receiver that sent late
     // (loss, budget) is back on the grid after one send.
-    const double phase = static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
-    v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
+    if (interval > 0 && std::isfinite(interval)) {
+      const double phase =
+          static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
+      v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
+    } else {
+      v.next_due = now + interval;  // a rate of 0: never again on schedule
+    }
     if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
     if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
     v.ever_sent = true;
