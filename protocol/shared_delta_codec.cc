@@ -1,6 +1,7 @@
 #include "protocol/shared_delta_codec.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -13,9 +14,6 @@ namespace {
 
 using namespace delta_internal;  // NOLINT
 
-constexpr size_t kCountReserve = 3;  // varint count reserved while encoding (< 2^21)
-constexpr size_t kStreamStart = kSharedDeltaHeaderSize + kCountReserve;
-constexpr size_t kPacketRecords = 128;
 constexpr int kMaxK = 7;
 constexpr uint64_t kStatsSampleEvery = 4;
 constexpr uint8_t kEmpty = 0, kBuilding = 1, kReady = 2;
@@ -31,8 +29,9 @@ const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
   const uint32_t held = static_cast<uint32_t>(std::min<size_t>(next_, size));
   // Ticks increase from the oldest held (logical 0) to the newest: binary search for the last
   // version prepared at or before `tick`.
+  const uint64_t mask = size - 1;  // a power of two (SharedDeltaRoom's constructor)
   auto at = [&](uint32_t j) -> const Version& {
-    return versions_[static_cast<size_t>((next_ - held + j) % size)];
+    return versions_[static_cast<size_t>((next_ - held + j) & mask)];
   };
   if (held == 0 || !TickAtOrBefore(at(0).tick, tick)) return nullptr;
   uint32_t lo = 0, hi = held;  // at(lo) <= tick; at(hi) > tick (or hi == held)
@@ -49,7 +48,7 @@ const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
 
 SharedDeltaRoom::SharedDeltaRoom(const QuantizationParams& params, size_t versions_per_entity)
     : q_(params),
-      versions_per_entity_(std::max<size_t>(versions_per_entity, 4)),
+      versions_per_entity_(std::bit_ceil(std::max<size_t>(versions_per_entity, 4))),
       tick_times_(kSharedTickWindow, 0) {}
 
 bool SharedDeltaRoom::TickTime(uint32_t t, uint32_t* time_ms) const {
@@ -103,6 +102,7 @@ void SharedDeltaRoom::BeginTick(uint32_t time_ms) {
 
 void SharedDeltaRoom::PrepareEntity(SharedEntity& e, const PreparedState& state) {
   e.room_ = this;
+  if (e.serial_ == 0) e.BindSlot(auto_slots_++, ++auto_serials_);
   // Fold last tick's bodies into the statistics (weighted by their users) and empty the cache.
   for (SharedEntity::Slot& s : e.slots_) {
     if (s.state.load(std::memory_order_relaxed) == kReady && s.sampled) {
@@ -291,220 +291,6 @@ bool SharedDeltaRoom::HeldWithin(const SharedEntity& e, uint32_t ref_tick,
   const bool ok = within(*v);
   memo.store(tag | (ok ? 1 : 0), std::memory_order_relaxed);
   return ok;
-}
-
-// ================================ Stream ================================
-
-SharedDeltaStream::SharedDeltaStream(const QuantizationParams& params,
-                                     const SharedDeltaStreamOptions& options)
-    : params_(params), options_(options), records_(kPacketRecords) {
-  const double reach = 0.5 * std::sqrt(3.0) * params_.step * 1.01;
-  lattice_reach2_ = reach * reach;
-  const double bound_rad =
-      params_.config.rotation_error_deg * 1.01 * (3.14159265358979323846 / 180.0);
-  lattice_min_dot_ = std::cos(std::min(bound_rad, 3.14159265358979323846) / 2.0);
-}
-
-void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
-  phase_ = Phase::kOpen;
-  out_ = out;
-  room_ = nullptr;
-  count_ = 0;
-  last_id_ = 0;
-  prev_distance_ = 1;
-  pending_ids_.clear();
-  if (pending_ids_.capacity() < max_packet_ids_) pending_ids_.reserve(max_packet_ids_);
-  writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
-}
-
-bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
-  if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
-  const SharedDeltaRoom* room = entity.room();
-  if (room == nullptr) return false;
-  if (count_ == 0) {
-    room_ = room;
-    tick_ = room->tick();
-  } else if (room != room_ || room->tick() != tick_ || id <= last_id_) {
-    return false;
-  }
-  if (count_ >= (size_t{1} << 21) - 1) return false;
-
-  auto [track_ptr, created] = tracks_.TryEmplace(id);
-  Track& track = *track_ptr;
-  if (created && options_.keyframe_refresh_sends > 0) {
-    track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
-  }
-  const Entry* base = nullptr;
-  if (track.newest_acked != kNoSlot) {
-    const Entry& e = track.ring[track.newest_acked];
-    const uint32_t distance = tick_ - e.key.ref;
-    if (distance >= 1 && distance <= kMaxReferenceDistance) base = &e;
-  }
-  bool keyframe = base == nullptr;
-  bool refresh = false;
-  if (!keyframe && options_.keyframe_refresh_sends > 0 &&
-      track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
-    keyframe = refresh = true;
-  }
-  SharedBaselineKey key;
-  if (!keyframe) key = base->key;
-  const uint8_t* bits = nullptr;
-  size_t nbits = 0;
-  bool hit = false;
-  if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) {
-    if (keyframe) return false;
-    keyframe = true;  // the room no longer holds the baseline's versions
-    key = SharedBaselineKey{};
-    if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) return false;
-  }
-
-  const size_t mark = writer_.bit_position();
-  BitWriter& w = writer_;
-  bool ok = count_ == 0 ? w.WriteExpGolomb(id, 0) : w.WriteExpGolomb(id - last_id_ - 1, 0);
-  uint32_t distance = 0;
-  if (keyframe) {
-    ok = ok && w.WriteExpGolomb(1, 0);
-  } else {
-    distance = tick_ - key.ref;
-    const uint32_t sym =
-        distance == prev_distance_
-            ? 0
-            : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
-    ok = ok && w.WriteExpGolomb(sym, 0);
-  }
-  ok = ok && w.AppendBits({bits, kSharedBodyMaxBytes}, nbits);
-  if (!ok) {
-    writer_.Rewind(mark);
-    return false;
-  }
-
-  ++stats_.entities;
-  if (hit) ++stats_.cache_hits;
-  if (keyframe) {
-    ++stats_.keyframes;
-    if (refresh) ++stats_.refresh_keyframes;
-    if (refresh || track.next > 0) track.sends_since_keyframe = 0;
-  } else {
-    prev_distance_ = distance;
-    ++track.sends_since_keyframe;
-  }
-  const auto slot = static_cast<uint8_t>(track.next % kDeltaBaselineWindow);
-  Entry& e = track.ring[slot];
-  ++track.next;
-  if (track.newest_acked == slot) track.newest_acked = kNoSlot;
-  if (track.newest_sent == slot) track.newest_sent = kNoSlot;
-  e.valid = true;
-  e.acked = false;
-  e.sent = false;
-  e.key = keyframe ? SharedBaselineKey{tick_, tick_, tick_, 1}
-                   : SharedBaselineKey{tick_, key.ref, key.s1,
-                                       static_cast<uint8_t>(std::min(key.depth + 1, 3))};
-  pending_ids_.emplace_back(id, slot);
-  last_id_ = id;
-  ++count_;
-  return true;
-}
-
-size_t SharedDeltaStream::Finish() {
-  if (phase_ != Phase::kOpen || count_ == 0) return 0;
-  phase_ = Phase::kFinished;
-  uint8_t* p = out_.data();
-  const SharedDeltaParams& prm = room_->params();
-  p[0] = kSharedDeltaStateFormat;
-  StoreU32LE(p + 1, room_->time_ms());
-  StoreU32LE(p + 5, tick_);
-  StoreU16LE(p + 9, PackParams(prm.k, prm.mask, prm.order));
-  uint8_t cnt[5];
-  const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
-  std::memcpy(p + kSharedDeltaHeaderSize, cnt, cnt_size);
-  const size_t body = writer_.byte_size();
-  const size_t dst = kSharedDeltaHeaderSize + cnt_size;
-  std::memmove(p + dst, p + kStreamStart, body);
-  ++stats_.payloads;
-  return dst + body;
-}
-
-void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
-  if (phase_ != Phase::kFinished) return;
-  phase_ = Phase::kSent;
-  PacketRecord& r = records_[packet_sequence % kPacketRecords];
-  r.valid = true;
-  r.sequence = packet_sequence;
-  r.tick = tick_;
-  max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
-  if (r.ids.capacity() < max_packet_ids_) r.ids.reserve(max_packet_ids_);
-  r.ids.assign(pending_ids_.begin(), pending_ids_.end());
-  for (const auto& [id, slot] : r.ids) {
-    Track* track = tracks_.Find(id);
-    if (track == nullptr) continue;
-    Track& t = *track;
-    Entry& e = t.ring[slot];
-    if (!e.valid || e.key.ref != tick_) continue;
-    e.sent = true;
-    e.sent_at = now;
-    if (t.newest_sent == kNoSlot || static_cast<int32_t>(e.key.ref - t.sent_ref) > 0) {
-      t.newest_sent = static_cast<int8_t>(slot);
-    }
-    if (t.newest_sent == slot) {
-      t.sent_ref = e.key.ref;
-      t.sent_at = e.sent_at;
-      t.newest_sent_acked = e.acked;
-    }
-  }
-}
-
-void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
-  PacketRecord& r = records_[packet_sequence % kPacketRecords];
-  if (!r.valid || r.sequence != packet_sequence) {
-    ++stats_.acks_unmatched;
-    return;
-  }
-  r.valid = false;
-  for (const auto& [id, slot] : r.ids) {
-    Track* track = tracks_.Find(id);
-    if (track == nullptr) {
-      ++stats_.acks_unmatched;
-      continue;
-    }
-    Track& t = *track;
-    Entry& e = t.ring[slot];
-    if (!e.valid || e.key.ref != r.tick) continue;
-    e.acked = true;
-    if (t.newest_sent == slot) t.newest_sent_acked = true;
-    if (t.newest_acked == kNoSlot || static_cast<int32_t>(e.key.ref - t.acked_ref) > 0) {
-      t.newest_acked = static_cast<int8_t>(slot);
-      t.acked_ref = e.key.ref;
-    }
-  }
-}
-
-void SharedDeltaStream::Forget(uint32_t id) { tracks_.Erase(id); }
-
-SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedEntity& entity,
-                                                      const EntityState& truth,
-                                                      float pos_threshold_m,
-                                                      float rot_threshold_deg, double now,
-                                                      double resend_after_s) const {
-  const Track* track = tracks_.Find(id);
-  if (track == nullptr) return UpdateNeed::kSend;
-  const Track& t = *track;
-  const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
-  if (rot_threshold_deg != min_dot_for_deg_) {
-    min_dot_for_deg_ = rot_threshold_deg;
-    min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
-  }
-  const SharedDeltaRoom* room = entity.room();
-  if (room == nullptr) return UpdateNeed::kSend;
-  auto within = [&](uint32_t ref) {
-    return room->HeldWithin(entity, ref, truth, pos2, min_dot_, lattice_reach2_,
-                            lattice_min_dot_);
-  };
-  if (t.newest_acked != kNoSlot && within(t.acked_ref)) return UpdateNeed::kAckedWithin;
-  if (t.newest_sent != kNoSlot && !t.newest_sent_acked && now - t.sent_at < resend_after_s &&
-      within(t.sent_ref)) {
-    return UpdateNeed::kInFlightWithin;
-  }
-  return UpdateNeed::kSend;
 }
 
 // ================================ Decoder ================================

@@ -32,7 +32,7 @@
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
 // Memory: room ~7 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
-// times); stream ~0.5 KiB per (receiver, entity); decoder ~2 KiB per entity, bounded by
+// times); stream 48 bytes per (receiver, entity) plus 24 per record in flight; decoder ~2 KiB per entity, bounded by
 // max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
 // per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body
@@ -113,6 +113,20 @@ class SharedEntity {
   // Tick of the newest version (the current state); 0 before the first PrepareEntity.
   uint32_t current_tick() const { return versions_.empty() ? 0 : Newest().tick; }
 
+  // The entity's room-local slot (a dense index the room reuses once the entity is gone) and
+  // the serial naming this occupancy of the slot (unique within the room, never 0).
+  // Receivers (SharedDeltaStream) keep their per-entity records in arrays indexed by slot and
+  // trust a record only while its serial matches, so a stale slot never aliases another
+  // entity, and an entity respawned under the same id starts afresh. The relay's Room binds
+  // each entity to its own slot (BindSlot) before the first PrepareEntity; an entity still
+  // unbound then gets a fresh slot from its SharedDeltaRoom (never reused: tests, benchmarks).
+  uint32_t slot() const { return slot_; }
+  uint32_t serial() const { return serial_; }
+  void BindSlot(uint32_t slot, uint32_t serial) {
+    slot_ = slot;
+    serial_ = serial;
+  }
+
  private:
   friend class SharedDeltaRoom;
   struct Version {
@@ -144,6 +158,8 @@ class SharedEntity {
   const Version* At(uint32_t tick) const;
 
   const SharedDeltaRoom* room_ = nullptr;
+  uint32_t slot_ = 0;
+  uint32_t serial_ = 0;  // 0: not bound to a slot yet
   std::vector<Version> versions_;  // ring of the room's window (allocated on first use)
   uint64_t next_ = 0;  // versions ever recorded
   uint32_t cache_tick_ = 0;
@@ -205,6 +221,9 @@ class SharedDeltaRoom {
   size_t versions_per_entity_;
   uint32_t tick_ = 0;
   uint32_t time_ms_ = 0;
+  // Slots for entities nobody bound (SharedEntity::slot): high, never reused.
+  uint32_t auto_slots_ = 0;
+  uint32_t auto_serials_ = 0;
   std::vector<uint32_t> tick_times_;  // ring of kSharedTickWindow
   SharedDeltaParams params_;
   // Statistics per field (0 position, 1 rotation), order, k: decayed, and this tick's.
@@ -248,8 +267,15 @@ class SharedDeltaStream final : public StateEncoder {
   size_t count() const override { return count_; }
   size_t Finish() override;
   void OnSent(uint16_t packet_sequence, double now);
+  // O(records in that packet): each names its (slot, serial, ring entry), no lookup.
   void OnPacketAcked(uint16_t packet_sequence);
+  // Drops the record of entity `id` (despawned). O(1). Not needed for correctness (a slot's
+  // next occupant has another serial) but frees the id's mapping and the live count.
   void Forget(uint32_t id);
+  // Entities with a live record, and the slots the record array spans (bounded by the most
+  // entities the room held at once, as the room reuses slots). For tests. O(1).
+  size_t tracked_entities() const { return live_tracks_; }
+  size_t track_slots() const { return tracks_.size(); }
 
   // Selective synchronisation, as DeltaEncoder::Need, with the held states looked up in the
   // room's versions of `entity` (SharedDeltaRoom::HeldWithin, shared by all receivers) rather
@@ -262,40 +288,59 @@ class SharedDeltaStream final : public StateEncoder {
   const SharedDeltaStreamStats& stats() const { return stats_; }
 
  private:
-  struct Entry {
-    bool valid = false;
-    bool acked = false;
-    bool sent = false;
-    SharedBaselineKey key;  // key.ref = the tick it was sent in; key as a reference
-    double sent_at = 0;
-    // No state: the room's versions of the entity hold it under key.ref.
-  };
-  static constexpr int8_t kNoSlot = -1;
+  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 48
+  // bytes, everything selection, Add and an ack touch. No ring of sent versions: a send is
+  // named by its send number, and the packet's record carries the key it was sent with (the
+  // room's versions hold its state). A send stays usable as a reference while it is among the
+  // last kDeltaBaselineWindow sends of the entity (the client keeps that many versions with
+  // the highest ticks, so an acknowledged one in that window is always held).
   struct Track {
-    // First, in one cache line: what Need reads every tick (copies of the newest acked and
-    // newest sent entries' fields, valid while the index is not kNoSlot).
-    int8_t newest_acked = kNoSlot;
-    int8_t newest_sent = kNoSlot;
-    bool newest_sent_acked = false;
-    uint32_t acked_ref = 0;
+    uint32_t serial = 0;  // 0: free
+    uint32_t id = 0;
+    uint32_t next = 0;    // sends so far (send numbers 0..next-1)
+    uint32_t sends_since_keyframe = 0;
+    uint32_t acked_no = 0;  // send number + 1 of the newest acknowledged send; 0: none
+    uint32_t sent_no = 0;   // send number + 1 of the newest sent one; 0: none
+    SharedBaselineKey acked_key;  // its key (acked_key.ref = the tick it was sent in)
+    bool sent_acked = false;
     uint32_t sent_ref = 0;
     double sent_at = 0;
-    uint32_t next = 0;
-    uint32_t sends_since_keyframe = 0;
-    std::array<Entry, kDeltaBaselineWindow> ring;
+    bool Usable(uint32_t no) const { return no != 0 && next - (no - 1) <= kDeltaBaselineWindow; }
   };
+  struct PacketEntry {
+    uint32_t slot;     // entity slot (index into tracks_)
+    uint32_t serial;   // the slot's occupant when sent
+    uint32_t send_no;  // its send number
+    uint32_t s1, s2;   // its key (ref: the record's tick)
+    uint8_t depth;
+  };
+  // A sent payload: its entries lie in entries_ from `begin` (absolute position, entries
+  // ever stored) for `count`; gone once overwritten (head - begin > capacity).
   struct PacketRecord {
     bool valid = false;
     uint16_t sequence = 0;
     uint32_t tick = 0;
-    std::vector<std::pair<uint32_t, uint8_t>> ids;  // (entity id, ring slot)
+    uint32_t count = 0;
+    uint64_t begin = 0;
   };
+  // The entity's track, made afresh if its slot holds none or another occupant's.
+  Track& ClaimTrack(uint32_t id, const SharedEntity& entity, bool* created);
+  void FreeTrack(uint32_t slot);
 
   QuantizationParams params_;
   SharedDeltaStreamOptions options_;
-  FlatIdMap<Track> tracks_;
+  std::vector<Track> tracks_;     // by entity slot
+  FlatIdMap<uint32_t> slot_of_;   // entity id -> slot of its live track (Forget)
+  size_t live_tracks_ = 0;
   std::vector<PacketRecord> records_;
-  std::vector<std::pair<uint32_t, uint8_t>> pending_ids_;
+  // The entries of the payloads in flight, a ring shared by all packet records (power-of-two
+  // capacity, at least kEntryRingPayloads of the largest payload: acknowledgements that come
+  // later than that many payloads are ignored, as a lost packet would be). Bounded memory
+  // whatever the payload sizes, no allocation per packet.
+  static constexpr size_t kEntryRingPayloads = 16;
+  std::vector<PacketEntry> entries_;
+  uint64_t entries_head_ = 0;
+  std::vector<PacketEntry> pending_ids_;
   size_t max_packet_ids_ = 0;
   double lattice_reach2_ = 0;
   double lattice_min_dot_ = 1;

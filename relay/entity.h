@@ -45,6 +45,11 @@ struct Entity {
   uint64_t spawn_seq = 0;        // order of arrival in the room (parents before children)
   uint32_t grab_requester = 0;   // player whose grab request is pending
   uint32_t flags = 0;            // schema::EntityFlags
+  // Room-local slot (Room::AddEntity: a dense index reused after the entity is removed) and
+  // the serial of this occupancy (unique in the room, never 0 once added). Receivers index
+  // their per-entity records by slot and trust one only while its serial matches.
+  uint32_t slot = 0;
+  uint32_t serial = 0;
   uint32_t version = 1;          // bumped on every accepted state change
   double changed_at = 0;         // relay time of the last accepted change (resting detection)
   // Relay time a user last interacted with it: grab, release, or a physics event naming it
@@ -76,6 +81,16 @@ struct Entity {
 };
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;
+
+// What one room tick offers each of its receivers (Room::BuildFrame, once per room tick, so
+// that no receiver walks or sorts the room's entity table itself). Built on the room's thread
+// before the receivers' ticks; read-only during them (they may run in parallel). Pointers
+// into the room's entity table, valid until the room's entities change.
+struct ReplicationFrame {
+  std::vector<const Entity*> by_id;  // every entity, by increasing id
+  std::vector<const Entity*> soft;   // soft bodies with particles, by increasing id
+  std::vector<Vec3f> hands;          // positions of the Hand entities (soft-body touch test)
+};
 
 struct Member {
   uint32_t player_id = 0;

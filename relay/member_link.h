@@ -51,9 +51,10 @@ class MemberLink {
   virtual void StartReplication(const ReplicationConfig& config) = 0;
   // Whether the member may be sent states now (connected, and Joined acknowledged).
   virtual bool ReadyForStates() const = 0;
-  // One replication tick for this member over the room's `entities`. With `buffered`, the
-  // datagrams are held until FlushReplication() (parallel ticks), else sent at once.
-  virtual void Replicate(const EntityTable& entities, double now, RelayCounters& counters,
+  // One replication tick for this member over the room's `frame` (Room::BuildFrame). With
+  // `buffered`, the datagrams are held until FlushReplication() (parallel ticks), else sent
+  // at once.
+  virtual void Replicate(const ReplicationFrame& frame, double now, RelayCounters& counters,
                          bool buffered) = 0;
   virtual void FlushReplication() = 0;
   // The entity is gone: drop what replication holds for it.

@@ -482,13 +482,13 @@ void Relay::TickDueRooms(double now) {
     ++due_rooms;
     receivers_.clear();
     room->BeginTick(now, &receivers_);
-    for (MemberLink* m : receivers_) tick_jobs_.push_back({&room->room().entities(), m});
+    for (MemberLink* m : receivers_) tick_jobs_.push_back({&room->room().frame(), m});
   }
   if (due_rooms == 0) return;
   // Serial: send as we go. Parallel: queue per session, send after the join.
   const bool parallel = physics_pool_.threads() > 1 && tick_jobs_.size() > 1;
   physics_pool_.Run(tick_jobs_.size(), [this, now, parallel](size_t i) {
-    tick_jobs_[i].member->Replicate(*tick_jobs_[i].entities, now, *counters_, parallel);
+    tick_jobs_[i].member->Replicate(*tick_jobs_[i].frame, now, *counters_, parallel);
   });
   for (const TickJob& job : tick_jobs_) job.member->FlushReplication();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

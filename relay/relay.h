@@ -186,7 +186,7 @@ class Relay final : private SessionHost {
   std::vector<RoomHost*> physics_rooms_;
   std::vector<PhysicsLink*> physics_links_;
   struct TickJob {
-    const EntityTable* entities;
+    const ReplicationFrame* frame;
     MemberLink* member;
   };
   std::vector<TickJob> tick_jobs_;

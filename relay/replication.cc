@@ -251,9 +251,8 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
                                   time_ms_);
 }
 
-void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
-                            double now, Connection& connection, PacketWriter& out,
-                            RelayCounters& counters) {
+void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double now,
+                            Connection& connection, PacketWriter& out, RelayCounters& counters) {
   double dt = last_tick_ < 0 ? 0 : now - last_tick_;
   last_tick_ = now;
   time_ms_ = static_cast<uint32_t>(static_cast<uint64_t>(now * 1000.0));
@@ -264,12 +263,14 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
                              config_.bandwidth_budget_bytes_per_s * 0.25 + kMaxPacketSize);
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
-  TickSoftBodies(entities, self, now, resend_after, connection, out, counters);
+  TickSoftBodies(frame, self, now, resend_after, connection, out, counters);
 
   candidates_.clear();
-  for (const auto& [id, e] : entities) {
+  for (const Entity* entity : frame.by_id) {  // by id: candidates_ come out in id order
+    const Entity& e = *entity;
+    const uint32_t id = e.id;
     if (e.owner == self) continue;
-    View& v = views_[id];
+    View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
@@ -311,22 +312,27 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
     candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
   }
   if (candidates_.empty()) return;
-  std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
-    return a.priority != b.priority ? a.priority > b.priority : a.id < b.id;
-  });
-  // Take the most urgent while the budget allows (by the running size estimate), then encode
-  // them in id order (the delta format codes ids as increasing gaps).
-  selected_.clear();
-  double estimate = 0;
-  for (const Candidate& c : candidates_) {
-    double cost = bytes_per_entity_ + (selected_.size() % kEntitiesPerPacketEstimate == 0
-                                           ? kPacketOverhead + 8 : 0.0);
-    if (budgeted && estimate + cost > budget_bytes_) break;
-    estimate += cost;
-    selected_.push_back(c);
+  // Without a budget every candidate goes, already in id order (the delta formats code ids as
+  // increasing gaps). With one: take the most urgent while the budget allows (by the running
+  // size estimate), then encode them in id order.
+  if (budgeted) {
+    std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+      return a.priority != b.priority ? a.priority > b.priority : a.id < b.id;
+    });
+    selected_.clear();
+    double estimate = 0;
+    for (const Candidate& c : candidates_) {
+      double cost = bytes_per_entity_ + (selected_.size() % kEntitiesPerPacketEstimate == 0
+                                             ? kPacketOverhead + 8 : 0.0);
+      if (estimate + cost > budget_bytes_) break;
+      estimate += cost;
+      selected_.push_back(c);
+    }
+    std::sort(selected_.begin(), selected_.end(),
+              [](const Candidate& a, const Candidate& b) { return a.id < b.id; });
+  } else {
+    selected_.swap(candidates_);
   }
-  std::sort(selected_.begin(), selected_.end(),
-            [](const Candidate& a, const Candidate& b) { return a.id < b.id; });
 
   encoder_->Begin(payload_, time_ms_);
   in_payload_.clear();
@@ -350,13 +356,22 @@ void ClientReplicator::Tick(const std::unordered_map<uint32_t, Entity>& entities
       if (!add()) continue;
     }
     in_payload_.emplace_back(c.id, c.entity->version);
-    View& v = views_[c.id];
+    View& v = views_[c.entity->slot];
     v.last_sent = now;
     double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
-    // Due times advance by exactly the interval, so the long-run rate is exact whatever the
-    // tick rate; after a pause (or the first send) the schedule restarts from now.
-    v.next_due += interval;
-    if (v.next_due < now - interval) v.next_due = now + interval;
+    // Room-wide send schedule: the entity is due at the points of a grid of its interval,
+    // with a phase of its own (from its id) but the same for every receiver, so the room's
+    // receivers send it in the same ticks and reference the same versions (shared baseline
+    // keys: one body encode serves them all). One send per grid point while ticks come
+    // faster than the interval, so the long-run rate is exact; a receiver that sent late
+    // (loss, budget) is back on the grid after one send.
+    if (interval > 0 && std::isfinite(interval)) {
+      const double phase =
+          static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
+      v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
+    } else {
+      v.next_due = now + interval;  // a rate of 0: never again on schedule
+    }
     if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
     if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
     v.ever_sent = true;
@@ -401,15 +416,16 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
   in_payload_.clear();
 }
 
-void ClientReplicator::TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities,
-                                      uint32_t self, double now, double resend_after,
-                                      Connection& connection, PacketWriter& out,
-                                      RelayCounters& counters) {
+void ClientReplicator::TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
+                                      double resend_after, Connection& connection,
+                                      PacketWriter& out, RelayCounters& counters) {
   if (soft_ != nullptr) {
-    TickSoftDeltas(entities, self, now, resend_after, connection, out, counters);
+    TickSoftDeltas(frame, self, now, resend_after, connection, out, counters);
     return;
   }
-  for (const auto& [id, e] : entities) {
+  for (const Entity* entity : frame.soft) {
+    const Entity& e = *entity;
+    const uint32_t id = e.id;
     if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
     SoftView& v = soft_views_[id];
     if (now + kEpsilon < v.next_due || e.nodes_version <= v.acked_version) continue;
@@ -451,14 +467,14 @@ bool ClientReplicator::Resumed(const Entity& e, const SoftView& v, double now) {
 
 bool ClientReplicator::SoftTouched(const Entity& e) const {
   if (e.held_by != 0 || e.touching > 0) return true;
-  if (hands_.empty()) return false;
+  if (hands_ == nullptr || hands_->empty()) return false;
   Vec3f lo = e.nodes[0], hi = e.nodes[0];
   for (const Vec3f& p : e.nodes) {
     lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
     hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
   }
   const float m = config_.soft_touch_margin_m;
-  for (const Vec3f& h : hands_) {
+  for (const Vec3f& h : *hands_) {
     if (h.x < lo.x - m || h.x > hi.x + m || h.y < lo.y - m || h.y > hi.y + m ||
         h.z < lo.z - m || h.z > hi.z + m) {
       continue;
@@ -487,21 +503,18 @@ bool ClientReplicator::FlushSoft(double now, Connection& connection, PacketWrite
   return true;
 }
 
-void ClientReplicator::TickSoftDeltas(const std::unordered_map<uint32_t, Entity>& entities,
-                                      uint32_t self, double now, double resend_after,
-                                      Connection& connection, PacketWriter& out,
-                                      RelayCounters& counters) {
-  hands_.clear();
+void ClientReplicator::TickSoftDeltas(const ReplicationFrame& frame, uint32_t self, double now,
+                                      double resend_after, Connection& connection,
+                                      PacketWriter& out, RelayCounters& counters) {
+  hands_ = &frame.hands;
   soft_due_.clear();
-  for (const auto& [id, e] : entities) {
-    if (e.flags & kFlagHand) hands_.push_back(e.state.position);
-    if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
-    SoftView& v = soft_views_[id];
-    if (now + kEpsilon < v.next_due && !Resumed(e, v, now)) continue;
-    soft_due_.emplace_back(id, &e);
+  for (const Entity* e : frame.soft) {  // by id
+    if (e->nodes_version == 0 || e->owner == self || e->nodes.empty()) continue;
+    SoftView& v = soft_views_[e->id];
+    if (now + kEpsilon < v.next_due && !Resumed(*e, v, now)) continue;
+    soft_due_.emplace_back(e->id, e);
   }
   if (soft_due_.empty()) return;
-  std::sort(soft_due_.begin(), soft_due_.end());
   soft_->BeginPayload(payload_, time_ms_);
   for (const auto& [id, e] : soft_due_) {
     if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) break;
@@ -557,11 +570,37 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   if (soft_ != nullptr) soft_->Forget(entity_id);
   if (delta_ != nullptr) delta_->Forget(entity_id);
   if (shared_ != nullptr) shared_->Forget(entity_id);
-  views_.Erase(entity_id);
+  if (const uint32_t* slot = view_slot_of_.Find(entity_id); slot != nullptr) {
+    views_[*slot] = View{};
+    view_slot_of_.Erase(entity_id);
+    --live_views_;
+  }
+}
+
+ClientReplicator::View& ClientReplicator::ViewOf(const Entity& e) {
+  if (e.slot >= views_.size()) views_.resize(e.slot + 1);
+  View& v = views_[e.slot];
+  if (v.serial == e.serial) return v;
+  if (v.serial != 0) {  // the slot's previous occupant (not forgotten)
+    if (const uint32_t* s = view_slot_of_.Find(v.id); s != nullptr && *s == e.slot) {
+      view_slot_of_.Erase(v.id);
+    }
+    --live_views_;
+  }
+  if (const uint32_t* old = view_slot_of_.Find(e.id); old != nullptr && *old != e.slot) {
+    views_[*old] = View{};  // the id's previous entity, in another slot
+    --live_views_;
+  }
+  v = View{};
+  v.serial = e.serial;
+  v.id = e.id;
+  *view_slot_of_.TryEmplace(e.id).first = e.slot;
+  ++live_views_;
+  return v;
 }
 
 size_t ClientReplicator::tracked_entities() const {
-  return std::max(views_.size(), soft_views_.size());
+  return std::max(live_views_, soft_views_.size());
 }
 
 }  // namespace edgephys

@@ -21,8 +21,9 @@
 // `photon` (format 3) and `paper` (format 4) for side-by-side comparison.
 //
 // Thread-safety: none; owned by the session, used on the room's thread.
-// Cost: O(entities in room) per tick plus O(k log k) for the k candidates; no allocation per
-// packet once the per-entity views exist.
+// Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
+// views in an array indexed by the entities' room-local slots), plus O(k log k) for the k
+// candidates only under a bandwidth budget; no allocation per packet once the views exist.
 #pragma once
 
 #include <cstdint>
@@ -45,6 +46,7 @@
 namespace edgephys {
 
 struct Entity;
+struct ReplicationFrame;
 
 enum class ReplicationMode : uint8_t { kFloat = 0, kEdgephys, kPhoton, kPaper };
 std::string_view ReplicationModeName(ReplicationMode mode);
@@ -152,9 +154,10 @@ class ClientReplicator {
   ~ClientReplicator();
 
   // Sends this tick's updates for the client `self` (player id) through `connection`.
-  // `entities` is the room's entity table.
-  void Tick(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self, double now,
-            Connection& connection, PacketWriter& out, RelayCounters& counters);
+  // `frame` is the room's offer for this tick (Room::BuildFrame): its entities by id, soft
+  // bodies and hands, so the replicator neither walks the room's table nor sorts by id.
+  void Tick(const ReplicationFrame& frame, uint32_t self, double now, Connection& connection,
+            PacketWriter& out, RelayCounters& counters);
 
   void OnPacketAcked(uint16_t sequence);
   // Drops everything held for `entity_id` (despawned): its view, tracker entry or delta
@@ -167,7 +170,10 @@ class ClientReplicator {
   size_t tracked_entities() const;
 
  private:
+  // One per entity slot (Entity::slot), valid while `serial` equals the entity's.
   struct View {
+    uint32_t serial = 0;  // 0: free
+    uint32_t id = 0;
     double last_sent = -1e9;
     double next_due = -1e9;
     double accumulator = 0;
@@ -183,6 +189,9 @@ class ClientReplicator {
     const Entity* entity;
     uint8_t fields;
   };
+  // The view of `e` (a slot of views_), made afresh if the slot holds none or another
+  // occupant's. May grow views_ (invalidating references to other views).
+  View& ViewOf(const Entity& e);
   PriorityClass ClassOf(const Entity& e, double now) const;
   double IntervalOf(PriorityClass c) const;
   // IntervalOf, but dead-reckoned entities (format 12) are checked at extrapolation_max_hz.
@@ -203,8 +212,8 @@ class ClientReplicator {
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
   // changed soft body, in chunks, resent until every chunk of that version is acknowledged.
-  void TickSoftBodies(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
-                      double now, double resend_after, Connection& connection, PacketWriter& out,
+  void TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
+                      double resend_after, Connection& connection, PacketWriter& out,
                       RelayCounters& counters);
   struct SoftView {
     uint32_t sent_version = 0;
@@ -221,8 +230,8 @@ class ClientReplicator {
     uint32_t version = 0;
     uint32_t chunk = 0;
   };
-  void TickSoftDeltas(const std::unordered_map<uint32_t, Entity>& entities, uint32_t self,
-                      double now, double resend_after, Connection& connection, PacketWriter& out,
+  void TickSoftDeltas(const ReplicationFrame& frame, uint32_t self, double now,
+                      double resend_after, Connection& connection, PacketWriter& out,
                       RelayCounters& counters);
   bool FlushSoft(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   bool SoftTouched(const Entity& e) const;
@@ -232,7 +241,7 @@ class ClientReplicator {
   std::unordered_map<uint32_t, SoftView> soft_views_;
   std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
   std::vector<std::pair<uint32_t, const Entity*>> soft_due_;
-  std::vector<Vec3f> hands_;                         // this tick's Hand entity positions
+  const std::vector<Vec3f>* hands_ = nullptr;        // this tick's Hand entity positions
   std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence
 
   ReplicationConfig config_;
@@ -243,7 +252,9 @@ class ClientReplicator {
   uint64_t shared_hits_counted_ = 0;        // shared_'s stats already added to the counters
   uint64_t shared_entities_counted_ = 0;
   ReplicationTracker tracker_;              // acks for float / emulation modes
-  FlatIdMap<View> views_;
+  std::vector<View> views_;            // by entity slot: walked densely, no lookups
+  FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
+  size_t live_views_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> selected_;
   std::vector<std::pair<uint32_t, uint32_t>> in_payload_;  // (id, version)

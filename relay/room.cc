@@ -67,11 +67,32 @@ Entity* Room::FindEntity(uint32_t id) {
 
 Entity& Room::AddEntity(Entity entity) {
   uint32_t id = entity.id;
+  if (auto old = entities_.find(id); old != entities_.end()) ReleaseSlot(old->second);
   ledger_.Charge(entity.creator, entity.cost);
   if (Entity* parent = entity.parent != 0 ? FindEntity(entity.parent) : nullptr) {
     ++parent->children;
   }
-  return entities_[id] = std::move(entity);
+  if (free_slots_.empty()) {
+    entity.slot = static_cast<uint32_t>(slots_.size());
+    slots_.push_back(nullptr);
+  } else {
+    entity.slot = free_slots_.back();
+    free_slots_.pop_back();
+  }
+  if (++serials_ == 0) ++serials_;
+  entity.serial = serials_;
+  entity.shared.reset();  // a copy's: this occupancy gets its own (PrepareStates)
+  Entity& e = entities_[id] = std::move(entity);
+  slots_[e.slot] = &e;
+  frame_stale_ = true;
+  return e;
+}
+
+void Room::ReleaseSlot(const Entity& e) {
+  if (e.slot < slots_.size() && slots_[e.slot] == &e) {
+    slots_[e.slot] = nullptr;
+    free_slots_.push_back(e.slot);
+  }
 }
 
 void Room::RemoveEntity(uint32_t id) {
@@ -83,6 +104,8 @@ void Room::RemoveEntity(uint32_t id) {
     if (parent->children > 0) --parent->children;
   }
   const bool had_children = e.children != 0;
+  ReleaseSlot(e);
+  frame_stale_ = true;
   entities_.erase(it);
   if (physics_) physics_->Remove(id);
   if (!had_children) return;
@@ -94,6 +117,27 @@ void Room::RemoveEntity(uint32_t id) {
     auto* msg = schema::GetMutableControlMessage(child.spawn.data());
     auto* spawn = static_cast<schema::Spawn*>(msg->mutable_body());
     if (auto* c = spawn->mutable_container()) c->mutate_parent_id(0);
+  }
+}
+
+void Room::BuildFrame() {
+  constexpr uint32_t kFlagHand = 1u << 4;  // schema::EntityFlags::Hand
+  frame_.hands.clear();
+  if (frame_stale_) {  // ids sorted once per change of the set, not per receiver per tick
+    frame_stale_ = false;
+    frame_.by_id.clear();
+    for (const Entity* e : slots_) {
+      if (e != nullptr) frame_.by_id.push_back(e);
+    }
+    std::sort(frame_.by_id.begin(), frame_.by_id.end(),
+              [](const Entity* a, const Entity* b) { return a->id < b->id; });
+  }
+  // Whether an entity is a soft body can change (its first particles), so this part is redone
+  // every tick; it costs one pass over the room's entities, shared by all receivers.
+  frame_.soft.clear();
+  for (const Entity* e : frame_.by_id) {
+    if (e->flags & kFlagHand) frame_.hands.push_back(e->state.position);
+    if (e->nodes_version != 0 && !e->nodes.empty()) frame_.soft.push_back(e);
   }
 }
 
@@ -125,7 +169,10 @@ void Room::PrepareStates(double now) {
       e.prepared_valid = true;
     }
     if (shared_) {
-      if (!e.shared) e.shared = std::make_shared<SharedEntity>();
+      if (!e.shared) {
+        e.shared = std::make_shared<SharedEntity>();
+        e.shared->BindSlot(e.slot, e.serial);
+      }
       shared_->PrepareEntity(*e.shared, e.prepared);
     }
   }

@@ -59,6 +59,9 @@ class Room {
   // What the entities cost, by creator and in all (relay/room_budget.h).
   const RoomLedger& ledger() const { return ledger_; }
   const EntityTable& entities() const { return entities_; }
+  // The entities by slot (Entity::slot; null: a free slot). Its size is the most entities the
+  // room held at once: freed slots are reused first. Valid until the next AddEntity.
+  const std::vector<Entity*>& slots() const { return slots_; }
 
   // PhyS for this room (embedded or on a worker); null until the first physics entity.
   PhysicsLink* physics() const { return physics_.get(); }
@@ -73,6 +76,10 @@ class Room {
   // after the first call per entity. Not thread-safe: call on the room's thread before the
   // clients' ticks, which then only read the result (format 9 bodies are cached thread-safely).
   void PrepareStates(double now);
+  // Builds frame() from the entities as they are now. O(entities) plus a sort by id only when
+  // entities came or went since the last call. Room thread, before the receivers' ticks.
+  void BuildFrame();
+  const ReplicationFrame& frame() const { return frame_; }
   // Format 9 rooms: the tick clock and body cache; null otherwise (or before the first tick).
   const SharedDeltaRoom* shared_encoding() const { return shared_.get(); }
 
@@ -84,11 +91,18 @@ class Room {
   void set_empty_since(double t) { empty_since_ = t; }
 
  private:
+  void ReleaseSlot(const Entity& e);
+
   std::string name_;
   RoomConfig config_;
   std::map<uint32_t, Member> members_;  // by player id
   std::map<uint32_t, uint32_t> reserved_slots_;  // player id -> slot (failover)
   EntityTable entities_;
+  std::vector<Entity*> slots_;       // by Entity::slot (nodes of entities_: stable)
+  std::vector<uint32_t> free_slots_;
+  uint32_t serials_ = 0;             // Entity::serial of the last entity added
+  ReplicationFrame frame_;
+  bool frame_stale_ = true;          // entities came or went since BuildFrame
   RoomLedger ledger_;
   std::unique_ptr<PhysicsLink> physics_;
   uint64_t spawn_seq_ = 0;

@@ -55,7 +55,7 @@ class RecordingMember final : public MemberLink {
     start_after_messages = reliable.size();
   }
   bool ReadyForStates() const override { return ready; }
-  void Replicate(const EntityTable&, double, RelayCounters&, bool) override {}
+  void Replicate(const ReplicationFrame&, double, RelayCounters&, bool) override {}
   void FlushReplication() override {}
   void Forget(uint32_t entity_id) override { forgotten.push_back(entity_id); }
 

@@ -145,10 +145,10 @@ bool Session::ReadyForStates() const {
          connection_.reliable_acked_end() >= states_after_reliable_;
 }
 
-void Session::Replicate(const EntityTable& entities, double now, RelayCounters& counters,
+void Session::Replicate(const ReplicationFrame& frame, double now, RelayCounters& counters,
                         bool buffered) {
   buffering_ = buffered;
-  replicator_->Tick(entities, player_id_, now, connection_, *this, counters);
+  replicator_->Tick(frame, player_id_, now, connection_, *this, counters);
 }
 
 void Session::FlushReplication() {

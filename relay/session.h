@@ -77,7 +77,7 @@ class Session final : public ConnectionHandler,
   void DropUpdate(DropReason reason) override;
   void StartReplication(const ReplicationConfig& config) override;
   bool ReadyForStates() const override;
-  void Replicate(const EntityTable& entities, double now, RelayCounters& counters,
+  void Replicate(const ReplicationFrame& frame, double now, RelayCounters& counters,
                  bool buffered) override;
   void FlushReplication() override;
   void Forget(uint32_t entity_id) override { replicator_->Forget(entity_id); }
