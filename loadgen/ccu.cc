@@ -115,6 +115,8 @@ class World {
   // in the publisher's room (itself excluded).
   double hand_updates_owed = 0;
   std::vector<uint32_t> measuring_in_room;  // per room index
+  uint64_t hand_unmatched = 0, cross_room_samples = 0;
+  FILE* samples = nullptr;  // --samples CSV, or null
   bool measuring = false;
   Clock::time_point start;
   explicit World(const CcuOptions& options) : o(options) {}
@@ -151,10 +153,22 @@ void Bot::OnEntityUpdated(const RemoteEntity& e) {
     const Vec3f& p = sent.position;
     float dx = p.x - e.state.position.x, dy = p.y - e.state.position.y, dz = p.z - e.state.position.z;
     if (dx * dx + dy * dy + dz * dz < 1.5e-6f) {  // the same pose (within the 1 mm lattice)
-      world_->latencies_ms.push_back((now - sent.t) * 1000.0);
-      world_->arrival_latencies_ms.push_back((e.arrival_unix_s - sent.unix_s) * 1000.0);
+      const double sdk_ms = (now - sent.t) * 1000.0;
+      const double arrival_ms = (e.arrival_unix_s - sent.unix_s) * 1000.0;
+      world_->latencies_ms.push_back(sdk_ms);
+      world_->arrival_latencies_ms.push_back(arrival_ms);
+      world_->cross_room_samples += sender.room_ != room_;
+      if (world_->samples != nullptr) {
+        std::fprintf(world_->samples, "hand,%.4f,%u,%u,%u,%u,%u,%.3f,%.3f\n", now, room_, index_,
+                     e.id, sender.room_, sender.index_, sdk_ms, arrival_ms);
+      }
       return;
     }
+  }
+  ++world_->hand_unmatched;
+  if (world_->samples != nullptr) {
+    std::fprintf(world_->samples, "hand_unmatched,%.4f,%u,%u,%u,%u,%u,,\n", now, room_, index_, e.id,
+                 sender.room_, sender.index_);
   }
 }
 
@@ -171,9 +185,15 @@ void Bot::OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) {
     if (kind == kGrabbed) phase = 3, phase_at = now;
   } else if (kind == kGrabbed && grabber->grab_requested_at > 0 && world_->measuring &&
              index_ % world_->o.measure_every == 0) {
-    world_->grab_latencies_ms.push_back((now - grabber->grab_requested_at) * 1000.0);
-    world_->grab_arrival_latencies_ms.push_back(
-        (client->packet_arrival_unix_s() - grabber->grab_requested_unix_s) * 1000.0);
+    const double sdk_ms = (now - grabber->grab_requested_at) * 1000.0;
+    const double arrival_ms = (client->packet_arrival_unix_s() - grabber->grab_requested_unix_s) * 1000.0;
+    world_->grab_latencies_ms.push_back(sdk_ms);
+    world_->grab_arrival_latencies_ms.push_back(arrival_ms);
+    world_->cross_room_samples += grabber->room_ != room_;
+    if (world_->samples != nullptr) {
+      std::fprintf(world_->samples, "grab,%.4f,%u,%u,%u,%u,%u,%.3f,%.3f\n", now, room_, index_, a,
+                   grabber->room_, grabber->index_, sdk_ms, arrival_ms);
+    }
   }
 }
 
@@ -270,6 +290,15 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
                            : std::make_unique<RelayTarget>(config, world.start);
   RelayTarget& relay = *target;
   world.relay = &relay;
+  std::unique_ptr<FILE, int (*)(FILE*)> samples(nullptr, &std::fclose);
+  if (!o.samples_path.empty()) {
+    const std::string path = o.users.size() > 1 ? o.samples_path + "." + std::to_string(users)
+                                                : o.samples_path;
+    samples.reset(std::fopen(path.c_str(), "w"));
+    if (!samples) std::fprintf(stderr, "ccu: cannot write --samples %s\n", path.c_str());
+    else std::fprintf(samples.get(), "kind,t_s,room,bot,entity,sender_room,sender,sdk_ms,arrival_ms\n");
+    world.samples = samples.get();
+  }
 
   world.measuring_in_room.assign(std::max(1u, o.rooms), 0);
   for (uint32_t i = 0; i < users; ++i) {
@@ -415,6 +444,9 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   // by at least the lattice step (a hand resting over a box is rightly not resent).
   result.expected_update_ratio =
       world.hand_updates_owed > 0 ? world.hand_updates / world.hand_updates_owed : 0;
+  result.hand_updates_measured = world.hand_updates;
+  result.hand_unmatched = world.hand_unmatched;
+  result.cross_room_samples = world.cross_room_samples;
   // Leave the relay clean (an external one keeps serving: no traffic to bots that are gone).
   for (auto& b : world.bots) {
     if (b->client) b->client->Disconnect();
