@@ -10,7 +10,8 @@
 // relay thread's CPU share. User-to-user latency: each bot watches other bots' right hands;
 // a received pose is matched to the publish time of the same pose on the sender (all in one
 // process and clock), so latency = receive time - publish time; grab latency = the Grab
-// request to the Grabbed event at another user. Each is measured twice:
+// request to the Grabbed event at another user. The sender is found by (room, entity id):
+// rooms reuse entity ids (loadgen/pose_history.h). Each is measured twice:
 //   * SDK latency (latency_ms_*, grab_latency_ms_*): from the start of the sender's bot pass
 //     to the receiving bot's callback (steady clock). It includes the wait of a datagram in
 //     the receiver's socket until the single bot thread reaches that bot, up to a whole bot
