@@ -4,7 +4,6 @@
 #include <time.h>
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -19,6 +18,7 @@
 #include "loadgen/avatar.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/motion.h"
+#include "loadgen/pose_history.h"
 #include "loadgen/stats.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
@@ -77,14 +77,9 @@ class Bot : public ClientListener {
   double next_publish = 0;
   Vec3f last_right{};  // the right hand's previous published pose
   bool published_right = false;
-  // Right-hand publish history for latency matching.
-  struct Published {
-    double t = 0;       // the bot pass's start (World::Now()), as the SDK latency counts it
-    double unix_s = 0;  // CLOCK_REALTIME at the PublishTransform() call
-    Vec3f position;
-  };
-  std::array<Published, 64> history{};
-  size_t history_count = 0;
+  // Right-hand publishes for latency matching: t = the bot pass's start (World::Now()), as
+  // the SDK latency counts it; unix_s = CLOCK_REALTIME at the PublishTransform() call.
+  PoseHistory right_history;
   // Grab cycle.
   int phase = 0;  // 0 free, 1 reaching, 2 requested, 3 holding
   double phase_at = 0;
@@ -103,8 +98,10 @@ class World {
   const CcuOptions& o;
   RelayTarget* relay = nullptr;
   std::vector<std::unique_ptr<Bot>> bots;
-  std::unordered_map<uint32_t, Bot*> right_hand_owner;  // right hand id -> bot
-  std::unordered_map<uint32_t, Bot*> box_owner;
+  // RoomEntityKey(room, id) -> bot: rooms reuse entity ids (one block per slot), so the id
+  // alone names one entity in every room.
+  std::unordered_map<uint64_t, Bot*> right_hand_owner;
+  std::unordered_map<uint64_t, Bot*> box_owner;
   std::vector<EventRecord> events;  // grab/release as the grabbing bot saw them
   std::vector<double> latencies_ms, grab_latencies_ms;
   // The same, ending at the kernel's arrival time at the receiver's socket.
@@ -115,6 +112,8 @@ class World {
   // in the publisher's room (itself excluded).
   double hand_updates_owed = 0;
   std::vector<uint32_t> measuring_in_room;  // per room index
+  uint64_t hand_unmatched = 0, cross_room_samples = 0;
+  FILE* samples = nullptr;  // --samples CSV, or null
   bool measuring = false;
   Clock::time_point start;
   explicit World(const CcuOptions& options) : o(options) {}
@@ -126,7 +125,7 @@ Vec3f HandPath(const Bot& b, double t, float side) {
 }
 
 void Bot::OnEntityUpdated(const RemoteEntity& e) {
-  auto it = world_->right_hand_owner.find(e.id);
+  auto it = world_->right_hand_owner.find(RoomEntityKey(room_, e.id));
   if (it == world_->right_hand_owner.end() || it->second == this) return;
   if (index_ % world_->o.measure_every != 0) return;  // not a measuring bot
   const Bot& sender = *it->second;
@@ -145,16 +144,22 @@ void Bot::OnEntityUpdated(const RemoteEntity& e) {
   last = e.state.position;
   if (!world_->measuring || repeat) return;  // a resend of a pose already seen
   ++world_->hand_updates;
-  size_t n = std::min(sender.history_count, sender.history.size());
-  for (size_t k = 0; k < n; ++k) {
-    const Published& sent = sender.history[k];
-    const Vec3f& p = sent.position;
-    float dx = p.x - e.state.position.x, dy = p.y - e.state.position.y, dz = p.z - e.state.position.z;
-    if (dx * dx + dy * dy + dz * dz < 1.5e-6f) {  // the same pose (within the 1 mm lattice)
-      world_->latencies_ms.push_back((now - sent.t) * 1000.0);
-      world_->arrival_latencies_ms.push_back((e.arrival_unix_s - sent.unix_s) * 1000.0);
-      return;
+  if (const PoseHistory::Publish* sent = sender.right_history.Match(e.state.position)) {
+    const double sdk_ms = (now - sent->t) * 1000.0;
+    const double arrival_ms = (e.arrival_unix_s - sent->unix_s) * 1000.0;
+    world_->latencies_ms.push_back(sdk_ms);
+    world_->arrival_latencies_ms.push_back(arrival_ms);
+    world_->cross_room_samples += sender.room_ != room_;
+    if (world_->samples != nullptr) {
+      std::fprintf(world_->samples, "hand,%.4f,%u,%u,%u,%u,%u,%.3f,%.3f\n", now, room_, index_,
+                   e.id, sender.room_, sender.index_, sdk_ms, arrival_ms);
     }
+    return;
+  }
+  ++world_->hand_unmatched;
+  if (world_->samples != nullptr) {
+    std::fprintf(world_->samples, "hand_unmatched,%.4f,%u,%u,%u,%u,%u,,\n", now, room_, index_, e.id,
+                 sender.room_, sender.index_);
   }
 }
 
@@ -163,7 +168,7 @@ void Bot::OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) {
   if (kind != kGrabbed && kind != kReleased) return;
   ++events_seen[{kind, a}];
   double now = world_->Now();
-  auto owner = world_->box_owner.find(a);
+  auto owner = world_->box_owner.find(RoomEntityKey(room_, a));
   if (owner == world_->box_owner.end()) return;
   Bot* grabber = owner->second;
   if (grabber == this) {
@@ -171,9 +176,15 @@ void Bot::OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) {
     if (kind == kGrabbed) phase = 3, phase_at = now;
   } else if (kind == kGrabbed && grabber->grab_requested_at > 0 && world_->measuring &&
              index_ % world_->o.measure_every == 0) {
-    world_->grab_latencies_ms.push_back((now - grabber->grab_requested_at) * 1000.0);
-    world_->grab_arrival_latencies_ms.push_back(
-        (client->packet_arrival_unix_s() - grabber->grab_requested_unix_s) * 1000.0);
+    const double sdk_ms = (now - grabber->grab_requested_at) * 1000.0;
+    const double arrival_ms = (client->packet_arrival_unix_s() - grabber->grab_requested_unix_s) * 1000.0;
+    world_->grab_latencies_ms.push_back(sdk_ms);
+    world_->grab_arrival_latencies_ms.push_back(arrival_ms);
+    world_->cross_room_samples += grabber->room_ != room_;
+    if (world_->samples != nullptr) {
+      std::fprintf(world_->samples, "grab,%.4f,%u,%u,%u,%u,%u,%.3f,%.3f\n", now, room_, index_, a,
+                   grabber->room_, grabber->index_, sdk_ms, arrival_ms);
+    }
   }
 }
 
@@ -200,8 +211,8 @@ void Bot::Tick(double now) {
     b.rigid_body = RigidBodySpec{};
     b.colliders.push_back(BoxCollider({0.1f, 0.1f, 0.1f}));
     box = *c.Spawn(b);
-    world_->right_hand_owner[right] = this;
-    world_->box_owner[box] = this;
+    world_->right_hand_owner[RoomEntityKey(room_, right)] = this;
+    world_->box_owner[RoomEntityKey(room_, box)] = this;
     next_grab = now + 2.0 + (index_ % 50) * 0.1;
     return;
   }
@@ -248,7 +259,7 @@ void Bot::Tick(double now) {
   last_right = r;
   published_right = true;
   (void)c.PublishTransform(right, r, {});
-  history[history_count++ % history.size()] = {now, published_unix_s, r};
+  right_history.Add({.t = now, .unix_s = published_unix_s, .position = r});
 }
 
 CcuResult RunOne(const CcuOptions& o, uint32_t users) {
@@ -270,6 +281,15 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
                            : std::make_unique<RelayTarget>(config, world.start);
   RelayTarget& relay = *target;
   world.relay = &relay;
+  std::unique_ptr<FILE, int (*)(FILE*)> samples(nullptr, &std::fclose);
+  if (!o.samples_path.empty()) {
+    const std::string path = o.users.size() > 1 ? o.samples_path + "." + std::to_string(users)
+                                                : o.samples_path;
+    samples.reset(std::fopen(path.c_str(), "w"));
+    if (!samples) std::fprintf(stderr, "ccu: cannot write --samples %s\n", path.c_str());
+    else std::fprintf(samples.get(), "kind,t_s,room,bot,entity,sender_room,sender,sdk_ms,arrival_ms\n");
+    world.samples = samples.get();
+  }
 
   world.measuring_in_room.assign(std::max(1u, o.rooms), 0);
   for (uint32_t i = 0; i < users; ++i) {
@@ -415,6 +435,9 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   // by at least the lattice step (a hand resting over a box is rightly not resent).
   result.expected_update_ratio =
       world.hand_updates_owed > 0 ? world.hand_updates / world.hand_updates_owed : 0;
+  result.hand_updates_measured = world.hand_updates;
+  result.hand_unmatched = world.hand_unmatched;
+  result.cross_room_samples = world.cross_room_samples;
   // Leave the relay clean (an external one keeps serving: no traffic to bots that are gone).
   for (auto& b : world.bots) {
     if (b->client) b->client->Disconnect();

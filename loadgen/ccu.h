@@ -10,7 +10,8 @@
 // relay thread's CPU share. User-to-user latency: each bot watches other bots' right hands;
 // a received pose is matched to the publish time of the same pose on the sender (all in one
 // process and clock), so latency = receive time - publish time; grab latency = the Grab
-// request to the Grabbed event at another user. Each is measured twice:
+// request to the Grabbed event at another user. The sender is found by (room, entity id):
+// rooms reuse entity ids (loadgen/pose_history.h). Each is measured twice:
 //   * SDK latency (latency_ms_*, grab_latency_ms_*): from the start of the sender's bot pass
 //     to the receiving bot's callback (steady clock). It includes the wait of a datagram in
 //     the receiver's socket until the single bot thread reaches that bot, up to a whole bot
@@ -48,6 +49,9 @@ struct CcuOptions {
   // Every bot decodes what it receives (the SDK has no acknowledge-only mode), but only every
   // `measure_every`-th bot matches poses for latency and keeps jitter buffers (1: all bots).
   uint32_t measure_every = 1;
+  // --samples: every latency sample as a CSV line (kind, time, rooms, bots, entity, ms), and
+  // every measured hand pose that matched no publish; empty: none written.
+  std::string samples_path;
 };
 
 // Member names are the --json field names of a "series" sample.
@@ -85,6 +89,14 @@ struct CcuResult {
   double relay_cpu_mean = 0;
   double egress_bytes_per_s_per_user = 0;
   double expected_update_ratio = 0;   // hand updates received / expected
+  // Measurement soundness. Of the hand updates measured (new poses at a measuring bot), those
+  // matched to their publish give the latency samples; unmatched ones matched no publish of
+  // the last ~2 s (older than that, or a matching bug): they are not in the percentiles, so
+  // a non-zero count means the p99 may hide a tail. Cross-room: samples (hand or grab) timed
+  // against a publisher or grabber in another room than the receiver's (a keying bug; 0).
+  uint64_t hand_updates_measured = 0;
+  uint64_t hand_unmatched = 0;
+  uint64_t cross_room_samples = 0;
   std::vector<CcuSample> series;
   // External relay: scrapes of /metrics that failed (their seconds have no server figures).
   uint32_t metrics_failures = 0;

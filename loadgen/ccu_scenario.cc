@@ -36,7 +36,10 @@ nlohmann::json Summary(const CcuResult& r) {
           {"latency_interpolation_ms", r.interpolation_delay_ms},
           {"relay_cpu_mean", r.relay_cpu_mean},
           {"egress_bytes_per_s_per_user", r.egress_bytes_per_s_per_user},
-          {"hand_update_ratio", r.expected_update_ratio}};
+          {"hand_update_ratio", r.expected_update_ratio},
+          {"hand_updates_measured", r.hand_updates_measured},
+          {"hand_unmatched", r.hand_unmatched},
+          {"cross_room_samples", r.cross_room_samples}};
 }
 
 // External relay: the server-side figures' provenance, and what it cannot give.
@@ -93,21 +96,25 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
 }
 
 void FillTable(const CcuOptions& o, const std::vector<CcuResult>& results, Table* t) {
-  t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s\n", "users", "rooms",
+  t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s %9s\n", "users", "rooms",
           "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50", "grab p99",
-          "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio");
+          "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio", "unmatched");
   for (const CcuResult& r : results) {
     t->Line("%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f "
-            "%9.0f %8.2f\n",
+            "%9.0f %8.2f %9.4f\n",
             r.users, r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
             r.latency_ms_p50, r.latency_ms_p99, r.arrival_latency_ms_p50, r.arrival_latency_ms_p99,
             r.grab_latency_ms_p50, r.grab_latency_ms_p99, r.grab_arrival_latency_ms_p50,
             r.grab_arrival_latency_ms_p99, r.physics_step_ms_p99, r.relay_cpu_mean,
-            r.egress_bytes_per_s_per_user, r.expected_update_ratio);
+            r.egress_bytes_per_s_per_user, r.expected_update_ratio,
+            r.hand_updates_measured
+                ? static_cast<double>(r.hand_unmatched) / static_cast<double>(r.hand_updates_measured)
+                : 0.0);
   }
   t->Text("(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
           "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
-          "thread CPU / wall)\n");
+          "thread CPU / wall; unmatched = measured hand poses matched to no publish, not in the "
+          "percentiles)\n");
   if (o.external.enabled()) {
     t->Line("(external relay %s: egress, updates and step time from its /metrics, process-wide; "
             "cpu = its process CPU from /proc%s)\n",
@@ -163,6 +170,9 @@ class CcuScenario final : public Scenario {
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th bot matches poses for latency (all still decode; 1: all)")
         ->check(CLI::Range(1u, 1000000u));
+    cmd.add_option("--samples", o_.samples_path,
+                   "Write every latency sample (and unmatched hand pose) to this CSV (with several "
+                   "--users: one file per count, suffixed .<users>)");
     AddExternalRelayOptions(cmd, &o_.external);
   }
 

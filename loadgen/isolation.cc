@@ -3,7 +3,6 @@
 #include <time.h>
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -18,6 +17,7 @@
 #include "client/client_endpoint.h"
 #include "loadgen/avatar.h"
 #include "loadgen/loopback_room.h"
+#include "loadgen/pose_history.h"
 #include "loadgen/stats.h"
 #include "physics/scenes.h"
 #include "protocol/handshake.h"
@@ -66,13 +66,7 @@ class Bot : public ClientListener {
   uint32_t head = 0, left = 0, right = 0;
   Vec3f home;
   double next_publish = 0;
-  struct Published {
-    double t = 0;
-    double unix_s = 0;
-    Vec3f position;
-  };
-  std::array<Published, 64> history{};
-  size_t history_count = 0;
+  PoseHistory right_history;  // right-hand publishes for latency matching
   std::unordered_map<uint32_t, Vec3f> last_seen;
 };
 
@@ -105,16 +99,9 @@ void Bot::OnEntityUpdated(const RemoteEntity& e) {
   if (!world_->measuring || repeat) return;
   ++world_->hand_updates;
   const double now = world_->Now();
-  size_t n = std::min(sender.history_count, sender.history.size());
-  for (size_t k = 0; k < n; ++k) {
-    const Published& sent = sender.history[k];
-    const Vec3f& p = sent.position;
-    float dx = p.x - e.state.position.x, dy = p.y - e.state.position.y, dz = p.z - e.state.position.z;
-    if (dx * dx + dy * dy + dz * dz < 1.5e-6f) {  // the same pose (within the 1 mm lattice)
-      world_->samples.push_back({static_cast<float>(now), static_cast<float>((now - sent.t) * 1000.0),
-                                 static_cast<float>((e.arrival_unix_s - sent.unix_s) * 1000.0)});
-      return;
-    }
+  if (const PoseHistory::Publish* sent = sender.right_history.Match(e.state.position)) {
+    world_->samples.push_back({static_cast<float>(now), static_cast<float>((now - sent->t) * 1000.0),
+                               static_cast<float>((e.arrival_unix_s - sent->unix_s) * 1000.0)});
   }
 }
 
@@ -138,7 +125,7 @@ void Bot::Tick(double now) {
   const Vec3f r = HandPath(*this, now, 1.f);
   const double published_unix_s = RealtimeNow();
   (void)c.PublishTransform(right, r, {});
-  history[history_count++ % history.size()] = {now, published_unix_s, r};
+  right_history.Add({.t = now, .unix_s = published_unix_s, .position = r});
 }
 
 // Room B on its own thread: the host with the scene, receivers and the late joiner.
