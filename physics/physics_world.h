@@ -176,8 +176,8 @@ struct PhysicsConfig {
   // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the
   // bodies rests while others move.
   bool rest_freeze = true;
-  float rest_linear_threshold = 0.05f;   // m/s
-  float rest_angular_threshold = 0.1f;   // rad/s
+  float rest_linear_threshold = 0.1f;    // m/s (0.05 froze 47 % instead of 59 %)
+  float rest_angular_threshold = 0.2f;   // rad/s (0.1 likewise)
   float rest_time = 0.5f;                // s below both thresholds before freezing
   float rest_wake_margin = 0.05f;        // m: look-ahead around a frozen body's AABB
   float rest_wake_delta_v = 0.33f;       // m/s: ~2 * g * dt, twice what resting weight pushes

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "physics/physics_test_util.h"
@@ -172,6 +173,8 @@ TEST(RestManagerTest, BoxDroppedOnFrozenPileWakesItAndMatchesTheRunWithoutFreezi
   float worst = 0;
   for (size_t i = 0; i < on.pos.size(); ++i) worst = std::max(worst, Dist(on.pos[i], off.pos[i]));
   EXPECT_LT(worst, 0.02f) << "the pile responds as without freezing";
+  std::printf("[rest] drop on a frozen pile: worst box %.2f mm from the never-frozen run, "
+              "%llu wakes\n", 1000.0 * worst, static_cast<unsigned long long>(on.wakes));
   // The dropped box came to rest on the pile in both runs.
   EXPECT_NEAR(on.pos.back().y, off.pos.back().y, 0.02f);
   // Energy never grows (beyond solver noise: 1 % of the drop's potential energy).
