@@ -10,7 +10,9 @@
 // Units: metres, seconds, kilograms, radians; room frame, Y up (gravity configurable).
 // Failure: every command returns a Status; invalid input never changes the world.
 // Cost: Step() is one Bullet step plus O(active bodies + contact manifolds + commands since the
-//   last step); sleeping bodies cost nothing beyond what Bullet itself spends on them.
+//   last step); sleeping bodies cost nothing beyond what Bullet itself spends on them, and
+//   frozen (resting) bodies likewise (PhysicsConfig::rest_freeze; plus O(broadphase pairs) for
+//   the wake check while any are frozen).
 //   Step(), CollectStates() and DrainEvents() do not allocate in steady state (vectors are
 //   reused and only grow).
 //
