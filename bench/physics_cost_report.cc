@@ -51,6 +51,7 @@ struct Candidate {
 // candidate changes one thing from here.
 void OldDefaults(PhysicsConfig& c) {
   c = PhysicsConfig{};
+  c.rest_freeze = false;  // resting regions came after this measurement
   c.solver_iterations = 10;
   c.sleep_linear_threshold = 0.1f;
   c.sleep_angular_threshold = 0.1f;
@@ -132,6 +133,28 @@ std::vector<Candidate> Candidates() {
          c.solver_iterations = 7;
        })},
       {"new-defaults", [](PhysicsConfig& c) { c = PhysicsConfig{}; }},
+      // Resting regions (rest_manager.h): the defaults with freezing off, and variants.
+      {"no-rest", [](PhysicsConfig& c) {
+         c = PhysicsConfig{};
+         c.rest_freeze = false;
+       }},
+      {"rest-0.25s", [](PhysicsConfig& c) {
+         c = PhysicsConfig{};
+         c.rest_time = 0.25f;
+       }},
+      {"rest-1s", [](PhysicsConfig& c) {
+         c = PhysicsConfig{};
+         c.rest_time = 1.0f;
+       }},
+      {"rest-tight", [](PhysicsConfig& c) {  // thresholds halved
+         c = PhysicsConfig{};
+         c.rest_linear_threshold = 0.05f;
+         c.rest_angular_threshold = 0.1f;
+       }},
+      {"rest-margin-2cm", [](PhysicsConfig& c) {
+         c = PhysicsConfig{};
+         c.rest_wake_margin = 0.02f;
+       }},
   };
 }
 
@@ -355,6 +378,7 @@ struct SceneFigures {
   double phys_ms = 0, raw_ms = 0;          // wall, median
   double phys_cpu_ms = 0, raw_cpu_ms = 0;  // thread CPU, median
   double moving = 0, raw_moving = 0;   // mean share faster than 1 cm/s
+  double frozen = 0;                   // mean share of boxes frozen (rest_freeze)
   double deepest_mm = 0;               // p99 over samples of the deepest contact penetration
   size_t escaped = 0;                  // boxes outside the container at the end
 };
@@ -390,7 +414,7 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
     phys.Step();
     if (raw) raw->Step();
   }
-  std::vector<double> pm, rm, pc, rc, deep, mv, rmv;
+  std::vector<double> pm, rm, pc, rc, deep, mv, rmv, fr;
   for (int i = 0; i < steps; ++i) {
     if (!raw) {
       TimeStep(phys, &pm, &pc);
@@ -404,6 +428,7 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
     if (i % 10 == 0) {
       deep.push_back(DeepestPenetrationMm(phys.world().BulletWorldForTesting()));
       mv.push_back(static_cast<double>(phys.MovingBoxes(0.01f)) / p.num_objects);
+      fr.push_back(static_cast<double>(phys.world().counters().frozen_bodies) / p.num_objects);
       if (raw) rmv.push_back(static_cast<double>(raw->MovingBoxes(0.01f)) / p.num_objects);
     }
   }
@@ -419,6 +444,7 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
   f.raw_cpu_ms = Median(rc);
   f.moving = mean(mv);
   f.raw_moving = mean(rmv);
+  f.frozen = mean(fr);
   std::sort(deep.begin(), deep.end());
   f.deepest_mm = deep.empty() ? 0 : deep[std::min(deep.size() - 1, deep.size() * 99 / 100)];
   f.escaped = Escaped(phys.world(), p);
@@ -473,14 +499,14 @@ int Main(int argc, char** argv) {
   }
   if (!realtime.empty()) {
     std::printf("objects,phys_wall_ms,raw_wall_ms,phys_cpu_ms,raw_cpu_ms,ratio_cpu,"
-                "realtime_factor_wall,moving\n");
+                "realtime_factor_wall,moving,frozen\n");
     for (const std::string& n : Split(realtime)) {
       MultiObjectParams q = p;
       q.num_objects = std::stoi(n);
       const SceneFigures f = MeasureScene(q, warmup, steps, true);
-      std::printf("%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", q.num_objects, f.phys_ms, f.raw_ms,
-                  f.phys_cpu_ms, f.raw_cpu_ms, f.phys_cpu_ms / f.raw_cpu_ms,
-                  (1000.0 / 60.0) / f.phys_ms, f.moving);
+      std::printf("%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", q.num_objects, f.phys_ms,
+                  f.raw_ms, f.phys_cpu_ms, f.raw_cpu_ms, f.phys_cpu_ms / f.raw_cpu_ms,
+                  (1000.0 / 60.0) / f.phys_ms, f.moving, f.frozen);
       std::fflush(stdout);
     }
     return 0;
@@ -490,8 +516,8 @@ int Main(int argc, char** argv) {
          "friction_worst ccd_max_x awake_m deepest_mm escaped moving raw_moving phys_wall_ms "
          "raw_wall_ms ratio_wall\n";
   std::printf("candidate,phys_cpu_ms,raw_cpu_ms,ratio_cpu,phys_wall_ms,raw_wall_ms,ratio_wall,"
-              "moving,raw_moving,deepest_mm,escaped,freefall_err_m,bounce_worst,friction_worst,"
-              "stack_drift_m,stack_awake_m,ccd_max_x,suite\n");
+              "moving,raw_moving,frozen,deepest_mm,escaped,freefall_err_m,bounce_worst,"
+              "friction_worst,stack_drift_m,stack_awake_m,ccd_max_x,suite\n");
   const std::vector<std::string> wanted = Split(only);
   int index = 0;
   for (const Candidate& c : Candidates()) {
@@ -502,10 +528,10 @@ int Main(int argc, char** argv) {
     const Accuracy a = accuracy ? MeasureAccuracy(q.config) : Accuracy{};
     const double ratio = f.raw_cpu_ms > 0 ? f.phys_cpu_ms / f.raw_cpu_ms : 0;
     const double ratio_wall = f.raw_ms > 0 ? f.phys_ms / f.raw_ms : 0;
-    std::printf("%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f,%zu,%.2e,%.3f,%.3f,%.4f,%.4f,"
-                "%.4f,%s\n",
+    std::printf("%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f,%zu,%.2e,%.3f,%.3f,%.4f,"
+                "%.4f,%.4f,%s\n",
                 c.name.c_str(), f.phys_cpu_ms, f.raw_cpu_ms, ratio, f.phys_ms, f.raw_ms,
-                ratio_wall, f.moving, f.raw_moving, f.deepest_mm, f.escaped, a.freefall_err,
+                ratio_wall, f.moving, f.raw_moving, f.frozen, f.deepest_mm, f.escaped, a.freefall_err,
                 a.bounce_worst, a.friction_worst, a.stack_drift, a.stack_awake, a.ccd_max_x,
                 !accuracy ? "n/a" : a.ok() ? "pass" : "FAIL");
     std::fflush(stdout);

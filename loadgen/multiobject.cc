@@ -40,6 +40,7 @@ void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   physics::MultiObjectParams p = MultiObjectSceneParams(o, n);
   p.config.sleep_linear_threshold = o.sleep_threshold;
   p.config.sleep_angular_threshold = o.sleep_threshold;
+  p.config.rest_freeze = o.rest_freeze;
   physics::PhysSMultiObjectScene phys(p);
   physics::RawBulletMultiObjectScene raw(p);
   const auto t0 = std::chrono::steady_clock::now();
@@ -285,6 +286,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
+  config.physics.rest_freeze = o.rest_freeze;
   config.connection.max_pending_reliable_bytes = std::max<size_t>(
       config.connection.max_pending_reliable_bytes, static_cast<size_t>(n) * 1024);
 

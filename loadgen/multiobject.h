@@ -48,6 +48,7 @@ struct MultiObjectOptions {
   float stirrer_center_y = 0.4f;       // paddle centre height (m)
   float stirrer_half_height = 0.4f;    // paddle half height (m); 0.4 at 0.4 spans the pile
   float sleep_threshold = 0.1f;        // PhyS sleeping thresholds, m/s and rad/s (raw Bullet: 0.8/1.0)
+  bool rest_freeze = true;             // PhysicsConfig::rest_freeze (resting regions)
   double moving_speed_mps = 0.01;  // "moving": linear speed above this
   // Standalone PhyS vs raw Bullet.
   bool bench = true;

@@ -194,6 +194,8 @@ class MultiObjectScenario final : public Scenario {
                    "Stirrer paddle half height (m; 0.4 at y 0.4 spans the ~0.6 m pile)");
     cmd.add_option("--sleep-threshold", o_.sleep_threshold,
                    "PhyS sleeping thresholds (m/s, rad/s); the raw Bullet run keeps Bullet's 0.8 / 1.0");
+    cmd.add_option("--rest-freeze", o_.rest_freeze,
+                   "PhyS freezes resting bodies (PhysicsConfig::rest_freeze; false: off)");
     cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
     cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "edgephys rotation bound (deg)");
     cmd.add_option("--position-threshold", o_.position_threshold_m,

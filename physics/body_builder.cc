@@ -360,6 +360,7 @@ void PhysicsWorld::AddRigidBody(Entity* e, const schema::Container& c, const Bod
       body->setGravity(btVector3(0, 0, 0));
     }
     e->gravity = body->getGravity();
+    e->mass = rb->mass();
     ++dynamic_bodies_;
   }
   ++bodies_;

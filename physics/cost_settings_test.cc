@@ -29,6 +29,7 @@ TEST(CostSettingsTest, DeactivationTimeIsEmulatedPerWorld) {
   auto settle = [](float deactivation_time) {
     PhysicsConfig cfg;
     cfg.deactivation_time = deactivation_time;
+    cfg.rest_freeze = false;  // Bullet's own sleeping is under test, not freezing
     PhysicsWorld world(cfg);
     EXPECT_TRUE(Add(world, Ground(1)).ok());
     EXPECT_TRUE(Add(world, DynamicBox(2, {0, 0.2f, 0}, {0.2f, 0.2f, 0.2f}, 1.0f)).ok());

@@ -73,6 +73,7 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
   world_->setApplySpeculativeContactRestitution(true);
   fixed_body_ = std::make_unique<btRigidBody>(0, nullptr, nullptr);
   fixed_body_->setMassProps(0, btVector3(0, 0, 0));
+  rest_ = std::make_unique<RestManager>(config_, world_.get());
   const size_t reserve = 1024;
   stepped_.reserve(reserve);
   dirty_.reserve(reserve);
@@ -126,6 +127,7 @@ void PhysicsWorld::ReserveBroadphase(int more) {
   }
   broadphase_ = std::move(grown);
   for (int i = 0; i < objects.size(); ++i) world_->updateSingleAabb(objects[i]);
+  rest_->Refatten();
 }
 
 PhysicsWorld::~PhysicsWorld() {
@@ -184,7 +186,11 @@ Status PhysicsWorld::AddEntity(const schema::Container& c, InvalidReason* reason
   } else {
     AddRigidParts(e, c);
     AddJoints(e, c);
+    for (const auto& j : joints_) {
+      if (j->owner == e->id && j->other != 0) rest_->Unfreeze(Find(j->other));
+    }
   }
+  rest_->WakeAroundEntity(e);  // something now occupies that space
   entities_.emplace(e->id, std::move(owned));
   return Status::Ok();
 }
@@ -215,6 +221,8 @@ Status PhysicsWorld::RemoveEntity(uint32_t id) {
     }
   }
   RemoveJointsOf(id);
+  rest_->Forget(e);
+  rest_->WakeAroundEntity(e);  // whatever rested on it must fall
   std::erase(dirty_, e);
   std::erase(stepped_, e);
   std::erase(pending_moves_, e);
@@ -277,6 +285,8 @@ Status PhysicsWorld::SetTransform(uint32_t id, const Vec3f& pos, const Quatf& ro
   const btTransform t(ToBt(rot), ToBt(pos));
   if (e->body) {
     btRigidBody* body = e->body.get();
+    rest_->Unfreeze(e);
+    rest_->WakeAroundEntity(e);  // what rested on it or against it at the old pose
     body->setWorldTransform(t);
     body->setInterpolationWorldTransform(t);
     e->motion->transform() = t;
@@ -298,6 +308,7 @@ Status PhysicsWorld::SetTransform(uint32_t id, const Vec3f& pos, const Quatf& ro
     e->trigger->setWorldTransform(t);
     world_->updateSingleAabb(e->trigger.get());
   }
+  if (e->body) rest_->WakeAroundEntity(e);  // and at the new one
   if (e->parent != nullptr && e->kind == Kind::kTransformOnly) {
     e->local = e->parent->CurrentTransform().inverse() * t;
   }
@@ -317,6 +328,7 @@ Status PhysicsWorld::Grab(uint32_t entity, uint32_t hand_entity) {
   }
   e->grabbed_by = hand_entity;
   if (e->grabbed) return Status::Ok();
+  rest_->Unfreeze(e);
   e->grabbed = true;
   e->target = e->body->getWorldTransform();
   e->has_target = true;
@@ -357,6 +369,7 @@ Status PhysicsWorld::SetVelocity(uint32_t id, const Vec3f& linear, const Vec3f& 
     return Status::Ok();
   }
   if (e->kind != Kind::kDynamic) return Status(StatusCode::kInvalidArgument, "not dynamic");
+  rest_->Unfreeze(e);
   e->body->setLinearVelocity(ToBt(linear));
   e->body->setAngularVelocity(ToBt(angular));
   e->body->activate(true);
@@ -468,6 +481,7 @@ void PhysicsWorld::ApplyCommands() {
 
 void PhysicsWorld::Step() {
   ApplyCommands();
+  rest_->BeforeStep(moving_, !soft_entities_.empty());
   stepped_.clear();
   // maxSubSteps = 0: exactly one internal step of h per call, no interpolation of motion states
   // (Bullet's own accumulator could run 3 or 5 steps through float rounding of dt / h).
@@ -494,6 +508,8 @@ void PhysicsWorld::Step() {
   ++stats_.steps;
   RunGuard();
   DiffContacts();
+  rest_->AfterStep(stepped_, config_.fixed_dt);
+  stepped_.clear();
 }
 
 int PhysicsWorld::Advance(double elapsed_seconds) {
@@ -547,6 +563,8 @@ PhysicsCounters PhysicsWorld::counters() const {
   c.dynamic_bodies = dynamic_bodies_;
   c.sleeping_bodies =
       stats_.steps == 0 || last_active_ >= dynamic_bodies_ ? 0 : dynamic_bodies_ - last_active_;
+  c.frozen_bodies = rest_->frozen();
+  c.rest_wakes = rest_->wakes();
   c.soft_bodies = soft_entities_.size();
   c.joints = joints_.size();
   return c;

@@ -10,7 +10,9 @@
 // Units: metres, seconds, kilograms, radians; room frame, Y up (gravity configurable).
 // Failure: every command returns a Status; invalid input never changes the world.
 // Cost: Step() is one Bullet step plus O(active bodies + contact manifolds + commands since the
-//   last step); sleeping bodies cost nothing beyond what Bullet itself spends on them.
+//   last step); sleeping bodies cost nothing beyond what Bullet itself spends on them, and
+//   frozen (resting) bodies likewise (PhysicsConfig::rest_freeze; plus O(broadphase pairs) for
+//   the wake check while any are frozen).
 //   Step(), CollectStates() and DrainEvents() do not allocate in steady state (vectors are
 //   reused and only grow).
 //
@@ -84,6 +86,7 @@ namespace edgephys::physics {
 namespace internal {
 struct BodyShapes;  // physics_world_internal.h
 }  // namespace internal
+class RestManager;  // rest_manager.h
 
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
@@ -153,6 +156,33 @@ struct PhysicsConfig {
   // unlimited, i.e. every manifold point within the breaking threshold is solved).
   float contact_processing_threshold = 1e18f;
   float contact_distance = 0.005f;    // a manifold point closer than this counts as touching (m)
+  // Resting regions (physics/rest_manager.h): a dynamic body below both rest thresholds for
+  // rest_time seconds is FROZEN, i.e. made temporarily static to Bullet (zero inverse mass,
+  // CF_STATIC_OBJECT, ISLAND_SLEEPING, AABB no longer updated), so it splits from the moving
+  // part's island and costs no solver rows, no narrowphase against other resting bodies and no
+  // integration. Bullet's own island sleeping cannot do this for a pile stirred anywhere (one
+  // island). It is UNFROZEN (mass and inertia restored bit-exactly, velocity zero) before a
+  // step when a non-frozen dynamic body above the rest thresholds or a soft body overlaps its
+  // AABB grown by rest_wake_margin, when a kinematic body's path this step comes that close,
+  // after a step when a contact pushes it by more than rest_wake_delta_v (impulse / its mass),
+  // and on any API call that touches it or its surroundings (SetTransform, SetVelocity, Grab,
+  // a joint to it, adding/removing/teleporting an entity overlapping it). Never frozen:
+  // grabbed bodies, bodies with joints, bodies touching soft bodies; nothing when `sleeping`
+  // is false.
+  // Accuracy: a frozen body ignores gravity and creep below the thresholds (at most
+  // rest_linear_threshold * rest_time of drift is cut off, and its velocity is zeroed); a body
+  // hit faster than the look-ahead margin covers (> ~(rest_wake_margin + 2 cm) per step) acts as
+  // a static wall for that one step before the impulse rule wakes it. Measured against the
+  // setting off in docs/benchmarks.md ("Rest resting regions") and physics/rest_manager_test.cc.
+  // Cost when on: O(broadphase pairs) per step while anything is frozen, O(collision objects)
+  // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the
+  // bodies rests while others move.
+  bool rest_freeze = true;
+  float rest_linear_threshold = 0.1f;    // m/s (0.05 froze 47 % instead of 59 %)
+  float rest_angular_threshold = 0.2f;   // rad/s (0.1 likewise)
+  float rest_time = 0.5f;                // s below both thresholds before freezing
+  float rest_wake_margin = 0.05f;        // m: look-ahead around a frozen body's AABB
+  float rest_wake_delta_v = 0.33f;       // m/s: ~2 * g * dt, twice what resting weight pushes
   // Stability guard thresholds.
   float max_linear_speed = 200.0f;      // m/s
   float max_angular_speed = 1000.0f;    // rad/s
@@ -227,7 +257,9 @@ struct PhysicsCounters {
   size_t entities = 0;        // all entities, including transform-only nodes
   size_t bodies = 0;          // Bullet rigid bodies (static, kinematic and dynamic)
   size_t dynamic_bodies = 0;
-  size_t sleeping_bodies = 0; // dynamic bodies not simulated in the last step
+  size_t sleeping_bodies = 0; // dynamic bodies not simulated in the last step (incl. frozen)
+  size_t frozen_bodies = 0;   // of those, frozen by PhysicsConfig::rest_freeze
+  uint64_t rest_wakes = 0;    // frozen bodies woken again (all causes)
   size_t soft_bodies = 0;
   size_t joints = 0;
   uint64_t guard_resets = 0;
@@ -361,6 +393,7 @@ class PhysicsWorld {
   std::unique_ptr<btDiscreteDynamicsWorld> world_;
   btSoftBodyWorldInfo* soft_info_ = nullptr;  // owned by world_ (null without soft bodies)
   std::unique_ptr<btRigidBody> fixed_body_;   // joint partner for "anchored to the world"
+  std::unique_ptr<RestManager> rest_;         // freezing of resting bodies (rest_freeze)
 
   std::unordered_map<uint32_t, std::unique_ptr<Entity>> entities_;
   std::vector<std::unique_ptr<JointRecord>> joints_;

@@ -10,6 +10,7 @@
 //   stability_guard.cc       NaN / runaway speed / out of bounds / exploding soft body detection
 //                            and restore
 //   contact_tracker.cc       touching pairs -> Collision/Trigger Enter and Exit events
+//   rest_manager.cc          freezing resting bodies and waking them (rest_manager.h)
 //
 // Thread-safety: as PhysicsWorld (none). Everything here is owned by one PhysicsWorld.
 #pragma once
@@ -26,6 +27,7 @@
 
 #include "edgephys/schema/container_generated.h"
 #include "physics/physics_world.h"
+#include "physics/rest_manager.h"
 
 namespace edgephys::physics {
 namespace internal {
@@ -186,6 +188,8 @@ struct PhysicsWorld::Entity {
   btTransform last_good = btTransform::getIdentity();
   btVector3 gravity{0, 0, 0};
   btScalar radius = 0;  // bounding radius around the origin (bounds check)
+  btScalar mass = 0;    // dynamic bodies: the container's mass (RestManager restores it)
+  RestState rest;       // dynamic bodies: freezing (rest_manager.h)
   std::vector<btVector3> soft_good;
   btScalar soft_diag0 = 0;
   int soft_consecutive_resets = 0;

@@ -103,8 +103,7 @@ void PhysicsWorld::RunGuard() {
     }
     MarkDirty(e);
   }
-  last_active_ = stepped_.size();
-  stepped_.clear();
+  last_active_ = stepped_.size();  // Step() clears stepped_ after the rest manager read it
   for (Entity* e : soft_entities_) {
     if (!e->soft->isActive()) continue;
     RunSoftGuard(e);
