@@ -241,7 +241,9 @@ TEST(SoftBodyTest, RestoredNodesKeepTheDeformationOnAFreshWorld) {
     e.soft_body = original.bunny;
     EXPECT_TRUE(Add(fresh, e).ok());
     EXPECT_TRUE(Add(fresh, PressedBunny::Plate(original.plate_y)).ok());
-    if (restore) EXPECT_TRUE(fresh.SetSoftBodyNodes(PressedBunny::kBunny, 0, before).ok());
+    if (restore) {
+      EXPECT_TRUE(fresh.SetSoftBodyNodes(PressedBunny::kBunny, 0, before).ok());
+    }
     for (int i = 0; i < steps; ++i) fresh.Step();
     std::vector<Vec3f> after;
     EXPECT_TRUE(fresh.GetSoftBodyNodes(PressedBunny::kBunny, &after).ok());
