@@ -149,11 +149,7 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   auto drive_hands = [&] {
     const uint64_t steps = RelayCounters::Get(counters.physics_steps);
     const double sim_t = steps >= poke_start ? static_cast<double>(steps - poke_start) * dt : -1.0;
-    for (size_t i = 0; i < hand_ids.size(); ++i) {
-      Vec3f pos;
-      scene.HandPose(i, sim_t, &pos);
-      (void)host.PublishTransform(hand_ids[i], pos, Quatf{});
-    }
+    scene.PublishHands(host, hand_ids, sim_t);
   };
   auto round = [&] {
     drive_hands();

@@ -69,11 +69,7 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
   auto drive_hands = [&] {
     const double steps = world.PhysicsSteps();
     const double sim_t = poke_start >= 0 && steps >= poke_start ? (steps - poke_start) * dt : -1.0;
-    for (size_t i = 0; i < hand_ids.size(); ++i) {
-      Vec3f pos;
-      scene.HandPose(i, sim_t, &pos);
-      (void)host.PublishTransform(hand_ids[i], pos, Quatf{});
-    }
+    scene.PublishHands(host, hand_ids, sim_t);
   };
   auto round = [&] {
     drive_hands();

@@ -63,6 +63,14 @@ void SoftBodyScene::HandPose(size_t i, double t, Vec3f* pos) const {
   *pos = {hand_x[i], static_cast<float>(hand_high[i] - (hand_high[i] - hand_low[i]) * f), hand_z[i]};
 }
 
+void SoftBodyScene::PublishHands(Client& host, const std::vector<uint32_t>& hand_ids, double t) const {
+  for (size_t i = 0; i < hand_ids.size(); ++i) {
+    Vec3f pos;
+    HandPose(i, t, &pos);
+    (void)host.PublishTransform(hand_ids[i], pos, Quatf{});
+  }
+}
+
 SoftBodyScene MakeSoftBodyScene(const SoftBodyOptions& o, uint32_t n) {
   SoftBodyScene s;
   s.period = o.poke_period_s;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "client/client.h"
 #include "loadgen/softbody.h"
 #include "protocol/entity_spec.h"
 #include "protocol/types.h"
@@ -33,6 +34,8 @@ struct SoftBodyScene {
   double Deformation(size_t i, const std::vector<Vec3f>& nodes) const;
   // t < 0: the hand waits above the bunny (settling); from t = 0 it pokes every period.
   void HandPose(size_t i, double t, Vec3f* pos) const;
+  // Publishes every hand's pose at PhyS time `t` (HandPose) for `host`, hand i as hand_ids[i].
+  void PublishHands(Client& host, const std::vector<uint32_t>& hand_ids, double t) const;
 };
 
 // The scene for `bunnies` bunnies of about options.particles particles each.

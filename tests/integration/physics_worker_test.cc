@@ -12,6 +12,7 @@
 
 #include "physics/scenes.h"
 #include "tests/integration/harness.h"
+#include "tests/integration/plated_bunny.h"
 
 extern char** environ;
 
@@ -190,34 +191,13 @@ TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParti
       << "the worker did not attach";
   SoftTrace trace;
   trace.world = &world;
-  Client& a = world.AddClient(MintToken("s", 1));
-  Client& b = world.AddClient(MintToken("s", 2), &trace);
-  for (Client* c : {&a, &b}) {
-    ASSERT_TRUE(world.RunUntil([&] { return c->state() == ClientState::kConnected; }, 3.0));
-    ASSERT_TRUE(c->JoinRoom("s").ok());
-  }
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 3.0));
-  const uint32_t offloaded = static_cast<uint32_t>(EntityFlags::Offloaded);
-  SpawnDesc ground{.position = {0, -0.5f, 0}, .flags = offloaded};
-  ground.colliders.push_back(BoxCollider({5, 0.5f, 5}));
-  ASSERT_TRUE(a.Spawn(ground).ok());
-  physics::BunnyParams params;
-  params.center = {0, 0.6f, 0};
-  SpawnDesc bunny{.position = {0, 0, 0}, .flags = offloaded, .name = "bunny"};
-  bunny.soft_body = physics::MakeBunnySoftBody(params);
-  const size_t particles = bunny.soft_body->particles.size() / 3;
-  auto bunny_id = a.Spawn(bunny);
-  ASSERT_TRUE(bunny_id.ok()) << bunny_id.status().message();
-  trace.id = *bunny_id;
+  PlatedBunny stage;
+  ASSERT_NO_FATAL_FAILURE(StagePlatedBunny(world, "s", &trace, &stage));
+  Client& a = *stage.host;
+  trace.id = stage.bunny;
+  const size_t particles = stage.particles;
   // The plate: A's own kinematic body, mirrored into PhyS, moved by A's pose updates.
-  float plate_y = 1.5f;
-  SpawnDesc plate{.position = {0, plate_y, 0}, .name = "plate"};
-  plate.rigid_body = RigidBodySpec{};
-  plate.rigid_body->kinematic = true;
-  plate.rigid_body->mass = 0;
-  plate.colliders.push_back(BoxCollider({1, 0.05f, 1}));
-  auto plate_id = a.Spawn(plate);
-  ASSERT_TRUE(plate_id.ok());
+  float plate_y = stage.plate_y;
   ASSERT_TRUE(world.RunUntil([&] { return world.relay().PhysicsWorkerOf("s") != 0; }, 3.0));
   ASSERT_TRUE(world.RunUntil([&] { return trace.nodes.size() == particles; }, 5.0))
       << "the worker did not simulate the bunny";
@@ -228,7 +208,7 @@ TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParti
   const double lower_from = world.Now();
   world.RunFor(5.0, [&](double now) {  // down at 0.3 m/s (about 2 s), then held
     plate_y = std::max(target, 1.5f - 0.3f * static_cast<float>(now - lower_from));
-    (void)a.PublishTransform(*plate_id, {0, plate_y, 0}, {});
+    (void)a.PublishTransform(stage.plate, {0, plate_y, 0}, {});
   });
   ASSERT_EQ(plate_y, target);
   float squashed_top = -1e9f;
@@ -237,7 +217,7 @@ TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParti
 
   const std::vector<Vec3f> half_second_before = trace.nodes;  // how much it moves by itself
   trace.track_jumps = true;
-  world.RunFor(0.5, [&](double) { (void)a.PublishTransform(*plate_id, {0, plate_y, 0}, {}); });
+  world.RunFor(0.5, [&](double) { (void)a.PublishTransform(stage.plate, {0, plate_y, 0}, {}); });
   trace.track_jumps = false;
   const std::vector<Vec3f> at_kill = trace.nodes;  // what B showed when the worker died
   const double killed_at = world.Now();
@@ -249,7 +229,7 @@ TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParti
   std::vector<Vec3f> first_after;  // B's particles once a full version came from the new world
   double since = -1;
   world.RunFor(3.0, [&](double now) {
-    (void)a.PublishTransform(*plate_id, {0, plate_y, 0}, {});  // the plate keeps holding
+    (void)a.PublishTransform(stage.plate, {0, plate_y, 0}, {});  // the plate keeps holding
     if (failed_over_at < 0 && world.counters().physics_failovers.load() == 1) failed_over_at = now;
     // A version goes out as a few chunks in one tick: 20 ms after the first update from the
     // new world, every particle B holds comes from it (the next is due 83 ms later).

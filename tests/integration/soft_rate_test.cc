@@ -8,6 +8,7 @@
 
 #include "physics/scenes.h"
 #include "tests/integration/harness.h"
+#include "tests/integration/plated_bunny.h"
 
 namespace edgephys::testing {
 namespace {
@@ -34,32 +35,11 @@ TEST(SoftBodyRate, TouchedByAHandItGoesAtTheTouchedRateOtherwiseAtTheNormalRate)
   ASSERT_EQ(rep.normal_hz, 12);
   LoopbackWorld world(config);
   SoftCount count;
-  Client& a = world.AddClient(MintToken("r", 1));
-  Client& b = world.AddClient(MintToken("r", 2), &count);
-  for (Client* c : {&a, &b}) {
-    ASSERT_TRUE(world.RunUntil([&] { return c->state() == ClientState::kConnected; }, 3.0));
-    ASSERT_TRUE(c->JoinRoom("r").ok());
-  }
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 3.0));
-  const uint32_t offloaded = static_cast<uint32_t>(EntityFlags::Offloaded);
-  SpawnDesc ground{.position = {0, -0.5f, 0}, .flags = offloaded};
-  ground.colliders.push_back(BoxCollider({5, 0.5f, 5}));
-  ASSERT_TRUE(a.Spawn(ground).ok());
-  physics::BunnyParams params;
-  params.center = {0, 0.6f, 0};
-  SpawnDesc bunny{.position = {0, 0, 0}, .flags = offloaded, .name = "bunny"};
-  bunny.soft_body = physics::MakeBunnySoftBody(params);
-  auto bunny_id = a.Spawn(bunny);
-  ASSERT_TRUE(bunny_id.ok());
-  count.id = *bunny_id;
-  float plate_y = 1.5f;
-  SpawnDesc plate{.position = {0, plate_y, 0}, .name = "plate"};
-  plate.rigid_body = RigidBodySpec{};
-  plate.rigid_body->kinematic = true;
-  plate.rigid_body->mass = 0;
-  plate.colliders.push_back(BoxCollider({1, 0.05f, 1}));
-  auto plate_id = a.Spawn(plate);
-  ASSERT_TRUE(plate_id.ok());
+  PlatedBunny stage;
+  ASSERT_NO_FATAL_FAILURE(StagePlatedBunny(world, "r", &count, &stage));
+  Client& a = *stage.host;
+  count.id = stage.bunny;
+  float plate_y = stage.plate_y;
   // A hand with no collider (outside PhyS): only its position counts, 2 m away for now.
   SpawnDesc hand{.position = {2, 0.2f, 0}, .flags = static_cast<uint32_t>(EntityFlags::Hand),
                  .name = "hand"};
@@ -73,7 +53,7 @@ TEST(SoftBodyRate, TouchedByAHandItGoesAtTheTouchedRateOtherwiseAtTheNormalRate)
   const double lower_from = world.Now();
   auto hold = [&](double now, const Vec3f& hand_at) {
     plate_y = std::max(target, 1.5f - 0.3f * static_cast<float>(now - lower_from));
-    (void)a.PublishTransform(*plate_id, {0, plate_y, 0}, {});
+    (void)a.PublishTransform(stage.plate, {0, plate_y, 0}, {});
     (void)a.PublishTransform(*hand_id, hand_at, {});
   };
   world.RunFor(4.0, [&](double now) { hold(now, {2, 0.2f, 0}); });  // squashed, then held
