@@ -47,6 +47,17 @@ struct Candidate {
   std::function<void(PhysicsConfig&)> apply;
 };
 
+// The "combo-broad" candidates' shared part: axis-sweep broadphase, CCD by size, a larger
+// contact pool, Bullet's sleep thresholds, and deactivation after 0.5 s.
+void BroadCombo(PhysicsConfig& c) {
+  c.broadphase = PhysicsConfig::Broadphase::kAxisSweep;
+  c.ccd_motion_fraction = 1.0f;
+  c.contact_pool_size = 32768;
+  c.sleep_linear_threshold = 0.8f;
+  c.sleep_angular_threshold = 1.0f;
+  c.deactivation_time = 0.5f;
+}
+
 // The settings PhyS shipped before this measurement (its old defaults); every single-setting
 // candidate changes one thing from here.
 void OldDefaults(PhysicsConfig& c) {
@@ -99,29 +110,14 @@ std::vector<Candidate> Candidates() {
       {"ccd-off", from_old([](PhysicsConfig& c) { c.ccd = false; })},
       {"ccd-by-size", from_old([](PhysicsConfig& c) { c.ccd_motion_fraction = 1.0f; })},
       {"combo-broad", from_old([](PhysicsConfig& c) {
-         c.broadphase = B::kAxisSweep;
-         c.ccd_motion_fraction = 1.0f;
-         c.contact_pool_size = 32768;
-         c.sleep_linear_threshold = 0.8f;
-         c.sleep_angular_threshold = 1.0f;
-         c.deactivation_time = 0.5f;
+         BroadCombo(c);
        })},
       {"combo-broad-iter5", from_old([](PhysicsConfig& c) {
-         c.broadphase = B::kAxisSweep;
-         c.ccd_motion_fraction = 1.0f;
-         c.contact_pool_size = 32768;
-         c.sleep_linear_threshold = 0.8f;
-         c.sleep_angular_threshold = 1.0f;
-         c.deactivation_time = 0.5f;
+         BroadCombo(c);
          c.solver_iterations = 5;
        })},
       {"combo-broad-iter5-nosplit", from_old([](PhysicsConfig& c) {
-         c.broadphase = B::kAxisSweep;
-         c.ccd_motion_fraction = 1.0f;
-         c.contact_pool_size = 32768;
-         c.sleep_linear_threshold = 0.8f;
-         c.sleep_angular_threshold = 1.0f;
-         c.deactivation_time = 0.5f;
+         BroadCombo(c);
          c.solver_iterations = 5;
          c.split_impulse = false;
        })},

@@ -33,6 +33,24 @@ pid_t StartWorker(const Endpoint& relay) {
   return pid;
 }
 
+// A worker process attached to a LoopbackWorld's relay; SIGKILLed and reaped on destruction
+// unless the test did that itself (and set pid to 0).
+struct WorkerProcess {
+  pid_t pid = 0;
+  void StartAttached(LoopbackWorld& world) {
+    pid = StartWorker(world.relay_endpoint());
+    ASSERT_GT(pid, 0) << "cannot start " << EDGEPHYS_PHYS_BINARY;
+    ASSERT_TRUE(world.RunUntil([&] { return world.counters().physics_workers.load() == 1; }, 10.0))
+        << "the worker did not attach";
+  }
+  ~WorkerProcess() {
+    if (pid > 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
 struct Trace : ClientListener {
   // entity -> (time, position) of every update received
   std::map<uint32_t, std::vector<std::pair<double, Vec3f>>> samples;
@@ -44,19 +62,9 @@ struct Trace : ClientListener {
 
 TEST(PhysicsWorker, KillMinusNineFailsOverWithinASecondKeepingEveryEntityContinuous) {
   LoopbackWorld world;
-  pid_t worker = StartWorker(world.relay_endpoint());
-  ASSERT_GT(worker, 0) << "cannot start " << EDGEPHYS_PHYS_BINARY;
-  struct Reaper {
-    pid_t pid;
-    ~Reaper() {
-      if (pid > 0) {
-        kill(pid, SIGKILL);
-        waitpid(pid, nullptr, 0);
-      }
-    }
-  } reaper{worker};
-  ASSERT_TRUE(world.RunUntil([&] { return world.counters().physics_workers.load() == 1; }, 10.0))
-      << "the worker did not attach";
+  WorkerProcess reaper;
+  ASSERT_NO_FATAL_FAILURE(reaper.StartAttached(world));
+  const pid_t worker = reaper.pid;
 
   Trace trace;
   trace.world = &world;
@@ -176,19 +184,9 @@ float MaxDistance(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
 // that of the body's own motion over one or two steps; see docs/benchmarks.md.
 TEST(PhysicsWorker, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParticles) {
   LoopbackWorld world;
-  pid_t worker = StartWorker(world.relay_endpoint());
-  ASSERT_GT(worker, 0) << "cannot start " << EDGEPHYS_PHYS_BINARY;
-  struct Reaper {
-    pid_t pid;
-    ~Reaper() {
-      if (pid > 0) {
-        kill(pid, SIGKILL);
-        waitpid(pid, nullptr, 0);
-      }
-    }
-  } reaper{worker};
-  ASSERT_TRUE(world.RunUntil([&] { return world.counters().physics_workers.load() == 1; }, 10.0))
-      << "the worker did not attach";
+  WorkerProcess reaper;
+  ASSERT_NO_FATAL_FAILURE(reaper.StartAttached(world));
+  const pid_t worker = reaper.pid;
   SoftTrace trace;
   trace.world = &world;
   PlatedBunny stage;
