@@ -428,26 +428,31 @@ void ClientReplicator::TickSoftBodies(const ReplicationFrame& frame, uint32_t se
     const uint32_t id = e.id;
     if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
     SoftView& v = soft_views_[id];
-    if (now + kEpsilon < v.next_due || e.nodes_version <= v.acked_version) continue;
-    if (e.nodes_version == v.sent_version && now - v.sent_at < resend_after) continue;
+    const bool resumed = Resumed(e, v, now);  // the new world's first particles: at once
+    if (!resumed) {
+      if (now + kEpsilon < v.next_due || e.nodes_version <= v.acked_version) continue;
+      if (e.nodes_version == v.sent_version && now - v.sent_at < resend_after) continue;
+    }
     if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) return;
+    const std::vector<Vec3f>& nodes = resumed ? e.resumed_nodes : e.nodes;
+    const uint32_t version = resumed ? e.resumed_version : e.nodes_version;
     uint32_t first = 0, chunk = 0;
-    while (first < e.nodes.size() && chunk < 64) {
+    while (first < nodes.size() && chunk < 64) {
       uint32_t n = 0;
-      size_t size = EncodeSoftBodyChunk(time_ms_, id, e.nodes, first, config_.position_step_m,
+      size_t size = EncodeSoftBodyChunk(time_ms_, id, nodes, first, config_.position_step_m,
                                         payload_, &n);
       if (size == 0) break;
       Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
       if (seq.ok()) {
-        soft_records_[*seq % soft_records_.size()] = {true, *seq, id, e.nodes_version, chunk};
+        soft_records_[*seq % soft_records_.size()] = {true, *seq, id, version, chunk};
         RelayCounters::Inc(counters.entity_updates_sent);
       }
       budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
       first += n;
       ++chunk;
     }
-    if (v.sent_version != e.nodes_version) v.acked_chunks = 0;
-    v.sent_version = e.nodes_version;
+    if (v.sent_version != version) v.acked_chunks = 0;
+    v.sent_version = version;
     v.chunk_count = chunk;
     v.sent_at = now;
     double interval = 1.0 / (config_.fixed_rate_hz > 0 ? config_.fixed_rate_hz : config_.normal_hz);

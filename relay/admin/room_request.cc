@@ -88,13 +88,15 @@ Result<RoomRequest> ParseRoomRequest(const json& body, const RoomConfig& default
     c.physics = p->get<bool>();
   }
   if (auto rates = body.find("send_rates_hz"); rates != body.end()) {
-    if (st = CheckKnown(*rates, "send_rates_hz.", {"critical", "normal", "ambient"}); !st.ok()) {
+    if (st = CheckKnown(*rates, "send_rates_hz.",
+                             {"critical", "normal", "ambient", "soft_touched"}); !st.ok()) {
       return st;
     }
     ReplicationConfig& rep = c.replication;
     for (auto [key, field] : {std::pair{"critical", &rep.critical_hz},
                               std::pair{"normal", &rep.normal_hz},
-                              std::pair{"ambient", &rep.ambient_hz}}) {
+                              std::pair{"ambient", &rep.ambient_hz},
+                              std::pair{"soft_touched", &rep.soft_touched_hz}}) {
       if (st = ReadNumber(*rates, key, "send_rates_hz.", 1, 240, false, field); !st.ok()) return st;
     }
   }
@@ -120,7 +122,8 @@ json RoomConfigJson(const RoomConfig& c) {
           {"send_rates_hz",
            {{"critical", c.replication.critical_hz},
             {"normal", c.replication.normal_hz},
-            {"ambient", c.replication.ambient_hz}}},
+            {"ambient", c.replication.ambient_hz},
+            {"soft_touched", c.replication.soft_touched_hz}}},
           {"physics", c.physics},
           {"bounds", {{"half_extent_m", c.replication.bounds_half_extent_m}}},
           {"max_entities_per_player", c.max_entities_per_player}};

@@ -2,7 +2,7 @@
 // RoomConfig, or a precise error. Pure functions, no relay state; any thread.
 //
 //   {"id": "arena", "capacity": 16, "ttl_s": 600, "tick_rate_hz": 30,
-//    "send_rates_hz": {"critical": 48, "normal": 12, "ambient": 6},
+//    "send_rates_hz": {"critical": 48, "normal": 12, "ambient": 6, "soft_touched": 24},
 //    "physics": true, "bounds": {"half_extent_m": 100}, "max_entities_per_player": 1024}
 //
 // Only "id" is required; every other field defaults to the relay's room defaults (its flags).

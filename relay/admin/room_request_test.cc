@@ -21,7 +21,8 @@ TEST(RoomRequestTest, OnlyIdTakesTheDefaults) {
 
 TEST(RoomRequestTest, EveryFieldMapsOntoTheRoomConfig) {
   auto r = Parse(R"({"id": "arena", "capacity": 16, "ttl_s": 600, "tick_rate_hz": 30,
-                     "send_rates_hz": {"critical": 40, "normal": 10, "ambient": 5},
+                     "send_rates_hz": {"critical": 40, "normal": 10, "ambient": 5,
+                                       "soft_touched": 30},
                      "physics": false, "bounds": {"half_extent_m": 100},
                      "max_entities_per_player": 50})");
   ASSERT_TRUE(r.ok()) << r.status().ToString();
@@ -32,6 +33,7 @@ TEST(RoomRequestTest, EveryFieldMapsOntoTheRoomConfig) {
   EXPECT_EQ(c.replication.critical_hz, 40);
   EXPECT_EQ(c.replication.normal_hz, 10);
   EXPECT_EQ(c.replication.ambient_hz, 5);
+  EXPECT_EQ(c.replication.soft_touched_hz, 30);
   EXPECT_FALSE(c.physics);
   EXPECT_EQ(c.replication.bounds_half_extent_m, 100.0f);
   EXPECT_EQ(c.max_entities_per_player, 50u);
@@ -40,6 +42,7 @@ TEST(RoomRequestTest, EveryFieldMapsOntoTheRoomConfig) {
   EXPECT_EQ(view["capacity"], 16);
   EXPECT_EQ(view["bounds"]["half_extent_m"], 100.0);
   EXPECT_EQ(view["physics"], false);
+  EXPECT_EQ(view["send_rates_hz"]["soft_touched"], 30.0);
 }
 
 TEST(RoomRequestTest, RefusesBadInputNamingTheField) {
@@ -63,6 +66,9 @@ TEST(RoomRequestTest, RefusesBadInputNamingTheField) {
            {R"({"id": "x", "send_rates_hz": {"fast": 5}})", "send_rates_hz.fast"},
            {R"({"id": "x", "send_rates_hz": {"critical": 500}})", "send_rates_hz.critical"},
            {R"({"id": "x", "send_rates_hz": 5})", "send_rates_hz"},
+           {R"({"id": "x", "send_rates_hz": {"soft_touched": 0}})", "send_rates_hz.soft_touched"},
+           {R"({"id": "x", "send_rates_hz": {"soft_touched": "24"}})",
+            "send_rates_hz.soft_touched"},
            {R"({"id": "x", "bounds": {"min": [0, 0, 0]}})", "bounds.min"},
            {R"({"id": "x", "bounds": {"half_extent_m": 0}})", "bounds.half_extent_m"},
            {R"({"id": "x", "max_entities_per_player": 0})", "max_entities_per_player"},
