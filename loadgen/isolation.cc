@@ -310,6 +310,7 @@ RelayConfig InProcessConfig(const IsolationOptions& o) {
   config.connection.max_pending_reliable_bytes =
       std::max<size_t>(config.connection.max_pending_reliable_bytes, static_cast<size_t>(o.boxes) * 1024);
   config.physics_threads = std::max<size_t>(1, o.physics_threads);
+  if (o.physics_nice >= 0) config.physics_nice = o.physics_nice;
   // As multiobject: one PhyS substep per step, its sleeping thresholds.
   config.physics.max_substeps = 1;
   config.physics.sleep_linear_threshold = 0.1f;

@@ -46,6 +46,7 @@ struct IsolationOptions {
   double tick_rate_hz = 60;          // in-process relay
   double publish_hz = 30;            // A's pose updates (ccu's rate)
   size_t physics_threads = 1;        // in-process relay (RelayConfig::physics_threads)
+  int physics_nice = -1;             // in-process relay: RelayConfig::physics_nice (-1: its default)
   double bin_s = 0.5;                // latency series bins
   uint32_t measure_every = 1;        // only every K-th A bot matches poses (all decode)
   uint32_t seed = 1;

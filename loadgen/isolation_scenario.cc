@@ -50,6 +50,7 @@ nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
   } else {
     j["options"]["tick_rate_hz"] = o.tick_rate_hz;
     j["options"]["physics_threads"] = o.physics_threads;
+    j["options"]["physics_nice"] = o.physics_nice;
     j["relay"] = {{"external", false}, {"cpu_source", "relay thread"}};
   }
   j["summary"] = {{"users", r.users},
@@ -142,6 +143,10 @@ class IsolationScenario final : public Scenario {
     cmd.add_option("--tick-rate", o_.tick_rate_hz, "In-process relay: room tick rate");
     cmd.add_option("--physics-threads", o_.physics_threads,
                    "In-process relay: threads for ticks and PhyS (RelayConfig::physics_threads)");
+    cmd.add_option("--physics-nice", o_.physics_nice,
+                   "In-process relay: niceness of the physics threads (RelayConfig::physics_nice, "
+                   "0..19; -1: the relay's default)")
+        ->check(CLI::Range(-1, 19));
     cmd.add_option("--bin", o_.bin_s, "Seconds per bin of the latency series");
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th A bot matches poses for latency (all still decode; 1: all)");

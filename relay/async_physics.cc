@@ -2,6 +2,11 @@
 
 #include <pthread.h>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <algorithm>
 #include <utility>
@@ -319,9 +324,29 @@ AsyncPhysicsRoom::Run AsyncPhysicsRoom::RunOnce() {
 
 // --- AsyncPhysicsPool --------------------------------------------------------------------------
 
-AsyncPhysicsPool::AsyncPhysicsPool(size_t threads) {
+namespace {
+
+// Lowers the calling thread's priority by `nice` (Linux: setpriority on the thread id).
+bool LowerThisThreadsPriority(int nice) {
+  errno = 0;
+  const int base = getpriority(PRIO_PROCESS, 0);
+  if (base == -1 && errno != 0) return false;
+  const int target = std::min(19, base + nice);
+  if (setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), target) != 0) {
+    spdlog::warn("physics thread: setpriority({}) failed: {}", target, std::strerror(errno));
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+AsyncPhysicsPool::AsyncPhysicsPool(size_t threads, int nice) : nice_(std::max(0, nice)) {
   for (size_t i = 0; i < std::max<size_t>(1, threads); ++i) {
-    threads_.emplace_back([this] { ThreadLoop(); });
+    threads_.emplace_back([this] {
+      if (nice_ > 0 && LowerThisThreadsPriority(nice_)) reniced_.fetch_add(1);
+      ThreadLoop();
+    });
     pthread_setname_np(threads_.back().native_handle(), "edgephys-physs");
   }
 }

@@ -25,6 +25,7 @@
 // double-buffered, consecutive drives of one entity coalesce); Add copies its container.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -188,9 +189,16 @@ class AsyncPhysicsRoom {
 // The physics threads. Rooms are adopted from EmbeddedPhysicsLinks switching to asynchronous
 // stepping; every room must be closed (its link destroyed) before the pool is destroyed, which
 // stops the threads after their current iteration, joins them and frees what is left.
+//
+// `nice` > 0 (Linux): each physics thread lowers its own scheduling priority by that much
+// (setpriority on the thread, capped at 19) when it starts, so that when the machine's cores
+// are all busy the relay's I/O thread (and anything else at normal priority) runs first and a
+// heavy room simulates slower instead of delaying other rooms' packets (docs/benchmarks.md,
+// "Isolation"). Lowering priority needs no privilege; if it fails the thread runs at normal
+// priority and a warning is logged. 0: the threads keep the process's priority.
 class AsyncPhysicsPool {
  public:
-  explicit AsyncPhysicsPool(size_t threads);
+  explicit AsyncPhysicsPool(size_t threads, int nice = 0);
   ~AsyncPhysicsPool();
   AsyncPhysicsPool(const AsyncPhysicsPool&) = delete;
   AsyncPhysicsPool& operator=(const AsyncPhysicsPool&) = delete;
@@ -199,6 +207,9 @@ class AsyncPhysicsPool {
   AsyncPhysicsRoom* Adopt(std::unique_ptr<RoomPhysics> physics,
                           const physics::PhysicsConfig& config, const StepClock& clock);
   size_t threads() const { return threads_.size(); }
+  // The niceness increment the threads asked for (0: none) and how many got it.
+  int nice() const { return nice_; }
+  size_t threads_reniced() const { return reniced_.load(); }
   // Blocks until no room is queued or running (every room has stepped up to its last target
   // and applied its commands). For tests.
   void WaitIdle();
@@ -208,6 +219,8 @@ class AsyncPhysicsPool {
   void Schedule(AsyncPhysicsRoom* room);  // the room's scheduled_ was just set
   void ThreadLoop();
 
+  int nice_ = 0;
+  std::atomic<size_t> reniced_{0};
   std::mutex mu_;
   std::condition_variable wake_, idle_;
   std::deque<AsyncPhysicsRoom*> ready_;

@@ -7,7 +7,12 @@
 
 #include <gtest/gtest.h>
 
+#include <dirent.h>
+#include <sys/resource.h>
+
 #include <chrono>
+#include <fstream>
+#include <sstream>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -437,5 +442,54 @@ TEST(AsyncPhysics, DestructionWhileSteppingIsClean) {
   }
 }
 
+
+
+// The niceness of every thread of this process named `name` (Linux: /proc/self/task/*/stat).
+std::vector<int> NicenessOfThreadsNamed(const std::string& name) {
+  std::vector<int> out;
+  DIR* dir = opendir("/proc/self/task");
+  if (dir == nullptr) return out;
+  while (dirent* d = readdir(dir)) {
+    if (d->d_name[0] == '.') continue;
+    const std::string task = std::string("/proc/self/task/") + d->d_name;
+    std::string comm;
+    std::getline(std::ifstream(task + "/comm"), comm);
+    if (comm != name) continue;
+    std::string stat;
+    std::getline(std::ifstream(task + "/stat"), stat);
+    std::istringstream rest(stat.substr(stat.rfind(')') + 2));  // after "pid (comm) "
+    std::string field;
+    for (int i = 3; i <= 19 && rest >> field; ++i) {  // field 19: nice
+      if (i == 19) out.push_back(std::stoi(field));
+    }
+  }
+  closedir(dir);
+  return out;
+}
+
+TEST(AsyncPhysics, PhysicsThreadsLowerTheirOwnPriorityByTheNicenessAsked) {
+  const int base = getpriority(PRIO_PROCESS, 0);
+  ASSERT_LE(base, 14) << "the test process already runs at a niceness above 14";
+  {
+    AsyncPhysicsPool pool(2, 5);
+    for (int i = 0; i < 200 && pool.threads_reniced() < 2; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    EXPECT_EQ(pool.threads_reniced(), 2u);
+    EXPECT_EQ(pool.nice(), 5);
+    const std::vector<int> nice = NicenessOfThreadsNamed("edgephys-physs");
+    ASSERT_EQ(nice.size(), 2u);
+    for (int n : nice) EXPECT_EQ(n, base + 5);
+  }
+  EXPECT_EQ(getpriority(PRIO_PROCESS, 0), base);  // the calling thread keeps its priority
+  AsyncPhysicsPool same(1);                        // 0: unchanged
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(same.threads_reniced(), 0u);
+  const std::vector<int> nice = NicenessOfThreadsNamed("edgephys-physs");
+  ASSERT_EQ(nice.size(), 1u);
+  EXPECT_EQ(nice[0], base);
+}
+
 }  // namespace
+
 }  // namespace edgephys

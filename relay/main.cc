@@ -168,6 +168,11 @@ int main(int argc, char** argv) {
                  "Threads for embedded PhyS, the relay's included (1: PhyS on the relay's "
                  "thread; N > 1: N-1 physics threads off the relay loop)")
       ->capture_default_str();
+  app.add_option("--physics-nice", config.physics_nice,
+                 "Niceness the physics threads add to their priority (0..19; 0: none), so the "
+                 "relay loop goes first when every core is busy")
+      ->check(CLI::Range(0, 19))
+      ->capture_default_str();
   size_t io_threads = 1;
   app.add_option("--io-threads", io_threads,
                  "Relay shards, each on its own thread, rooms spread over them (1: one thread, "

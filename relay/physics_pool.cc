@@ -4,13 +4,13 @@
 
 namespace edgephys {
 
-PhysicsPool::PhysicsPool(size_t threads) {
+PhysicsPool::PhysicsPool(size_t threads, int physics_nice) : physics_nice_(physics_nice) {
   for (size_t i = 1; i < threads; ++i) workers_.emplace_back([this] { WorkerLoop(); });
 }
 
 AsyncPhysicsPool* PhysicsPool::async_physics() {
   if (workers_.empty()) return nullptr;
-  if (async_ == nullptr) async_ = std::make_unique<AsyncPhysicsPool>(workers_.size());
+  if (async_ == nullptr) async_ = std::make_unique<AsyncPhysicsPool>(workers_.size(), physics_nice_);
   return async_.get();
 }
 

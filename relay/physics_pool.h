@@ -29,7 +29,9 @@ class AsyncPhysicsPool;
 class PhysicsPool {
  public:
   // `threads` workers in total, the caller included (1: everything runs on the caller).
-  explicit PhysicsPool(size_t threads);
+  // `physics_nice`: passed to the asynchronous PhyS threads (AsyncPhysicsPool); the fork-join
+  // workers keep the caller's priority.
+  explicit PhysicsPool(size_t threads, int physics_nice = 0);
   ~PhysicsPool();
   PhysicsPool(const PhysicsPool&) = delete;
   PhysicsPool& operator=(const PhysicsPool&) = delete;
@@ -45,6 +47,7 @@ class PhysicsPool {
  private:
   void WorkerLoop();
   void Drain();
+  int physics_nice_ = 0;
   std::vector<std::thread> workers_;
   std::mutex mutex_;
   std::condition_variable start_, done_;

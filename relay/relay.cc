@@ -27,7 +27,7 @@ Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* c
              const RelayShardOptions& shard)
     : config_(config),
       shard_(shard),
-      physics_pool_(std::max<size_t>(1, config.physics_threads)),
+      physics_pool_(std::max<size_t>(1, config.physics_threads), config.physics_nice),
       handshake_limiter_(config.limits.handshakes_per_s, config.limits.handshakes_per_s * 2),
       socket_(socket),
       counters_(counters),

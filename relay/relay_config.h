@@ -54,6 +54,12 @@ struct RelayConfig {
   // N - 1 physics threads step rooms' worlds off the relay loop (relay/async_physics.h), which
   // hands commands over and picks finished steps up without ever waiting for one.
   size_t physics_threads = std::max(1u, std::thread::hardware_concurrency());
+  // Niceness the N - 1 physics threads add to their own priority (Linux; 0..19, 0: none), so
+  // that on a machine whose cores are all busy the relay loop's packets go before a heavy
+  // room's physics, which then simulates slower (its real-time factor, a metric) instead of
+  // delaying every room's hand poses and acks (relay/async_physics.h; docs/benchmarks.md,
+  // "Isolation").
+  int physics_nice = 0;
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
   AbuseLimits limits;
 };
