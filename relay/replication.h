@@ -178,6 +178,7 @@ class ClientReplicator {
     double next_due = -1e9;
     double accumulator = 0;
     EntityState last_sent_state;  // paper mode's significance test
+    double sent_state_time = 0;   // Entity::state_time of the newest state sent
     bool ever_sent = false;
     // edgephys mode: the entity version whose state the client has acknowledged within the
     // thresholds (nothing to send until the version changes); 0 = none.
@@ -204,11 +205,14 @@ class ClientReplicator {
   // The interpolation checks: true when `e` is to be sent. Hermite (hermite_max_interval_s > 0,
   // format 12) or straight lines (key_sample_threshold_m > 0, format 2).
   bool HermiteDue(uint32_t id, const Entity& e, double now);
-  bool KeySampleDue(uint32_t id, const Entity& e);
+  enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
+  KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time, int mode);
   bool KeySampled(const Entity& e, PriorityClass c) const;
+  bool StampsStateTime() const;
   // The edgephys (format 2 / 12) send decision for `e` of class `cls`.
-  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, PriorityClass cls,
-                                        double now, double resend_after);
+  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, const View& v,
+                                        PriorityClass cls, double now, double resend_after,
+                                        RelayCounters& counters);
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
   // changed soft body, in chunks, resent until every chunk of that version is acknowledged.
