@@ -412,7 +412,6 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   meter.Start(world, R);
   const uint64_t key_strayed0 = RelayCounters::Get(counters.key_samples_strayed);
   const uint64_t key_interval0 = RelayCounters::Get(counters.key_samples_max_interval);
-  const uint64_t key_diag0 = RelayCounters::Get(counters.key_samples_diag_other);
   const double t0 = world.Now();
   const double t_end = t0 + o.duration_s;
   double next_error = t0, next_moving = t0, last_progress = 0;
@@ -522,8 +521,6 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->key_interval_per_box_s =
       static_cast<double>(RelayCounters::Get(counters.key_samples_max_interval) - key_interval0) /
       per_box;
-  r->key_diag_other_per_box_s =
-      static_cast<double>(RelayCounters::Get(counters.key_samples_diag_other) - key_diag0) / per_box;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;

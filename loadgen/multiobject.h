@@ -117,7 +117,7 @@ struct MultiObjectResult {
   double updates_per_s_per_client = 0;
   // Key samples (--key-samples): ambient boxes found due per box per second per receiver, by
   // reason (RelayCounters::key_samples_*): the line strayed, or the max interval passed.
-  double key_strayed_per_box_s = 0, key_interval_per_box_s = 0, key_diag_other_per_box_s = 0;
+  double key_strayed_per_box_s = 0, key_interval_per_box_s = 0;
   double bytes_per_update = 0;              // all egress bytes / entity updates
   double state_mbit_per_s_per_client = 0;   // state payload bytes only (Client::state_bytes_received)
   double events_per_s_per_client = 0;       // physics events received (reliable channel)

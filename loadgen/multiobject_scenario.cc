@@ -65,7 +65,6 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
                 {"updates_per_s_per_client", r.updates_per_s_per_client},
                 {"key_strayed_per_box_s", r.key_strayed_per_box_s},
                 {"key_interval_per_box_s", r.key_interval_per_box_s},
-                {"key_diag_other_per_box_s", r.key_diag_other_per_box_s},
                 {"bytes_per_update", r.bytes_per_update},
                 {"state_mbit_per_s_per_client", r.state_mbit_per_s_per_client},
                 {"events_per_s_per_client", r.events_per_s_per_client},

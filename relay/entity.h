@@ -73,12 +73,11 @@ struct Entity {
   // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
   std::shared_ptr<SharedEntity> shared;
   // Rooms with ReplicationConfig::hermite_max_interval_s or key_sample_threshold_m: PhyS's recent
-  // states of a simulated entity (relay time, pose), a ring of up to kRecentStates, for the
+  // states of a simulated entity (the time each holds, pose), a ring of up to kRecentStates, for the
   // interpolation checks.
   static constexpr size_t kRecentStates = 32;
   struct RecentState {
-    double t = 0;  // state_time
-    double arrival = 0;  // DIAG
+    double t = 0;  // Entity::state_time of the state
     Vec3f position;
     Quatf rotation;
   };

@@ -74,7 +74,6 @@ struct RelayCounters {
   // between, or because key_sample_max_interval_s passed (or none was sent yet).
   Counter key_samples_strayed{0};
   Counter key_samples_max_interval{0};
-  Counter key_samples_diag_other{0};  // DIAG
   Counter reliable_resends{0};
   Counter reliable_messages_received{0};
   Counter connections_accepted{0};

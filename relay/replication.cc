@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 #include "relay/entity.h"
 
@@ -154,11 +153,7 @@ bool ClientReplicator::DeadReckoned(const Entity& e, PriorityClass c) const {
 }
 
 bool ClientReplicator::StampsStateTime() const {
-  static const int mode = [] {
-    const char* m = std::getenv("EDGEPHYS_KEYS_TIMEBASE");
-    return m != nullptr ? std::atoi(m) : 1;
-  }();
-  return mode == 1 && delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0;
+  return delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0;
 }
 
 bool ClientReplicator::KeySampled(const Entity& e, PriorityClass c) const {
@@ -211,27 +206,27 @@ bool ClientReplicator::HermiteDue(uint32_t id, const Entity& e, double now) {
 }
 
 ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entity& e,
-                                                      double sent_state_time, int mode) {
+                                                      double sent_state_time) {
   EntityState sent;
   EntityVelocity unused;
   uint32_t sent_ms = 0;
   if (!delta_->NewestSent(id, &sent, &unused, &sent_ms)) return KeyDue::kMaxInterval;
+  // The max interval on the relay's clock: a body that stopped (no newer state) still gets its
+  // final pose within it.
   const double since = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
   if (since <= 0) return KeyDue::kNo;
   if (since >= config_.key_sample_max_interval_s) return KeyDue::kMaxInterval;
-  double h = since;
-  if (mode == 1) h = e.state_time - sent_state_time;
+  // The line a receiver draws runs from the newest state sent, at the time it was stamped with
+  // (sent_state_time), to the present state at the time it holds; PhyS's states in between are
+  // checked at the times they hold too. (Stamping them with their arrival instead, a step's
+  // uneven computation later, with several steps sometimes arriving at once, made straight
+  // paths look kinked: docs/benchmarks.md, "Key samples".)
+  const double h = e.state_time - sent_state_time;
   if (h <= 0) return KeyDue::kNo;
   const double thr = config_.key_sample_threshold_m;
   const double rot_thr = config_.key_sample_rotation_deg;
   for (const Entity::RecentState& r : e.recent) {
-    double into;
-    if (mode == 1) {
-      into = r.t - sent_state_time;
-    } else {
-      into = static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(r.arrival * 1000.0)) -
-                                  sent_ms) / 1000.0;
-    }
+    const double into = r.t - sent_state_time;
     if (!(into > 0 && into < h)) continue;
     const float u = static_cast<float>(into / h);
     const Vec3f p{sent.position.x + (e.state.position.x - sent.position.x) * u,
@@ -252,16 +247,9 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
     const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
                                    config_.rotation_threshold_deg, now, resend_after);
     if (need != Need::kSend || !KeySampled(e, cls)) return need;
-    static const int mode = [] {
-      const char* m = std::getenv("EDGEPHYS_KEYS_TIMEBASE");
-      return m != nullptr ? std::atoi(m) : 1;
-    }();
-    const KeyDue due = KeySampleDue(id, e, v.sent_state_time, mode);
+    const KeyDue due = KeySampleDue(id, e, v.sent_state_time);
     if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
     if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
-    if (due != KeyDue::kNo && KeySampleDue(id, e, v.sent_state_time, 1 - mode) == KeyDue::kNo) {
-      RelayCounters::Inc(counters.key_samples_diag_other);
-    }
     if (due != KeyDue::kNo) return need;
     return Need::kExtrapolatedWithin;  // the line from the newest sent still holds (not sticky)
   }

@@ -375,7 +375,7 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
     e->state_time = state_time;
     if (KeepsRecentStates(room_.config().replication)) {
       if (e->recent.size() < Entity::kRecentStates) e->recent.resize(Entity::kRecentStates);
-      e->recent[e->recent_next++ % Entity::kRecentStates] = {state_time, now, m.state.position,
+      e->recent[e->recent_next++ % Entity::kRecentStates] = {state_time, m.state.position,
                                                              m.state.rotation};
     }
     e->linear_velocity = m.linear;
