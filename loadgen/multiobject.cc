@@ -124,6 +124,10 @@ struct DisplayProbe {
   std::unordered_map<size_t, size_t> slot;  // box index -> probe slot
   std::vector<SnapshotBuffer> buffers;
   std::vector<std::vector<Truth>> truth;
+  // The same states at the time PhyS computed them for (Entity::state_time) rather than when
+  // the relay got them: the second yardstick (display_err_state_*).
+  std::vector<std::vector<Truth>> truth_state;
+  std::vector<double> state_errors;
   std::vector<double> lerp_errors, hermite_errors, rot_errors_deg, delays_ms, playout_ms;
   double local_now = 0;
   bool velocities = false;
@@ -147,11 +151,15 @@ struct DisplayProbe {
     }
     buffers.assign(n, SnapshotBuffer(config));
     truth.assign(n, {});
+    truth_state.assign(n, {});
     for (size_t i = 0; i < n; ++i) slot[i * boxes / n] = i;
   }
-  void RecordTruth(size_t box, double relay_time, const EntityState& s) {
+  void RecordTruth(size_t box, double relay_time, double state_time, const EntityState& s) {
     auto it = slot.find(box);
-    if (it != slot.end()) truth[it->second].push_back({relay_time, s.position, s.rotation});
+    if (it == slot.end()) return;
+    truth[it->second].push_back({relay_time, s.position, s.rotation});
+    auto& h = truth_state[it->second];
+    if (h.empty() || state_time > h.back().t) h.push_back({state_time, s.position, s.rotation});
   }
   void OnReceived(size_t box, const RemoteEntity& e) {
     auto it = slot.find(box);
@@ -171,7 +179,7 @@ struct DisplayProbe {
   void Seed(const std::vector<uint32_t>& ids, const Client& receiver,
             const std::vector<const Entity*>& relay, double relay_now) {
     for (const auto& [box, i] : slot) {
-      RecordTruth(box, relay_now, relay[box]->state);
+      RecordTruth(box, relay_now, std::min(relay_now, relay[box]->state_time), relay[box]->state);
       const RemoteEntity* e = receiver.FindEntity(ids[box]);
       if (e == nullptr || !e->has_state) continue;
       // Received long ago: as if it had arrived 1 ms after it was sent (relay and receivers
@@ -183,8 +191,8 @@ struct DisplayProbe {
     }
   }
   // The relay's pose at relay time t (false if t is outside what was recorded).
-  bool TruthAt(size_t i, double t, Pose* out) const {
-    const auto& h = truth[i];
+  bool TruthAt(size_t i, double t, Pose* out) const { return TruthIn(truth[i], t, out); }
+  static bool TruthIn(const std::vector<Truth>& h, double t, Pose* out) {
     auto it = std::lower_bound(h.begin(), h.end(), t,
                                [](const Truth& a, double v) { return a.t < v; });
     if (it == h.begin()) return false;
@@ -224,6 +232,10 @@ struct DisplayProbe {
       const Pose hermite = edgephys::Sample(b, render, Interpolator::kHermite, sample_options);
       const Pose& shown = velocities ? hermite : lerp;
       lerp_errors.push_back(Dist(shown.position, want.position));
+      Pose want_state;
+      if (TruthIn(truth_state[i], render, &want_state)) {
+        state_errors.push_back(Dist(shown.position, want_state.position));
+      }
       hermite_errors.push_back(Dist(hermite.position, want.position));
       rot_errors_deg.push_back(Compare(shown, want).rot_deg);
       delays_ms.push_back((b.newest().sender_time_s - render) * 1000.0);
@@ -398,6 +410,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   }
   WindowMeter meter;
   meter.Start(world, R);
+  const uint64_t key_strayed0 = RelayCounters::Get(counters.key_samples_strayed);
+  const uint64_t key_interval0 = RelayCounters::Get(counters.key_samples_max_interval);
   const double t0 = world.Now();
   const double t_end = t0 + o.duration_s;
   double next_error = t0, next_moving = t0, last_progress = 0;
@@ -428,7 +442,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
         if (relay_boxes[k]->version == seen_version[k]) continue;
         seen_version[k] = relay_boxes[k]->version;
         boxes.ring[k][boxes.count[k]++ % kRing] = relay_boxes[k]->state.position;
-        probe.RecordTruth(k, relay_now, relay_boxes[k]->state);
+        probe.RecordTruth(k, relay_now, relay_boxes[k]->state_time, relay_boxes[k]->state);
       }
     }
     probe.local_now = world.Now();
@@ -500,6 +514,13 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
   r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
   r->updates_per_s_per_client = updates / per;
+  // Every client receives the boxes (the host too: PhyS owns them).
+  const double per_box = static_cast<double>(R + 1) * elapsed * static_cast<double>(box_ids.size());
+  r->key_strayed_per_box_s =
+      static_cast<double>(RelayCounters::Get(counters.key_samples_strayed) - key_strayed0) / per_box;
+  r->key_interval_per_box_s =
+      static_cast<double>(RelayCounters::Get(counters.key_samples_max_interval) - key_interval0) /
+      per_box;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;
@@ -519,6 +540,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->error_samples = same_errors.size();
   r->display_err_p50_m = Percentile(probe.lerp_errors, 50);
   r->display_err_p99_m = Percentile(probe.lerp_errors, 99);
+  r->display_err_state_p50_m = Percentile(probe.state_errors, 50);
+  r->display_err_state_p99_m = Percentile(probe.state_errors, 99);
   r->display_err_hermite_p50_m = Percentile(probe.hermite_errors, 50);
   r->display_err_hermite_p99_m = Percentile(probe.hermite_errors, 99);
   r->display_delay_ms_median = Percentile(probe.delays_ms, 50);

@@ -115,6 +115,9 @@ struct MultiObjectResult {
   double socket_mbit_per_s_per_client = 0;  // receiving sockets
   double paper_mbit_per_s = 0;              // paper's Obj_N (0: not in the paper)
   double updates_per_s_per_client = 0;
+  // Key samples (--key-samples): ambient boxes found due per box per second per receiver, by
+  // reason (RelayCounters::key_samples_*): the line strayed, or the max interval passed.
+  double key_strayed_per_box_s = 0, key_interval_per_box_s = 0;
   double bytes_per_update = 0;              // all egress bytes / entity updates
   double state_mbit_per_s_per_client = 0;   // state payload bytes only (Client::state_bytes_received)
   double events_per_s_per_client = 0;       // physics events received (reliable channel)
@@ -131,6 +134,9 @@ struct MultiObjectResult {
   double display_err_p50_m = 0, display_err_p99_m = 0;
   double display_rot_err_p50_deg = 0, display_rot_err_p99_deg = 0;  // the displayed method's
   double display_err_hermite_p50_m = 0, display_err_hermite_p99_m = 0;
+  // The displayed pose against the truth at the time PhyS computed it for (Entity::state_time)
+  // rather than at the time the relay got it: includes the step's computation latency.
+  double display_err_state_p50_m = 0, display_err_state_p99_m = 0;
   double display_delay_ms_median = 0;  // playout delay behind the newest received state
   double display_playout_ms_median = 0;  // render time behind the estimated relay now
   uint64_t display_samples = 0;

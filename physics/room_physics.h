@@ -87,6 +87,9 @@ class RoomPhysics {
     std::vector<GrabResult> grabs;                // answers to RequestGrab, in request order
     int steps = 0;
     double step_seconds = 0;                      // wall time of those steps
+    // When `moved` holds (the end of the last step), on the clock of the caller's `now` (the
+    // relay's); < 0 when unknown (RoomPhysics itself, remote workers): the caller's `now`.
+    double state_time = -1;
     void Clear() {
       moved.clear();
       soft.clear();
@@ -94,6 +97,7 @@ class RoomPhysics {
       grabs.clear();
       steps = 0;
       step_seconds = 0;
+      state_time = -1;
     }
   };
   // Runs the fixed steps due by `now`. `out` is cleared first.

@@ -65,6 +65,7 @@ void MergeStepOutput(RoomPhysics::StepOutput* into, RoomPhysics::StepOutput* fro
   for (RoomPhysics::GrabResult& g : from->grabs) into->grabs.push_back(std::move(g));
   into->steps += from->steps;
   into->step_seconds += from->step_seconds;
+  if (from->state_time >= 0) into->state_time = from->state_time;
 }
 
 // --- PhysicsAdmission --------------------------------------------------------------------------
@@ -307,6 +308,9 @@ AsyncPhysicsRoom::Run AsyncPhysicsRoom::RunOnce() {
   }
   physics_->Advance(sim, out.get());
   clock_.Record(sim, out->steps, fixed_dt_);
+  // The world's time after its last step (the accumulator holds what is not yet stepped), on
+  // the relay's clock.
+  if (out->steps > 0) out->state_time = offset_ + clock_.fed - clock_.acc;
   if (out->steps > 0) slow_ = out->step_seconds > out->steps * static_cast<double>(fixed_dt_);
   const physics::PhysicsCounters counters = physics_->counters();
 

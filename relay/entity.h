@@ -52,6 +52,11 @@ struct Entity {
   uint32_t serial = 0;
   uint32_t version = 1;          // bumped on every accepted state change
   double changed_at = 0;         // relay time of the last accepted change (resting detection)
+  // Relay time at which `state` holds: an owner's update when it arrived (changed_at); PhyS's
+  // the end of the step that produced it (PhysicsLink::StepOutput::state_time), which for an
+  // asynchronous world is a step's computation earlier than its arrival. Bodies PhyS did not
+  // report since still hold it, unmoved.
+  double state_time = 0;
   // Relay time a user last interacted with it: grab, release, or a physics event naming it
   // (replication's ambient class). -inf-like until then.
   double interacted_at = -1e9;
@@ -68,11 +73,11 @@ struct Entity {
   // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
   std::shared_ptr<SharedEntity> shared;
   // Rooms with ReplicationConfig::hermite_max_interval_s or key_sample_threshold_m: PhyS's recent
-  // states of a simulated entity (relay time, pose), a ring of up to kRecentStates, for the
+  // states of a simulated entity (the time each holds, pose), a ring of up to kRecentStates, for the
   // interpolation checks.
   static constexpr size_t kRecentStates = 32;
   struct RecentState {
-    double t = 0;
+    double t = 0;  // Entity::state_time of the state
     Vec3f position;
     Quatf rotation;
   };

@@ -119,6 +119,7 @@ void EmbeddedPhysicsLink::Advance(double now, StepOutput* out) {
   if (room_ == nullptr) {
     physics_->Advance(now, out);
     clock_.Record(now, out->steps, config_.fixed_dt);
+    if (out->steps > 0) out->state_time = clock_.fed - clock_.acc;
   } else {
     out->Clear();
     room_->Advance(now, &finished_, &used_, &counters_);

@@ -69,6 +69,11 @@ struct RelayCounters {
   // or no free cache slot). cached / (cached + coded) is the sharing ratio.
   Counter shared_bodies_cached{0};
   Counter shared_bodies_coded{0};
+  // Key samples (ReplicationConfig::key_sample_threshold_m), per receiver: ambient PhyS bodies
+  // found due because the straight line a receiver interpolates strayed from PhyS's states in
+  // between, or because key_sample_max_interval_s passed (or none was sent yet).
+  Counter key_samples_strayed{0};
+  Counter key_samples_max_interval{0};
   Counter reliable_resends{0};
   Counter reliable_messages_received{0};
   Counter connections_accepted{0};

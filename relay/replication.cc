@@ -152,6 +152,10 @@ bool ClientReplicator::DeadReckoned(const Entity& e, PriorityClass c) const {
          c != PriorityClass::kCritical;
 }
 
+bool ClientReplicator::StampsStateTime() const {
+  return delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0;
+}
+
 bool ClientReplicator::KeySampled(const Entity& e, PriorityClass c) const {
   return delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0 &&
          e.physics == PhysicsRole::kSimulated && c == PriorityClass::kAmbient;
@@ -201,39 +205,52 @@ bool ClientReplicator::HermiteDue(uint32_t id, const Entity& e, double now) {
   return false;
 }
 
-bool ClientReplicator::KeySampleDue(uint32_t id, const Entity& e) {
+ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entity& e,
+                                                      double sent_state_time) {
   EntityState sent;
   EntityVelocity unused;
   uint32_t sent_ms = 0;
-  if (!delta_->NewestSent(id, &sent, &unused, &sent_ms)) return true;
-  const double h = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
-  if (h <= 0) return false;
-  if (h >= config_.key_sample_max_interval_s) return true;
+  if (!delta_->NewestSent(id, &sent, &unused, &sent_ms)) return KeyDue::kMaxInterval;
+  // The max interval on the relay's clock: a body that stopped (no newer state) still gets its
+  // final pose within it.
+  const double since = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
+  if (since <= 0) return KeyDue::kNo;
+  if (since >= config_.key_sample_max_interval_s) return KeyDue::kMaxInterval;
+  // The line a receiver draws runs from the newest state sent, at the time it was stamped with
+  // (sent_state_time), to the present state at the time it holds; PhyS's states in between are
+  // checked at the times they hold too. (Stamping them with their arrival instead, a step's
+  // uneven computation later, with several steps sometimes arriving at once, made straight
+  // paths look kinked: docs/benchmarks.md, "Key samples".)
+  const double h = e.state_time - sent_state_time;
+  if (h <= 0) return KeyDue::kNo;
   const double thr = config_.key_sample_threshold_m;
   const double rot_thr = config_.key_sample_rotation_deg;
   for (const Entity::RecentState& r : e.recent) {
-    const double into =
-        static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(r.t * 1000.0)) - sent_ms) /
-        1000.0;
+    const double into = r.t - sent_state_time;
     if (!(into > 0 && into < h)) continue;
     const float u = static_cast<float>(into / h);
     const Vec3f p{sent.position.x + (e.state.position.x - sent.position.x) * u,
                   sent.position.y + (e.state.position.y - sent.position.y) * u,
                   sent.position.z + (e.state.position.z - sent.position.z) * u};
-    if (Distance(p, r.position) > thr) return true;
-    if (AngleDeg(Nlerp(sent.rotation, e.state.rotation, u), r.rotation) > rot_thr) return true;
+    if (Distance(p, r.position) > thr) return KeyDue::kStrayed;
+    if (AngleDeg(Nlerp(sent.rotation, e.state.rotation, u), r.rotation) > rot_thr) return KeyDue::kStrayed;
   }
-  return false;
+  return KeyDue::kNo;
 }
 
 DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entity& e,
-                                                        PriorityClass cls, double now,
-                                                        double resend_after) {
+                                                        const View& v, PriorityClass cls,
+                                                        double now, double resend_after,
+                                                        RelayCounters& counters) {
   using Need = DeltaEncoder::UpdateNeed;
   if (!config_.velocities) {
     const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
                                    config_.rotation_threshold_deg, now, resend_after);
-    if (need != Need::kSend || !KeySampled(e, cls) || KeySampleDue(id, e)) return need;
+    if (need != Need::kSend || !KeySampled(e, cls)) return need;
+    const KeyDue due = KeySampleDue(id, e, v.sent_state_time);
+    if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
+    if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
+    if (due != KeyDue::kNo) return need;
     return Need::kExtrapolatedWithin;  // the line from the newest sent still holds (not sticky)
   }
   if (!DeadReckoned(e, cls)) {
@@ -301,7 +318,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
                        ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
                                        config_.rotation_threshold_deg, now, resend_after)
                        : DeltaEncoder::UpdateNeed::kSend)
-                : VelocityNeed(id, e, cls, now, resend_after);
+                : VelocityNeed(id, e, v, cls, now, resend_after, counters);
         if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
         want = need == DeltaEncoder::UpdateNeed::kSend;
         break;
@@ -334,49 +351,66 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     selected_.swap(candidates_);
   }
 
-  encoder_->Begin(payload_, time_ms_);
-  in_payload_.clear();
-  for (const Candidate& c : selected_) {
-    auto add = [&]() {
-      if (paper_ != nullptr) return paper_->AddFields(c.entity->state, c.fields);
-      if (shared_ != nullptr) {  // the room codes the body once for every receiver
-        return c.entity->shared != nullptr && c.entity->prepared_valid &&
-               shared_->Add(c.id, *c.entity->shared);
-      }
-      if (delta_ != nullptr) {  // the room quantised it once for every receiver
-        return delta_->Add(c.entity->state,
-                           c.entity->prepared_valid ? &c.entity->prepared : nullptr,
-                           VelocityOf(*c.entity, now));
-      }
-      return encoder_->Add(c.entity->state);
-    };
-    if (!add()) {
-      Flush(now, connection, out, counters);
-      encoder_->Begin(payload_, time_ms_);
-      if (!add()) continue;
+  // Key-sample rooms stamp PhyS bodies with the time their states hold (Entity::state_time),
+  // in payloads of their own, so that a receiver's straight lines run through PhyS's states at
+  // their times, as KeySampleDue checks them; everything else goes with the tick's time.
+  const bool physics_stamped = StampsStateTime();
+  uint32_t physics_ms = time_ms_;
+  if (physics_stamped) {
+    double newest = -1;
+    for (const Candidate& c : selected_) {
+      if (c.entity->physics == PhysicsRole::kSimulated) newest = std::max(newest, c.entity->state_time);
     }
-    in_payload_.emplace_back(c.id, c.entity->version);
-    View& v = views_[c.entity->slot];
-    v.last_sent = now;
-    double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
-    // Room-wide send schedule: the entity is due at the points of a grid of its interval,
-    // with a phase of its own (from its id) but the same for every receiver, so the room's
-    // receivers send it in the same ticks and reference the same versions (shared baseline
-    // keys: one body encode serves them all). One send per grid point while ticks come
-    // faster than the interval, so the long-run rate is exact; a receiver that sent late
-    // (loss, budget) is back on the grid after one send.
-    if (interval > 0 && std::isfinite(interval)) {
-      const double phase =
-          static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
-      v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
-    } else {
-      v.next_due = now + interval;  // a rate of 0: never again on schedule
-    }
-    if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
-    if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
-    v.ever_sent = true;
+    if (newest >= 0 && newest <= now) physics_ms = static_cast<uint32_t>(static_cast<uint64_t>(newest * 1000.0));
   }
-  Flush(now, connection, out, counters);
+  for (int pass = physics_stamped ? 0 : 1; pass < 2; ++pass) {
+    const uint32_t payload_ms = pass == 0 ? physics_ms : time_ms_;
+    encoder_->Begin(payload_, payload_ms);
+    in_payload_.clear();
+    for (const Candidate& c : selected_) {
+      if (physics_stamped && (pass == 0) != (c.entity->physics == PhysicsRole::kSimulated)) continue;
+      auto add = [&]() {
+        if (paper_ != nullptr) return paper_->AddFields(c.entity->state, c.fields);
+        if (shared_ != nullptr) {  // the room codes the body once for every receiver
+          return c.entity->shared != nullptr && c.entity->prepared_valid &&
+                 shared_->Add(c.id, *c.entity->shared);
+        }
+        if (delta_ != nullptr) {  // the room quantised it once for every receiver
+          return delta_->Add(c.entity->state,
+                             c.entity->prepared_valid ? &c.entity->prepared : nullptr,
+                             VelocityOf(*c.entity, now));
+        }
+        return encoder_->Add(c.entity->state);
+      };
+      if (!add()) {
+        Flush(now, connection, out, counters);
+        encoder_->Begin(payload_, payload_ms);
+        if (!add()) continue;
+      }
+      in_payload_.emplace_back(c.id, c.entity->version);
+      View& v = views_[c.entity->slot];
+      v.last_sent = now;
+      v.sent_state_time = payload_ms / 1000.0;
+      double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
+      // Room-wide send schedule: the entity is due at the points of a grid of its interval,
+      // with a phase of its own (from its id) but the same for every receiver, so the room's
+      // receivers send it in the same ticks and reference the same versions (shared baseline
+      // keys: one body encode serves them all). One send per grid point while ticks come
+      // faster than the interval, so the long-run rate is exact; a receiver that sent late
+      // (loss, budget) is back on the grid after one send.
+      if (interval > 0 && std::isfinite(interval)) {
+        const double phase =
+            static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
+        v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
+      } else {
+        v.next_due = now + interval;  // a rate of 0: never again on schedule
+      }
+      if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
+      if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
+      v.ever_sent = true;
+    }
+    Flush(now, connection, out, counters);
+  }
 }
 
 void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& out,

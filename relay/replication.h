@@ -112,8 +112,13 @@ struct ReplicationConfig {
   // state sent to its present state, strays from PhyS's states in between by more than this
   // (or by key_sample_rotation_deg), or when key_sample_max_interval_s has passed while it
   // moves (selective sync still applies). Receivers then play out at that interval (plus
-  // jitter). Cost: per receiver per tick, a check of up to Entity::kRecentStates states of
-  // each ambient body. Off by default (docs/benchmarks.md, "Key samples").
+  // jitter). Times are the times PhyS's states hold (Entity::state_time, the end of the step
+  // on the relay's clock), not when they reached the relay: the check uses them, and PhyS
+  // bodies go in payloads stamped with them (others with the tick's time), so a receiver's
+  // line is the one checked. Cost: per receiver per tick, a check of up to
+  // Entity::kRecentStates states of each ambient body, and a second datagram in ticks that
+  // send both PhyS bodies and other entities. Off by default: it meets the display target on
+  // one of the two scenes only (docs/benchmarks.md, "Key samples").
   float key_sample_threshold_m = 0;
   float key_sample_rotation_deg = 5.0f;
   double key_sample_max_interval_s = 0.25;
@@ -178,6 +183,7 @@ class ClientReplicator {
     double next_due = -1e9;
     double accumulator = 0;
     EntityState last_sent_state;  // paper mode's significance test
+    double sent_state_time = 0;   // the time the newest state sent was stamped with (s)
     bool ever_sent = false;
     // edgephys mode: the entity version whose state the client has acknowledged within the
     // thresholds (nothing to send until the version changes); 0 = none.
@@ -204,11 +210,16 @@ class ClientReplicator {
   // The interpolation checks: true when `e` is to be sent. Hermite (hermite_max_interval_s > 0,
   // format 12) or straight lines (key_sample_threshold_m > 0, format 2).
   bool HermiteDue(uint32_t id, const Entity& e, double now);
-  bool KeySampleDue(uint32_t id, const Entity& e);
+  // Key samples: whether `e` is due (and why), its newest sent state stamped `sent_state_time`.
+  enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
+  KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time);
   bool KeySampled(const Entity& e, PriorityClass c) const;
+  // Key-sample rooms send PhyS bodies stamped with Entity::state_time, not the tick's time.
+  bool StampsStateTime() const;
   // The edgephys (format 2 / 12) send decision for `e` of class `cls`.
-  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, PriorityClass cls,
-                                        double now, double resend_after);
+  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, const View& v,
+                                        PriorityClass cls, double now, double resend_after,
+                                        RelayCounters& counters);
   void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
   // changed soft body, in chunks, resent until every chunk of that version is acknowledged.

@@ -246,6 +246,7 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
   }
   e.parent = c->parent_id();
   e.changed_at = now;
+  e.state_time = now;
   e.creator = player;
   e.spawn_seq = room_.NextSpawnSeq();
   if (e.physics != PhysicsRole::kNone) {
@@ -338,6 +339,7 @@ void RoomHost::ApplyStates(MemberLink& link, std::span<const uint8_t> payload, d
     e->state = st;
     ++e->version;
     e->changed_at = now;
+    e->state_time = now;
     if (e->physics == PhysicsRole::kMirrored && room_.physics() != nullptr) {
       room_.physics()->Drive(st.entity_id, st);
     }
@@ -363,13 +365,18 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
     counters.physics_step_seconds.Observe(out.step_seconds / out.steps);
     RelayCounters::Inc(counters.physics_steps, static_cast<uint64_t>(out.steps));
   }
+  // The time the states hold, not their arrival: an asynchronous world's steps arrive a step's
+  // computation late and unevenly, and several steps may arrive in one output.
+  const double state_time = out.state_time >= 0 ? std::min(out.state_time, now) : now;
   for (const RoomPhysics::MovedBody& m : out.moved) {
     Entity* e = room_.FindEntity(m.state.entity_id);
     if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
     e->state = m.state;
+    e->state_time = state_time;
     if (KeepsRecentStates(room_.config().replication)) {
       if (e->recent.size() < Entity::kRecentStates) e->recent.resize(Entity::kRecentStates);
-      e->recent[e->recent_next++ % Entity::kRecentStates] = {now, m.state.position, m.state.rotation};
+      e->recent[e->recent_next++ % Entity::kRecentStates] = {state_time, m.state.position,
+                                                             m.state.rotation};
     }
     e->linear_velocity = m.linear;
     e->angular_velocity = m.angular;
@@ -433,6 +440,7 @@ size_t RoomHost::Restore(std::vector<Entity> entities, const std::map<uint32_t, 
     e.cost = EntityCost::Of(*c, e.spawn.size(), e.physics != PhysicsRole::kNone);
     room_.AdvanceSpawnSeq(e.spawn_seq);
     e.changed_at = now;
+    e.state_time = now;
     room_.AddEntity(std::move(e));
     env_.counters->entities.fetch_add(1, std::memory_order_relaxed);
   }

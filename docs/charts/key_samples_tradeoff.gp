@@ -1,0 +1,34 @@
+# gnuplot docs/charts/key_samples_tradeoff.gp (from the repository root): egress against display
+# error p99 for the fixed ambient rate, velocities (format 12) and key samples, quarter-plus and
+# full-stir scenes, 1,000 boxes (docs/benchmarks.md, "Key samples", session 8). Left: the truth as
+# it reached the relay (the earlier tables' yardstick); right: the truth at the time PhyS computed
+# it for (no format-12 figures measured that way). Labelled: medians of 3 (m). Data:
+# key_samples_tradeoff.dat.
+d = 'docs/charts/key_samples_tradeoff.dat'
+do for [t in 'png svg'] {
+  if (t eq 'png') { set terminal pngcairo size 1300,560 font ',9' } else { set terminal svg size 1300,560 font ',9' }
+  set output 'docs/charts/key_samples_tradeoff.'.t
+  set termoption noenhanced
+  set multiplot layout 1,2 title 'Egress vs what a receiver displays, 1,000 boxes: fixed ambient rate, velocities (format 12), key samples'
+  set grid
+  set logscale x
+  set xrange [0.06:2.2]
+  set yrange [0:95]
+  set xlabel 'egress per client / paper Obj_1000'
+  set key top right font ',8'
+  do for [col in '2 3'] {
+    c = col + 0
+    set ylabel (c == 2 ? 'display p99 (mm), truth as it reached the relay' : 'display p99 (mm), truth at the time PhyS computed it for')
+    plot d index 0 using 1:c with linespoints pt 7 lc rgb '#1f77b4' title 'quarter-plus, fixed Hz (6 Hz: today)', \
+         '' index 0 using 1:c:4 with labels font ',7' offset 0,0.9 notitle, \
+         '' index 1 using 1:c with linespoints pt 5 lc rgb '#9467bd' title 'quarter-plus, format 12', \
+         '' index 2 using 1:c with points pt 9 lc rgb '#2ca02c' title 'quarter-plus, key samples', \
+         '' index 2 using 1:c:(strstrt(strcol(4),'(m)') ? strcol(4) : '') with labels font ',7' offset 0,-0.9 tc rgb '#2ca02c' notitle, \
+         '' index 3 using 1:c with linespoints pt 7 lc rgb '#d62728' title 'full stir, fixed Hz (6 Hz: today)', \
+         '' index 3 using 1:c:4 with labels font ',7' offset 0,0.9 notitle, \
+         '' index 4 using 1:c with linespoints pt 5 lc rgb '#e377c2' title 'full stir, format 12', \
+         '' index 5 using 1:c with points pt 11 lc rgb '#ff7f0e' title 'full stir, key samples', \
+         '' index 5 using 1:c:(strstrt(strcol(4),'(m)') ? strcol(4) : '') with labels font ',7' offset 0,-0.9 tc rgb '#ff7f0e' notitle
+  }
+  unset multiplot
+}

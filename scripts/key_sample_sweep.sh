@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Key samples against the fixed ambient rate on the same scenes (docs/benchmarks.md, "Key
+# samples", session 8): edgephys-loadgen multiobject at 1,000 boxes on the quarter-plus and
+# full-stir scenes, one JSON per (scene, point, repeat), then per point the median over repeats
+# of egress, key samples per box per s and the display error under both yardsticks. Bounded:
+# points x 2 scenes x REPEAT runs of about 10 s each. Hold /tmp/edgephys-bench.lock and
+# /tmp/edgephys-build.lock around it.
+#   usage: scripts/key_sample_sweep.sh [loadgen] [out dir] [REPEAT] ["name|args" ...]
+set -euo pipefail
+loadgen=${1:-build/default/loadgen/edgephys-loadgen}
+out=${2:-key-sample-sweep}
+repeat=${3:-1}
+shift $(( $# < 3 ? $# : 3 ))
+points=("$@")
+if (( ${#points[@]} == 0 )); then
+  points=(
+    "fixed6|"
+    "k10r5_025|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.25"
+    "k10r5_03|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.3"
+    "k20r8_05|--key-samples 0.02 --key-samples-rotation 8 --key-samples-max-interval 0.5"
+  )
+fi
+quarter=(--layers 1 --stirrer-reach 0.75 --stirrer-speed 1.0)
+for ((i = 1; i <= repeat; i++)); do
+  for p in "${points[@]}"; do
+    name=${p%%|*}
+    read -r -a extra <<<"${p#*|}"
+    for scene in quarter full; do
+      args=()
+      [[ $scene == quarter ]] && args=("${quarter[@]}")
+      mkdir -p "$out/run$i"
+      "$loadgen" multiobject --objects 1000 --no-bench --duration 8 "${args[@]}" "${extra[@]}" \
+        --charts '' --no-progress --json "$out/run$i/${scene}_${name}.json" >/dev/null
+    done
+  done
+done
+python3 - "$out" "$repeat" "${points[@]}" <<'PY'
+import json, statistics, sys
+out, repeat, names = sys.argv[1], int(sys.argv[2]), [p.split("|")[0] for p in sys.argv[3:]]
+keys = ["egress_ratio_to_paper", "bytes_per_update", "updates_per_s_per_client",
+        "key_strayed_per_box_s", "key_interval_per_box_s", "display_err_p50_m", "display_err_p99_m",
+        "display_err_state_p99_m", "display_rot_err_p99_deg", "display_playout_ms_median",
+        "pos_err_sent_max_m"]
+print("scene,point," + ",".join(keys))
+for scene in ("quarter", "full"):
+    for name in names:
+        runs = [json.load(open(f"{out}/run{i}/{scene}_{name}.json"))["results"][0]
+                for i in range(1, repeat + 1)]
+        print(scene, name, *(f"{statistics.median(r[k] for r in runs):.4f}" for k in keys), sep=",")
+PY
