@@ -142,6 +142,18 @@ int main(int argc, char** argv) {
   app.add_option("--ambient-hz", rep.ambient_hz,
                  "Send rate of PhyS-simulated entities no user interacts with")
       ->capture_default_str()->check(CLI::Range(1.0, 240.0));
+  app.add_option("--key-samples", rep.key_sample_threshold_m,
+                 "Format 2 only: send an untouched PhyS body when the straight line receivers "
+                 "interpolate strays from PhyS's states by more than this (m) instead of at "
+                 "--ambient-hz (0: off; docs/benchmarks.md, \"Key samples\")")
+      ->capture_default_str()->check(CLI::Range(0.0, 10.0));
+  app.add_option("--key-samples-rotation", rep.key_sample_rotation_deg,
+                 "With --key-samples: the same for rotation (deg)")
+      ->capture_default_str()->check(CLI::Range(0.1, 180.0));
+  app.add_option("--key-samples-max-interval", rep.key_sample_max_interval_s,
+                 "With --key-samples: longest time (s) a moving body goes unsent; receivers play "
+                 "out this far behind")
+      ->capture_default_str()->check(CLI::Range(0.02, 10.0));
   app.add_option("--interaction-linger", rep.interaction_linger_s,
                  "Seconds an entity stays out of the ambient class after a grab, release or event")
       ->capture_default_str()->check(CLI::Range(0.0, 3600.0));
