@@ -110,6 +110,7 @@ struct Connection::Impl {
     owner.stats_.bytes_sent += size;
     last_send_time = now;
     ack_pending = false;
+    ack_urgent = false;
     return sequence;
   }
 
@@ -258,6 +259,8 @@ struct Connection::Impl {
   double last_receive_time;
   double last_send_time;
   bool ack_pending = false;  // the peer sent chunks we have not acknowledged yet
+  bool ack_urgent = false;   // ... among them reliable units (acknowledged without delay)
+  double ack_pending_since = 0;  // when ack_pending became true
   bool have_unreliable = false;
   uint16_t newest_unreliable = 0;  // sequence of the newest unreliable payload delivered
   int pending_disconnect_sends = 0;
@@ -360,7 +363,11 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   impl_->last_receive_time = now;
   stats_.packets_received++;
   stats_.bytes_received += packet.size();
-  if (parsed.unit_count > 0 || parsed.has_unreliable) impl_->ack_pending = true;
+  if (parsed.unit_count > 0 || parsed.has_unreliable) {
+    if (!impl_->ack_pending) impl_->ack_pending_since = now;
+    impl_->ack_pending = true;
+    if (parsed.unit_count > 0) impl_->ack_urgent = true;
+  }
   impl_->ProcessAcks(parsed.ack, parsed.ack_bits, now, handler);
 
   for (size_t i = 0; i < parsed.unit_count && connected(); ++i) {
@@ -399,7 +406,10 @@ void Connection::Update(double now, PacketWriter& out) {
   }
   impl_->DetectLoss(now);
   impl_->SendDueUnits(now, out);
-  if (impl_->ack_pending || now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
+  const bool ack_due =
+      impl_->ack_pending &&
+      (impl_->ack_urgent || now - impl_->ack_pending_since >= impl_->config.max_ack_delay_s);
+  if (ack_due || now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
     impl_->SendAckOnly(now, out);
   }
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();

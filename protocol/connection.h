@@ -102,7 +102,9 @@ class Connection {
   Status ProcessPacket(std::span<const uint8_t> packet, double now, ConnectionHandler& handler);
 
   // Sends due reliable units (new ones, then those whose resend timeout expired), acks the
-  // peer is owed and keep-alives; detects the timeout. Call at least every few milliseconds
+  // peer is owed (an ack owed only for unreliable payloads once it has waited
+  // ConnectionConfig::max_ack_delay_s for a packet of ours to carry it) and keep-alives;
+  // detects the timeout. Call at least every few milliseconds
   // to tens of milliseconds. Sends at most 16 data packets per call (the peer can acknowledge
   // only 33 packets per packet it sends), so reliable throughput scales with the call rate.
   // A packet with no chunks (ack-only or keep-alive) does not itself ask for an ack.
