@@ -110,6 +110,7 @@ struct Connection::Impl {
     owner.stats_.bytes_sent += size;
     last_send_time = now;
     ack_pending = false;
+    ack_urgent = false;
     return sequence;
   }
 
@@ -150,19 +151,44 @@ struct Connection::Impl {
           size = BeginPacket(PacketType::kData);
           ++packets;
         }
-        uint8_t* p = scratch.data() + size;
-        p[0] = kChunkReliable;
-        StoreU16LE(p + 1, unit.id);
-        p[3] = unit.last ? kUnitFlagLast : 0;
-        StoreU16LE(p + 4, static_cast<uint16_t>(unit.data.size()));
-        std::copy(unit.data.begin(), unit.data.end(), p + kReliableChunkHeader);
-        size += need;
-        units[unit_count++] = unit.id;
-        if (sender.MarkSent(i, now)) owner.stats_.reliable_resends++;
+        WriteUnit(i, unit, now, &size);
       }
     }
     if (size != 0) FinishPacket(size, /*ack_eliciting=*/true, now, out);
   }
+
+  // Writes sendable unit `i` (its `unit` view) at scratch[*size] and marks it sent.
+  void WriteUnit(size_t i, const ReliableUnitView& unit, double now, size_t* size) {
+    uint8_t* p = scratch.data() + *size;
+    p[0] = kChunkReliable;
+    StoreU16LE(p + 1, unit.id);
+    p[3] = unit.last ? kUnitFlagLast : 0;
+    StoreU16LE(p + 4, static_cast<uint16_t>(unit.data.size()));
+    std::copy(unit.data.begin(), unit.data.end(), p + kReliableChunkHeader);
+    *size += kReliableChunkHeader + unit.data.size();
+    units[unit_count++] = unit.id;
+    if (sender.MarkSent(i, now)) owner.stats_.reliable_resends++;
+  }
+
+  // Fills the rest of the packet being built (`*size` bytes so far) with due reliable units
+  // that fit, new ones first, then expired ones: reliable messages ride on an unreliable
+  // payload's packet instead of a datagram of their own. Looks at most kPiggybackScan units
+  // per pass, so a long queue (a join stream) costs a bounded scan per packet.
+  void AppendDueUnits(size_t* size, double now) {
+    if (sender.sendable_count() == 0) return;
+    const double timeout = ResendTimeout();
+    for (bool resends : {false, true}) {
+      const size_t n = std::min(sender.sendable_count(), kPiggybackScan);
+      for (size_t i = 0; i < n; ++i) {
+        if (unit_count == units.size() || *size + kReliableChunkHeader >= kMaxPacketSize) return;
+        if (sender.IsSent(i) != resends || !sender.IsDue(i, now, timeout)) continue;
+        ReliableUnitView unit = sender.View(i);
+        if (*size + kReliableChunkHeader + unit.data.size() > kMaxPacketSize) continue;
+        WriteUnit(i, unit, now, size);
+      }
+    }
+  }
+  static constexpr size_t kPiggybackScan = 64;
 
   // ---- acknowledgements, RTT and loss ----------------------------------------------------
 
@@ -258,6 +284,8 @@ struct Connection::Impl {
   double last_receive_time;
   double last_send_time;
   bool ack_pending = false;  // the peer sent chunks we have not acknowledged yet
+  bool ack_urgent = false;   // ... among them reliable units (acknowledged without delay)
+  double ack_pending_since = 0;  // when ack_pending became true
   bool have_unreliable = false;
   uint16_t newest_unreliable = 0;  // sequence of the newest unreliable payload delivered
   int pending_disconnect_sends = 0;
@@ -295,6 +323,7 @@ Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, do
   StoreU16LE(p + 1, static_cast<uint16_t>(payload.size()));
   std::copy(payload.begin(), payload.end(), p + kUnreliableChunkHeader);
   size += kUnreliableChunkHeader + payload.size();
+  impl_->AppendDueUnits(&size, now);
   return impl_->FinishPacket(size, /*ack_eliciting=*/true, now, out);
 }
 
@@ -341,12 +370,12 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
     }
   }
 
-  // A stale unreliable payload is dropped; if that is all the packet carries, the packet is
-  // not acknowledged either, so the sender never counts a dropped payload as delivered (the
-  // delta codec references only acknowledged states). Its acks still apply.
+  // A packet whose unreliable payload is stale is dropped whole, reliable units included (the
+  // peer resends them), and not acknowledged, so the sender never counts a dropped payload
+  // as delivered (the delta codecs reference only acknowledged states). Its acks still apply.
   const bool stale = parsed.has_unreliable && impl_->have_unreliable &&
                      !SequenceGreater(parsed.sequence, impl_->newest_unreliable);
-  if (stale && parsed.unit_count == 0) {
+  if (stale) {
     impl_->last_receive_time = now;
     stats_.packets_received++;
     stats_.bytes_received += packet.size();
@@ -360,7 +389,11 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   impl_->last_receive_time = now;
   stats_.packets_received++;
   stats_.bytes_received += packet.size();
-  if (parsed.unit_count > 0 || parsed.has_unreliable) impl_->ack_pending = true;
+  if (parsed.unit_count > 0 || parsed.has_unreliable) {
+    if (!impl_->ack_pending) impl_->ack_pending_since = now;
+    impl_->ack_pending = true;
+    if (parsed.unit_count > 0) impl_->ack_urgent = true;
+  }
   impl_->ProcessAcks(parsed.ack, parsed.ack_bits, now, handler);
 
   for (size_t i = 0; i < parsed.unit_count && connected(); ++i) {
@@ -399,7 +432,10 @@ void Connection::Update(double now, PacketWriter& out) {
   }
   impl_->DetectLoss(now);
   impl_->SendDueUnits(now, out);
-  if (impl_->ack_pending || now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
+  const bool ack_due =
+      impl_->ack_pending &&
+      (impl_->ack_urgent || now - impl_->ack_pending_since >= impl_->config.max_ack_delay_s);
+  if (ack_due || now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
     impl_->SendAckOnly(now, out);
   }
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();

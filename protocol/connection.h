@@ -19,8 +19,9 @@
 //    and by ConnectionConfig::max_message_size for the message being reassembled.
 //  * Unreliable-sequenced: SendUnreliable() sends one packet now. The receiver delivers its
 //    payload only if the packet is newer than every unreliable payload it has delivered
-//    (older ones are dropped as stale and counted). A packet whose only content was a stale
-//    payload is not acknowledged, so OnPacketAcked() on the sender means "delivered".
+//    (older ones are dropped as stale and counted). A packet with a stale payload is dropped
+//    whole (reliable units riding on it are resent) and not acknowledged, so OnPacketAcked()
+//    on the sender means "delivered".
 //
 // Thread-safety: none. One thread owns a Connection (the room's thread on the relay).
 // Cost: ProcessPacket and SendUnreliable are O(packet size) and allocate nothing once the
@@ -84,8 +85,11 @@ class Connection {
   uint64_t reliable_queued_end() const;
   uint64_t reliable_acked_end() const;
 
-  // Sends one packet now carrying `payload` (1 .. kMaxUnreliablePayload bytes) and the current
-  // acks. Returns the packet sequence, which OnPacketAcked() later reports if it arrives.
+  // Sends one packet now carrying `payload` (1 .. kMaxUnreliablePayload bytes), the current
+  // acks, and the due reliable units that fit beside the payload (new ones first; they would
+  // otherwise leave in packets of their own on the next Update()). Returns the packet
+  // sequence, which OnPacketAcked() later reports if it arrives. A receiver drops a packet
+  // whose payload is stale whole, units included (resent), so an ack still means "delivered".
   Result<uint16_t> SendUnreliable(std::span<const uint8_t> payload, double now, PacketWriter& out);
 
   // Parses a kData or kDisconnect packet addressed to this connection (the caller matched the
@@ -102,7 +106,9 @@ class Connection {
   Status ProcessPacket(std::span<const uint8_t> packet, double now, ConnectionHandler& handler);
 
   // Sends due reliable units (new ones, then those whose resend timeout expired), acks the
-  // peer is owed and keep-alives; detects the timeout. Call at least every few milliseconds
+  // peer is owed (an ack owed only for unreliable payloads once it has waited
+  // ConnectionConfig::max_ack_delay_s for a packet of ours to carry it) and keep-alives;
+  // detects the timeout. Call at least every few milliseconds
   // to tens of milliseconds. Sends at most 16 data packets per call (the peer can acknowledge
   // only 33 packets per packet it sends), so reliable throughput scales with the call rate.
   // A packet with no chunks (ack-only or keep-alive) does not itself ask for an ack.

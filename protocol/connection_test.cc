@@ -620,6 +620,90 @@ TEST(ConnectionTest, PacketsAreFilledWithDueUnits) {
   EXPECT_EQ(c.stats().reliable_resends, 100u);
 }
 
+TEST(ConnectionTest, ReliableUnitsRideOnAnUnreliablePayloadsPacket) {
+  Connection c(kTestConnectionId, ConnectionConfig{}, 0);
+  CapturingWriter out;
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(c.SendReliable(Bytes(10, 1)).ok());
+  ASSERT_TRUE(c.SendUnreliable(Bytes(100, 2), 0.01, out).ok());
+  // One packet: the payload (3-byte chunk header) and the three 16-byte unit chunks.
+  ASSERT_EQ(out.packets.size(), 1u);
+  EXPECT_EQ(out.packets[0].size(), kConnectionHeaderSize + 3 + 100 + 3 * 16);
+  c.Update(0.012, out);  // nothing left to send: the units left with the payload
+  EXPECT_EQ(out.packets.size(), 1u);
+  // A payload that leaves no room for a unit: the unit waits for Update().
+  ASSERT_TRUE(c.SendReliable(Bytes(10, 3)).ok());
+  ASSERT_TRUE(c.SendUnreliable(Bytes(kMaxUnreliablePayload, 4), 0.02, out).ok());
+  ASSERT_EQ(out.packets.size(), 2u);
+  EXPECT_EQ(out.packets[1].size(), kMaxPacketSize);
+  c.Update(0.021, out);
+  ASSERT_EQ(out.packets.size(), 3u);
+  EXPECT_EQ(out.packets[2].size(), kConnectionHeaderSize + 16);
+}
+
+TEST(ConnectionTest, AnAckedPacketWithUnitsDeliveredItsPayloadUnderReordering) {
+  // Reliable messages ride on unreliable payloads; a reordered packet whose payload is stale
+  // is dropped whole (not acknowledged), so an ack still means the payload was delivered, and
+  // the units it carried still arrive (resent).
+  NetworkConditions c = Harsh(21);
+  c.reorder = 0.3;
+  Link link(c);
+  std::vector<bool> carried_payload(65536);
+  std::mt19937 rng(3);
+  std::vector<Bytes> messages;
+  for (uint32_t i = 0; i < 2000; ++i) {
+    if (i % 3 == 0) {
+      messages.push_back(TestMessage(static_cast<uint32_t>(messages.size()), rng));
+      ASSERT_TRUE(link.a.connection->SendReliable(messages.back()).ok());
+    }
+    Bytes payload(8);
+    StoreU32LE(payload.data(), i);
+    auto sequence = link.a.connection->SendUnreliable(payload, link.now(), link.a);
+    ASSERT_TRUE(sequence.ok());
+    carried_payload[*sequence] = true;
+    link.Step();
+  }
+  ASSERT_TRUE(link.RunUntil([&] { return link.b.handler.reliable.size() >= messages.size(); }, 30));
+  for (size_t i = 0; i < messages.size(); ++i) ASSERT_EQ(link.b.handler.reliable[i], messages[i]);
+  std::vector<bool> delivered(65536);
+  for (uint16_t seq : link.b.handler.unreliable_sequences) delivered[seq] = true;
+  uint64_t acked_payloads = 0;
+  for (size_t seq = 0; seq < 65536; ++seq) {
+    if (!link.a.handler.acked[seq] || !carried_payload[seq]) continue;
+    ++acked_payloads;
+    EXPECT_TRUE(delivered[seq]) << "packet " << seq << " acknowledged but its payload dropped";
+  }
+  EXPECT_GT(acked_payloads, 1000u);
+  EXPECT_GT(link.b.connection->stats().stale_dropped, 0u);
+}
+
+TEST(ConnectionTest, AckDelayWaitsForAPacketOfOursButNotForReliableUnits) {
+  ConnectionConfig delayed;
+  delayed.max_ack_delay_s = 0.02;
+  Connection a(kTestConnectionId, ConnectionConfig{}, 0);
+  Connection b(kTestConnectionId, delayed, 0);
+  CapturingWriter a_out, b_out;
+  RecordingHandler bh;
+  ASSERT_TRUE(a.SendUnreliable(Bytes(10, 1), 0.0, a_out).ok());
+  ASSERT_TRUE(b.ProcessPacket(a_out.packets.back(), 0.0, bh).ok());
+  b.Update(0.01, b_out);  // owed for 10 ms only
+  EXPECT_TRUE(b_out.packets.empty());
+  ASSERT_TRUE(b.SendUnreliable(Bytes(5, 2), 0.015, b_out).ok());  // carries the ack
+  b.Update(0.03, b_out);
+  EXPECT_EQ(b_out.packets.size(), 1u);
+  ASSERT_TRUE(a.SendUnreliable(Bytes(10, 3), 0.04, a_out).ok());
+  ASSERT_TRUE(b.ProcessPacket(a_out.packets.back(), 0.04, bh).ok());
+  b.Update(0.05, b_out);
+  EXPECT_EQ(b_out.packets.size(), 1u);
+  b.Update(0.061, b_out);  // 21 ms: an ack-only packet
+  EXPECT_EQ(b_out.packets.size(), 2u);
+  // Reliable units are acknowledged by the next Update().
+  ASSERT_TRUE(a.SendReliable(Bytes(4, 5)).ok());
+  a.Update(0.07, a_out);
+  ASSERT_TRUE(b.ProcessPacket(a_out.packets.back(), 0.07, bh).ok());
+  b.Update(0.071, b_out);
+  EXPECT_EQ(b_out.packets.size(), 3u);
+}
+
 TEST(ConnectionTest, SequencesAndUnitIdsWrapAround) {
   NetworkConditions c;
   c.loss = 0.05;

@@ -29,6 +29,13 @@ struct ConnectionConfig {
   size_t max_pending_reliable_bytes = 8 << 20;  // SendReliable() beyond this: kQueueFull
   double min_resend_s = 0.03;         // floor of the RTT-based resend timeout
   double max_resend_s = 1.0;          // ceiling of the resend timeout
+  // How long an acknowledgement owed for unreliable payloads may wait for a packet that
+  // leaves anyway (the next unreliable payload or reliable unit carries it) before Update()
+  // sends an ack-only packet. 0: the next Update() acknowledges (the client's default). A
+  // packet with reliable units is always acknowledged by the next Update(). The relay uses
+  // 20 ms (RelayConnectionDefaults, relay/relay_config.h): its rooms' state datagrams (every
+  // 1/60 s) carry the acks, so it seals and sends about half as many datagrams.
+  double max_ack_delay_s = 0;
 };
 
 // Real-time status of one connection (GameNetworkingSockets style); the relay exports it.

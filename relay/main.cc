@@ -202,6 +202,11 @@ int main(int argc, char** argv) {
                "docs/benchmarks.md)");
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
+  app.add_option("--ack-delay", config.connection.max_ack_delay_s,
+                 "Seconds an ack owed for a client's unreliable payloads may wait for its next "
+                 "state datagram before leaving on its own (0: at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.1));
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
   app.add_option("--run-for", run_for_s, "Exit after this many seconds (0: until a signal)");
   // Cluster (docs/operations.md, "Scale-out and failover"): off unless --redis is given.

@@ -38,6 +38,15 @@ struct AbuseLimits {
   double join_timeout_s = 10;            // a connection that joins no room by then is dropped
 };
 
+// The relay's connections: an ack owed for a client's unreliable payloads waits up to 20 ms
+// for the client's next state datagram (rooms tick every 1/60 s by default) instead of
+// leaving in a sealed datagram of its own; acks for reliable units leave at once.
+inline ConnectionConfig RelayConnectionDefaults() {
+  ConnectionConfig c;
+  c.max_ack_delay_s = 0.02;
+  return c;
+}
+
 struct RelayConfig {
   // The operator's secret for join tokens (HMAC-SHA256). The built-in default is for local
   // development only; the relay warns loudly when it is used.
@@ -47,7 +56,7 @@ struct RelayConfig {
   // off only to measure its cost: then a Connect without a key is accepted and not sealed.
   bool packet_auth = true;
   RoomConfig room_defaults;
-  ConnectionConfig connection;
+  ConnectionConfig connection = RelayConnectionDefaults();
   physics::PhysicsConfig physics;  // each room's embedded PhyS world
   // Threads for embedded PhyS and the parallel replication tick, the relay's own thread
   // included. 1: PhyS steps synchronously on the relay's thread (deterministic; tests). N > 1:

@@ -1,24 +1,24 @@
 # gnuplot docs/charts/ccu_users_rooms40_f9.gp (from the repository root): the ccu users sweep
-# in 40 rooms, format 9, relay as its own process (docs/benchmarks.md, issue 11, session 7).
+# in 40 rooms, format 9, relay as its own process (docs/benchmarks.md, issue 11, session 8).
 set terminal pngcairo size 900,450 font ',10'
 set output 'docs/charts/ccu_users_rooms40_f9.png'
-set multiplot layout 1,2 title 'ccu, 40 rooms, format 9, relay as its own process, 2 shared cores (session 7: 250 and 1,000 users only)'
+set multiplot layout 1,2 title 'ccu, 40 rooms, format 9, relay as its own process, 2 shared cores (session 8)'
 set grid
 set xlabel 'users'
-set xrange [200:1050]
+set xrange [200:1300]
 set logscale y
 set yrange [5:1000]
 set ylabel 'hand latency (ms)'
 set key top left
-plot 'docs/charts/ccu_users_rooms40_f9.dat' using 1:2 with points title 'socket p50', \
-     '' using 1:3 with points title 'socket p99', \
-     '' using 1:6 with points title 'SDK p99', \
+plot 'docs/charts/ccu_users_rooms40_f9.dat' using 1:2 with linespoints title 'socket p50', \
+     '' using 1:3 with linespoints title 'socket p99', \
+     '' using 1:6 with linespoints title 'SDK p99', \
      50 with lines dashtype 2 title 'target p99 50 ms'
 unset logscale y
 set yrange [0:1.1]
 set ylabel 'relay CPU (cores) / hand poses delivered'
 set key bottom right
-plot 'docs/charts/ccu_users_rooms40_f9.dat' using 1:4 with points title 'relay CPU', \
-     '' using 1:5 with points title 'delivered', \
+plot 'docs/charts/ccu_users_rooms40_f9.dat' using 1:4 with linespoints title 'relay CPU', \
+     '' using 1:5 with linespoints title 'delivered', \
      0.9 with lines dashtype 2 title 'target delivered 0.9'
 unset multiplot
