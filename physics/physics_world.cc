@@ -7,6 +7,7 @@
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "physics/manifold_reuse.h"
 #include "physics/physics_world_internal.h"
@@ -38,7 +39,8 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
     collision_config_ = std::make_unique<btDefaultCollisionConfiguration>(pools);
   }
   dispatcher_ = std::make_unique<btCollisionDispatcher>(collision_config_.get());
-  if (config_.manifold_reuse_distance > 0) {
+  // Non-finite or non-positive: off (an infinite distance would freeze every contact set).
+  if (std::isfinite(config_.manifold_reuse_distance) && config_.manifold_reuse_distance > 0) {
     manifold_reuse_ = std::make_unique<ManifoldReuseCreateFunc>(config_.manifold_reuse_distance);
     dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
                                              manifold_reuse_.get());
