@@ -33,8 +33,11 @@ struct FrozenCollector : btBroadphaseAabbCallback {
 // (the overlap wake rule, asked per frozen body).
 struct MovingNeighbour : btBroadphaseAabbCallback {
   btScalar lin2 = 0, ang2 = 0;
+  btVector3 mn{0, 0, 0}, mx{0, 0, 0};  // the query box
   bool found = false;
   bool process(const btBroadphaseProxy* proxy) override {
+    // The tree's leaves are fattened: keep only what the pair cache would list (exact AABBs).
+    if (!TestAabbAgainstAabb2(mn, mx, proxy->m_aabbMin, proxy->m_aabbMax)) return true;
     const Entity* o = Owner(static_cast<const btCollisionObject*>(proxy->m_clientObject));
     if (o == nullptr || o->rest.frozen || o->kind != Kind::kDynamic) return true;
     const btRigidBody* b = o->body.get();
@@ -215,6 +218,8 @@ void RestManager::BeforeStep(const std::vector<Entity*>& moving, bool has_soft_b
     for (Entity* f : frozen_) {
       const btBroadphaseProxy* h = f->body->getBroadphaseHandle();
       probe.found = false;
+      probe.mn = h->m_aabbMin;
+      probe.mx = h->m_aabbMax;
       world_->getBroadphase()->aabbTest(h->m_aabbMin, h->m_aabbMax, probe);
       if (probe.found) to_wake_.push_back(f);
     }
