@@ -11,8 +11,8 @@
 // Failure: every command returns a Status; invalid input never changes the world.
 // Cost: Step() is one Bullet step plus O(active bodies + contact manifolds + commands since the
 //   last step); sleeping bodies cost nothing beyond what Bullet itself spends on them, and
-//   frozen (resting) bodies likewise (PhysicsConfig::rest_freeze; plus O(broadphase pairs) for
-//   the wake check while any are frozen).
+//   frozen (resting) bodies likewise (PhysicsConfig::rest_freeze; plus O(broadphase pairs), or
+//   O(frozen bodies * log n) when they are few, for the wake check while any are frozen).
 //   Step(), CollectStates() and DrainEvents() do not allocate in steady state (vectors are
 //   reused and only grow).
 //
@@ -182,7 +182,8 @@ struct PhysicsConfig {
   // hit faster than the look-ahead margin covers (> ~(rest_wake_margin + 2 cm) per step) acts as
   // a static wall for that one step before the impulse rule wakes it. Measured against the
   // setting off in docs/benchmarks.md ("Rest resting regions") and physics/rest_manager_test.cc.
-  // Cost when on: O(broadphase pairs) per step while anything is frozen, O(collision objects)
+  // Cost when on: O(broadphase pairs) per step while many are frozen, O(frozen * log n) while
+  // few are (a scene where almost nothing rests, e.g. the full stir), O(collision objects)
   // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the
   // bodies rests while others move.
   bool rest_freeze = true;
