@@ -78,6 +78,12 @@ void OldDefaults(PhysicsConfig& c) {
   c.ccd_motion_fraction = 0.5f;
 }
 
+// The current defaults, to change one setting from.
+PhysicsConfig& NewWith(PhysicsConfig& c) {
+  c = PhysicsConfig{};
+  return c;
+}
+
 std::vector<Candidate> Candidates() {
   using B = PhysicsConfig::Broadphase;
   auto from_old = [](std::function<void(PhysicsConfig&)> f) {
@@ -151,6 +157,19 @@ std::vector<Candidate> Candidates() {
          c = PhysicsConfig{};
          c.rest_wake_margin = 0.02f;
        }},
+      // The full stir (issue 15, item 1): candidates on top of the defaults.
+      {"reuse-0.5mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.0005f; }},
+      {"reuse-1mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.001f; }},
+      {"reuse-2mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.002f; }},
+      {"reuse-5mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.005f; }},
+      {"new-ccd-by-size", [](PhysicsConfig& c) { NewWith(c).ccd_motion_fraction = 1.0f; }},
+      {"new-ccd-off", [](PhysicsConfig& c) { NewWith(c).ccd = false; }},
+      {"new-ccd-radius-0.5", [](PhysicsConfig& c) { NewWith(c).ccd_swept_radius_fraction = 0.5f; }},
+      {"new-ccd-radius-0.25", [](PhysicsConfig& c) { NewWith(c).ccd_swept_radius_fraction = 0.25f; }},
+      // Physics rate: per step these cost what a step costs; compare them per simulated second
+      // (the sim_s_ratio column), never by the per-step ratio.
+      {"rate-40hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 40.0f; }},
+      {"rate-30hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 30.0f; }},
   };
 }
 
@@ -259,10 +278,12 @@ std::pair<double, double> Slope(const PhysicsConfig& base, double angle, double 
   cube.rigid_body->friction = 0.5f;
   Add(w, cube);
   double v1 = 0, a = 0;
-  for (int i = 1; i <= static_cast<int>(seconds * 60); ++i) {
+  const double dt = cfg.fixed_dt;
+  const int at_half = static_cast<int>(0.5 / dt + 0.5), at_1_5 = static_cast<int>(1.5 / dt + 0.5);
+  for (int i = 1; i <= static_cast<int>(seconds / dt + 0.5); ++i) {
     w.Step();
-    if (i == 30) v1 = Vel(w, 2).x;
-    if (i == 90) a = Vel(w, 2).x - v1;
+    if (i == at_half) v1 = Vel(w, 2).x;
+    if (i == at_1_5) a = Vel(w, 2).x - v1;
   }
   return {Pos(w, 2).x, a};
 }
@@ -375,6 +396,7 @@ struct SceneFigures {
   double phys_cpu_ms = 0, raw_cpu_ms = 0;  // thread CPU, median
   double moving = 0, raw_moving = 0;   // mean share faster than 1 cm/s
   double frozen = 0;                   // mean share of boxes frozen (rest_freeze)
+  double reused = 0;                   // share of box-box pairs whose manifold was reused
   double deepest_mm = 0;               // p99 over samples of the deepest contact penetration
   size_t escaped = 0;                  // boxes outside the container at the end
 };
@@ -410,6 +432,7 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
     phys.Step();
     if (raw) raw->Step();
   }
+  const PhysicsCounters before = phys.world().counters();
   std::vector<double> pm, rm, pc, rc, deep, mv, rmv, fr;
   for (int i = 0; i < steps; ++i) {
     if (!raw) {
@@ -441,6 +464,10 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
   f.moving = mean(mv);
   f.raw_moving = mean(rmv);
   f.frozen = mean(fr);
+  const PhysicsCounters after = phys.world().counters();
+  const double full = static_cast<double>(after.narrowphase_full - before.narrowphase_full);
+  const double reused = static_cast<double>(after.narrowphase_reused - before.narrowphase_reused);
+  f.reused = full + reused > 0 ? reused / (full + reused) : 0;
   std::sort(deep.begin(), deep.end());
   f.deepest_mm = deep.empty() ? 0 : deep[std::min(deep.size() - 1, deep.size() * 99 / 100)];
   f.escaped = Escaped(phys.world(), p);
@@ -510,10 +537,10 @@ int Main(int argc, char** argv) {
   std::ofstream dat(out + "/physics_cost.dat");
   dat << "# index candidate ratio_cpu phys_cpu_ms raw_cpu_ms stack_drift_m pass bounce_worst "
          "friction_worst ccd_max_x awake_m deepest_mm escaped moving raw_moving phys_wall_ms "
-         "raw_wall_ms ratio_wall\n";
+         "raw_wall_ms ratio_wall reused sim_s_ratio\n";
   std::printf("candidate,phys_cpu_ms,raw_cpu_ms,ratio_cpu,phys_wall_ms,raw_wall_ms,ratio_wall,"
               "moving,raw_moving,frozen,deepest_mm,escaped,freefall_err_m,bounce_worst,"
-              "friction_worst,stack_drift_m,stack_awake_m,ccd_max_x,suite\n");
+              "friction_worst,stack_drift_m,stack_awake_m,ccd_max_x,suite,reused,sim_s_ratio\n");
   const std::vector<std::string> wanted = Split(only);
   int index = 0;
   for (const Candidate& c : Candidates()) {
@@ -524,18 +551,21 @@ int Main(int argc, char** argv) {
     const Accuracy a = accuracy ? MeasureAccuracy(q.config) : Accuracy{};
     const double ratio = f.raw_cpu_ms > 0 ? f.phys_cpu_ms / f.raw_cpu_ms : 0;
     const double ratio_wall = f.raw_ms > 0 ? f.phys_ms / f.raw_ms : 0;
+    // CPU per simulated second: PhyS steps of its fixed_dt against raw Bullet's 1/60 s steps.
+    const double sim_s_ratio = ratio * (1.0 / 60.0) / q.config.fixed_dt;
     std::printf("%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f,%zu,%.2e,%.3f,%.3f,%.4f,"
-                "%.4f,%.4f,%s\n",
+                "%.4f,%.4f,%s,%.3f,%.3f\n",
                 c.name.c_str(), f.phys_cpu_ms, f.raw_cpu_ms, ratio, f.phys_ms, f.raw_ms,
                 ratio_wall, f.moving, f.raw_moving, f.frozen, f.deepest_mm, f.escaped, a.freefall_err,
                 a.bounce_worst, a.friction_worst, a.stack_drift, a.stack_awake, a.ccd_max_x,
-                !accuracy ? "n/a" : a.ok() ? "pass" : "FAIL");
+                !accuracy ? "n/a" : a.ok() ? "pass" : "FAIL", f.reused, sim_s_ratio);
     std::fflush(stdout);
     dat << index++ << " " << c.name << " " << ratio << " " << f.phys_cpu_ms << " "
         << f.raw_cpu_ms << " " << a.stack_drift << " " << (a.ok() ? 1 : 0) << " "
         << a.bounce_worst << " " << a.friction_worst << " " << a.ccd_max_x << " " << a.stack_awake
         << " " << f.deepest_mm << " " << f.escaped << " " << f.moving << " " << f.raw_moving
-        << " " << f.phys_ms << " " << f.raw_ms << " " << ratio_wall << "\n";
+        << " " << f.phys_ms << " " << f.raw_ms << " " << ratio_wall << " " << f.reused << " "
+        << sim_s_ratio << "\n";
   }
   dat.close();
   chart::Chart ch;

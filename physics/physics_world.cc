@@ -7,7 +7,9 @@
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
 
 #include <algorithm>
+#include <cmath>
 
+#include "physics/manifold_reuse.h"
 #include "physics/physics_world_internal.h"
 
 namespace edgephys::physics {
@@ -37,6 +39,12 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
     collision_config_ = std::make_unique<btDefaultCollisionConfiguration>(pools);
   }
   dispatcher_ = std::make_unique<btCollisionDispatcher>(collision_config_.get());
+  // Non-finite or non-positive: off (an infinite distance would freeze every contact set).
+  if (std::isfinite(config_.manifold_reuse_distance) && config_.manifold_reuse_distance > 0) {
+    manifold_reuse_ = std::make_unique<ManifoldReuseCreateFunc>(config_.manifold_reuse_distance);
+    dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
+                                             manifold_reuse_.get());
+  }
   broadphase_ = NewBroadphase(kInitialSweepHandles);
   solver_ = std::make_unique<btSequentialImpulseConstraintSolver>();
   if (config_.soft_body_world) {
@@ -565,6 +573,10 @@ PhysicsCounters PhysicsWorld::counters() const {
       stats_.steps == 0 || last_active_ >= dynamic_bodies_ ? 0 : dynamic_bodies_ - last_active_;
   c.frozen_bodies = rest_->frozen();
   c.rest_wakes = rest_->wakes();
+  if (manifold_reuse_) {
+    c.narrowphase_full = manifold_reuse_->stats().full;
+    c.narrowphase_reused = manifold_reuse_->stats().reused;
+  }
   c.soft_bodies = soft_entities_.size();
   c.joints = joints_.size();
   return c;

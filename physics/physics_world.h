@@ -11,8 +11,8 @@
 // Failure: every command returns a Status; invalid input never changes the world.
 // Cost: Step() is one Bullet step plus O(active bodies + contact manifolds + commands since the
 //   last step); sleeping bodies cost nothing beyond what Bullet itself spends on them, and
-//   frozen (resting) bodies likewise (PhysicsConfig::rest_freeze; plus O(broadphase pairs) for
-//   the wake check while any are frozen).
+//   frozen (resting) bodies likewise (PhysicsConfig::rest_freeze; plus O(broadphase pairs), or
+//   O(frozen bodies * log n) when they are few, for the wake check while any are frozen).
 //   Step(), CollectStates() and DrainEvents() do not allocate in steady state (vectors are
 //   reused and only grow).
 //
@@ -87,6 +87,7 @@ namespace internal {
 struct BodyShapes;  // physics_world_internal.h
 }  // namespace internal
 class RestManager;  // rest_manager.h
+class ManifoldReuseCreateFunc;  // manifold_reuse.h
 
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
@@ -156,6 +157,13 @@ struct PhysicsConfig {
   // unlimited, i.e. every manifold point within the breaking threshold is solved).
   float contact_processing_threshold = 1e18f;
   float contact_distance = 0.005f;    // a manifold point closer than this counts as touching (m)
+  // Contact manifold reuse (physics/manifold_reuse.h), box-box pairs only; 0: off. A pair whose
+  // relative pose moved at most this far (m; translation plus angle times the bounding radius)
+  // since its last narrowphase keeps its manifold: the points are refreshed from their body-fixed
+  // anchors instead of running btBoxBoxDetector. Accuracy: a new contact inside a reused pair is
+  // found up to this distance late. Cost saved: the box-box narrowphase of the qualifying pairs
+  // (docs/benchmarks.md, "Full stir: candidates after freezing"; it did not pay there).
+  float manifold_reuse_distance = 0.0f;
   // Resting regions (physics/rest_manager.h): a dynamic body below both rest thresholds for
   // rest_time seconds is FROZEN, i.e. made temporarily static to Bullet (zero inverse mass,
   // CF_STATIC_OBJECT, ISLAND_SLEEPING, AABB no longer updated), so it splits from the moving
@@ -174,7 +182,8 @@ struct PhysicsConfig {
   // hit faster than the look-ahead margin covers (> ~(rest_wake_margin + 2 cm) per step) acts as
   // a static wall for that one step before the impulse rule wakes it. Measured against the
   // setting off in docs/benchmarks.md ("Rest resting regions") and physics/rest_manager_test.cc.
-  // Cost when on: O(broadphase pairs) per step while anything is frozen, O(collision objects)
+  // Cost when on: O(broadphase pairs) per step while many are frozen, O(frozen * log n) while
+  // few are (a scene where almost nothing rests, e.g. the full stir), O(collision objects)
   // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the
   // bodies rests while others move.
   bool rest_freeze = true;
@@ -260,6 +269,8 @@ struct PhysicsCounters {
   size_t sleeping_bodies = 0; // dynamic bodies not simulated in the last step (incl. frozen)
   size_t frozen_bodies = 0;   // of those, frozen by PhysicsConfig::rest_freeze
   uint64_t rest_wakes = 0;    // frozen bodies woken again (all causes)
+  uint64_t narrowphase_full = 0;    // box-box pairs run through the narrowphase (reuse on)
+  uint64_t narrowphase_reused = 0;  // box-box pairs whose manifold was reused (reuse on)
   size_t soft_bodies = 0;
   size_t joints = 0;
   uint64_t guard_resets = 0;
@@ -387,6 +398,7 @@ class PhysicsWorld {
 
   PhysicsConfig config_;
   std::unique_ptr<btCollisionConfiguration> collision_config_;
+  std::unique_ptr<ManifoldReuseCreateFunc> manifold_reuse_;  // manifold_reuse_distance > 0
   std::unique_ptr<btCollisionDispatcher> dispatcher_;
   std::unique_ptr<btBroadphaseInterface> broadphase_;
   std::unique_ptr<btConstraintSolver> solver_;

@@ -29,6 +29,27 @@ struct FrozenCollector : btBroadphaseAabbCallback {
   }
 };
 
+// Whether a query box overlaps a non-frozen dynamic body moving above the rest thresholds
+// (the overlap wake rule, asked per frozen body).
+struct MovingNeighbour : btBroadphaseAabbCallback {
+  btScalar lin2 = 0, ang2 = 0;
+  btVector3 mn{0, 0, 0}, mx{0, 0, 0};  // the query box
+  bool found = false;
+  bool process(const btBroadphaseProxy* proxy) override {
+    // The tree's leaves are fattened: keep only what the pair cache would list (exact AABBs).
+    if (!TestAabbAgainstAabb2(mn, mx, proxy->m_aabbMin, proxy->m_aabbMax)) return true;
+    const Entity* o = Owner(static_cast<const btCollisionObject*>(proxy->m_clientObject));
+    if (o == nullptr || o->rest.frozen || o->kind != Kind::kDynamic) return true;
+    const btRigidBody* b = o->body.get();
+    if (b->isActive() && b->hasContactResponse() &&
+        (b->getLinearVelocity().length2() > lin2 || b->getAngularVelocity().length2() > ang2)) {
+      found = true;
+      return false;
+    }
+    return true;
+  }
+};
+
 // Distance from `p` to the box [mn, mx] (0 inside).
 btScalar DistanceToBox(const btVector3& p, const btVector3& mn, const btVector3& mx) {
   btVector3 d(0, 0, 0);
@@ -186,10 +207,28 @@ void RestManager::BeforeStep(const std::vector<Entity*>& moving, bool has_soft_b
     }
   }
   if (frozen_.empty() && !has_soft_bodies && to_wake_.empty()) return;
+  btOverlappingPairCache* cache = world_->getBroadphase()->getOverlappingPairCache();
+  // Few frozen bodies among many pairs (a scene where almost nothing rests): ask the
+  // broadphase around each frozen body instead of walking every pair.
+  if (!has_soft_bodies &&
+      frozen_.size() * kPairsPerFrozenQuery < static_cast<size_t>(cache->getNumOverlappingPairs())) {
+    MovingNeighbour probe;
+    probe.lin2 = lin2_;
+    probe.ang2 = ang2_;
+    for (Entity* f : frozen_) {
+      const btBroadphaseProxy* h = f->body->getBroadphaseHandle();
+      probe.found = false;
+      probe.mn = h->m_aabbMin;
+      probe.mx = h->m_aabbMax;
+      world_->getBroadphase()->aabbTest(h->m_aabbMin, h->m_aabbMax, probe);
+      if (probe.found) to_wake_.push_back(f);
+    }
+    WakeCollected();
+    return;
+  }
   // Overlapping pairs: a frozen body next to a moving non-frozen one (or a soft body) wakes;
   // a dynamic body next to a soft body restarts its rest time (never frozen while touching).
-  btBroadphasePairArray& pairs =
-      world_->getBroadphase()->getOverlappingPairCache()->getOverlappingPairArray();
+  btBroadphasePairArray& pairs = cache->getOverlappingPairArray();
   for (int i = 0; i < pairs.size(); ++i) {
     const auto* o0 = static_cast<const btCollisionObject*>(pairs[i].m_pProxy0->m_clientObject);
     const auto* o1 = static_cast<const btCollisionObject*>(pairs[i].m_pProxy1->m_clientObject);

@@ -31,7 +31,9 @@
 //
 // Thread-safety: none (the owning PhysicsWorld's thread). Ownership: holds non-owning pointers
 // to the world's Bullet world and entities; PhysicsWorld calls Forget() before deleting one.
-// Cost: BeforeStep O(broadphase pairs) when anything is frozen or a soft body exists, plus
+// Cost: BeforeStep O(broadphase pairs) when anything is frozen or a soft body exists, or
+// O(frozen bodies * log n) when frozen bodies are few against the pairs (a scene where almost
+// nothing rests: freezing then costs ~nothing beyond AfterStep's pass over stepped bodies), plus
 // O(collision objects) per moving kinematic body (aabbTest); AfterStep O(contact manifolds +
 // bodies stepped). No allocation in steady state.
 #pragma once
@@ -87,6 +89,9 @@ class RestManager {
   void Fatten(btRigidBody* body);
   bool KinematicReaches(const PhysicsWorld::Entity* k, const PhysicsWorld::Entity* f) const;
   void WakeCollected();
+  // BeforeStep asks the broadphase per frozen body (O(log n) each with the axis sweep's or the
+  // dbvt's tree) instead of walking every pair when pairs outnumber frozen bodies this much.
+  static constexpr size_t kPairsPerFrozenQuery = 16;
 
   const PhysicsConfig& config_;
   btDiscreteDynamicsWorld* world_;

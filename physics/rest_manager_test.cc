@@ -293,5 +293,45 @@ TEST(RestManagerTest, ApiCallsUnfreezeAndJointsOrSoftBodiesPreventFreezing) {
   EXPECT_GT(Pos(w, 10).x, x0 + 0.01f);
 }
 
+// Few frozen bodies among many pairs (the full stir): BeforeStep asks the broadphase around each
+// frozen body instead of walking the pairs, and a box thrown at a frozen one still wakes it.
+TEST(RestManagerTest, FewFrozenAmongManyPairsStillWakeWhenSomethingArrives) {
+  PhysicsWorld world(Config(true));
+  ASSERT_TRUE(Add(world, Ground(1)).ok());
+  ASSERT_TRUE(Add(world, DynamicBox(2, {0, 0.1f, 0}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
+  // 40 boxes kept moving far away: 40 pairs with the ground, none of them may freeze.
+  for (uint32_t i = 0; i < 40; ++i) {
+    ASSERT_TRUE(Add(world, DynamicBox(100 + i, {10.0f + 0.5f * i, 0.1f, 0}, {0.1f, 0.1f, 0.1f},
+                                      1.0f)).ok());
+  }
+  auto keep_moving = [&]() {
+    for (uint32_t i = 0; i < 40; ++i) (void)world.SetVelocity(100 + i, {0, 0, 0.3f}, {0, 0, 0});
+  };
+  for (int i = 0; i < 60; ++i) {
+    keep_moving();
+    world.Step();
+  }
+  ASSERT_EQ(world.counters().frozen_bodies, 1u);  // only box 2 rests
+  const uint64_t wakes = world.counters().rest_wakes;
+  EntitySpec thrown = DynamicBox(3, {-0.6f, 0.1f, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
+  thrown.rigid_body->linear_velocity = Vec3f{3.0f, 0, 0};
+  ASSERT_TRUE(Add(world, thrown).ok());
+  EXPECT_EQ(world.counters().frozen_bodies, 1u);  // 0.4 m away: not woken by the add
+  float gap_at_wake = -1;  // C's leading face to A's near face when A woke (m)
+  for (int i = 0; i < 30; ++i) {
+    keep_moving();
+    world.Step();
+    if (gap_at_wake < 0 && world.counters().rest_wakes > wakes) {
+      gap_at_wake = (Pos(world, 2).x - 0.1f) - (Pos(world, 3).x + 0.1f);
+    }
+  }
+  EXPECT_GT(world.counters().rest_wakes, wakes);
+  // Woken by the overlap rule before the contact (the impulse rule alone would wake it only
+  // after the hit, with no gap left).
+  EXPECT_GT(gap_at_wake, 0.0f);
+  EXPECT_GT(Pos(world, 2).x, 0.05f);            // it was pushed
+  EXPECT_LT(Pos(world, 3).x, Pos(world, 2).x);  // nothing passed through it
+}
+
 }  // namespace
 }  // namespace edgephys::physics
