@@ -175,6 +175,10 @@ class ClientReplicator {
   size_t tracked_entities() const;
 
  private:
+  static constexpr double kEpsilon = 1e-6;
+  // Bytes a datagram costs beyond its state payload (connection header + chunk header).
+  static constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
+
   // One per entity slot (Entity::slot), valid while `serial` equals the entity's.
   struct View {
     uint32_t serial = 0;  // 0: free
