@@ -154,8 +154,7 @@ bool ClientReplicator::StampsStateTime() const {
 }
 
 bool ClientReplicator::KeySampled(const Entity& e, PriorityClass c) const {
-  return delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0 &&
-         e.physics == PhysicsRole::kSimulated && c == PriorityClass::kAmbient;
+  return StampsStateTime() && e.physics == PhysicsRole::kSimulated && c == PriorityClass::kAmbient;
 }
 
 double ClientReplicator::IntervalFor(const Entity& e, PriorityClass c) const {
