@@ -623,6 +623,7 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     return;
   }
   bytes_state_received_ += payload.size();
+  if (!config_.decode_states) return;  // acknowledged by the connection all the same
   if (!payload.empty() && payload[0] == kSoftBodyFormat) {
     if (!joined_ || !DecodeSoftBodyChunk(payload, position_step_m_, kMaxSoftBodyNodes, &soft_chunk_).ok()) {
       return;

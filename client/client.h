@@ -88,6 +88,13 @@ struct ClientConfig {
   // used instead and counted in arrival_time_fallbacks(). Cost when on: a recvmsg(2) with a
   // control message per datagram instead of a recvfrom(2), plus a clock read per fallback.
   bool record_arrival_times = false;
+  // Load generators only: false receives state datagrams (unreliable channel: formats 1-12,
+  // soft bodies) without decoding them. The connection still acknowledges every packet as it
+  // arrives, so the relay does for this client exactly what it does for a decoding one; the
+  // client just holds no states (entities() keep their spawn transforms, OnEntityUpdated and
+  // OnSoftBodyUpdated are never called). Their bytes still count in state_bytes_received().
+  // Reliable messages (spawns, despawns, events) are handled as usual.
+  bool decode_states = true;
 
   // Clusters of relays (docs/operations.md, "Scale-out and failover"). A relay that does not
   // hold the token's room answers Connect with a signed Redirect (protocol/redirect.h); the SDK

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <time.h>
 
+#include <algorithm>
 #include <deque>
 #include <limits>
 #include <memory>
@@ -107,7 +108,18 @@ class FakeSocket final : public DatagramSocket {
 };
 
 using edgephys::testing::CapturingWriter;
-using edgephys::testing::NullHandler;
+
+// The scripted relay's side: which of its packets the client acknowledged.
+class AckRecorder final : public ConnectionHandler {
+ public:
+  void OnReliableMessage(std::span<const uint8_t>) override {}
+  void OnUnreliablePayload(uint16_t, std::span<const uint8_t>) override {}
+  void OnPacketAcked(uint16_t sequence) override { acked.push_back(sequence); }
+  bool Acked(uint16_t sequence) const {
+    return std::find(acked.begin(), acked.end(), sequence) != acked.end();
+  }
+  std::vector<uint16_t> acked;
+};
 
 class RecordingListener final : public ClientListener {
  public:
@@ -186,8 +198,16 @@ class ClientReceiveTest : public ::testing::Test {
     encoder.Begin(payload, time_ms);
     for (const EntityState& s : states) ASSERT_TRUE(encoder.Add(s));
     const size_t size = encoder.Finish();
+    payload.resize(size);
+    SendPayload(payload);
+  }
+
+  // One unreliable packet carrying `payload` as it is (any bytes).
+  void SendPayload(const Bytes& payload) {
     relay_out_.packets.clear();
-    ASSERT_TRUE(relay_.SendUnreliable({payload.data(), size}, now_, relay_out_).ok());
+    auto sequence = relay_.SendUnreliable({payload.data(), payload.size()}, now_, relay_out_);
+    ASSERT_TRUE(sequence.ok());
+    last_sequence_ = *sequence;
     for (const Bytes& p : relay_out_.packets) socket_.inbox.push_back(p);
     Pump();
   }
@@ -215,7 +235,8 @@ class ClientReceiveTest : public ::testing::Test {
   double now_ = 0;
   Client client_;
   Connection relay_{kConnectionId, ConnectionConfig{}, 0};
-  NullHandler relay_handler_;
+  AckRecorder relay_handler_;
+  uint16_t last_sequence_ = 0;  // of the last SendPayload / SendStates
   CapturingWriter relay_out_;
 };
 
@@ -238,6 +259,44 @@ TEST_F(ClientReceiveTest, StateUpdatesASpawnedEntityAndNotifies) {
   EXPECT_EQ(e->state.position.x, 2.0f);
   EXPECT_EQ(e->state_time_ms, 1234u);
   EXPECT_EQ(client_.entities().size(), 1u);
+  EXPECT_TRUE(relay_handler_.Acked(last_sequence_));
+}
+
+// ClientConfig::decode_states = false (load generators): the state packets are acknowledged
+// exactly as by a decoding client, but nothing is decoded or reported; reliable messages are.
+class ClientNoDecodeTest : public ClientReceiveTest {
+ protected:
+  ClientNoDecodeTest() : ClientReceiveTest(Config()) {}
+  static ClientConfig Config() {
+    ClientConfig config;
+    config.decode_states = false;
+    return config;
+  }
+};
+
+TEST_F(ClientNoDecodeTest, StatesAreAcknowledgedButNeitherDecodedNorReported) {
+  const uint32_t id = kOtherBase + 5;
+  Spawn(id, 1.0f);
+  ASSERT_EQ(listener_.spawned, std::vector<uint32_t>{id});  // reliable: handled as usual
+  const uint64_t bytes = client_.state_bytes_received();
+  SendStates({At(id, 2.0f)}, 1234);
+  EXPECT_TRUE(relay_handler_.Acked(last_sequence_));
+  EXPECT_GT(client_.state_bytes_received(), bytes);
+  EXPECT_TRUE(listener_.updated.empty());
+  const RemoteEntity* e = client_.FindEntity(id);
+  ASSERT_NE(e, nullptr);
+  EXPECT_FALSE(e->has_state);
+  EXPECT_EQ(e->state.position.x, 1.0f);  // still the spawn's transform
+  // Not decoded, so garbage passes the same way: acknowledged (the connection delivered it),
+  // counted in bytes, no entity made up from it.
+  SendPayload(Bytes{0xEE, 0x01, 0x02, 0x03});
+  EXPECT_TRUE(relay_handler_.Acked(last_sequence_));
+  EXPECT_EQ(client_.entities().size(), 1u);
+  EXPECT_TRUE(listener_.updated.empty());
+  // A later despawn (reliable) still applies.
+  Despawn(id);
+  EXPECT_EQ(listener_.despawned, std::vector<uint32_t>{id});
+  EXPECT_EQ(client_.FindEntity(id), nullptr);
 }
 
 TEST_F(ClientReceiveTest, StateBeforeSpawnIsKeptSilentlyAndSurvivesTheSpawn) {

@@ -1,6 +1,8 @@
 #include "loadgen/isolation.h"
 
+#include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -17,6 +19,7 @@
 #include "client/client_endpoint.h"
 #include "loadgen/avatar.h"
 #include "loadgen/loopback_room.h"
+#include "loadgen/physics_burn.h"
 #include "loadgen/pose_history.h"
 #include "loadgen/stats.h"
 #include "physics/scenes.h"
@@ -199,6 +202,7 @@ class RoomB : public ClientListener {
   }
 
   void Run() {
+    if (o_.b_thread_nice > 0) (void)setpriority(PRIO_PROCESS, gettid(), o_.b_thread_nice);
     ClientConfig host_config;
     host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
     host_config.handshake_timeout_s = 10;
@@ -206,6 +210,10 @@ class RoomB : public ClientListener {
     cc.handshake_timeout_s = 10;
     // Measurement bots: also against a relay run with --packet-auth false.
     host_config.require_packet_auth = cc.require_packet_auth = false;
+    // --b-decode joiner: the host and receivers acknowledge without decoding; the late joiner
+    // (which measures) always decodes.
+    ClientConfig late_config = cc;
+    host_config.decode_states = cc.decode_states = o_.b_decode;
     Member host;
     std::vector<Member> receivers(o_.b_receivers);
     Member late;
@@ -262,7 +270,7 @@ class RoomB : public ClientListener {
         (void)host.client->PublishTransform(stirrer, pos, rot);
       }
       if (ok && !late.client && now - spawns_done_at >= o_.late_join_delay_s) {
-        Connect(late, kFirstBPlayer + 1 + o_.b_receivers, cc, &joiner_);
+        Connect(late, kFirstBPlayer + 1 + o_.b_receivers, late_config, &joiner_);
         late_connected_at = now;
       }
       all([&](Member& m) { Update(m, now); });
@@ -362,6 +370,9 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
   cc.record_arrival_times = true;
 
   RoomB room_b(o, &relay, world.start);
+  PhysicsBurnProcess burner;
+  bool burn_started = false;
+  std::string burn_error;
   const uint32_t measuring_bots = (o.users + o.measure_every - 1) / o.measure_every;
   std::vector<double> pass_ms;
   size_t phase_sample_start = 0;
@@ -425,16 +436,28 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
       case kAlone:
         if (now - phase_at >= o.phase_s) {
           end_phase(now);
-          room_b.Start();
-          b_started = true;
+          if (o.b_burn) {
+            burn_started = burner.Start({.boxes = o.boxes, .seconds = o.phase_s + 60, .nice = o.burn_nice, .seed = o.seed},
+                                        &burn_error);
+          } else {
+            room_b.Start();
+            b_started = true;
+          }
           begin_phase("with_b", now), phase = kWithB, phase_at = now;
         }
         break;
       case kWithB:
-        if (now - phase_at >= o.phase_s && room_b.late_finished.load()) {
+        if (now - phase_at >= o.phase_s && (o.b_burn || room_b.late_finished.load())) {
           end_phase(now);
+          if (burn_started) {
+            PhysicsBurnResult burned;
+            result.b_ok = burner.Stop(&burned, &burn_error);
+            result.burn_steps = burned.steps;
+            result.burn_step_ms_mean = burned.step_ms_mean;
+            burn_started = false;
+          }
           if (o.after_phase) {
-            room_b.Leave();
+            if (b_started) room_b.Leave();
             begin_phase("after", now), phase = kAfter, phase_at = now;
           } else {
             phase = kDone;
@@ -473,11 +496,14 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
   if (o.progress) std::fprintf(stderr, "\n");
   for (auto& b : world.bots) result.connected += b->client && b->client->joined();
   if (b_started) room_b.Stop();
+  if (burn_started) burner.Stop();  // the run ended early (hard bound)
   // Leave the relay clean (an external one keeps serving: no traffic to bots that are gone).
   for (auto& b : world.bots) {
     if (b->client) b->client->Disconnect();
   }
-  {
+  if (o.b_burn) {
+    result.b_error = burn_error;
+  } else {
     std::lock_guard<std::mutex> lock(room_b.mu);
     result.b_ok = room_b.ok;
     result.b_error = b_started ? room_b.error : "B never started";

@@ -24,6 +24,16 @@
 //
 // The relay is started in-process (its own thread, --physics-threads, --tick-rate) or is an
 // external edgephys-relay (--relay, --secret, --metrics, --relay-pid; loadgen/relay_target.h).
+//
+// Controls, to tell the causes of A's rise apart:
+//   --b-mode burn   no room B: for the with_b phase, an unrelated process (this binary's
+//                   `physics-burn`, loadgen/physics_burn.h) steps the same scene back to back at
+//                   niceness --burn-nice, then is stopped by its PID. What is left of A's rise
+//                   is the machine (cores, caches, memory), not the relay or the load generator.
+//   --b-decode joiner   B's host and receivers acknowledge B's states without decoding them
+//                   (ClientConfig::decode_states; the relay does the same work for them); the
+//                   late joiner still decodes. Takes B's decoding off the load generator's CPU.
+//   --b-thread-nice N   B's clients' thread runs at niceness N, below A's bots.
 #pragma once
 
 #include <cstdint>
@@ -51,6 +61,10 @@ struct IsolationOptions {
   uint32_t measure_every = 1;        // only every K-th A bot matches poses (all decode)
   uint32_t seed = 1;
   bool progress = true;
+  bool b_burn = false;               // --b-mode burn: a physics-burn process instead of room B
+  int burn_nice = 0;                 // its niceness
+  bool b_decode = true;              // B's host and receivers decode states (the joiner always)
+  int b_thread_nice = 0;             // niceness of B's clients' thread
   ExternalRelayOptions external;
 };
 
@@ -80,7 +94,10 @@ struct IsolationBin {
 struct IsolationResult {
   uint32_t users = 0, connected = 0;
   uint32_t boxes = 0;
-  bool b_ok = false;                  // B's host joined and spawned its scene
+  bool b_ok = false;                  // B's host joined and spawned its scene (burn: ran)
+  // --b-mode burn: the burner's figures (from its JSON); 0 otherwise.
+  uint64_t burn_steps = 0;
+  double burn_step_ms_mean = 0;
   std::string b_error;
   double b_spawn_send_s = 0;          // B's host: time to issue every Spawn
   bool late_join_ok = false;

@@ -32,7 +32,11 @@ nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
                   {"late_join_timeout_s", o.late_join_timeout_s},
                   {"publish_hz", o.publish_hz},
                   {"measure_every", o.measure_every},
-                  {"seed", o.seed}};
+                  {"seed", o.seed},
+                  {"b_mode", o.b_burn ? "burn" : "scene"},
+                  {"burn_nice", o.burn_nice},
+                  {"b_decode", o.b_decode ? "all" : "joiner"},
+                  {"b_thread_nice", o.b_thread_nice}};
   if (o.external.enabled()) {
     j["relay"] = {{"external", true},
                   {"address", o.external.relay},
@@ -65,6 +69,10 @@ nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
                   {"p99_ratio_with_b_to_alone", r.p99_ratio},
                   {"arrival_p99_ratio_with_b_to_alone", r.arrival_p99_ratio},
                   {"metrics_failures", r.metrics_failures}};
+  if (o.b_burn) {
+    j["summary"]["burn_steps"] = r.burn_steps;
+    j["summary"]["burn_step_ms_mean"] = r.burn_step_ms_mean;
+  }
   if (!r.b_error.empty()) j["summary"]["b_error"] = r.b_error;
   if (!r.metrics_error.empty()) j["summary"]["metrics_error"] = r.metrics_error;
   j["phases"] = r.phases;
@@ -84,7 +92,11 @@ void FillTable(const IsolationOptions& o, const IsolationResult& r, Table* t) {
             p.delivered_fraction, p.egress_bytes_per_s / 1000, p.relay_cpu, p.physics_step_ms_mean);
   }
   t->Line("A p99 with B / alone: %.2f (SDK), %.2f (socket)\n", r.p99_ratio, r.arrival_p99_ratio);
-  if (r.late_join_ok) {
+  if (o.b_burn) {
+    t->Line("with_b: no room B; physics-burn (%u boxes, niceness %d) in its own process: %llu steps, "
+            "mean %.2f ms%s%s\n", r.boxes, o.burn_nice, static_cast<unsigned long long>(r.burn_steps),
+            r.burn_step_ms_mean, r.b_error.empty() ? "" : "; ", r.b_error.c_str());
+  } else if (r.late_join_ok) {
     t->Line("late joiner: every one of B's %u entities %.3f s after its join request\n", r.scene_entities, r.late_join_s);
   } else {
     t->Line("late joiner: %u of %u entities received (incomplete)%s%s\n", r.late_join_spawns,
@@ -151,6 +163,18 @@ class IsolationScenario final : public Scenario {
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th A bot matches poses for latency (all still decode; 1: all)");
     cmd.add_option("--seed", o_.seed, "Scene seed");
+    cmd.add_option("--b-mode", b_mode_,
+                   "scene: room B on the relay; burn (a control): no room B, the same scene stepped "
+                   "back to back by a separate physics-burn process during with_b")
+        ->check(CLI::IsMember({"scene", "burn"}));
+    cmd.add_option("--burn-nice", o_.burn_nice, "--b-mode burn: the burner's niceness")
+        ->check(CLI::Range(0, 19));
+    cmd.add_option("--b-decode", b_decode_,
+                   "all: B's host and receivers decode B's states; joiner: they acknowledge without "
+                   "decoding (the relay's work is the same), only the late joiner decodes")
+        ->check(CLI::IsMember({"all", "joiner"}));
+    cmd.add_option("--b-thread-nice", o_.b_thread_nice, "Niceness of the thread running B's clients")
+        ->check(CLI::Range(0, 19));
     AddExternalRelayOptions(cmd, &o_.external);
   }
 
@@ -160,6 +184,8 @@ class IsolationScenario final : public Scenario {
       return "--boxes, --phase, --publish-hz and --bin must be positive";
     }
     if (o_.measure_every == 0) return "--measure-every must be positive";
+    o_.b_burn = b_mode_ == "burn";
+    o_.b_decode = b_decode_ == "all";
     if (o_.late_join_timeout_s <= 0 || o_.late_join_delay_s < 0) {
       return "--late-join-timeout positive, --late-join-delay not negative";
     }
@@ -176,6 +202,7 @@ class IsolationScenario final : public Scenario {
 
  private:
   IsolationOptions o_;
+  std::string b_mode_ = "scene", b_decode_ = "all";
 };
 
 }  // namespace

@@ -47,6 +47,7 @@ std::vector<std::unique_ptr<Scenario>> AllScenarios() {
   all.push_back(MakeCcuScenario());
   all.push_back(MakeCeilingScenario());
   all.push_back(MakeIsolationScenario());
+  all.push_back(MakePhysicsBurnScenario());
   all.push_back(MakeHostileScenario());
   return all;
 }

@@ -39,12 +39,16 @@ void PhysicsPool::Run(size_t n, const std::function<void(size_t)>& fn) {
     fn_ = &fn;
     n_ = n;
     next_.store(0);
-    busy_ = workers_.size();
+    open_ = true;
     ++generation_;
   }
   start_.notify_all();
   Drain();
+  // Every index is taken. Close this run to workers that have not joined it yet (not woken, or
+  // woken but not scheduled: on a machine whose cores are busy, waiting for them would make the
+  // relay's loop wait for a time slice), and wait only for those still running an index.
   std::unique_lock<std::mutex> lock(mutex_);
+  open_ = false;
   done_.wait(lock, [this] { return busy_ == 0; });
   fn_ = nullptr;
 }
@@ -52,11 +56,24 @@ void PhysicsPool::Run(size_t n, const std::function<void(size_t)>& fn) {
 void PhysicsPool::WorkerLoop() {
   uint64_t seen = 0;
   for (;;) {
+    bool hook = false;
     {
       std::unique_lock<std::mutex> lock(mutex_);
       start_.wait(lock, [&] { return stop_ || generation_ != seen; });
       if (stop_) return;
       seen = generation_;
+      hook = static_cast<bool>(wake_hook_);
+    }
+    if (hook) wake_hook_();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (stop_) return;
+      if (!open_ || generation_ != seen) {  // the caller finished run `seen` alone
+        ++late_wakeups_;
+        continue;
+      }
+      ++busy_;
+      ++joined_;
     }
     Drain();
     {
@@ -64,6 +81,21 @@ void PhysicsPool::WorkerLoop() {
       if (--busy_ == 0) done_.notify_one();
     }
   }
+}
+
+void PhysicsPool::SetWorkerWakeHookForTesting(std::function<void()> hook) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  wake_hook_ = std::move(hook);
+}
+
+uint64_t PhysicsPool::late_wakeups() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return late_wakeups_;
+}
+
+uint64_t PhysicsPool::joined() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return joined_;
 }
 
 }  // namespace edgephys

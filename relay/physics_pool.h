@@ -36,8 +36,17 @@ class PhysicsPool {
   PhysicsPool(const PhysicsPool&) = delete;
   PhysicsPool& operator=(const PhysicsPool&) = delete;
 
-  // Calls fn(i) for every i in [0, n), spread over the pool; returns when all are done.
+  // Calls fn(i) for every i in [0, n), spread over the pool; returns when all are done. The
+  // caller takes indices too, and waits only for workers that joined the run before it had
+  // taken the last index: a worker not yet running (its core busy with PhyS or another
+  // process) is not waited for, so the caller never waits for a time slice. Counted in
+  // late_wakeups(); joined() counts the runs workers took part in (both for tests and profiles).
   void Run(size_t n, const std::function<void(size_t)>& fn);
+  uint64_t late_wakeups() const;
+  uint64_t joined() const;
+  // Tests: each worker calls `hook` when woken for a run, before it may join it. Set before
+  // any Run().
+  void SetWorkerWakeHookForTesting(std::function<void()> hook);
   size_t threads() const { return workers_.size() + 1; }
   // The asynchronous PhyS threads (threads() - 1 of them, started on the first call); null when
   // threads() == 1 (PhyS is then stepped synchronously). Every link running on them must be
@@ -49,12 +58,15 @@ class PhysicsPool {
   void Drain();
   int physics_nice_ = 0;
   std::vector<std::thread> workers_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable start_, done_;
   const std::function<void(size_t)>* fn_ = nullptr;
   size_t n_ = 0;
   std::atomic<size_t> next_{0};
-  size_t busy_ = 0;
+  size_t busy_ = 0;       // workers in the current run
+  bool open_ = false;     // the current run still takes workers
+  uint64_t late_wakeups_ = 0, joined_ = 0;
+  std::function<void()> wake_hook_;
   uint64_t generation_ = 0;
   bool stop_ = false;
   std::unique_ptr<AsyncPhysicsPool> async_;

@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 namespace edgephys {
@@ -37,6 +41,65 @@ TEST(PhysicsPool, UsesMoreThanOneThreadWhenAsked) {
   });
   EXPECT_GE(peak.load(), 1);
   EXPECT_LE(peak.load(), 2);
+}
+
+// A worker that is woken but not running (its core busy with PhyS or another process) must not
+// hold up the caller: the caller runs every index itself and returns. The worker here is held
+// in its wake hook until the test releases it; a watchdog releases it after 10 s, which only a
+// Run() that waits for the worker needs (the test then fails instead of hanging).
+TEST(PhysicsPool, RunDoesNotWaitForAWorkerThatHasNotJoinedYet) {
+  PhysicsPool pool(2);
+  std::mutex mu;
+  std::condition_variable cv;
+  bool released = false, released_by_watchdog = false, hook_entered = false;
+  pool.SetWorkerWakeHookForTesting([&] {
+    std::unique_lock<std::mutex> lock(mu);
+    if (released) return;
+    hook_entered = true;
+    cv.notify_all();
+    cv.wait(lock, [&] { return released; });
+  });
+  std::thread watchdog([&] {
+    std::unique_lock<std::mutex> lock(mu);
+    if (!cv.wait_for(lock, std::chrono::seconds(10), [&] { return released; })) {
+      released = released_by_watchdog = true;
+      cv.notify_all();
+    }
+  });
+  const std::thread::id caller = std::this_thread::get_id();
+  std::vector<std::atomic<int>> hits(16);
+  std::atomic<int> off_caller{0};
+  pool.Run(hits.size(), [&](size_t i) {
+    {  // hold every index until the worker is parked in its hook (at most 10 s)
+      std::unique_lock<std::mutex> lock(mu);
+      cv.wait(lock, [&] { return hook_entered || released; });
+    }
+    hits[i].fetch_add(1);
+    if (std::this_thread::get_id() != caller) off_caller.fetch_add(1);
+  });
+  bool watchdog_fired;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    watchdog_fired = released_by_watchdog;
+    released = true;
+  }
+  cv.notify_all();
+  watchdog.join();
+  EXPECT_FALSE(watchdog_fired) << "Run() waited for a worker that had not joined";
+  EXPECT_EQ(off_caller.load(), 0);
+  for (auto& h : hits) EXPECT_EQ(h.load(), 1);
+  // The released worker finds the run closed; it is counted and the pool still works.
+  for (int i = 0; i < 500 && pool.late_wakeups() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(pool.late_wakeups(), 1u);
+  EXPECT_EQ(pool.joined(), 0u);
+  std::vector<std::atomic<int>> again(100);
+  for (int run = 0; run < 20; ++run) {
+    for (auto& h : again) h.store(0);
+    pool.Run(again.size(), [&](size_t i) { again[i].fetch_add(1); });
+    for (auto& h : again) ASSERT_EQ(h.load(), 1);
+  }
 }
 
 }  // namespace
