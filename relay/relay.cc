@@ -476,23 +476,41 @@ void Relay::TickDueRooms(double now) {
   // Every due room's receivers are independent: each replicator reads its room's entities
   // (unchanged during the tick) and writes only its own session. They run on the pool; their
   // datagrams are queued per session and sent from this thread afterwards.
-  tick_jobs_.clear();
+  // Two passes: rooms of at most kBulkRoomEntities entities (as of their last tick) first, their
+  // datagrams sent, then the bulk rooms (a PhyS scene of thousands of bodies). A bulk room's
+  // frame, picks and encoding then never delay another room's hand poses within an update.
   auto start = std::chrono::steady_clock::now();
   size_t due_rooms = 0;
-  for (auto& [name, room] : rooms_) {
-    if (!room->TickDue(now)) continue;
-    ++due_rooms;
-    receivers_.clear();
-    room->BeginTick(now, &receivers_);
-    for (MemberLink* m : receivers_) tick_jobs_.push_back({&room->room().frame(), m});
+  bulk_rooms_.clear();
+  for (int pass = 0; pass < 2; ++pass) {
+    tick_jobs_.clear();
+    auto add = [&](RoomHost& room) {
+      ++due_rooms;
+      receivers_.clear();
+      room.BeginTick(now, &receivers_);
+      for (MemberLink* m : receivers_) tick_jobs_.push_back({&room.room().frame(), m});
+    };
+    if (pass == 0) {
+      for (auto& [name, room] : rooms_) {
+        if (!room->TickDue(now)) continue;
+        if (room->room().frame().by_id.size() > kBulkRoomEntities) {
+          bulk_rooms_.push_back(room.get());
+        } else {
+          add(*room);
+        }
+      }
+    } else {
+      for (RoomHost* room : bulk_rooms_) add(*room);
+    }
+    if (tick_jobs_.empty()) continue;
+    // Serial: send as we go. Parallel: queue per session, send after the join.
+    const bool parallel = physics_pool_.threads() > 1 && tick_jobs_.size() > 1;
+    physics_pool_.Run(tick_jobs_.size(), [this, now, parallel](size_t i) {
+      tick_jobs_[i].member->Replicate(*tick_jobs_[i].frame, now, *counters_, parallel);
+    });
+    for (const TickJob& job : tick_jobs_) job.member->FlushReplication();
   }
   if (due_rooms == 0) return;
-  // Serial: send as we go. Parallel: queue per session, send after the join.
-  const bool parallel = physics_pool_.threads() > 1 && tick_jobs_.size() > 1;
-  physics_pool_.Run(tick_jobs_.size(), [this, now, parallel](size_t i) {
-    tick_jobs_[i].member->Replicate(*tick_jobs_[i].frame, now, *counters_, parallel);
-  });
-  for (const TickJob& job : tick_jobs_) job.member->FlushReplication();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   counters_->tick_seconds.Observe(seconds / static_cast<double>(due_rooms));
 }

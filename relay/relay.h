@@ -190,6 +190,10 @@ class Relay final : private SessionHost {
     MemberLink* member;
   };
   std::vector<TickJob> tick_jobs_;
+  // Rooms with more entities than this tick in a second pass, after the others' datagrams are
+  // sent (TickDueRooms).
+  static constexpr size_t kBulkRoomEntities = 1024;
+  std::vector<RoomHost*> bulk_rooms_;
   std::vector<MemberLink*> receivers_;
   double now_ = 0;
   bool admitting_ = true;
