@@ -102,6 +102,25 @@ for i in 0 1 2; do
 done
 le 0.000001 "$(num '.summary.p99_ratio_with_b_to_alone' iso.json)" || fail "isolation: no p99 ratio"
 [ "$(jq '.series | length' iso.json)" -gt 0 ] || fail "isolation: no latency series"
+# isolation's controls: B's clients acknowledging without decoding (the late joiner still gets
+# the whole scene), and no room B but a physics-burn process during with_b (stopped by its PID).
+"$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --no-after --late-join-timeout 20 \
+  --b-decode joiner --b-thread-nice 19 --no-progress --charts '' --json isond.json >/dev/null ||
+  fail "isolation --b-decode joiner exited with an error"
+[ "$(num '.summary.late_join_ok' isond.json)" = "true" ] || fail "isolation --b-decode joiner: late joiner incomplete"
+"$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --no-after --b-mode burn --burn-nice 19 \
+  --no-progress --charts '' --json isoburn.json >/dev/null || fail "isolation --b-mode burn exited with an error"
+[ "$(num '.summary.b_ok' isoburn.json)" = "true" ] || fail "isolation --b-mode burn: the burner did not run"
+le 1 "$(num '.summary.burn_steps' isoburn.json)" || fail "isolation --b-mode burn: no burner steps"
+le 0.000001 "$(num '.summary.p99_ratio_with_b_to_alone' isoburn.json)" || fail "isolation --b-mode burn: no ratio"
+pgrep -f "edgephys-loadgen physics-burn" >/dev/null && fail "isolation --b-mode burn: burner left running"
+# Bad options are refused with exit status 2, nothing run.
+for bad in "--b-mode none" "--b-decode some" "--burn-nice 20"; do
+  set +e; "$lg" isolation $bad --no-progress >/dev/null 2>&1; rc=$?; set -e
+  [ "$rc" != 0 ] || fail "isolation $bad accepted"
+done
+set +e; "$lg" physics-burn --seconds 0 >/dev/null 2>&1; rc=$?; set -e
+[ "$rc" = 2 ] || fail "physics-burn --seconds 0: exit $rc, not 2"
 echo "isolation ok"
 
 # An external relay: edgephys-relay on free loopback ports with a secret, ccu against it with
