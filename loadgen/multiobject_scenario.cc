@@ -66,6 +66,8 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
                 {"key_strayed_per_box_s", r.key_strayed_per_box_s},
                 {"key_interval_per_box_s", r.key_interval_per_box_s},
                 {"bytes_per_update", r.bytes_per_update},
+                {"record_share", r.record_share},
+                {"record_bits", r.record_bits},
                 {"state_mbit_per_s_per_client", r.state_mbit_per_s_per_client},
                 {"events_per_s_per_client", r.events_per_s_per_client},
                 {"relay_step_ms_mean", r.relay_step_ms_mean},

@@ -103,6 +103,7 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
       if (params.ok()) {
         DeltaEncoderOptions options;
         options.velocities = config_.velocities;
+        options.previous_reference = UsesPreviousReference(config_);
         auto delta = std::make_unique<DeltaEncoder>(*params, options);
         delta_ = delta.get();
         encoder_ = std::move(delta);
@@ -244,6 +245,7 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
                                    config_.rotation_threshold_deg, now, resend_after);
     if (need != Need::kSend || !KeySampled(e, cls)) return need;
     const KeyDue due = KeySampleDue(id, e, v.sent_state_time);
+    last_due_ = due;
     if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
     if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
     if (due != KeyDue::kNo) return need;
@@ -288,6 +290,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
+    last_due_ = KeyDue::kNo;
     switch (config_.mode) {
       case ReplicationMode::kPhoton:
         want = true;  // fixed rate, changed or not
@@ -322,7 +325,8 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     }
     if (!want) continue;
     double waiting = std::max(now - v.last_sent, IntervalFor(e, cls));
-    candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
+    candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields,
+                           static_cast<uint8_t>(last_due_)});
   }
   if (candidates_.empty()) return;
   // Without a budget every candidate goes, already in id order (the delta formats code ids as
@@ -384,6 +388,13 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         if (!add()) continue;
       }
       in_payload_.emplace_back(c.id, c.entity->version);
+      if (delta_ != nullptr) {
+        static_assert(kRecordPartCount == 6 && static_cast<int>(KeyDue::kMaxInterval) == 2);
+        RelayCounters::Inc(counters.state_records[c.cause]);
+        for (size_t i = 0; i < kRecordPartCount; ++i) {
+          RelayCounters::Inc(counters.state_record_bits[c.cause][i], delta_->last_record_bits()[i]);
+        }
+      }
       View& v = views_[c.entity->slot];
       v.last_sent = now;
       v.sent_state_time = payload_ms / 1000.0;

@@ -138,6 +138,13 @@ inline bool UsesVelocities(const ReplicationConfig& config) {
   return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding && config.velocities;
 }
 
+// True when rooms with `config` send format 13 (format 2 with "previous version" references):
+// key samples without velocities.
+inline bool UsesPreviousReference(const ReplicationConfig& config) {
+  return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding &&
+         !config.velocities && config.key_sample_threshold_m > 0;
+}
+
 // True when rooms with `config` keep PhyS's recent states per entity (Entity::recent): the
 // Hermite and key-sample policies check the receivers' curves against them.
 inline bool KeepsRecentStates(const ReplicationConfig& config) {
@@ -198,6 +205,7 @@ class ClientReplicator {
     uint32_t id;
     const Entity* entity;
     uint8_t fields;
+    uint8_t cause;  // RelayCounters::state_records' index: schedule, strayed, max interval
   };
   // The view of `e` (a slot of views_), made afresh if the slot holds none or another
   // occupant's. May grow views_ (invalidating references to other views).
@@ -217,6 +225,7 @@ class ClientReplicator {
   // Key samples: whether `e` is due (and why), its newest sent state stamped `sent_state_time`.
   enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
   KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time);
+  KeyDue last_due_ = KeyDue::kNo;  // VelocityNeed's last key-sample answer (the record's cause)
   bool KeySampled(const Entity& e, PriorityClass c) const;
   // Key-sample rooms send PhyS bodies stamped with Entity::state_time, not the tick's time.
   bool StampsStateTime() const;
