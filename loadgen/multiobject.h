@@ -95,6 +95,7 @@ struct MultiObjectOptions {
   float key_sample_threshold_m = 0;
   float key_sample_rotation_deg = -1.f;
   double key_sample_max_interval_s = 0;
+  double key_sample_check_hz = -1;  // >= 0: ReplicationConfig::key_sample_check_hz
   // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
   // interpolating.
   double playout_min_delay_s = -1;

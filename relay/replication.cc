@@ -212,7 +212,9 @@ ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entit
   // final pose within it.
   const double since = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
   if (since <= 0) return KeyDue::kNo;
-  if (since >= config_.key_sample_max_interval_s) return KeyDue::kMaxInterval;
+  // With key_sample_check_hz, one check period early: the next check may come that much later.
+  const double early = config_.key_sample_check_hz > 0 ? 1.0 / config_.key_sample_check_hz : 0.0;
+  if (since >= config_.key_sample_max_interval_s - early) return KeyDue::kMaxInterval;
   // The line a receiver draws runs from the newest state sent, at the time it was stamped with
   // (sent_state_time), to the present state at the time it holds; PhyS's states in between are
   // checked at the times they hold too. (Stamping them with their arrival instead, a step's
@@ -279,6 +281,12 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
   TickSoftBodies(frame, self, now, resend_after, connection, out, counters);
+  key_check_tick_ = true;
+  if (StampsStateTime() && config_.key_sample_check_hz > 0) {
+    const double period = std::floor(now * config_.key_sample_check_hz);
+    key_check_tick_ = period != key_check_period_;
+    if (key_check_tick_) key_check_period_ = period;
+  }
 
   candidates_.clear();
   for (const Entity* entity : frame.by_id) {  // by id: candidates_ come out in id order
@@ -288,6 +296,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
+    if (!key_check_tick_ && KeySampled(e, cls)) continue;
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
     last_due_ = KeyDue::kNo;
