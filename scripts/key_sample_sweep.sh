@@ -41,10 +41,22 @@ keys = ["egress_ratio_to_paper", "bytes_per_update", "updates_per_s_per_client",
         "key_strayed_per_box_s", "key_interval_per_box_s", "display_err_p50_m", "display_err_p99_m",
         "display_err_state_p99_m", "display_rot_err_p99_deg", "display_playout_ms_median",
         "pos_err_sent_max_m"]
-print("scene,point," + ",".join(keys))
+# Where a state's bytes go (RelayCounters::state_record_bits): a record's mean bits, its
+# reference symbol's and residuals' (position + rotation), and the datagram overhead per update.
+def coding(r):
+    share, bits = r.get("record_share", [0, 0, 0]), r.get("record_bits", [[0] * 6] * 3)
+    rec = sum(s * sum(b) for s, b in zip(share, bits))
+    return {"record_bits": rec, "reference_bits": sum(s * b[1] for s, b in zip(share, bits)),
+            "residual_bits": sum(s * (b[4] + b[5]) for s, b in zip(share, bits)),
+            "overhead_bytes": r["bytes_per_update"] - rec / 8}
+extra = ["record_bits", "reference_bits", "residual_bits", "overhead_bytes"]
+print("scene,point," + ",".join(keys + extra))
 for scene in ("quarter", "full"):
     for name in names:
         runs = [json.load(open(f"{out}/run{i}/{scene}_{name}.json"))["results"][0]
                 for i in range(1, repeat + 1)]
-        print(scene, name, *(f"{statistics.median(r[k] for r in runs):.4f}" for k in keys), sep=",")
+        for r in runs:
+            r.update(coding(r))
+        print(scene, name, *(f"{statistics.median(r[k] for r in runs):.4f}" for k in keys + extra),
+              sep=",")
 PY
