@@ -397,11 +397,11 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         if (!add()) continue;
       }
       in_payload_.emplace_back(c.id, c.entity->version);
-      if (delta_ != nullptr) {
+      if (delta_ != nullptr) {  // counted here, added to the shared counters once a tick
         static_assert(kRecordPartCount == 6 && static_cast<int>(KeyDue::kMaxInterval) == 2);
-        RelayCounters::Inc(counters.state_records[c.cause]);
+        ++records_tick_[c.cause];
         for (size_t i = 0; i < kRecordPartCount; ++i) {
-          RelayCounters::Inc(counters.state_record_bits[c.cause][i], delta_->last_record_bits()[i]);
+          record_bits_tick_[c.cause][i] += delta_->last_record_bits()[i];
         }
       }
       View& v = views_[c.entity->slot];
@@ -426,6 +426,15 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       v.ever_sent = true;
     }
     Flush(now, connection, out, counters);
+  }
+  for (size_t c = 0; c < records_tick_.size(); ++c) {
+    if (records_tick_[c] == 0) continue;
+    RelayCounters::Inc(counters.state_records[c], records_tick_[c]);
+    for (size_t i = 0; i < kRecordPartCount; ++i) {
+      RelayCounters::Inc(counters.state_record_bits[c][i], record_bits_tick_[c][i]);
+      record_bits_tick_[c][i] = 0;
+    }
+    records_tick_[c] = 0;
   }
 }
 

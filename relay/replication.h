@@ -26,6 +26,7 @@
 // candidates only under a bandwidth budget; no allocation per packet once the views exist.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string_view>
@@ -231,6 +232,9 @@ class ClientReplicator {
   enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
   KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time);
   KeyDue last_due_ = KeyDue::kNo;  // VelocityNeed's last key-sample answer (the record's cause)
+  // This tick's records and their bits by part, by cause (RelayCounters::state_records).
+  std::array<uint64_t, 3> records_tick_{};
+  std::array<std::array<uint64_t, 6>, 3> record_bits_tick_{};
   bool key_check_tick_ = true;     // this tick checks key samples (key_sample_check_hz)
   double key_check_period_ = -1;   // the key_sample_check_hz period the last check fell in
   bool KeySampled(const Entity& e, PriorityClass c) const;
