@@ -338,13 +338,13 @@ struct DeltaDecoderStats {
   uint64_t capacity_dropped = 0;       // keyframes for new entities beyond max_entities
 };
 
-// Receiver side, one per format-2 or format-12 stream (the payload's first byte says which;
-// format 12 also fills StateBatch::velocities).
+// Receiver side, one per format-2, format-12 or format-13 stream (the payload's first byte says
+// which; format 12 also fills StateBatch::velocities).
 class DeltaDecoder {
  public:
   explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
 
-  // Decodes one format-2 or format-12 payload (untrusted). On success sets out->time_ms and APPENDS the
+  // Decodes one format-2, -12 or -13 payload (untrusted). On success sets out->time_ms and APPENDS the
   // decoded states that are newer than any state output before for their entity (in
   // increasing id order). Malformed input (truncation, trailing bits, bad header, values out
   // of range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder are
