@@ -491,6 +491,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       position_step_m_ =
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
       if (j->state_format() == kDeltaStateFormat || j->state_format() == kVelocityDeltaStateFormat ||
+          j->state_format() == kPreviousDeltaStateFormat ||
           j->state_format() == kSharedDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
@@ -601,6 +602,7 @@ Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
       });
     case kDeltaStateFormat:
     case kVelocityDeltaStateFormat:
+    case kPreviousDeltaStateFormat:
       batch_.states.clear();
       batch_.velocities.clear();
       if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");

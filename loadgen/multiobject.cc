@@ -295,6 +295,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   if (o.key_sample_threshold_m > 0) rep.key_sample_threshold_m = o.key_sample_threshold_m;
   if (o.key_sample_rotation_deg > 0) rep.key_sample_rotation_deg = o.key_sample_rotation_deg;
   if (o.key_sample_max_interval_s > 0) rep.key_sample_max_interval_s = o.key_sample_max_interval_s;
+  if (o.key_sample_check_hz >= 0) rep.key_sample_check_hz = o.key_sample_check_hz;
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -412,6 +413,12 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   meter.Start(world, R);
   const uint64_t key_strayed0 = RelayCounters::Get(counters.key_samples_strayed);
   const uint64_t key_interval0 = RelayCounters::Get(counters.key_samples_max_interval);
+  std::array<uint64_t, 3> records0{};
+  std::array<std::array<uint64_t, 6>, 3> record_bits0{};
+  for (size_t c = 0; c < 3; ++c) {
+    records0[c] = RelayCounters::Get(counters.state_records[c]);
+    for (size_t i = 0; i < 6; ++i) record_bits0[c][i] = RelayCounters::Get(counters.state_record_bits[c][i]);
+  }
   const double t0 = world.Now();
   const double t_end = t0 + o.duration_s;
   double next_error = t0, next_moving = t0, last_progress = 0;
@@ -522,6 +529,19 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
       static_cast<double>(RelayCounters::Get(counters.key_samples_max_interval) - key_interval0) /
       per_box;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
+  {
+    double all = 0;
+    for (size_t c = 0; c < 3; ++c) all += static_cast<double>(RelayCounters::Get(counters.state_records[c]) - records0[c]);
+    for (size_t c = 0; c < 3; ++c) {
+      const double cnt = static_cast<double>(RelayCounters::Get(counters.state_records[c]) - records0[c]);
+      r->record_share[c] = all > 0 ? cnt / all : 0;
+      for (size_t i = 0; i < 6; ++i) {
+        const double bits = static_cast<double>(RelayCounters::Get(counters.state_record_bits[c][i]) -
+                                                record_bits0[c][i]);
+        r->record_bits[c][i] = cnt > 0 ? bits / cnt : 0;
+      }
+    }
+  }
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;
   r->relay_step_ms_mean = window.step_ms_mean;

@@ -26,6 +26,7 @@
 // pile; the same pose function drives the standalone scenes.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -94,6 +95,7 @@ struct MultiObjectOptions {
   float key_sample_threshold_m = 0;
   float key_sample_rotation_deg = -1.f;
   double key_sample_max_interval_s = 0;
+  double key_sample_check_hz = -1;  // >= 0: ReplicationConfig::key_sample_check_hz
   // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
   // interpolating.
   double playout_min_delay_s = -1;
@@ -118,6 +120,12 @@ struct MultiObjectResult {
   // Key samples (--key-samples): ambient boxes found due per box per second per receiver, by
   // reason (RelayCounters::key_samples_*): the line strayed, or the max interval passed.
   double key_strayed_per_box_s = 0, key_interval_per_box_s = 0;
+  // Format 2/13 records by why they went (RelayCounters::state_records: schedule, strayed, max
+  // interval): their share of all records, and their mean bits by part (DeltaRecordPart: id,
+  // reference, keyframe, mask, position, rotation). Payload and datagram overhead is the rest
+  // of bytes_per_update.
+  std::array<double, 3> record_share{};
+  std::array<std::array<double, 6>, 3> record_bits{};
   double bytes_per_update = 0;              // all egress bytes / entity updates
   double state_mbit_per_s_per_client = 0;   // state payload bytes only (Client::state_bytes_received)
   double events_per_s_per_client = 0;       // physics events received (reliable channel)

@@ -19,7 +19,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    extrapolation_threshold_m, extrapolation_rotation_deg,
                                    extrapolation_max_hz, hermite_max_interval_s,
                                    playout_min_delay_s, key_sample_threshold_m,
-                                   key_sample_rotation_deg, key_sample_max_interval_s)
+                                   key_sample_rotation_deg, key_sample_max_interval_s,
+                                   key_sample_check_hz)
 
 namespace {
 
@@ -66,6 +67,8 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
                 {"key_strayed_per_box_s", r.key_strayed_per_box_s},
                 {"key_interval_per_box_s", r.key_interval_per_box_s},
                 {"bytes_per_update", r.bytes_per_update},
+                {"record_share", r.record_share},
+                {"record_bits", r.record_bits},
                 {"state_mbit_per_s_per_client", r.state_mbit_per_s_per_client},
                 {"events_per_s_per_client", r.events_per_s_per_client},
                 {"relay_step_ms_mean", r.relay_step_ms_mean},
@@ -226,6 +229,9 @@ class MultiObjectScenario final : public Scenario {
                    "Key samples: rotation deviation that sends a box (deg; <0: default 5)");
     cmd.add_option("--key-samples-max-interval", o_.key_sample_max_interval_s,
                    "Key samples: longest interval between a moving box's samples (s; 0: default 0.25)");
+    cmd.add_option("--key-samples-check-hz", o_.key_sample_check_hz,
+                   "Key samples: how often boxes are checked (ReplicationConfig::"
+                   "key_sample_check_hz; <0: default 30; 0: every tick)");
     cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
                    "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
     cmd.add_option("--ambient-hz", o_.ambient_hz,

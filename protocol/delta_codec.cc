@@ -156,7 +156,8 @@ bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
 }
 
 bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const bool mask[2],
-                uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f) {
+                uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f,
+                bool previous_symbol) {
   uint32_t v;
   if (!r.ReadExpGolomb(0, &v)) return false;
   if (i == 0) {
@@ -186,11 +187,17 @@ bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const
     }
     return true;
   }
-  const int64_t distance =
-      sym == 0 ? *prev_distance : static_cast<int64_t>(*prev_distance) + UnZigZag(sym - 1);
-  if (distance < 1 || distance > kMaxReferenceDistance) return false;
-  *prev_distance = static_cast<uint32_t>(distance);
-  f->distance = distance;
+  if (previous_symbol && sym == 0) {
+    f->previous = true;  // resolved by the decoder: the newest version held below this payload
+  } else {
+    const int64_t distance =
+        previous_symbol ? static_cast<int64_t>(*prev_distance) + UnZigZag(sym - 2)
+        : sym == 0      ? *prev_distance
+                        : static_cast<int64_t>(*prev_distance) + UnZigZag(sym - 1);
+    if (distance < 1 || distance > kMaxReferenceDistance) return false;
+    *prev_distance = static_cast<uint32_t>(distance);
+    f->distance = distance;
+  }
   bool pos_coded = true, rot_coded = true;
   if (mask[0] && !r.ReadBit(&pos_coded)) return false;
   if (mask[1] && !r.ReadBit(&rot_coded)) return false;
@@ -252,6 +259,7 @@ constexpr uint16_t kVelocityParamsShift = 12;
 
 DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderOptions& options)
     : params_(params), options_(options), records_(kPacketRecords) {
+  if (options_.velocities) options_.previous_reference = false;  // format 12 has no such symbol
   // A truth that quantises to a state lies within the quantisation error of that state's
   // dequantised value: half a cell's diagonal in position, the rotation bound in angle. The
   // 1 % slack only makes Need quantise a little more often than needed (the exact lattice
@@ -376,7 +384,10 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
   const size_t mark = writer_.bit_position();
   BitWriter& w = writer_;
   bool ok = count_ == 0 ? w.WriteExpGolomb(id, 0) : w.WriteExpGolomb(id - last_id_ - 1, 0);
+  // Bit positions after each part (the breakdown of stats().record_part_bits).
+  size_t at_id = w.bit_position(), at_ref = at_id, at_mask = at_id, at_pos = at_id;
   uint32_t distance = 0;
+  bool previous = false;  // format 13: coded as "the previous version"
   // Residual statistics of this record, committed only if it fits.
   bool sample = false;  // add_full / add_masked filled (one delta record in kStatsSampleEvery)
   double add_full[2][3][8];
@@ -387,6 +398,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
 
   if (keyframe) {
     ok = ok && w.WriteExpGolomb(1, 0);
+    at_ref = at_mask = at_pos = w.bit_position();
     for (int a = 0; a < 3; ++a) ok = ok && w.WriteBits(q.position[a], params_.position_bits[a]);
     ok = ok && w.WriteBits(q.rotation.largest, 2);
     for (int c = 0; c < 3; ++c) {
@@ -395,11 +407,21 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     }
   } else {
     distance = counter_ - base_entry->counter;
-    const uint32_t sym =
-        distance == prev_distance_
-            ? 0
-            : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
+    uint32_t sym;
+    if (options_.previous_reference) {
+      // Format 13: "the previous version" when no newer version of the entity was put in a
+      // payload since the reference (then the decoder's newest below this payload is it).
+      previous = &track.ring[(track.next + kDeltaBaselineWindow - 1) % kDeltaBaselineWindow] ==
+                 base_entry;
+      sym = previous ? 0
+                     : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 2;
+    } else {
+      sym = distance == prev_distance_
+                ? 0
+                : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
+    }
     ok = ok && w.WriteExpGolomb(sym, 0);
+    at_ref = w.bit_position();
 
     // Residuals for every order (statistics for the adaptive parameters) on one delta record
     // in kStatsSampleEvery; otherwise only for the orders in use. Code the chosen one.
@@ -451,6 +473,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     const bool rot_coded = !mask_[1] || !rot_zero[ro];
     if (mask_[0]) ok = ok && w.WriteBit(pos_coded);
     if (mask_[1]) ok = ok && w.WriteBit(rot_coded);
+    at_mask = w.bit_position();
     if (pos_coded) {
       for (int a = 0; a < 3; ++a) {
         ok = ok && w.WriteSigned(pos_res[po][a], k_[0]);
@@ -459,6 +482,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
       }
       n_residuals[0] = 3;
     }
+    at_pos = w.bit_position();
     if (rot_coded) {
       const bool same = rot_same[ro];
       ok = ok && w.WriteBit(same);
@@ -471,6 +495,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
       n_residuals[1] = 3;
     }
   }
+  const size_t at_rot = w.bit_position();
   // Format 12: the velocity, absolute.
   QuantizedVelocity qv;
   double add_velocity[2][4] = {};
@@ -496,6 +521,13 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
   }
 
   // Committed: record the state as sent-in-this-payload.
+  last_bits_[kRecordPartId] = static_cast<uint32_t>(at_id - mark);
+  last_bits_[kRecordPartReference] = static_cast<uint32_t>(at_ref - at_id);
+  last_bits_[kRecordPartKeyframe] = keyframe ? static_cast<uint32_t>(at_rot - at_ref) : 0;
+  last_bits_[kRecordPartMask] = keyframe ? 0 : static_cast<uint32_t>(at_mask - at_ref);
+  last_bits_[kRecordPartPosition] = keyframe ? 0 : static_cast<uint32_t>(at_pos - at_mask);
+  last_bits_[kRecordPartRotation] = keyframe ? 0 : static_cast<uint32_t>(at_rot - at_pos);
+  for (size_t i = 0; i < kRecordPartCount; ++i) stats_.record_part_bits[i] += last_bits_[i];
   if (!pos_exact) ++stats_.positions_clamped;
   if (!rot_ok) ++stats_.rotations_invalid;
   ++stats_.entities;
@@ -504,7 +536,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     if (refresh) ++stats_.refresh_keyframes;
     if (refresh || track.next > 0) track.sends_since_keyframe = 0;
   } else {
-    prev_distance_ = distance;
+    if (!previous) prev_distance_ = distance;
     ++track.sends_since_keyframe;
     for (int f = 0; f < 2; ++f) {
       for (int o = 0; sample && o < 3; ++o) {
@@ -546,7 +578,9 @@ size_t DeltaEncoder::Finish() {
   if (phase_ != Phase::kOpen || count_ == 0) return 0;
   phase_ = Phase::kFinished;
   uint8_t* p = out_.data();
-  p[0] = options_.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
+  p[0] = options_.velocities            ? kVelocityDeltaStateFormat
+         : options_.previous_reference ? kPreviousDeltaStateFormat
+                                       : kDeltaStateFormat;
   StoreU32LE(p + 1, time_ms_);
   StoreU16LE(p + 5, static_cast<uint16_t>(counter_));
   uint16_t params = PackParams(k_, mask_, order_);
@@ -760,10 +794,12 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     return malformed;
   };
   if (payload.size() < kDeltaHeaderSize + 1 ||
-      (payload[0] != kDeltaStateFormat && payload[0] != kVelocityDeltaStateFormat)) {
+      (payload[0] != kDeltaStateFormat && payload[0] != kVelocityDeltaStateFormat &&
+       payload[0] != kPreviousDeltaStateFormat)) {
     return fail();
   }
   const bool velocities = payload[0] == kVelocityDeltaStateFormat;
+  const bool previous_symbol = payload[0] == kPreviousDeltaStateFormat;
   const uint32_t time_ms = LoadU32LE(payload.data() + 1);
   const uint16_t counter16 = LoadU16LE(payload.data() + 5);
   int k[2];
@@ -795,7 +831,9 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
   for (uint32_t i = 0; i < count; ++i) {
     Staged s;
     RecordFields f;
-    if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f)) return fail();
+    if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f, previous_symbol)) {
+      return fail();
+    }
     s.id = f.id;
     if (velocities) {
       bool moving = false;
@@ -814,14 +852,24 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
       s.resolved = true;
       s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
     } else {
-      s.reference = counter - f.distance;
-      // Resolve the reference: exact payload counter match, or the record is skipped.
+      s.reference = f.previous ? -1 : counter - f.distance;
+      // Resolve the reference: exact payload counter match (format 13's "previous": the highest
+      // counter held below this payload's, at most kMaxReferenceDistance below), or the record
+      // is skipped.
       const Entry* base = nullptr;
       auto it = tracks_.find(s.id);
       if (it != tracks_.end()) {
         s.track = &it->second;
         for (const Entry& e : it->second.ring) {
-          if (e.valid && e.counter == s.reference) base = &e;
+          if (!e.valid) continue;
+          if (f.previous ? e.counter < counter && (base == nullptr || e.counter > base->counter)
+                         : e.counter == s.reference) {
+            base = &e;
+          }
+        }
+        if (f.previous && base != nullptr) {
+          if (counter - base->counter > kMaxReferenceDistance) base = nullptr;
+          else s.reference = base->counter;
         }
       }
       if (base != nullptr) {

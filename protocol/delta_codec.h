@@ -73,6 +73,17 @@ inline constexpr uint8_t kVelocityDeltaStateFormat =
     static_cast<uint8_t>(StateFormat::kQuantizedDeltaVelocity);
 // (The velocity lattice and the receiver model: protocol/velocity.h.)
 
+// State format 13, "quantized delta, previous reference" (docs/protocol.md §5h): format 2 whose
+// reference symbol 0 means "the previous version": the newest state of the entity the decoder
+// holds from a payload below this one (at most kMaxReferenceDistance below); 1 is a keyframe and
+// s >= 2 the distance d_prev + unzigzag(s - 2). The encoder uses it when the reference is the
+// newest version of the entity it put in any payload, so every version the decoder may hold
+// between the two is the reference itself. Key-sample rooms send it: their entities' reference
+// distances are irregular, and format 2 spends ~11 bits a record on them (docs/benchmarks.md,
+// "Key samples, coded").
+inline constexpr uint8_t kPreviousDeltaStateFormat =
+    static_cast<uint8_t>(StateFormat::kQuantizedDeltaPrevious);
+
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by
   // entity id). Bounds how long a broken baseline chain can last (see the header comment);
@@ -80,6 +91,16 @@ struct DeltaEncoderOptions {
   uint32_t keyframe_refresh_sends = 120;
   // Send format 12: every record carries the entity's velocity (Add's `velocity`).
   bool velocities = false;
+  // Send format 13 (ignored with `velocities`): "the previous version" references.
+  bool previous_reference = false;
+};
+
+// Parts of an entity record (DeltaEncoderStats::record_part_bits): the id gap, the reference
+// symbol, a keyframe's body, the mask bits, the position residuals, the rotation (index bits
+// and residuals).
+enum DeltaRecordPart : size_t {
+  kRecordPartId = 0, kRecordPartReference, kRecordPartKeyframe, kRecordPartMask,
+  kRecordPartPosition, kRecordPartRotation, kRecordPartCount
 };
 
 struct DeltaEncoderStats {
@@ -95,6 +116,9 @@ struct DeltaEncoderStats {
   // field per packet to send the width) would have cost for the same residuals.
   uint64_t residual_bits_exp_golomb = 0;
   uint64_t residual_bits_fixed_width = 0;
+  // Bits of the committed records by part (kRecordPart*), for the record: where a state costs
+  // what it costs (docs/benchmarks.md, "Key samples, coded"). Payload headers are not included.
+  std::array<uint64_t, kRecordPartCount> record_part_bits{};
 };
 
 // The receiver-independent part of adding one state to a DeltaEncoder: the state quantised,
@@ -198,6 +222,8 @@ class DeltaEncoder final : public StateEncoder {
                   uint32_t* time_ms) const;
 
   const DeltaEncoderStats& stats() const { return stats_; }
+  // The bits by part of the record the last successful Add wrote (DeltaRecordPart).
+  const std::array<uint32_t, kRecordPartCount>& last_record_bits() const { return last_bits_; }
   const QuantizationParams& params() const { return params_; }
 
   // Implementation types (public for the shared prediction code in delta_codec.cc).
@@ -274,6 +300,7 @@ class DeltaEncoder final : public StateEncoder {
   mutable double min_dot_ = 1;
   size_t max_packet_ids_ = 0;  // most entities seen in one payload (record capacity)
   DeltaEncoderStats stats_;
+  std::array<uint32_t, kRecordPartCount> last_bits_{};
   CostTable costs_;
   CostTable packet_costs_;
   uint32_t packet_max_zigzag_[2] = {0, 0};
@@ -311,13 +338,13 @@ struct DeltaDecoderStats {
   uint64_t capacity_dropped = 0;       // keyframes for new entities beyond max_entities
 };
 
-// Receiver side, one per format-2 or format-12 stream (the payload's first byte says which;
-// format 12 also fills StateBatch::velocities).
+// Receiver side, one per format-2, format-12 or format-13 stream (the payload's first byte says
+// which; format 12 also fills StateBatch::velocities).
 class DeltaDecoder {
  public:
   explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
 
-  // Decodes one format-2 or format-12 payload (untrusted). On success sets out->time_ms and APPENDS the
+  // Decodes one format-2, -12 or -13 payload (untrusted). On success sets out->time_ms and APPENDS the
   // decoded states that are newer than any state output before for their entity (in
   // increasing id order). Malformed input (truncation, trailing bits, bad header, values out
   // of range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder are

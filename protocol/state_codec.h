@@ -42,6 +42,10 @@ enum class StateFormat : uint8_t {
   // Format 2 with each entity's linear and angular velocity (protocol/delta_codec.h,
   // DeltaEncoderOptions::velocities): receivers extrapolate with them (dead reckoning).
   kQuantizedDeltaVelocity = 12,
+  // Format 2 whose records may name their reference as "the previous version" (protocol/
+  // delta_codec.h, DeltaEncoderOptions::previous_reference): key-sample rooms, whose entities'
+  // reference distances are irregular.
+  kQuantizedDeltaPrevious = 13,
 };
 
 // Writes entity states into datagram payloads. Usage per payload:

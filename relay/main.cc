@@ -154,6 +154,10 @@ int main(int argc, char** argv) {
                  "With --key-samples: longest time (s) a moving body goes unsent; receivers play "
                  "out this far behind")
       ->capture_default_str()->check(CLI::Range(0.02, 10.0));
+  app.add_option("--key-samples-check-hz", rep.key_sample_check_hz,
+                 "With --key-samples: how often untouched bodies are checked, so that their "
+                 "samples share datagrams (0: every tick)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   app.add_option("--interaction-linger", rep.interaction_linger_s,
                  "Seconds an entity stays out of the ambient class after a grab, release or event")
       ->capture_default_str()->check(CLI::Range(0.0, 3600.0));

@@ -103,6 +103,7 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
       if (params.ok()) {
         DeltaEncoderOptions options;
         options.velocities = config_.velocities;
+        options.previous_reference = UsesPreviousReference(config_);
         auto delta = std::make_unique<DeltaEncoder>(*params, options);
         delta_ = delta.get();
         encoder_ = std::move(delta);
@@ -211,7 +212,9 @@ ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entit
   // final pose within it.
   const double since = static_cast<int32_t>(time_ms_ - sent_ms) / 1000.0;
   if (since <= 0) return KeyDue::kNo;
-  if (since >= config_.key_sample_max_interval_s) return KeyDue::kMaxInterval;
+  // With key_sample_check_hz, one check period early: the next check may come that much later.
+  const double early = config_.key_sample_check_hz > 0 ? 1.0 / config_.key_sample_check_hz : 0.0;
+  if (since >= config_.key_sample_max_interval_s - early) return KeyDue::kMaxInterval;
   // The line a receiver draws runs from the newest state sent, at the time it was stamped with
   // (sent_state_time), to the present state at the time it holds; PhyS's states in between are
   // checked at the times they hold too. (Stamping them with their arrival instead, a step's
@@ -244,6 +247,7 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
                                    config_.rotation_threshold_deg, now, resend_after);
     if (need != Need::kSend || !KeySampled(e, cls)) return need;
     const KeyDue due = KeySampleDue(id, e, v.sent_state_time);
+    last_due_ = due;
     if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
     if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
     if (due != KeyDue::kNo) return need;
@@ -277,6 +281,12 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
   TickSoftBodies(frame, self, now, resend_after, connection, out, counters);
+  key_check_tick_ = true;
+  if (StampsStateTime() && config_.key_sample_check_hz > 0) {
+    const double period = std::floor(now * config_.key_sample_check_hz);
+    key_check_tick_ = period != key_check_period_;
+    if (key_check_tick_) key_check_period_ = period;
+  }
 
   candidates_.clear();
   for (const Entity* entity : frame.by_id) {  // by id: candidates_ come out in id order
@@ -286,8 +296,10 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
+    if (!key_check_tick_ && KeySampled(e, cls)) continue;
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
+    last_due_ = KeyDue::kNo;
     switch (config_.mode) {
       case ReplicationMode::kPhoton:
         want = true;  // fixed rate, changed or not
@@ -322,7 +334,8 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     }
     if (!want) continue;
     double waiting = std::max(now - v.last_sent, IntervalFor(e, cls));
-    candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
+    candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields,
+                           static_cast<uint8_t>(last_due_)});
   }
   if (candidates_.empty()) return;
   // Without a budget every candidate goes, already in id order (the delta formats code ids as
@@ -384,6 +397,13 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         if (!add()) continue;
       }
       in_payload_.emplace_back(c.id, c.entity->version);
+      if (delta_ != nullptr) {  // counted here, added to the shared counters once a tick
+        static_assert(kRecordPartCount == 6 && static_cast<int>(KeyDue::kMaxInterval) == 2);
+        ++records_tick_[c.cause];
+        for (size_t i = 0; i < kRecordPartCount; ++i) {
+          record_bits_tick_[c.cause][i] += delta_->last_record_bits()[i];
+        }
+      }
       View& v = views_[c.entity->slot];
       v.last_sent = now;
       v.sent_state_time = payload_ms / 1000.0;
@@ -406,6 +426,15 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       v.ever_sent = true;
     }
     Flush(now, connection, out, counters);
+  }
+  for (size_t c = 0; c < records_tick_.size(); ++c) {
+    if (records_tick_[c] == 0) continue;
+    RelayCounters::Inc(counters.state_records[c], records_tick_[c]);
+    for (size_t i = 0; i < kRecordPartCount; ++i) {
+      RelayCounters::Inc(counters.state_record_bits[c][i], record_bits_tick_[c][i]);
+      record_bits_tick_[c][i] = 0;
+    }
+    records_tick_[c] = 0;
   }
 }
 

@@ -26,6 +26,7 @@
 // candidates only under a bandwidth budget; no allocation per packet once the views exist.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string_view>
@@ -122,6 +123,11 @@ struct ReplicationConfig {
   float key_sample_threshold_m = 0;
   float key_sample_rotation_deg = 5.0f;
   double key_sample_max_interval_s = 0.25;
+  // > 0: ambient PhyS bodies are checked for key samples only in the ticks where this clock
+  // (per receiver, on the relay's time) starts a new period, so that their samples share
+  // datagrams (each costs ~55 bytes of headers and seal); the max interval is then checked one
+  // period early, so that no sample is sent later than without it. 0: every tick.
+  double key_sample_check_hz = 30;
   // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
   // versions, protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held,
   // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
@@ -136,6 +142,13 @@ struct ReplicationConfig {
 // True when rooms with `config` send format 12.
 inline bool UsesVelocities(const ReplicationConfig& config) {
   return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding && config.velocities;
+}
+
+// True when rooms with `config` send format 13 (format 2 with "previous version" references):
+// key samples without velocities.
+inline bool UsesPreviousReference(const ReplicationConfig& config) {
+  return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding &&
+         !config.velocities && config.key_sample_threshold_m > 0;
 }
 
 // True when rooms with `config` keep PhyS's recent states per entity (Entity::recent): the
@@ -198,6 +211,7 @@ class ClientReplicator {
     uint32_t id;
     const Entity* entity;
     uint8_t fields;
+    uint8_t cause;  // RelayCounters::state_records' index: schedule, strayed, max interval
   };
   // The view of `e` (a slot of views_), made afresh if the slot holds none or another
   // occupant's. May grow views_ (invalidating references to other views).
@@ -217,6 +231,12 @@ class ClientReplicator {
   // Key samples: whether `e` is due (and why), its newest sent state stamped `sent_state_time`.
   enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
   KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time);
+  KeyDue last_due_ = KeyDue::kNo;  // VelocityNeed's last key-sample answer (the record's cause)
+  // This tick's records and their bits by part, by cause (RelayCounters::state_records).
+  std::array<uint64_t, 3> records_tick_{};
+  std::array<std::array<uint64_t, 6>, 3> record_bits_tick_{};
+  bool key_check_tick_ = true;     // this tick checks key samples (key_sample_check_hz)
+  double key_check_period_ = -1;   // the key_sample_check_hz period the last check fell in
   bool KeySampled(const Entity& e, PriorityClass c) const;
   // Key-sample rooms send PhyS bodies stamped with Entity::state_time, not the tick's time.
   bool StampsStateTime() const;

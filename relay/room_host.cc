@@ -38,6 +38,7 @@ uint8_t StateFormatOf(const ReplicationConfig& config) {
   switch (config.mode) {
     case ReplicationMode::kEdgephys:
       if (config.shared_encoding) return kSharedDeltaStateFormat;
+      if (UsesPreviousReference(config)) return kPreviousDeltaStateFormat;
       return config.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
     case ReplicationMode::kPhoton: return kFormatPhoton;
     case ReplicationMode::kPaper: return kFormatPaper;

@@ -383,24 +383,28 @@ TEST(RoomHostSharedEncoding, JoinedCarriesTheFormatAndBeginTickPreparesSharedVer
   }
 }
 
-// Velocities on the wire: format 12 unless the room shares its encoding (format 9 wins).
+// Velocities on the wire: format 12 unless the room shares its encoding (format 9 wins); key
+// samples without velocities: format 13 (variant 3; with velocities, variant 4: format 12).
 TEST(RoomHostVelocities, JoinedCarriesFormat12OnlyWithVelocitiesAndWithoutSharedEncoding) {
-  for (int variant = 0; variant < 3; ++variant) {
+  for (int variant = 0; variant < 5; ++variant) {
     AbuseLimits limits;
     RelayCounters counters;
     ScriptedPlacement placement;
     RoomConfig config;
-    config.replication.velocities = variant >= 1;
+    config.replication.velocities = variant == 1 || variant == 2 || variant == 4;
     config.replication.shared_encoding = variant == 2;
+    if (variant >= 3) config.replication.key_sample_threshold_m = 0.02f;
     RoomHost host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0);
     RecordingMember a(7);
     ASSERT_TRUE(host.Join(a, 0));
     const auto* joined = a.Of(Body::Joined)[0]->body_as_Joined();
-    const uint8_t want = variant == 0   ? kDeltaStateFormat
-                         : variant == 1 ? kVelocityDeltaStateFormat
-                                        : kSharedDeltaStateFormat;
+    const uint8_t want = variant == 0                  ? kDeltaStateFormat
+                         : variant == 1 || variant == 4 ? kVelocityDeltaStateFormat
+                         : variant == 2                 ? kSharedDeltaStateFormat
+                                                        : kPreviousDeltaStateFormat;
     EXPECT_EQ(joined->state_format(), want) << variant;
-    EXPECT_EQ(UsesVelocities(config.replication), variant == 1);
+    EXPECT_EQ(UsesVelocities(config.replication), variant == 1 || variant == 4);
+    EXPECT_EQ(UsesPreviousReference(config.replication), variant == 3);
   }
 }
 

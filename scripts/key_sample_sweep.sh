@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Key samples against the fixed ambient rate on the same scenes (docs/benchmarks.md, "Key
-# samples", session 8): edgephys-loadgen multiobject at 1,000 boxes on the quarter-plus and
+# samples", sessions 8 and 9): edgephys-loadgen multiobject at 1,000 boxes on the quarter-plus and
 # full-stir scenes, one JSON per (scene, point, repeat), then per point the median over repeats
 # of egress, key samples per box per s and the display error under both yardsticks. Bounded:
 # points x 2 scenes x REPEAT runs of about 10 s each. Hold /tmp/edgephys-bench.lock and
@@ -13,11 +13,14 @@ repeat=${3:-1}
 shift $(( $# < 3 ? $# : 3 ))
 points=("$@")
 if (( ${#points[@]} == 0 )); then
+  # Session 9's medians (docs/benchmarks.md, "Key samples, coded"; format 13, 30 Hz checks
+  # unless c0). Session 8's were fixed6, k10r5_025, k10r5_03 and k20r8_05.
   points=(
     "fixed6|"
-    "k10r5_025|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.25"
-    "k10r5_03|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.3"
-    "k20r8_05|--key-samples 0.02 --key-samples-rotation 8 --key-samples-max-interval 0.5"
+    "k10r5_025c0|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.25 --key-samples-check-hz 0"
+    "k20r20_1|--key-samples 0.02 --key-samples-rotation 20 --key-samples-max-interval 1"
+    "k15r8_05|--key-samples 0.015 --key-samples-rotation 8 --key-samples-max-interval 0.5"
+    "k30_1|--key-samples 0.03 --key-samples-rotation 10 --key-samples-max-interval 1"
   )
 fi
 quarter=(--layers 1 --stirrer-reach 0.75 --stirrer-speed 1.0)
@@ -41,10 +44,22 @@ keys = ["egress_ratio_to_paper", "bytes_per_update", "updates_per_s_per_client",
         "key_strayed_per_box_s", "key_interval_per_box_s", "display_err_p50_m", "display_err_p99_m",
         "display_err_state_p99_m", "display_rot_err_p99_deg", "display_playout_ms_median",
         "pos_err_sent_max_m"]
-print("scene,point," + ",".join(keys))
+# Where a state's bytes go (RelayCounters::state_record_bits): a record's mean bits, its
+# reference symbol's and residuals' (position + rotation), and the datagram overhead per update.
+def coding(r):
+    share, bits = r.get("record_share", [0, 0, 0]), r.get("record_bits", [[0] * 6] * 3)
+    rec = sum(s * sum(b) for s, b in zip(share, bits))
+    return {"record_bits": rec, "reference_bits": sum(s * b[1] for s, b in zip(share, bits)),
+            "residual_bits": sum(s * (b[4] + b[5]) for s, b in zip(share, bits)),
+            "overhead_bytes": r["bytes_per_update"] - rec / 8}
+extra = ["record_bits", "reference_bits", "residual_bits", "overhead_bytes"]
+print("scene,point," + ",".join(keys + extra))
 for scene in ("quarter", "full"):
     for name in names:
         runs = [json.load(open(f"{out}/run{i}/{scene}_{name}.json"))["results"][0]
                 for i in range(1, repeat + 1)]
-        print(scene, name, *(f"{statistics.median(r[k] for r in runs):.4f}" for k in keys), sep=",")
+        for r in runs:
+            r.update(coding(r))
+        print(scene, name, *(f"{statistics.median(r[k] for r in runs):.4f}" for k in keys + extra),
+              sep=",")
 PY

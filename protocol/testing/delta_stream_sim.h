@@ -131,6 +131,9 @@ struct SimConfig {
   int freeze_after_tick = -1;         // truth stops changing from this tick on
   int lossless_after_tick = 1 << 30;  // network becomes perfect and in order from this tick on
   bool check_references = true;
+  // < 1: each entity goes in a tick with this probability (irregular gaps between an entity's
+  // versions, as key samples make them); the lossless ticks still send every entity.
+  double send_probability = 1;
 };
 
 struct SimResult {
@@ -217,25 +220,26 @@ inline SimResult RunStream(const SimConfig& c) {
       const int delay = lossless ? 0 : static_cast<int>(rng() % (c.max_extra_delay_ticks + 1));
       network.push_back({tick + delay, u(rng), counter});
     };
-    size_t first_in_payload = 0;
+    std::vector<EntityState> in_payload;
     enc.Begin(buf, time_ms);
     for (int i = 0; i < c.entities; ++i) {
+      if (c.send_probability < 1 && !lossless && u(rng) >= c.send_probability) continue;
       if (!enc.Add(truth[i])) {
         EXPECT_GT(enc.count(), 0u);
         const size_t size = enc.Finish();
         EXPECT_LE(size, kMaxUnreliablePayload);
         send(size);
-        sent[next_counter - 1].truth.assign(truth.begin() + static_cast<long>(first_in_payload),
-                                            truth.begin() + i);
-        first_in_payload = static_cast<size_t>(i);
+        sent[next_counter - 1].truth = in_payload;
+        in_payload.clear();
         enc.Begin(buf, time_ms);
         EXPECT_TRUE(enc.Add(truth[i]));
       }
+      in_payload.push_back(truth[i]);
       ++res.updates;
     }
-    send(enc.Finish());
-    sent[next_counter - 1].truth.assign(truth.begin() + static_cast<long>(first_in_payload),
-                                        truth.end());
+    const size_t last = enc.Finish();
+    send(last);
+    if (last > 0) sent[next_counter - 1].truth = in_payload;
 
     // Deliver what arrives this tick, in a random order among them (reordering).
     std::vector<InFlight> arriving;
