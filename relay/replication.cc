@@ -81,7 +81,6 @@ bool ParseReplicationMode(std::string_view text, ReplicationMode* mode) {
 
 ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     : config_(config), payload_(kMaxUnreliablePayload) {
-  soft_records_.resize(ReplicationTracker::kPacketRecords);
   switch (config_.mode) {
     case ReplicationMode::kPhoton:
       encoder_ = std::make_unique<PhotonEmulationEncoder>();
@@ -448,6 +447,7 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
 
 void ClientReplicator::OnPacketAcked(uint16_t sequence) {
   if (soft_ != nullptr && soft_->OnAcked(sequence)) return;
+  if (soft_records_.empty()) return;
   SoftRecord& r = soft_records_[sequence % soft_records_.size()];
   if (r.valid && r.sequence == sequence) {
     r.valid = false;
