@@ -150,9 +150,12 @@ struct PhysicsConfig {
   // The solver stops iterating when the squared residual falls below this (0: always
   // solver_iterations). Cost saved only when islands converge early.
   float solver_residual_threshold = 0.0f;
-  // Manifolds and collision algorithms preallocated (Bullet's default: 4,096 each); beyond
-  // them Bullet allocates per new contact pair, i.e. per step in a busy pile.
-  int contact_pool_size = 4096;
+  // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
+  // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
+  // allocates per new contact pair (malloc/free per pair that starts or stops touching), so a
+  // busy pile pays a little per step: measured in docs/benchmarks.md ("Memory per user"),
+  // `physics_cost_report --only new-defaults,pools-4096`. Values below 64 count as 64.
+  int contact_pool_size = 256;
   // Contact points farther apart than this (m) get no solver constraint (Bullet's default:
   // unlimited, i.e. every manifold point within the breaking threshold is solved).
   float contact_processing_threshold = 1e18f;

@@ -10,9 +10,7 @@ namespace edgephys {
 // ReliableSender
 
 ReliableSender::ReliableSender(size_t max_message_size, size_t max_pending_bytes)
-    : max_message_size_(max_message_size), max_pending_bytes_(max_pending_bytes) {
-  units_.Reserve(kReliableWindow);
-}
+    : max_message_size_(max_message_size), max_pending_bytes_(max_pending_bytes) {}
 
 Status ReliableSender::Queue(std::span<const uint8_t> message) {
   if (message.empty()) return Status::InvalidArgument("empty reliable message");

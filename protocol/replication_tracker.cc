@@ -4,7 +4,7 @@
 
 namespace edgephys {
 
-ReplicationTracker::ReplicationTracker() : records_(kPacketRecords) {}
+ReplicationTracker::ReplicationTracker() = default;
 
 bool ReplicationTracker::NeedsSend(uint32_t id, uint32_t version, double now,
                                    double resend_after_s) const {
@@ -17,6 +17,7 @@ bool ReplicationTracker::NeedsSend(uint32_t id, uint32_t version, double now,
 }
 
 void ReplicationTracker::OnSent(uint16_t sequence, uint32_t id, uint32_t version, double now) {
+  if (records_.empty()) records_.resize(kPacketRecords);  // on first use: most peers never need it
   PacketRecord& r = records_[sequence % kPacketRecords];
   if (!r.valid || r.sequence != sequence) {
     r.valid = true;
@@ -30,6 +31,7 @@ void ReplicationTracker::OnSent(uint16_t sequence, uint32_t id, uint32_t version
 }
 
 void ReplicationTracker::OnAcked(uint16_t sequence) {
+  if (records_.empty()) return;
   PacketRecord& r = records_[sequence % kPacketRecords];
   if (!r.valid || r.sequence != sequence) return;
   for (const auto& [id, version] : r.entries) {

@@ -5,7 +5,8 @@
 //
 // Used by the relay (one tracker per client) and by the client SDK (one for its own entities).
 // Thread-safety: none; owned by the connection's thread. Memory: one entry per entity seen
-// plus a ring of kPacketRecords packet records, each reusing its capacity (no per-packet
+// plus a ring of kPacketRecords packet records (about 32 KB, allocated by the first OnSent, so
+// a tracker that is never used costs nothing), each reusing its capacity (no per-packet
 // allocation in steady state).
 #pragma once
 

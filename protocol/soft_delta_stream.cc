@@ -10,7 +10,7 @@ namespace edgephys {
 // ---- SoftDeltaSender ----
 
 SoftDeltaSender::SoftDeltaSender(const SoftDeltaSenderConfig& config)
-    : config_(config), records_(ReplicationTracker::kPacketRecords) {}
+    : config_(config) {}
 
 const SoftDeltaSender::Version* SoftDeltaSender::NewestAcked(const Track& t, uint32_t below,
                                                              size_t size, uint32_t before_ms,
@@ -150,6 +150,7 @@ bool SoftDeltaSender::AddRecords(uint32_t id, uint32_t* first) {
 size_t SoftDeltaSender::FinishPayload() { return pending_.empty() ? 0 : pos_; }
 
 void SoftDeltaSender::OnSent(uint16_t sequence, double now) {
+  if (records_.empty()) records_.resize(ReplicationTracker::kPacketRecords);  // on first use
   PacketRecord& r = records_[sequence % records_.size()];
   r.valid = true;
   r.sequence = sequence;
@@ -167,6 +168,7 @@ void SoftDeltaSender::OnSent(uint16_t sequence, double now) {
 void SoftDeltaSender::OnNotSent() { pending_.clear(); }
 
 bool SoftDeltaSender::OnAcked(uint16_t sequence) {
+  if (records_.empty()) return false;
   PacketRecord& r = records_[sequence % records_.size()];
   if (!r.valid || r.sequence != sequence) return false;
   r.valid = false;

@@ -81,7 +81,6 @@ bool ParseReplicationMode(std::string_view text, ReplicationMode* mode) {
 
 ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     : config_(config), payload_(kMaxUnreliablePayload) {
-  soft_records_.resize(ReplicationTracker::kPacketRecords);
   switch (config_.mode) {
     case ReplicationMode::kPhoton:
       encoder_ = std::make_unique<PhotonEmulationEncoder>();
@@ -477,8 +476,10 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
 
 void ClientReplicator::OnPacketAcked(uint16_t sequence) {
   if (soft_ != nullptr && soft_->OnAcked(sequence)) return;
-  SoftRecord& r = soft_records_[sequence % soft_records_.size()];
-  if (r.valid && r.sequence == sequence) {
+  SoftRecord* r_or_null =
+      soft_records_.empty() ? nullptr : &soft_records_[sequence % soft_records_.size()];
+  if (r_or_null != nullptr && r_or_null->valid && r_or_null->sequence == sequence) {
+    SoftRecord& r = *r_or_null;
     r.valid = false;
     auto it = soft_views_.find(r.id);
     if (it != soft_views_.end() && it->second.sent_version == r.version) {

@@ -277,7 +277,8 @@ class ClientReplicator {
   std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
   std::vector<std::pair<uint32_t, const Entity*>> soft_due_;
   const std::vector<Vec3f>* hands_ = nullptr;        // this tick's Hand entity positions
-  std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence
+  std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence; empty until a
+                                          // format-5 soft body is first sent
 
   ReplicationConfig config_;
   std::unique_ptr<StateEncoder> encoder_;

@@ -38,6 +38,7 @@ void ClientReplicator::TickSoftBodies(const ReplicationFrame& frame, uint32_t se
       if (size == 0) break;
       Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
       if (seq.ok()) {
+        if (soft_records_.empty()) soft_records_.resize(ReplicationTracker::kPacketRecords);
         soft_records_[*seq % soft_records_.size()] = {true, *seq, id, version, chunk};
         RelayCounters::Inc(counters.entity_updates_sent);
       }
