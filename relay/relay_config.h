@@ -40,10 +40,13 @@ struct AbuseLimits {
 
 // The relay's connections: an ack owed for a client's unreliable payloads waits up to 20 ms
 // for the client's next state datagram (rooms tick every 1/60 s by default) instead of
-// leaving in a sealed datagram of its own; acks for reliable units leave at once.
+// leaving in a sealed datagram of its own; acks for reliable units leave at once. Reliable
+// events (grabs, releases, touches, joins) queued between two ticks wait up to 20 ms for the
+// next tick's state datagram likewise (PhyS worker links: at once).
 inline ConnectionConfig RelayConnectionDefaults() {
   ConnectionConfig c;
   c.max_ack_delay_s = 0.02;
+  c.max_reliable_delay_s = 0.02;
   return c;
 }
 
