@@ -200,11 +200,11 @@ int main(int argc, char** argv) {
                "One thread: receive and send with recvmmsg/sendmmsg batches, flushed once per "
                "update (experimental: measured no faster in `ceiling` on 2 cores, see "
                "docs/benchmarks.md)");
-  bool wake_on_datagram = false;
-  app.add_flag("--wake-on-datagram", wake_on_datagram,
-               "One thread: wake on every arriving datagram (at least every 2 ms) and receive "
-               "one per call, as before session 9, instead of sleeping until the next room tick "
-               "or connection timer and draining the socket in recvmmsg batches");
+  bool sleep_to_deadline = false;
+  app.add_flag("--sleep-to-deadline", sleep_to_deadline,
+               "One thread: sleep until the next room tick, PhyS step or connection timer and "
+               "drain the socket in recvmmsg batches, instead of waking on every arriving "
+               "datagram (at least every 2 ms) and receiving one per call; experimental");
   double max_sleep_s = 0.01;
   app.add_option("--max-sleep", max_sleep_s,
                  "One thread: longest sleep of the relay loop (s); bounds how long a handshake "
@@ -330,7 +330,8 @@ int main(int argc, char** argv) {
     (*shards)->Stop();
     return 0;
   }
-  // The loop sleeps until the relay's next deadline and drains what arrived in recvmmsg
+  const bool wake_on_datagram = !sleep_to_deadline;
+  // --sleep-to-deadline: the loop sleeps until the relay's next deadline and drains what arrived in recvmmsg
   // batches; with --batching, sends leave in sendmmsg batches too (flushed at the end of every
   // Update). --wake-on-datagram: one datagram per call, unless --batching.
   BatchedSocket batched(socket->get(), /*batch_sends=*/batching);
