@@ -5,14 +5,19 @@
 
 namespace edgephys {
 
-BatchedSocket::BatchedSocket(UdpSocket* socket)
+BatchedSocket::BatchedSocket(UdpSocket* socket, bool batch_sends)
     : socket_(socket),
+      batch_sends_(batch_sends),
       receive_storage_(UdpSocket::kMaxBatch * kSlotBytes),
-      send_storage_(kQueueDatagrams * kSlotBytes) {
-  queued_.reserve(kQueueDatagrams);
+      send_storage_(batch_sends ? kQueueDatagrams * kSlotBytes : 0) {
+  if (batch_sends_) queued_.reserve(kQueueDatagrams);
 }
 
 Status BatchedSocket::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
+  if (!batch_sends_) {
+    ++send_calls_;
+    return socket_->SendTo(to, data);
+  }
   if (data.size() > kSlotBytes) {
     // Rare (the protocol's datagrams are at most kMaxPacketSize): send it alone, in order.
     (void)Flush();

@@ -30,7 +30,9 @@ class BatchedSocket final : public DatagramSocket {
   static constexpr size_t kSlotBytes = 2048;      // larger datagrams are truncated on receive
   static constexpr size_t kQueueDatagrams = 256;  // queued sends before an automatic flush
 
-  explicit BatchedSocket(UdpSocket* socket);
+  // With `batch_sends` false, SendTo() sends at once (one sendto(2) each, as UdpSocket) and
+  // only receives are batched.
+  explicit BatchedSocket(UdpSocket* socket, bool batch_sends = true);
 
   Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override;
   size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override;
@@ -44,6 +46,7 @@ class BatchedSocket final : public DatagramSocket {
 
  private:
   UdpSocket* socket_;
+  bool batch_sends_;
   std::vector<uint8_t> receive_storage_;
   std::array<UdpSocket::ReceiveSlot, UdpSocket::kMaxBatch> received_;
   size_t received_count_ = 0;

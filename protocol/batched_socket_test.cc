@@ -55,6 +55,24 @@ TEST(BatchedSocket, QueuedSendsLeaveInOrderOnFlushWithFewSystemCalls) {
   EXPECT_LT(receiver.receive_calls(), kCount / 4);
 }
 
+TEST(BatchedSocket, WithoutSendBatchingSendsLeaveAtOnceAndReceivesStillComeInBatches) {
+  auto a = UdpSocket::Open(Loopback());
+  auto b = UdpSocket::Open(Loopback());
+  ASSERT_TRUE(a.ok() && b.ok());
+  BatchedSocket sender(a->get(), /*batch_sends=*/false), receiver(b->get(), false);
+  constexpr size_t kCount = 200;
+  for (size_t i = 0; i < kCount; ++i) {
+    ASSERT_TRUE(sender.SendTo((*b)->LocalEndpoint(), Datagram(i)).ok());
+  }
+  EXPECT_EQ(sender.send_calls(), kCount);  // one sendto each, before any Flush()
+  EXPECT_EQ(sender.Flush(), 0u);
+  EXPECT_EQ(sender.send_calls(), kCount);
+  auto got = ReceiveAll(receiver, **b, kCount);
+  ASSERT_EQ(got.size(), kCount);
+  for (size_t i = 0; i < kCount; ++i) EXPECT_EQ(got[i], Datagram(i)) << i;
+  EXPECT_LT(receiver.receive_calls(), kCount / 4);
+}
+
 TEST(BatchedSocket, NothingLeavesBeforeFlush) {
   auto a = UdpSocket::Open(Loopback());
   auto b = UdpSocket::Open(Loopback());

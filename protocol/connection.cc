@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include "protocol/byte_io.h"
 #include "protocol/packet_ledger.h"
@@ -83,7 +84,8 @@ struct Connection::Impl {
         sender(config_in.max_message_size, config_in.max_pending_reliable_bytes),
         receiver(config_in.max_message_size),
         last_receive_time(now),
-        last_send_time(now) {}
+        last_send_time(now),
+        last_now(now) {}
 
   // ---- packet building -------------------------------------------------------------------
 
@@ -133,11 +135,13 @@ struct Connection::Impl {
 
   // New units first, then those whose resend timeout expired, packed greedily in unit order,
   // at most kMaxDataPacketsPerUpdate packets (the rest waits for the next Update()).
-  void SendDueUnits(double now, PacketWriter& out) {
+  // With `hold_new`, only resends (new units wait for a later packet).
+  void SendDueUnits(double now, PacketWriter& out, bool hold_new) {
     double timeout = ResendTimeout();
     size_t size = 0;
     int packets = 0;
     for (bool resends : {false, true}) {
+      if (!resends && hold_new) continue;
       for (size_t i = 0; i < sender.sendable_count(); ++i) {
         if (sender.IsSent(i) != resends || !sender.IsDue(i, now, timeout)) continue;
         ReliableUnitView unit = sender.View(i);
@@ -189,6 +193,33 @@ struct Connection::Impl {
     }
   }
   static constexpr size_t kPiggybackScan = 64;
+
+  // ---- holding new reliable units (ConnectionConfig::max_reliable_delay_s) ----------------
+
+  // A unit was queued: the hold of the oldest unsent one starts now (the last time we were
+  // given: never later than the real queueing, so a unit never waits longer than the delay).
+  void NoteQueued() {
+    if (new_waiting) return;
+    new_waiting = true;
+    new_since = last_now;
+  }
+  // After sending: nothing unsent left ends the hold (a partial send keeps the older start).
+  void NoteSent() {
+    if (sender.unsent_units() == 0) new_waiting = false;
+  }
+  // Never-sent units inside the send window (those beyond it wait for acks, not for time).
+  size_t SendableUnsent() const {
+    const size_t beyond =
+        sender.queued_units() > kReliableWindow ? sender.queued_units() - kReliableWindow : 0;
+    return sender.unsent_units() > beyond ? sender.unsent_units() - beyond : 0;
+  }
+  bool HoldingNew(double now) const {
+    return new_waiting && config.max_reliable_delay_s > 0 &&
+           now - new_since < config.max_reliable_delay_s;
+  }
+  bool ResendDue(double now) const {
+    return now - sender.OldestInFlight(kReliableWindow) >= ResendTimeout();
+  }
 
   // ---- acknowledgements, RTT and loss ----------------------------------------------------
 
@@ -289,6 +320,9 @@ struct Connection::Impl {
   bool have_unreliable = false;
   uint16_t newest_unreliable = 0;  // sequence of the newest unreliable payload delivered
   int pending_disconnect_sends = 0;
+  double last_now = 0;       // the latest `now` given to this connection
+  bool new_waiting = false;  // never-sent reliable units are queued ...
+  double new_since = 0;      // ... the oldest since this time (as of last_now)
   std::array<uint8_t, kMaxPacketSize> scratch{};
   std::array<uint16_t, kMaxUnitsPerPacket> units{};  // unit ids of the packet being built
   size_t unit_count = 0;
@@ -304,6 +338,7 @@ Status Connection::SendReliable(std::span<const uint8_t> message) {
   if (!connected()) return Status::NotConnected("connection closed");
   Status status = impl_->sender.Queue(message);
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();
+  if (status.ok()) impl_->NoteQueued();
   return status;
 }
 
@@ -323,13 +358,16 @@ Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, do
   StoreU16LE(p + 1, static_cast<uint16_t>(payload.size()));
   std::copy(payload.begin(), payload.end(), p + kUnreliableChunkHeader);
   size += kUnreliableChunkHeader + payload.size();
+  impl_->last_now = now;
   impl_->AppendDueUnits(&size, now);
+  impl_->NoteSent();
   return impl_->FinishPacket(size, /*ack_eliciting=*/true, now, out);
 }
 
 Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
                                  ConnectionHandler& handler) {
   if (!connected()) return Status::NotConnected("connection closed");
+  impl_->last_now = now;
   static const Status kMalformed = Status::Malformed("malformed data packet");
   PacketPrefix prefix{};
   DropReason reason{};
@@ -420,6 +458,28 @@ void Connection::SetTimeout(double timeout_s) {
   if (timeout_s > 0) impl_->config.timeout_s = timeout_s;
 }
 
+void Connection::SetMaxReliableDelay(double delay_s) {
+  if (delay_s >= 0) impl_->config.max_reliable_delay_s = delay_s;
+}
+
+double Connection::NextTimer() const {
+  const Impl& m = *impl_;
+  if (m.pending_disconnect_sends > 0) return m.last_now;
+  if (!connected()) return std::numeric_limits<double>::infinity();
+  double t = std::min(m.last_receive_time + m.config.timeout_s,
+                      m.last_send_time + m.config.keepalive_interval_s);
+  if (m.ack_pending) {
+    t = std::min(t, m.ack_urgent ? m.last_now : m.ack_pending_since + m.config.max_ack_delay_s);
+  }
+  if (m.SendableUnsent() > 0) {
+    // Held: until the hold ends; otherwise (Update() stopped at its packet cap) at once.
+    t = std::min(t, m.new_waiting && m.config.max_reliable_delay_s > 0
+                        ? m.new_since + m.config.max_reliable_delay_s
+                        : m.last_now);
+  }
+  return std::min(t, m.sender.OldestInFlight(Impl::kPiggybackScan) + m.ResendTimeout());
+}
+
 void Connection::Update(double now, PacketWriter& out) {
   if (impl_->pending_disconnect_sends > 0) {
     impl_->SendDisconnects(out);
@@ -430,14 +490,22 @@ void Connection::Update(double now, PacketWriter& out) {
     disconnect_reason_ = DisconnectReason::kTimeout;
     return;
   }
+  impl_->last_now = now;
   impl_->DetectLoss(now);
-  impl_->SendDueUnits(now, out);
-  const bool ack_due =
-      impl_->ack_pending &&
-      (impl_->ack_urgent || now - impl_->ack_pending_since >= impl_->config.max_ack_delay_s);
-  if (ack_due || now - impl_->last_send_time >= impl_->config.keepalive_interval_s) {
-    impl_->SendAckOnly(now, out);
-  }
+  auto ack_due = [&] {
+    return impl_->ack_pending &&
+           (impl_->ack_urgent || now - impl_->ack_pending_since >= impl_->config.max_ack_delay_s);
+  };
+  auto keepalive_due = [&] {
+    return now - impl_->last_send_time >= impl_->config.keepalive_interval_s;
+  };
+  // New units wait for a packet that leaves anyway, up to max_reliable_delay_s; if this
+  // Update() sends one (a resend, an owed ack, a keep-alive), they go in it.
+  const bool hold = impl_->HoldingNew(now) && !ack_due() && !keepalive_due() &&
+                    !impl_->ResendDue(now);
+  impl_->SendDueUnits(now, out, hold);
+  impl_->NoteSent();
+  if (ack_due() || keepalive_due()) impl_->SendAckOnly(now, out);
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();
 }
 

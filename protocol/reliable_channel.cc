@@ -1,6 +1,7 @@
 #include "protocol/reliable_channel.h"
 
 #include <algorithm>
+#include <limits>
 
 #include "protocol/sequence.h"
 
@@ -32,6 +33,7 @@ Status ReliableSender::Queue(std::span<const uint8_t> message) {
     offset += unit.size;
     unit.last = remaining == 0;
     units_.PushBack(unit);
+    ++unsent_units_;
   }
   pending_bytes_ += message.size();
   return Status::Ok();
@@ -47,6 +49,16 @@ bool ReliableSender::IsDue(size_t index, double now, double resend_timeout_s) co
   return !unit.sent || now - unit.last_sent >= resend_timeout_s;
 }
 
+double ReliableSender::OldestInFlight(size_t scan) const {
+  double oldest = std::numeric_limits<double>::infinity();
+  const size_t n = std::min(sendable_count(), scan);
+  for (size_t i = 0; i < n; ++i) {
+    const Unit& unit = units_[i];
+    if (unit.sent && !unit.acked) oldest = std::min(oldest, unit.last_sent);
+  }
+  return oldest;
+}
+
 ReliableUnitView ReliableSender::View(size_t index) const {
   const Unit& unit = units_[index];
   ReliableUnitView view;
@@ -59,6 +71,7 @@ ReliableUnitView ReliableSender::View(size_t index) const {
 bool ReliableSender::MarkSent(size_t index, double now) {
   Unit& unit = units_[index];
   bool resend = unit.sent;
+  if (!resend) --unsent_units_;
   unit.sent = true;
   unit.last_sent = now;
   return resend;

@@ -63,6 +63,11 @@ class ReliableSender {
   uint64_t queued_end() const { return bytes_base_ + bytes_.size(); }
   uint64_t acked_end() const { return bytes_head_; }
   size_t queued_units() const { return units_.size(); }
+  // Units queued and never sent (in the window or beyond it).
+  size_t unsent_units() const { return unsent_units_; }
+  // The earliest last_sent of the first `scan` sendable units that are sent and unacknowledged;
+  // +infinity if none. O(scan).
+  double OldestInFlight(size_t scan) const;
 
  private:
   struct Unit {
@@ -78,6 +83,7 @@ class ReliableSender {
   size_t max_message_size_;
   size_t max_pending_bytes_;
   size_t pending_bytes_ = 0;
+  size_t unsent_units_ = 0;
   uint16_t base_id_ = 0;  // id of units_[0]
   RingQueue<Unit> units_;
   std::vector<uint8_t> bytes_;  // stream bytes from absolute offset bytes_base_

@@ -204,6 +204,22 @@ int main(int argc, char** argv) {
                "One thread: receive and send with recvmmsg/sendmmsg batches, flushed once per "
                "update (experimental: measured no faster in `ceiling` on 2 cores, see "
                "docs/benchmarks.md)");
+  bool sleep_to_deadline = false;
+  app.add_flag("--sleep-to-deadline", sleep_to_deadline,
+               "One thread: sleep until the next room tick, PhyS step or connection timer and "
+               "drain the socket in recvmmsg batches, instead of waking on every arriving "
+               "datagram (at least every 2 ms) and receiving one per call; experimental");
+  double max_sleep_s = 0.01;
+  app.add_option("--max-sleep", max_sleep_s,
+                 "One thread: longest sleep of the relay loop (s); bounds how long a handshake "
+                 "or an admin request waits while no room ticks")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0005, 0.1));
+  app.add_option("--reliable-delay", config.connection.max_reliable_delay_s,
+                 "Seconds a reliable event queued between room ticks may wait for its "
+                 "receiver's next state datagram before leaving on its own (0: at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.1));
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
       ->capture_default_str();
   app.add_option("--ack-delay", config.connection.max_ack_delay_s,
@@ -318,10 +334,14 @@ int main(int argc, char** argv) {
     (*shards)->Stop();
     return 0;
   }
-  // With --batching, datagrams move in recvmmsg/sendmmsg batches; the relay flushes its sends
-  // at the end of every Update.
-  BatchedSocket batched(socket->get());
-  DatagramSocket* relay_socket = batching ? static_cast<DatagramSocket*>(&batched) : socket->get();
+  const bool wake_on_datagram = !sleep_to_deadline;
+  // --sleep-to-deadline: the loop sleeps until the relay's next deadline and drains what arrived in recvmmsg
+  // batches; with --batching, sends leave in sendmmsg batches too (flushed at the end of every
+  // Update). --wake-on-datagram: one datagram per call, unless --batching.
+  BatchedSocket batched(socket->get(), /*batch_sends=*/batching);
+  DatagramSocket* relay_socket = batching || !wake_on_datagram
+                                     ? static_cast<DatagramSocket*>(&batched)
+                                     : socket->get();
   Relay relay(config, relay_socket, &counters);
   if (!redis.empty()) {
     auto redis_endpoint = ParseEndpoint(redis);
@@ -383,13 +403,21 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
   const auto start = std::chrono::steady_clock::now();
+  auto clock = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   while (!g_stop.load()) {
-    (*socket)->WaitReadable(0.002);
-    double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (wake_on_datagram) (*socket)->WaitReadable(0.002);
+    double now = clock();
     relay.Update(now, UnixNow());
     admin_backend.Tick(now);
     if (admin_backend.ShouldExit()) break;  // a drain finished
     if (run_for_s > 0 && now >= run_for_s) break;
+    if (wake_on_datagram) continue;
+    // Sleep until the next room tick, PhyS step or connection timer (capped): datagrams that
+    // arrive meanwhile wait in the socket's buffer (4 MiB) for the next Update's batches.
+    const double wait = std::min(relay.NextDeadline(), now + max_sleep_s) - clock();
+    if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(wait));
   }
   spdlog::info("shutting down");
   admin_backend.Close();  // requests waiting for the loop get 503 now, so Stop() is quick

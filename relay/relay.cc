@@ -96,17 +96,45 @@ void Relay::FlushSends() {
   RelayCounters::Inc(counters_->send_errors, socket_->Flush());
 }
 
+double Relay::NextDeadline() const {
+  double t = sessions_deadline_;
+  for (const auto& [name, room] : rooms_) {
+    t = std::min(t, room->room().next_tick());
+    if (const PhysicsLink* link = room->room().physics(); link != nullptr) {
+      // Not sooner than 1 ms ahead: a step whose output the pool has not taken yet must not
+      // spin the loop.
+      t = std::min(t, std::max(link->NextStepDue(), now_ + 0.001));
+    }
+  }
+  return t;
+}
+
 void Relay::UpdateSessions(double now, bool sample_rtt) {
   removal_scratch_.clear();
+  double next = std::numeric_limits<double>::infinity();
   for (auto& [id, s] : sessions_) {
+    if (sample_rtt && s->connection().stats().rtt_s > 0) {
+      counters_->rtt_seconds.Observe(s->connection().stats().rtt_s);
+    }
+    // Only sessions with something due: a timer of their connection, or anything that used
+    // the connection since (Session::ServiceSoon).
+    if (now < s->service_at()) {
+      next = std::min(next, s->service_at());
+      continue;
+    }
     s->set_now(now);
     uint64_t resends = s->connection().stats().reliable_resends;
     s->connection().Update(now, *s);
     RelayCounters::Inc(counters_->reliable_resends,
                        s->connection().stats().reliable_resends - resends);
-    if (sample_rtt && s->connection().stats().rtt_s > 0) {
-      counters_->rtt_seconds.Observe(s->connection().stats().rtt_s);
+    double at = s->connection().NextTimer();
+    if (s->closing()) at = std::min(at, s->close_deadline());
+    if (!s->is_worker() && !s->closing() && s->room() == nullptr &&
+        config_.limits.join_timeout_s > 0) {
+      at = std::min(at, s->connected_at() + config_.limits.join_timeout_s);
     }
+    s->set_service_at(at);
+    next = std::min(next, at);
     if (s->CloseDue(now) && s->connection().connected()) {  // an operator's close
       s->connection().Disconnect(s->close_reason(), *s);
     }
@@ -121,6 +149,7 @@ void Relay::UpdateSessions(double now, bool sample_rtt) {
     }
   }
   for (uint32_t id : removal_scratch_) RemoveSession(id, now);
+  sessions_deadline_ = next;
 }
 
 void Relay::PublishGauges(bool physics) {
@@ -181,6 +210,7 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
         return drop(DropReason::kTooLarge);
       }
       s.set_now(now);
+      s.ServiceSoon();
       Status st = s.connection().ProcessPacket(packet, now, s);
       if (st.code() == StatusCode::kAlreadyExists) {
         // The network delivered a packet twice: ordinary, so counted but not logged.
@@ -428,6 +458,7 @@ void Relay::OnWorkerHello(Session& s) {
   if (s.is_worker()) return;
   s.set_worker(true);
   s.connection().SetTimeout(kWorkerTimeoutS);
+  s.connection().SetMaxReliableDelay(0);  // PhyS commands leave at once
   workers_.Attach(s.connection().id(), &s);
   counters_->physics_workers.fetch_add(1, std::memory_order_relaxed);
   spdlog::info("PhyS worker {:08x} attached from {}:{}", s.connection().id(),
@@ -597,6 +628,7 @@ Status Relay::Kick(const std::string& room, uint32_t player_id, std::string_view
   auto* s = const_cast<Session*>(FindMemberSession(room, player_id));
   if (s == nullptr) return Status::NotFound("no such member");
   s->BeginClose(DisconnectReason::kKicked, reason, now);
+  sessions_deadline_ = -std::numeric_limits<double>::infinity();
   OnLeaveRoom(*s, now);
   spdlog::info("player {} kicked from room '{}': {}", player_id, room, reason);
   return Status::Ok();
@@ -621,6 +653,7 @@ void Relay::CloseAllSessions(std::string_view reason, double now) {
     s->BeginClose(DisconnectReason::kServerShutdown, reason, now);
     if (s->room() != nullptr) OnLeaveRoom(*s, now);
   }
+  sessions_deadline_ = -std::numeric_limits<double>::infinity();
 }
 
 size_t Relay::client_count() const {

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -78,6 +79,17 @@ class Relay final : private SessionHost {
   // closes idle ones. `now` is seconds on a monotonic clock; `unix_now_s` is wall time for
   // token expiry.
   void Update(double now, uint64_t unix_now_s);
+
+  // The earliest time (Update()'s clock) at which Update() has work that no datagram brings:
+  // a room's tick, an embedded PhyS step to start, a session's connection timer
+  // (Connection::NextTimer: held reliable units, resends, owed acks, keep-alives, the silence
+  // timeout), a closing session's deadline, a join timeout. As of the last Update() (or
+  // earlier, after an operator call). Datagrams that arrive before then wait in the socket:
+  // the relay's loop sleeps until this time (capped) and the next Update() drains them
+  // (relay/main.cc; docs/operations.md, "The relay loop"). Nothing the relay sends depends
+  // on handling a datagram the moment it arrives: poses go out on the room's next tick, and
+  // acks and reliable events ride on its state datagrams. O(rooms).
+  double NextDeadline() const;
 
   // Operator API: creates (or reconfigures an empty) room. kInvalidArgument for a bad name or
   // config, kAlreadyExists if the room has members or entities.
@@ -198,6 +210,8 @@ class Relay final : private SessionHost {
   double now_ = 0;
   bool admitting_ = true;
   double last_rtt_sample_ = 0;
+  // The earliest Session::service_at() after the last UpdateSessions (-infinity: at once).
+  double sessions_deadline_ = -std::numeric_limits<double>::infinity();
   std::vector<uint32_t> removal_scratch_;
   // Gauge values last published (shared_counters only).
   int64_t published_rooms_ = 0;

@@ -96,6 +96,7 @@ void Session::WritePacket(std::span<const uint8_t> packet) {
 }
 
 bool Session::SendReliable(std::span<const uint8_t> message) {
+  ServiceSoon();
   if (connection_.SendReliable(message).ok()) return true;
   connection_.Disconnect(DisconnectReason::kReliableOverflow, *this);
   return false;
@@ -148,6 +149,7 @@ bool Session::ReadyForStates() const {
 void Session::Replicate(const ReplicationFrame& frame, double now, RelayCounters& counters,
                         bool buffered) {
   buffering_ = buffered;
+  ServiceSoon();
   replicator_->Tick(frame, player_id_, now, connection_, *this, counters);
 }
 

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <string>
@@ -59,6 +60,7 @@ class Session final : public ConnectionHandler,
   void WritePacket(std::span<const uint8_t> packet) override;
   // WorkerChannel: when this session is a PhyS worker.
   bool SendToWorker(std::span<const uint8_t> message) override {
+    ServiceSoon();
     return connection_.SendReliable(message).ok();
   }
   bool WorkerConnected() const override { return connection_.connected(); }
@@ -126,6 +128,15 @@ class Session final : public ConnectionHandler,
   double now() const { return now_; }
   void set_now(double now) { now_ = now; }
 
+  // When the relay must next service this session's connection (Relay::UpdateSessions calls
+  // Connection::Update only on sessions that are due): the connection's next timer, or at
+  // once (-infinity) after anything used it: a packet from the client, a reliable message
+  // queued, a replication tick, a close begun. The relay sets it after each service.
+  double service_at() const { return service_at_; }
+  void set_service_at(double at) { service_at_ = at; }
+  void ServiceSoon() { service_at_ = -std::numeric_limits<double>::infinity(); }
+  double close_deadline() const { return close_deadline_; }
+
  private:
   SessionHost* host_;
   RelayCounters* counters_;
@@ -152,6 +163,7 @@ class Session final : public ConnectionHandler,
   std::vector<std::vector<uint8_t>> outbox_;  // capacity reused between ticks
   size_t outbox_size_ = 0;
   double now_;
+  double service_at_ = -std::numeric_limits<double>::infinity();
   TokenBucket packets_, bytes_, spawns_;
   double connected_at_;
   size_t reliable_capacity_;  // ConnectionConfig::max_pending_reliable_bytes
