@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <deque>
 #include <map>
@@ -309,6 +310,22 @@ inline SimResult RunStream(const SimConfig& c) {
 inline void ExpectWithinBounds(const SimResult& r, const QuantizationConfig& q) {
   EXPECT_LE(r.max_pos_err, q.position_step_m * std::sqrt(3.0) / 2 + FloatSlack(100));
   EXPECT_LE(r.max_rot_err, q.rotation_error_deg);
+}
+
+// A lossy, reordering run (SimConfig with loss and reordering, then lossless): prints its
+// figures, and expects the bounds held, no reference went wrong or unresolved, nothing was
+// malformed, reordering did make payloads stale, and the receiver converged at the end.
+inline void ExpectConvergedUnderLoss(const SimResult& r, const QuantizationConfig& q,
+                                     uint64_t seed) {
+  std::printf("seed %llu: %.2f bytes/update, max err %.3f mm %.4f deg, keyframes %llu\n",
+              static_cast<unsigned long long>(seed), r.BytesPerUpdate(), r.max_pos_err * 1e3,
+              r.max_rot_err, static_cast<unsigned long long>(r.enc.keyframes));
+  ExpectWithinBounds(r, q);
+  EXPECT_EQ(r.bad_references, 0u);
+  EXPECT_EQ(r.dec.unresolved_references, 0u);
+  EXPECT_EQ(r.dec.malformed, 0u);
+  EXPECT_GT(r.dec.stale_skipped, 0u);  // reordering did happen
+  EXPECT_TRUE(r.converged);
 }
 
 // ---------------------------------------------------------------------------------------------
