@@ -48,7 +48,12 @@ struct ConnectionConfig {
 
 // Real-time status of one connection (GameNetworkingSockets style); the relay exports it.
 struct ConnectionStats {
-  double rtt_s = 0;             // smoothed round-trip time
+  // Smoothed round-trip time. Includes how long the peer held its acknowledgement: a relay
+  // waits up to its ConnectionConfig::max_ack_delay_s (edgephys-relay --ack-delay, 0.02 s by
+  // default) before acknowledging state-only packets, so a client's figure reads 0-20 ms
+  // above the network's (about half that on average); acknowledgements of reliable
+  // messages are never held.
+  double rtt_s = 0;
   double rtt_var_s = 0;         // round-trip time variation
   double loss = 0;              // smoothed fraction of our packets not acknowledged (0..1)
   uint64_t packets_sent = 0;
