@@ -60,6 +60,11 @@ std::vector<std::pair<std::string, std::function<edgephys_status(edgephys_client
          info.struct_size = sizeof(info);
          return edgephys_client_get_info(c, &info);
        }},
+      {"get_connection_status", [](edgephys_client* c) {
+         edgephys_connection_status st{};
+         st.struct_size = sizeof(st);
+         return edgephys_client_get_connection_status(c, &st);
+       }},
       {"get_entity", [](edgephys_client* c) { edgephys_entity e; return edgephys_client_get_entity(c, 1, &e); }},
       {"list_entities", [](edgephys_client* c) { size_t n; return edgephys_client_list_entities(c, nullptr, 0, &n); }},
       {"get_soft_body", [](edgephys_client* c) { size_t n; return edgephys_client_get_soft_body(c, 1, nullptr, 0, &n); }},
@@ -379,6 +384,16 @@ TEST_F(CApiClient, QueriesRejectNullsWrongSizesAndUnknownIds) {
   EXPECT_STATUS(EDGEPHYS_OK, edgephys_client_get_info(c_, &info));
   EXPECT_EQ(info.state, static_cast<uint32_t>(EDGEPHYS_STATE_IDLE));
   EXPECT_EQ(info.joined, 0u);
+
+  edgephys_connection_status st;
+  std::memset(&st, 0xAB, sizeof(st));
+  st.struct_size = sizeof(st);
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_connection_status(c_, nullptr));
+  st.struct_size = sizeof(st) - 8;  // an older, shorter struct
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_connection_status(c_, &st));
+  st.struct_size = sizeof(st);
+  EXPECT_STATUS(EDGEPHYS_E_NOT_CONNECTED, edgephys_client_get_connection_status(c_, &st));
+  EXPECT_EQ(st.pending_reliable_bytes, 0xABABABABABABABABull);  // a failing call writes nothing
 
   edgephys_entity e;
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_entity(c_, 1, nullptr));

@@ -157,6 +157,14 @@ public struct ClientInfo {
 }
 
 [StructLayout(LayoutKind.Sequential)]
+public struct ConnectionStatus {
+  public uint StructSize, State, Reserved, Reserved2;
+  public double RttS, RttVarS, Loss, SendBytesPerS, ReceiveBytesPerS, SendPacketsPerS, ReceivePacketsPerS;
+  public ulong PacketsSent, PacketsReceived, BytesSent, BytesReceived, ReliableResends, ReliableDelivered,
+      StaleDropped, DuplicatesDropped, PendingReliableBytes;
+}
+
+[StructLayout(LayoutKind.Sequential)]
 public struct Entity {
   public uint Id, Owner, ParentId, Flags, HasState, StateTimeMs, SoftBodyParticles, Reserved;
   public Transform Transform;
@@ -194,6 +202,7 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_release(IntPtr client, uint entity);
   [DllImport(Lib)] public static extern Status edgephys_client_poll_event(IntPtr client, ref Event e);
   [DllImport(Lib)] public static extern Status edgephys_client_get_info(IntPtr client, ref ClientInfo info);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_connection_status(IntPtr client, ref ConnectionStatus s);
   [DllImport(Lib)] public static extern Status edgephys_client_get_entity(IntPtr client, uint id, out Entity e);
   [DllImport(Lib)] public static extern Status edgephys_client_sample_pose(IntPtr client, uint id, double now, uint method, out Transform t);
 
@@ -339,6 +348,12 @@ public sealed class Client : IDisposable {
     info.StructSize = (uint)Marshal.SizeOf(typeof(ClientInfo));
     Native.Check(Native.edgephys_client_get_info(handle_, ref info), "get_info");
     return info;
+  }
+  // The connection's real-time status; false (and `s` zeroed) while there is no connection.
+  public bool TryGetConnectionStatus(out ConnectionStatus s) {
+    s = new ConnectionStatus();
+    s.StructSize = (uint)Marshal.SizeOf(typeof(ConnectionStatus));
+    return Native.edgephys_client_get_connection_status(handle_, ref s) == Status.Ok;
   }
 }
 

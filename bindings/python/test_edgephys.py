@@ -1,5 +1,6 @@
 """Unit test of the Python binding: bad arguments raise EdgephysError with the C status, never
 crash the interpreter. Run: EDGEPHYS_LIBRARY=.../libedgephys.so python3 -m unittest test_edgephys"""
+import ctypes
 import math
 import unittest
 
@@ -32,6 +33,10 @@ class BindingTest(unittest.TestCase):
             self.assertIsNone(c.entity(1))
             self.assertEqual(list(c.events()), [])
             self.assertEqual(c.info().state, 0)
+            with self.assertRaises(ep.EdgephysError) as e:
+                c.connection_status()  # no connection yet
+            self.assertEqual(e.exception.status, ep.E_NOT_CONNECTED)
+            self.assertEqual(ctypes.sizeof(ep.ConnectionStatus), 136)  # the C struct's size
         with self.assertRaises(ep.EdgephysError) as e:
             ep.Client(bind_address="garbage")
         self.assertEqual(e.exception.status, ep.E_MALFORMED)

@@ -371,6 +371,44 @@ typedef struct edgephys_client_info {
 EDGEPHYS_API edgephys_status edgephys_client_get_info(edgephys_client* client,
                                                       edgephys_client_info* out);
 
+/* Real-time status of the connection to the relay (per-connection, as a game's network HUD or
+ * an operator's client-side probe wants it). The counters are cumulative since the connection
+ * began; the rates are means over about the last second of edgephys_client_update calls (the
+ * span reaches further back after a pause in updates longer than that: see
+ * client/connection_rates.h). O(1); allocates nothing. */
+typedef struct edgephys_connection_status {
+  uint32_t struct_size;            /* set to sizeof(edgephys_connection_status) before the call */
+  uint32_t state;                  /* edgephys_connection_state */
+  uint32_t reserved;               /* 0 */
+  uint32_t reserved2;              /* 0 (keeps the doubles 8-byte aligned in every binding) */
+  double rtt_s;                    /* smoothed round trip. Includes how long the relay held its
+                                    * acknowledgement (up to its --ack-delay, 20 ms by default):
+                                    * reads 0-20 ms above the network's round trip */
+  double rtt_var_s;                /* round-trip variation */
+  double loss;                     /* smoothed fraction of our packets not acknowledged, 0..1 */
+  double send_bytes_per_s;         /* UDP payload bytes, both directions, per second */
+  double receive_bytes_per_s;
+  double send_packets_per_s;
+  double receive_packets_per_s;
+  uint64_t packets_sent;
+  uint64_t packets_received;
+  uint64_t bytes_sent;
+  uint64_t bytes_received;
+  uint64_t reliable_resends;       /* reliable units sent more than once */
+  uint64_t reliable_delivered;     /* reliable messages delivered to this client */
+  uint64_t stale_dropped;          /* state payloads dropped as older than one delivered */
+  uint64_t duplicates_dropped;     /* packets or reliable units received twice */
+  uint64_t pending_reliable_bytes; /* reliable bytes queued or not yet acknowledged: a growing
+                                    * figure means the relay is not acknowledging (congestion or a
+                                    * dead path) */
+} edgephys_connection_status;
+
+/* EDGEPHYS_E_NOT_CONNECTED while there is no connection to describe: before the handshake
+ * completes, and while the client re-handshakes after losing its relay. After a disconnect it
+ * still describes the connection that ended. */
+EDGEPHYS_API edgephys_status edgephys_client_get_connection_status(edgephys_client* client,
+                                                                   edgephys_connection_status* out);
+
 typedef struct edgephys_entity {
   uint32_t id;
   uint32_t owner;        /* player id; 0: the room / PhyS */

@@ -91,6 +91,12 @@ class Client {
     edgephys_client_get_info(handle_, &info);
     return info;
   }
+  // The connection's real-time status (rtt, loss, rates, pending reliable bytes); false while
+  // there is no connection (see edgephys_client_get_connection_status).
+  bool ConnectionStatus(edgephys_connection_status* out) const {
+    out->struct_size = sizeof(*out);
+    return edgephys_client_get_connection_status(handle_, out) == EDGEPHYS_OK;
+  }
 
  private:
   edgephys_client* handle_ = nullptr;

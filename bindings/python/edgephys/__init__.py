@@ -115,6 +115,18 @@ class ClientInfo(ctypes.Structure):
                 ("states_received", ctypes.c_uint64), ("state_bytes_received", ctypes.c_uint64)]
 
 
+class ConnectionStatus(ctypes.Structure):
+    _fields_ = [("struct_size", ctypes.c_uint32), ("state", ctypes.c_uint32), ("reserved", ctypes.c_uint32),
+                ("reserved2", ctypes.c_uint32)] + \
+               [(n, ctypes.c_double) for n in ("rtt_s", "rtt_var_s", "loss", "send_bytes_per_s",
+                                               "receive_bytes_per_s", "send_packets_per_s",
+                                               "receive_packets_per_s")] + \
+               [(n, ctypes.c_uint64) for n in ("packets_sent", "packets_received", "bytes_sent",
+                                               "bytes_received", "reliable_resends", "reliable_delivered",
+                                               "stale_dropped", "duplicates_dropped",
+                                               "pending_reliable_bytes")]
+
+
 class Entity(ctypes.Structure):
     _fields_ = [("id", ctypes.c_uint32), ("owner", ctypes.c_uint32), ("parent_id", ctypes.c_uint32),
                 ("flags", ctypes.c_uint32), ("has_state", ctypes.c_uint32), ("state_time_ms", ctypes.c_uint32),
@@ -163,6 +175,7 @@ def _load():
         "edgephys_client_release": ([c, u32], ctypes.c_int),
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
         "edgephys_client_get_info": ([c, P(ClientInfo)], ctypes.c_int),
+        "edgephys_client_get_connection_status": ([c, P(ConnectionStatus)], ctypes.c_int),
         "edgephys_client_get_entity": ([c, u32, P(Entity)], ctypes.c_int),
         "edgephys_client_list_entities": ([c, P(u32), sz, P(sz)], ctypes.c_int),
         "edgephys_client_get_soft_body": ([c, u32, P(Vec3), sz, P(sz)], ctypes.c_int),
@@ -329,3 +342,11 @@ class Client:
         i.struct_size = ctypes.sizeof(ClientInfo)
         _check(lib.edgephys_client_get_info(self._h, ctypes.byref(i)), "get_info")
         return i
+
+    def connection_status(self):
+        """The connection's real-time status (rtt_s, loss, *_per_s rates, pending_reliable_bytes...);
+        raises EdgephysError(E_NOT_CONNECTED) while there is no connection."""
+        st = ConnectionStatus()
+        st.struct_size = ctypes.sizeof(ConnectionStatus)
+        _check(lib.edgephys_client_get_connection_status(self._h, ctypes.byref(st)), "get_connection_status")
+        return st

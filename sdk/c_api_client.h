@@ -1,0 +1,180 @@
+// The C API's handle (struct edgephys_client): the C++ client, its socket, the event ring its
+// listener callbacks fill, the per-entity jitter buffers behind edgephys_client_sample_pose and
+// the connection's throughput meter. Internal to sdk/: the public header declares the type
+// opaque. Not thread-safe (one thread per client at a time, as the C API says).
+#pragma once
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+#include "client/client.h"
+#include "client/connection_rates.h"
+#include "client/snapshot_buffer.h"
+#include "edgephys/edgephys.h"
+#include "edgephys/schema/control_generated.h"
+#include "protocol/udp_socket.h"
+
+namespace edgephys::capi {
+
+// Copies `text` into ev->detail, NUL-terminated, cut at a UTF-8 sequence boundary.
+inline void CopyDetail(std::string_view text, edgephys_event* ev) {
+  size_t n = std::min(text.size(), size_t{EDGEPHYS_EVENT_DETAIL_BYTES - 1});
+  // Never cut a UTF-8 sequence: back up over continuation bytes.
+  if (n < text.size()) {
+    while (n > 0 && (static_cast<unsigned char>(text[n]) & 0xC0) == 0x80) --n;
+  }
+  std::memcpy(ev->detail, text.data(), n);
+  ev->detail[n] = '\0';
+}
+
+inline edgephys_transform ToC(const EntityState& s) {
+  return {{s.position.x, s.position.y, s.position.z},
+          {s.rotation.x, s.rotation.y, s.rotation.z, s.rotation.w}};
+}
+
+}  // namespace edgephys::capi
+
+// The handle. Lives in the registry from create to destroy.
+struct edgephys_client final : edgephys::ClientListener {
+  edgephys_client_config config{};
+  std::unique_ptr<edgephys::UdpSocket> socket;
+  std::unique_ptr<edgephys::Client> client;
+  bool closed = false;
+  double last_now = -INFINITY;
+
+  std::vector<edgephys_event> ring;  // fixed capacity
+  size_t head = 0, count = 0;
+  uint64_t dropped = 0;
+  uint64_t states_received = 0;
+
+  struct Track {
+    edgephys::SnapshotBuffer buffer;
+    uint32_t last_ms = 0;
+    double sender_time_s = 0;
+    bool started = false;
+  };
+  edgephys::SnapshotBufferConfig snapshot_config;
+  std::unordered_map<uint32_t, std::unique_ptr<Track>> tracks;
+
+  // Sampled on every edgephys_client_update while connected; read by get_connection_status.
+  edgephys::ConnectionRates rates;
+  const edgephys::ConnectionStats* rates_source = nullptr;  // the connection `rates` describes
+
+  edgephys_event* Push(uint32_t type) {
+    if (count == ring.size()) {
+      ++dropped;
+      return nullptr;
+    }
+    edgephys_event* ev = &ring[(head + count) % ring.size()];
+    ++count;
+    std::memset(ev, 0, sizeof(*ev));
+    ev->type = type;
+    return ev;
+  }
+
+  void OnConnected(uint32_t player_id) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_CONNECTED)) ev->player_id = player_id;
+  }
+  void OnRejected(uint16_t reason) override {
+    auto* ev = Push(EDGEPHYS_EVENT_REJECTED);
+    if (ev == nullptr) return;
+    ev->code = reason;
+    if (reason == static_cast<uint16_t>(edgephys::schema::RejectReason::AuthRequired)) {
+      edgephys::capi::CopyDetail("no packet authentication: the relay's handshake carried no key "
+                 "(require_packet_auth)", ev);
+    }
+  }
+  void OnDisconnected(edgephys::DisconnectReason reason) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_DISCONNECTED)) ev->code = static_cast<uint32_t>(reason);
+  }
+  void OnJoined(std::string_view room, uint32_t entity_id_base) override {
+    tracks.clear();
+    if (auto* ev = Push(EDGEPHYS_EVENT_JOINED)) {
+      ev->player_id = client->player_id();
+      ev->entity_id = entity_id_base;
+      edgephys::capi::CopyDetail(room, ev);
+    }
+  }
+  void OnPlayerJoined(uint32_t player_id) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_PLAYER_JOINED)) ev->player_id = player_id;
+  }
+  void OnPlayerLeft(uint32_t player_id) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_PLAYER_LEFT)) ev->player_id = player_id;
+  }
+  void OnEntitySpawned(const edgephys::RemoteEntity& e) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_SPAWNED)) {
+      ev->entity_id = e.id;
+      ev->player_id = e.owner;
+      ev->parent_id = e.parent;
+      ev->flags = e.flags;
+      ev->transform = edgephys::capi::ToC(e.state);
+    }
+  }
+  void OnEntityUpdated(const edgephys::RemoteEntity& e) override {
+    ++states_received;
+    Track* track = nullptr;
+    if (auto it = tracks.find(e.id); it != tracks.end()) {
+      track = it->second.get();
+    } else {
+      auto made = std::make_unique<Track>(Track{edgephys::SnapshotBuffer(snapshot_config)});
+      track = made.get();
+      tracks.emplace(e.id, std::move(made));
+    }
+    // Unwrap the relay's u32 millisecond clock into monotonic seconds.
+    if (!track->started) {
+      track->started = true;
+      track->sender_time_s = 0;
+    } else {
+      track->sender_time_s += static_cast<int32_t>(e.state_time_ms - track->last_ms) / 1000.0;
+    }
+    track->last_ms = e.state_time_ms;
+    edgephys::Snapshot snap;
+    snap.sender_time_s = track->sender_time_s;
+    snap.position = e.state.position;
+    snap.rotation = e.state.rotation;
+    if (e.has_velocity) {  // format 12 rooms: true tangents for interpolation and extrapolation
+      snap.has_linear_velocity = snap.has_angular_velocity = true;
+      snap.linear_velocity = e.velocity.linear;
+      snap.angular_velocity = e.velocity.angular;
+    }
+    (void)track->buffer.Insert(snap, last_now);
+    if (config.queue_state_events) {
+      if (auto* ev = Push(EDGEPHYS_EVENT_STATE)) {
+        ev->entity_id = e.id;
+        ev->player_id = e.owner;
+        ev->code = e.state_time_ms;
+        ev->transform = edgephys::capi::ToC(e.state);
+      }
+    }
+  }
+  void OnEntityDespawned(uint32_t entity_id) override {
+    tracks.erase(entity_id);
+    if (auto* ev = Push(EDGEPHYS_EVENT_DESPAWNED)) ev->entity_id = entity_id;
+  }
+  void OnPhysicsEvent(uint8_t kind, uint32_t a, uint32_t b) override {
+    if (kind > 6) return;  // a kind newer than this SDK
+    if (auto* ev = Push(EDGEPHYS_EVENT_COLLISION_ENTER + kind)) {
+      ev->code = kind;
+      ev->entity_id = a;
+      ev->other_id = b;
+    }
+  }
+  void OnSoftBodyUpdated(const edgephys::RemoteEntity& e) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_SOFT_BODY)) {
+      ev->entity_id = e.id;
+      ev->code = static_cast<uint32_t>(e.nodes.size());
+    }
+  }
+  void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_ERROR)) {
+      ev->code = reason;
+      ev->entity_id = entity_id;
+      edgephys::capi::CopyDetail(detail, ev);
+    }
+  }
+};
+
