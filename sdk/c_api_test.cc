@@ -386,6 +386,7 @@ TEST_F(CApiClient, QueriesRejectNullsWrongSizesAndUnknownIds) {
   EXPECT_EQ(info.joined, 0u);
 
   edgephys_connection_status st;
+  static_assert(sizeof(st) == 144, "the C# and Python bindings declare 144 bytes");
   std::memset(&st, 0xAB, sizeof(st));
   st.struct_size = sizeof(st);
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_connection_status(c_, nullptr));

@@ -36,7 +36,7 @@ class BindingTest(unittest.TestCase):
             with self.assertRaises(ep.EdgephysError) as e:
                 c.connection_status()  # no connection yet
             self.assertEqual(e.exception.status, ep.E_NOT_CONNECTED)
-            self.assertEqual(ctypes.sizeof(ep.ConnectionStatus), 136)  # the C struct's size
+            self.assertEqual(ctypes.sizeof(ep.ConnectionStatus), 144)  # the C struct's size
         with self.assertRaises(ep.EdgephysError) as e:
             ep.Client(bind_address="garbage")
         self.assertEqual(e.exception.status, ep.E_MALFORMED)

@@ -5,6 +5,7 @@
 //                              (docs/benchmarks.md, "SDK (issue 13)")
 using System;
 using System.Diagnostics;
+using System.Runtime.InteropServices;
 using Edgephys;
 
 static class ClientTests {
@@ -60,6 +61,9 @@ static class ClientTests {
       receiver.Joined += (r, b) => rJoined = true;
       long received = 0;
       receiver.StateReceived += (uint id, ref Transform t) => { received++; };
+      ConnectionStatus cs;
+      Expect(!receiver.TryGetConnectionStatus(out cs), "no connection status before connecting");
+      Expect(Marshal.SizeOf(typeof(ConnectionStatus)) == 144, "ConnectionStatus matches the C struct's 144 bytes");
       sender.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_1"));
       receiver.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_2"));
       double end = Native.Now() + 5;
@@ -101,6 +105,9 @@ static class ClientTests {
         cpu += watch.Elapsed.TotalMilliseconds * 1e6;
         System.Threading.Thread.Sleep(2);
       }
+      Expect(receiver.TryGetConnectionStatus(out cs), "connection status while connected");
+      Expect(cs.State == 2 && cs.ReceiveBytesPerS > 0 && cs.ReceivePacketsPerS > 0 && cs.RttS > 0 && cs.RttS < 1,
+             "connection status: receiving, with a round trip (" + cs.ReceiveBytesPerS + " B/s, rtt " + cs.RttS + " s)");
       states = received - received0;
       bytes = allocated;
       ns_per_state = states > 0 ? cpu / states : 0;
