@@ -1,4 +1,4 @@
-// Test helpers for connection_test.cc: a recording handler, a packet builder for hand-made
+// Test helpers for connection_test.cc and connection_malformed_test.cc: a recording handler, a packet builder for hand-made
 // (and broken) packets, and a Link that pumps two Connections through an InMemoryNetwork with
 // a NetworkSimulator on each side, with injected time in fixed steps.
 #pragma once
@@ -8,6 +8,7 @@
 #include <array>
 #include <map>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "protocol/byte_io.h"
@@ -21,6 +22,14 @@ namespace edgephys::testing {
 using Bytes = std::vector<uint8_t>;
 
 inline constexpr uint32_t kTestConnectionId = 42;
+
+// `size` bytes from a generator seeded with `seed` (the same bytes for the same seed).
+inline Bytes RandomBytes(size_t size, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Bytes bytes(size);
+  for (uint8_t& b : bytes) b = static_cast<uint8_t>(rng());
+  return bytes;
+}
 
 // Records deliveries and checks the handler contracts as they happen: unreliable sequences
 // strictly increase, and each of our packets is acknowledged at most once and only if sent.
