@@ -204,13 +204,11 @@ int main(int argc, char** argv) {
                "One thread: receive and send with recvmmsg/sendmmsg batches, flushed once per "
                "update (experimental: measured no faster in `ceiling` on 2 cores, see "
                "docs/benchmarks.md)");
-  bool sleep_to_deadline = true;
-  app.add_flag("--sleep-to-deadline,!--no-sleep-to-deadline", sleep_to_deadline,
+  bool sleep_to_deadline = false;
+  app.add_flag("--sleep-to-deadline", sleep_to_deadline,
                "One thread: sleep until the next room tick, PhyS step or connection timer and "
-               "drain the socket in recvmmsg batches (the default); --no-sleep-to-deadline "
-               "wakes on every arriving datagram (at least every 2 ms) and receives one per "
-               "call, as before issue 11 session 10")
-      ->capture_default_str();
+               "drain the socket in recvmmsg batches, instead of waking on every arriving "
+               "datagram (at least every 2 ms) and receiving one per call; experimental");
   double max_sleep_s = 0.01;
   app.add_option("--max-sleep", max_sleep_s,
                  "One thread: longest sleep of the relay loop (s); bounds how long a handshake "
@@ -219,8 +217,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0005, 0.1));
   app.add_option("--reliable-delay", config.connection.max_reliable_delay_s,
                  "Seconds a reliable event queued between room ticks may wait for its "
-                 "receiver's next state datagram before leaving on its own (0: at once, as "
-                 "before issue 11 session 10)")
+                 "receiver's next state datagram before leaving on its own (0: at once)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.1));
   app.add_option("--timeout", config.connection.timeout_s, "Seconds of silence before a client is dropped")
@@ -338,10 +335,9 @@ int main(int argc, char** argv) {
     return 0;
   }
   const bool wake_on_datagram = !sleep_to_deadline;
-  // --sleep-to-deadline (default): the loop sleeps until the relay's next deadline and drains
-  // what arrived in recvmmsg batches; with --batching, sends leave in sendmmsg batches too
-  // (flushed at the end of every Update). --no-sleep-to-deadline: one datagram per call,
-  // unless --batching.
+  // --sleep-to-deadline: the loop sleeps until the relay's next deadline and drains what arrived in recvmmsg
+  // batches; with --batching, sends leave in sendmmsg batches too (flushed at the end of every
+  // Update). --wake-on-datagram: one datagram per call, unless --batching.
   BatchedSocket batched(socket->get(), /*batch_sends=*/batching);
   DatagramSocket* relay_socket = batching || !wake_on_datagram
                                      ? static_cast<DatagramSocket*>(&batched)

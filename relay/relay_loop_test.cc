@@ -28,7 +28,7 @@ class SleepingLoopWorld {
     RelayConfig config = testing::LoopbackWorld::DefaultConfig();
     config.room_defaults.tick_rate_hz = 60;
     config.physics_threads = 1;
-    config.connection.max_reliable_delay_s = 0.02;  // --reliable-delay 0.02 (the default)
+    config.connection.max_reliable_delay_s = 0.02;  // --reliable-delay 0.02 (off by default)
     socket_ = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
     batched_ = std::make_unique<BatchedSocket>(socket_.get(), /*batch_sends=*/false);
     relay_ = std::make_unique<Relay>(config, batched_.get(), &counters_);
