@@ -43,9 +43,9 @@ struct AbuseLimits {
 // leaving in a sealed datagram of its own; acks for reliable units leave at once. Reliable
 // events leave at once by default; max_reliable_delay_s = 0.02 (--reliable-delay) makes those
 // queued between two ticks wait for the next tick's state datagram (PhyS worker links: always
-// at once). Off by default: with it and --sleep-to-deadline an SDK example's watcher and
-// example disagreed on a settling box's final pose by 0.1006 deg in 2 of 3 runs (not yet
-// explained; docs/benchmarks.md, issue 11 "Session 9").
+// at once). Off by default: issue 11 session 10 measured ccu 1,000 users / 40 rooms above
+// the 50 ms socket p99 bound with it and --sleep-to-deadline (docs/benchmarks.md, "Session
+// 10"; the SDK example failures of session 9 were the test's own angle check).
 inline ConnectionConfig RelayConnectionDefaults() {
   ConnectionConfig c;
   c.max_ack_delay_s = 0.02;
