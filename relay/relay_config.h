@@ -43,9 +43,10 @@ struct AbuseLimits {
 // leaving in a sealed datagram of its own; acks for reliable units leave at once. Reliable
 // events leave at once by default; max_reliable_delay_s = 0.02 (--reliable-delay) makes those
 // queued between two ticks wait for the next tick's state datagram (PhyS worker links: always
-// at once). Off by default: issue 11 session 10 measured ccu 1,000 users / 40 rooms above
-// the 50 ms socket p99 bound with it and --sleep-to-deadline (docs/benchmarks.md, "Session
-// 10"; the SDK example failures of session 9 were the test's own angle check).
+// at once). Off by default: the gate for the default, ccu 1,000 users / 40 rooms socket p99
+// under 50 ms with it and --sleep-to-deadline, was not met in issue 11 session 10 (52.5 ms;
+// without them 55.5 ms in the same sitting; docs/benchmarks.md, "Session 10"). The SDK
+// example failures of session 9 were the test's own angle check.
 inline ConnectionConfig RelayConnectionDefaults() {
   ConnectionConfig c;
   c.max_ack_delay_s = 0.02;
