@@ -205,10 +205,11 @@ int main(int argc, char** argv) {
                "update (experimental: measured no faster in `ceiling` on 2 cores, see "
                "docs/benchmarks.md)");
   bool sleep_to_deadline = false;
-  app.add_flag("--sleep-to-deadline", sleep_to_deadline,
+  app.add_flag("--sleep-to-deadline,!--no-sleep-to-deadline", sleep_to_deadline,
                "One thread: sleep until the next room tick, PhyS step or connection timer and "
                "drain the socket in recvmmsg batches, instead of waking on every arriving "
-               "datagram (at least every 2 ms) and receiving one per call; experimental");
+               "datagram (at least every 2 ms) and receiving one per call as by default "
+               "(--no-sleep-to-deadline); opt-in, see docs/operations.md");
   double max_sleep_s = 0.01;
   app.add_option("--max-sleep", max_sleep_s,
                  "One thread: longest sleep of the relay loop (s); bounds how long a handshake "

@@ -43,9 +43,10 @@ struct AbuseLimits {
 // leaving in a sealed datagram of its own; acks for reliable units leave at once. Reliable
 // events leave at once by default; max_reliable_delay_s = 0.02 (--reliable-delay) makes those
 // queued between two ticks wait for the next tick's state datagram (PhyS worker links: always
-// at once). Off by default: with it and --sleep-to-deadline an SDK example's watcher and
-// example disagreed on a settling box's final pose by 0.1006 deg in 2 of 3 runs (not yet
-// explained; docs/benchmarks.md, issue 11 "Session 9").
+// at once). Off by default: the gate for the default, ccu 1,000 users / 40 rooms socket p99
+// under 50 ms with it and --sleep-to-deadline, was not met in issue 11 session 10 (52.5 ms;
+// without them 55.5 ms in the same sitting; docs/benchmarks.md, "Session 10"). The SDK
+// example failures of session 9 were the test's own angle check.
 inline ConnectionConfig RelayConnectionDefaults() {
   ConnectionConfig c;
   c.max_ack_delay_s = 0.02;

@@ -40,19 +40,5 @@ wait "$watch_pid" || { echo "FAIL: the watcher failed"; cat "$work/watch.log"; e
 watch_pid=""
 
 # Every pose the example printed, seen by the watcher within 1 mm and 0.1 degree.
-awk '
-  FNR == NR { if ($1 == "pose") w[$2] = $0; next }
-  $1 == "pose" {
-    n++
-    if (!($2 in w)) { print "FAIL: the watcher never saw entity " $2; bad = 1; next }
-    split(w[$2], o, " ")
-    dx = $3 - o[3]; dy = $4 - o[4]; dz = $5 - o[5]
-    d = sqrt(dx * dx + dy * dy + dz * dz)
-    dot = $6 * o[6] + $7 * o[7] + $8 * o[8] + $9 * o[9]; if (dot < 0) dot = -dot; if (dot > 1) dot = 1
-    deg = 2 * atan2(sqrt(1 - dot * dot), dot) * 180 / 3.14159265358979
-    printf "entity %s: example vs watcher %.4f mm, %.4f deg\n", $2, d * 1000, deg
-    if (d > 0.001 || deg > 0.1) { print "FAIL: entity " $2 " differs beyond the codec bounds"; bad = 1 }
-  }
-  END { if (n < 3) { print "FAIL: fewer than 3 poses printed"; bad = 1 } exit bad }
-' "$work/watch.log" "$work/example.log"
+awk -f "$(dirname "$0")/compare_poses.awk" "$work/watch.log" "$work/example.log"
 echo "sdk example passed: $*"
