@@ -129,7 +129,9 @@ void Relay::FlushSends() {
 double Relay::NextDeadline() const {
   double t = sessions_deadline_;
   for (const auto& [name, room] : rooms_) {
-    t = std::min(t, room->room().next_tick());
+    double due = room->room().next_tick();
+    if (due <= now_ && bulk_hold_until_ > now_ && IsBulk(*room)) due = bulk_hold_until_;  // waiting
+    t = std::min(t, due);
     if (const PhysicsLink* link = room->room().physics(); link != nullptr) {
       // Not sooner than 1 ms ahead: a step whose output the pool has not taken yet must not
       // spin the loop.
@@ -585,6 +587,7 @@ void Relay::TickDueRooms(double now) {
     // Between the passes: the bulk rooms' members' datagrams set aside by Update's receive
     // loop (their acks then count in the bulk rooms' tick below).
     if (pass == 1) HandleDeferredDatagrams(now);
+    const auto pass_start = std::chrono::steady_clock::now();
     tick_jobs_.clear();
     auto add = [&](RoomHost& room) {
       ++due_rooms;
@@ -604,7 +607,23 @@ void Relay::TickDueRooms(double now) {
         }
       }
     } else {
-      for (RoomHost* room : bulk_rooms_) add(*room);
+      // A due bulk room waits for a light room due within the bulk pass's duration
+      // (BulkTickScheduler), then ticks right after it.
+      double next_light = std::numeric_limits<double>::infinity();
+      if (!bulk_rooms_.empty()) {
+        for (const auto& [name, room] : rooms_) {
+          if (!IsBulk(*room)) next_light = std::min(next_light, room->room().next_tick());
+        }
+      }
+      bulk_hold_until_ = -std::numeric_limits<double>::infinity();
+      for (RoomHost* room : bulk_rooms_) {
+        const double interval = 1.0 / std::max(1.0, room->room().config().tick_rate_hz);
+        if (bulk_scheduler_.ShouldWait(now, room->room().next_tick(), interval, next_light)) {
+          bulk_hold_until_ = next_light;
+          continue;
+        }
+        add(*room);
+      }
     }
     if (tick_jobs_.empty()) continue;
     // Serial: send as we go. Parallel: queue per session, send after the join.
@@ -628,6 +647,10 @@ void Relay::TickDueRooms(double now) {
       seconds += job.seconds + RoomWorkLedger::SecondsSince(work_start);
     }
     if (charged != nullptr) room_work_.Charge(charged, &charged->name(), seconds);
+    if (pass == 1) {
+      bulk_scheduler_.RecordPass(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - pass_start).count());
+    }
   }
   if (due_rooms == 0) return;
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -34,6 +34,7 @@
 #include "protocol/datagram_socket.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
+#include "relay/bulk_tick_scheduler.h"
 #include "relay/physics_pool.h"
 #include "relay/rate_limit.h"
 #include "relay/relay_config.h"
@@ -218,6 +219,10 @@ class Relay final : private SessionHost {
   // sent (TickDueRooms).
   static constexpr size_t kBulkRoomEntities = 1024;
   std::vector<RoomHost*> bulk_rooms_;
+  // Due bulk rooms wait for an imminent light room's tick (relay/bulk_tick_scheduler.h); one
+  // that waits is held until bulk_hold_until_ (NextDeadline reports that, not its past due time).
+  BulkTickScheduler bulk_scheduler_;
+  double bulk_hold_until_ = -std::numeric_limits<double>::infinity();
   // Datagrams of members of bulk rooms received in this update, handled after the light rooms'
   // tick and before the bulk rooms' (HandleDeferredDatagrams): a bulk room's acks (its
   // receivers acknowledging thousand-entity packets) never delay a light room's tick. At most

@@ -5,10 +5,13 @@
 //    Relay::TickDueRooms handles them between its passes): when the light room's first datagram
 //    of an update leaves, the bulk receiver's connection has not yet seen any datagram of that
 //    update; by the update's end it has seen them all. Serial and fork-join.
+//  * A bulk room due just before a light room waits for it and ticks right after it in the
+//    same update (relay/bulk_tick_scheduler.h), at an unchanged rate.
 //  * Per-room work time (edgephys_room_update_seconds_total, RelayCounters::room_work): the
 //    bulk room is charged more than the light one, and a closed room's series goes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <functional>
 #include <map>
 #include <memory>
@@ -73,6 +76,11 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
     relay_raw_ = network_.CreateSocket(relay_at);
     socket_ = std::make_unique<WatchingSocket>(relay_raw_.get());
     relay_ = std::make_unique<Relay>(config, socket_.get(), &counters_);
+    if (light_room_phase_s_ > 0) {  // the light room ticks this long after the bulk room
+      ASSERT_TRUE(relay_->CreateRoom("a-bulk", config.room_defaults, now_).ok());
+      now_ += light_room_phase_s_;
+      ASSERT_TRUE(relay_->CreateRoom("b-light", config.room_defaults, now_).ok());
+    }
     ClientConfig cc;
     cc.require_packet_auth = config.packet_auth;
     // "a-bulk" sorts first in the relay's rooms.
@@ -131,6 +139,7 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
     Step(1.0 / 30);
   }
 
+  double light_room_phase_s_ = 0;
   InMemoryNetwork network_;
   double now_ = 0;
   RelayCounters counters_;
@@ -198,6 +207,60 @@ TEST_P(BulkRoomTest, RoomWorkTimeGrowsWithTheRoomsWorkAndGoesWhenTheRoomCloses) 
   relay_.reset();  // a relay that goes takes its rooms' series with it
   EXPECT_TRUE(counters_.room_work.Snapshot().empty());
 }
+
+class BulkRoomPhaseTest : public BulkRoomTest {
+ protected:
+  void SetUp() override {
+    light_room_phase_s_ = 0.001;
+    BulkRoomTest::SetUp();
+  }
+};
+
+TEST_P(BulkRoomPhaseTest, ABulkRoomDueJustBeforeALightRoomTicksInItsUpdate) {
+  const Room* bulk_room = relay_->FindRoom("a-bulk");
+  const Room* light_room = relay_->FindRoom("b-light");
+  ASSERT_NE(bulk_room, nullptr);
+  ASSERT_NE(light_room, nullptr);
+  const Endpoint bulk_receiver = members_[1].socket->LocalEndpoint();
+  const Endpoint light_receiver = members_[3].socket->LocalEndpoint();
+  int first_bulk = -1, first_light = -1, sends = 0;
+  socket_->on_send = [&](const Endpoint& to) {
+    if (to == bulk_receiver && first_bulk < 0) first_bulk = sends;
+    if (to == light_receiver && first_light < 0) first_light = sends;
+    ++sends;
+  };
+  int bulk_ticks = 0, bulk_alone = 0, bulk_sent_first = 0;
+  double max_late = 0;
+  // One second in 1 ms updates; everything moves at the rooms' 30 Hz.
+  for (int ms = 1; ms <= 1000; ++ms) {
+    if (ms % 33 == 0) {
+      for (size_t i = 0; i < bulk_.size(); ++i) {
+        (void)members_[0].client->PublishTransform(bulk_[i], {0.01f * i, 0.0001f * ms, 0}, {});
+      }
+      (void)members_[2].client->PublishTransform(light_[0], {0.001f * ms, 1, 0}, {});
+    }
+    const double bulk_due = bulk_room->next_tick(), light_due = light_room->next_tick();
+    first_bulk = first_light = -1;
+    sends = 0;
+    Step(0.001);
+    if (bulk_room->next_tick() == bulk_due) continue;  // the bulk room did not tick
+    ++bulk_ticks;
+    max_late = std::max(max_late, now_ - bulk_due);
+    if (light_room->next_tick() == light_due) ++bulk_alone;  // ...without the light room
+    if (first_bulk >= 0 && first_light >= 0 && first_bulk < first_light) ++bulk_sent_first;
+  }
+  socket_->on_send = nullptr;
+  // The bulk room ticked at its rate, on its schedule (30 Hz)...
+  EXPECT_GE(bulk_ticks, 29);
+  EXPECT_LE(bulk_ticks, 31);
+  // ...and always in the light room's update, after it: without the wait, 1 ms before it,
+  // alone; late by the light room's 1 ms, never by half its interval.
+  EXPECT_LE(bulk_alone, 1) << "of " << bulk_ticks << " ticks";  // the first may precede the alignment
+  EXPECT_EQ(bulk_sent_first, 0);
+  EXPECT_LT(max_late, 0.5 / 30);
+}
+
+INSTANTIATE_TEST_SUITE_P(Threads, BulkRoomPhaseTest, ::testing::Values(size_t{1}, size_t{2}));
 
 INSTANTIATE_TEST_SUITE_P(Threads, BulkRoomTest, ::testing::Values(size_t{1}, size_t{2}));
 
