@@ -103,8 +103,13 @@ struct ComputedGaugeSource {
   static constexpr prometheus::MetricType kType = prometheus::MetricType::Gauge;
   double (RelayCounters::*compute)() const;
 };
+// Per-room work seconds (RoomWorkTimes): one series per tracked room, label "room".
+struct RoomWorkSource {
+  static constexpr prometheus::MetricType kType = prometheus::MetricType::Counter;
+  RoomWorkTimes RelayCounters::*field;
+};
 using Source = std::variant<GaugeSource, CounterSource, ReasonCountersSource, HistogramSource,
-                            ComputedGaugeSource>;
+                            ComputedGaugeSource, RoomWorkSource>;
 
 struct FamilySpec {
   const char* name;
@@ -258,6 +263,14 @@ const FamilySpec kFamilies[] = {
      "Simulated seconds per wall-clock second of the slowest room's embedded PhyS over its "
      "last ~1 s (below 1: that room simulates slower than real time); 1 without such a room.",
      ComputedGaugeSource{&C::PhysicsRealtimeFactor}},
+    {"edgephys_room_update_seconds_total",
+     "Seconds the relay worked for a room (its members' datagrams and connections, its PhyS "
+     "results, its ticks), summed over the relay's threads; rooms past the cap summed in "
+     "room=\"~other\".",
+     RoomWorkSource{&C::room_work}},
+    {"edgephys_bulk_datagrams_deferred_total",
+     "Datagrams of bulk rooms' members handled after the light rooms' tick.",
+     CounterSource{&C::bulk_datagrams_deferred}},
 };
 
 void AddMetrics(const GaugeSource& s, const RelayCounters& c, prometheus::MetricFamily* family) {
@@ -271,6 +284,15 @@ void AddMetrics(const ComputedGaugeSource& s, const RelayCounters& c,
   prometheus::ClientMetric metric;
   metric.gauge.value = (c.*s.compute)();
   family->metric.push_back(std::move(metric));
+}
+
+void AddMetrics(const RoomWorkSource& s, const RelayCounters& c, prometheus::MetricFamily* family) {
+  for (const RoomWorkTimes::Series& series : (c.*s.field).Snapshot()) {
+    prometheus::ClientMetric metric;
+    metric.label.push_back({"room", series.label});
+    metric.counter.value = series.seconds;
+    family->metric.push_back(std::move(metric));
+  }
 }
 
 void AddMetrics(const CounterSource& s, const RelayCounters& c, prometheus::MetricFamily* family) {

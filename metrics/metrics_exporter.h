@@ -19,7 +19,10 @@
 //                (reason = DropReasonName(), every reason exported, also at 0),
 //              requests_rejected_total{reason}  (schema RejectReason in snake_case, no "none"),
 //              disconnects_total{reason}        (DisconnectReason in snake_case, no "none"),
-//              physics_steps_total, physics_guard_resets_total, physics_failovers_total
+//              physics_steps_total, physics_guard_resets_total, physics_failovers_total,
+//              bulk_datagrams_deferred_total,
+//              room_update_seconds_total{room}  (relay/room_work_times.h: at most 128 rooms,
+//                the rest summed in room="~other"; closed rooms' series removed)
 //   histograms rtt_seconds, tick_duration_seconds, physics_step_seconds
 //
 // Consistency: one scrape is not an atomic snapshot of all counters (the relay keeps

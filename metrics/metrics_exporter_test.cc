@@ -322,6 +322,21 @@ TEST_F(MetricsExporterTest, ValuesAreReadAtScrapeTime) {
   EXPECT_EQ(samples.at("edgephys_clients"), 3);
 }
 
+TEST_F(MetricsExporterTest, RoomWorkSecondsPerRoomAndClosedRoomsGo) {
+  counters_.room_work.Add("arena", 1.5);
+  counters_.room_work.Add("lobby", 0.25);
+  std::string text = Scrape(*exporter_);
+  EXPECT_THAT(text, HasSubstr("# TYPE edgephys_room_update_seconds_total counter\n"));
+  auto samples = ParseSamples(text);
+  EXPECT_EQ(samples.at("edgephys_room_update_seconds_total{room=\"arena\"}"), 1.5);
+  EXPECT_EQ(samples.at("edgephys_room_update_seconds_total{room=\"lobby\"}"), 0.25);
+  EXPECT_EQ(samples.count("edgephys_room_update_seconds_total{room=\"~other\"}"), 0u);
+  counters_.room_work.Remove("lobby");
+  samples = ParseSamples(Scrape(*exporter_));
+  EXPECT_EQ(samples.count("edgephys_room_update_seconds_total{room=\"lobby\"}"), 0u);
+  EXPECT_EQ(samples.at("edgephys_room_update_seconds_total{room=\"arena\"}"), 1.5);
+}
+
 TEST_F(MetricsExporterTest, PassesPromtoolCheckMetrics) {
   const char* kPromtool = "/usr/bin/promtool";
   if (access(kPromtool, X_OK) != 0) {
@@ -334,8 +349,16 @@ TEST_F(MetricsExporterTest, PassesPromtoolCheckMetrics) {
   counters_.CountDisconnect(DisconnectReason::kKicked);
   counters_.rtt_seconds.Observe(0.01);
   counters_.tick_seconds.Observe(0.001);
+  // Room names are the clients' bytes: quotes, backslashes, newlines, invalid UTF-8.
+  counters_.room_work.Add("a \"quoted\" \\ room\n\xff\xfe", 0.5);
+  counters_.room_work.Add("plain", 0.25);
+  for (size_t i = 0; i <= counters_.room_work.max_rooms(); ++i) {  // past the cap: "~other"
+    counters_.room_work.Add("room-" + std::to_string(i), 0.001);
+  }
   const std::string text = Scrape(*exporter_);
   ASSERT_FALSE(text.empty());
+  EXPECT_THAT(text, HasSubstr("edgephys_room_update_seconds_total{room=\"plain\"} 0.25"));
+  EXPECT_THAT(text, HasSubstr("edgephys_room_update_seconds_total{room=\"~other\"} "));
 
   char path[] = "/tmp/edgephys_metrics_XXXXXX";
   const int fd = mkstemp(path);

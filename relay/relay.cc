@@ -41,6 +41,7 @@ Relay::Relay(const RelayConfig& config, DatagramSocket* socket, RelayCounters* c
 Relay::~Relay() {
   // Rooms before sessions (members are destroyed in reverse order, sessions_ first): a room's
   // remote PhyS link holds its worker Session and sends it WorkerUnassign when destroyed.
+  for (const auto& [name, room] : rooms_) ForgetRoomWork(*room);
   rooms_.clear();
   if (shard_.shared_counters) {  // withdraw this relay's share of the shared gauges
     PublishGauge(counters_->rooms, &published_rooms_, 0);
@@ -62,6 +63,11 @@ void Relay::PublishGauge(RelayCounters::Gauge& gauge, int64_t* published, int64_
 void Relay::Update(double now, uint64_t unix_now_s) {
   now_ = now;
   if (cluster_) cluster_->Update(now, unix_now_s);
+  // Datagrams of bulk rooms' members are set aside here and handled after the light rooms'
+  // tick (HandleDeferredDatagrams, from TickDueRooms).
+  deferring_ = true;
+  deferred_.clear();
+  deferred_bytes_.clear();
   for (size_t i = 0; i < config_.max_datagrams_per_update; ++i) {
     Endpoint from;
     size_t n = socket_->ReceiveFrom(&from, receive_buffer_);
@@ -75,6 +81,7 @@ void Relay::Update(double now, uint64_t unix_now_s) {
     }
     HandleDatagram(from, std::span<const uint8_t>(receive_buffer_.data(), n), now, unix_now_s);
   }
+  deferring_ = false;
 
   // PhyS steps before the rooms tick and the connections are serviced, so the reliable
   // events of this step (Grabbed, Enter/Exit) leave in this update: in the state datagrams of
@@ -85,10 +92,33 @@ void Relay::Update(double now, uint64_t unix_now_s) {
   const bool once_a_second = now - last_rtt_sample_ >= 1.0;
   if (once_a_second) last_rtt_sample_ = now;
   TickDueRooms(now);
+  HandleDeferredDatagrams(now);  // none left: TickDueRooms handled them
   UpdateSessions(now, once_a_second);
   CloseIdleRooms(now);
   FlushSends();
   PublishGauges(once_a_second);
+  room_work_.Publish(&counters_->room_work, now);
+}
+
+void Relay::ForgetRoomWork(const RoomHost& room) {
+  room_work_.Forget(&room, room.name(), &counters_->room_work);
+}
+
+void Relay::HandleDeferredDatagrams(double now) {
+  for (const DeferredDatagram& d : deferred_) {
+    // The session may have gone since (replaced by a new Connect from its address, or an
+    // older session of a player who joined again).
+    auto it = sessions_.find(d.connection_id);
+    if (it == sessions_.end()) {
+      counters_->RejectPacket(DropReason::kUnknownConnection);
+      continue;
+    }
+    Session& s = *it->second;
+    if (s.endpoint() != d.from || !s.connection().connected()) continue;
+    HandleSessionPacket(s, std::span<const uint8_t>(deferred_bytes_.data() + d.offset, d.size), now);
+  }
+  deferred_.clear();
+  deferred_bytes_.clear();
 }
 
 void Relay::FlushSends() {
@@ -99,7 +129,9 @@ void Relay::FlushSends() {
 double Relay::NextDeadline() const {
   double t = sessions_deadline_;
   for (const auto& [name, room] : rooms_) {
-    t = std::min(t, room->room().next_tick());
+    double due = room->room().next_tick();
+    if (due <= now_ && bulk_hold_until_ > now_ && IsBulk(*room)) due = bulk_hold_until_;  // waiting
+    t = std::min(t, due);
     if (const PhysicsLink* link = room->room().physics(); link != nullptr) {
       // Not sooner than 1 ms ahead: a step whose output the pool has not taken yet must not
       // spin the loop.
@@ -123,8 +155,12 @@ void Relay::UpdateSessions(double now, bool sample_rtt) {
       continue;
     }
     s->set_now(now);
+    const auto work_start = RoomWorkLedger::Clock::now();
     uint64_t resends = s->connection().stats().reliable_resends;
     s->connection().Update(now, *s);
+    if (RoomHost* room = s->room(); room != nullptr) {
+      room_work_.Charge(room, &room->name(), RoomWorkLedger::SecondsSince(work_start));
+    }
     RelayCounters::Inc(counters_->reliable_resends,
                        s->connection().stats().reliable_resends - resends);
     double at = s->connection().NextTimer();
@@ -196,33 +232,58 @@ void Relay::HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, 
       if (s.endpoint() != from) return drop(DropReason::kWrongAddress);
       if (!s.connection().connected()) return;  // closing: redundant disconnect copies
       if (!s.AllowPacket(now, data.size())) return drop(DropReason::kRateLimited);
-      std::span<const uint8_t> packet = data;
-      if (s.sealed()) {
-        // Forged (even with the victim's exact address and connection id), corrupted or
-        // replayed: dropped and counted before the connection sees anything.
-        packet = s.Open(data, &reason);
-        if (packet.empty() && reason == DropReason::kReplayed) {
-          // Also what a network duplicate is: ordinary, so counted but not logged.
-          return counters_->RejectPacket(reason);
-        }
-        if (packet.empty()) return drop(reason);
-      } else if (oversized) {
-        return drop(DropReason::kTooLarge);
+      if (deferring_ && s.room() != nullptr && IsBulk(*s.room())) {
+        deferred_.push_back({from, prefix.connection_id, deferred_bytes_.size(), data.size()});
+        deferred_bytes_.insert(deferred_bytes_.end(), data.begin(), data.end());
+        RelayCounters::Inc(counters_->bulk_datagrams_deferred);
+        return;
       }
-      s.set_now(now);
-      s.ServiceSoon();
-      Status st = s.connection().ProcessPacket(packet, now, s);
-      if (st.code() == StatusCode::kAlreadyExists) {
-        // The network delivered a packet twice: ordinary, so counted but not logged.
-        counters_->RejectPacket(DropReason::kDuplicate);
-      } else if (!st.ok()) {
-        drop(DropReason::kMalformed);
-      }
-      return;
+      return HandleSessionPacket(s, data, now);
     }
     default:
       return drop(DropReason::kUnknownType);
   }
+}
+
+void Relay::HandleSessionPacket(Session& s, std::span<const uint8_t> data, double now) {
+  const auto work_start = RoomWorkLedger::Clock::now();
+  DropReason reason{};
+  auto drop = [&](DropReason r) {
+    counters_->RejectPacket(r);
+    Log().Note("datagram dropped", DropReasonName(r), s.endpoint(), now);
+  };
+  auto charge = [&] {
+    if (RoomHost* room = s.room(); room != nullptr) {
+      room_work_.Charge(room, &room->name(), RoomWorkLedger::SecondsSince(work_start));
+    }
+  };
+  std::span<const uint8_t> packet = data;
+  if (s.sealed()) {
+    // Forged (even with the victim's exact address and connection id), corrupted or
+    // replayed: dropped and counted before the connection sees anything.
+    packet = s.Open(data, &reason);
+    if (packet.empty() && reason == DropReason::kReplayed) {
+      // Also what a network duplicate is: ordinary, so counted but not logged.
+      counters_->RejectPacket(reason);
+      return charge();
+    }
+    if (packet.empty()) {
+      drop(reason);
+      return charge();
+    }
+  } else if (data.size() > kMaxPacketSize) {
+    return drop(DropReason::kTooLarge);
+  }
+  s.set_now(now);
+  s.ServiceSoon();
+  Status st = s.connection().ProcessPacket(packet, now, s);
+  if (st.code() == StatusCode::kAlreadyExists) {
+    // The network delivered a packet twice: ordinary, so counted but not logged.
+    counters_->RejectPacket(DropReason::kDuplicate);
+  } else if (!st.ok()) {
+    drop(DropReason::kMalformed);
+  }
+  charge();
 }
 
 void Relay::Transmit(const Endpoint& to, std::span<const uint8_t> data) {
@@ -256,6 +317,7 @@ Status Relay::CreateRoom(const std::string& name, const RoomConfig& config, doub
   auto it = rooms_.find(name);
   if (it != rooms_.end()) {
     if (it->second->in_use()) return Status::AlreadyExists("room is in use");
+    ForgetRoomWork(*it->second);
     rooms_.erase(it);
   }
   rooms_[name] = std::make_unique<RoomHost>(name, config, room_env(), now);
@@ -320,7 +382,9 @@ void Relay::StepAllPhysics(double now) {
   // physics_threads == 1 (null) the worlds step here, synchronously, as they always did.
   AsyncPhysicsPool* async = nullptr;
   for (auto& [name, room] : rooms_) {
+    const auto work_start = RoomWorkLedger::Clock::now();
     PhysicsLink* link = room->PreparePhysics(now);
+    room_work_.Charge(room.get(), &room->name(), RoomWorkLedger::SecondsSince(work_start));
     if (link == nullptr) continue;
     if (async == nullptr) async = physics_pool_.async_physics();
     if (async != nullptr) link->RunOn(async);  // new or failed-over links: from now on
@@ -332,10 +396,16 @@ void Relay::StepAllPhysics(double now) {
     if (step_outputs_.size() < physics_rooms_.size()) step_outputs_.resize(physics_rooms_.size());
     // Asynchronous and remote links return at once; synchronous ones step here.
     for (size_t i = 0; i < physics_links_.size(); ++i) {
+      const auto work_start = RoomWorkLedger::Clock::now();
       physics_links_[i]->Advance(now, &step_outputs_[i]);
+      room_work_.Charge(physics_rooms_[i], &physics_rooms_[i]->name(),
+                        RoomWorkLedger::SecondsSince(work_start));
     }
     for (size_t i = 0; i < physics_rooms_.size(); ++i) {
+      const auto work_start = RoomWorkLedger::Clock::now();
       physics_rooms_[i]->ApplyPhysics(step_outputs_[i], now);
+      room_work_.Charge(physics_rooms_[i], &physics_rooms_[i]->name(),
+                        RoomWorkLedger::SecondsSince(work_start));
       slowest = std::fmin(slowest, physics_links_[i]->realtime_factor());  // NaN: unknown
     }
   }
@@ -353,12 +423,18 @@ void Relay::TickDueRooms(double now) {
   size_t due_rooms = 0;
   bulk_rooms_.clear();
   for (int pass = 0; pass < 2; ++pass) {
+    // Between the passes: the bulk rooms' members' datagrams set aside by Update's receive
+    // loop (their acks then count in the bulk rooms' tick below).
+    if (pass == 1) HandleDeferredDatagrams(now);
+    const auto pass_start = std::chrono::steady_clock::now();
     tick_jobs_.clear();
     auto add = [&](RoomHost& room) {
       ++due_rooms;
+      const auto work_start = RoomWorkLedger::Clock::now();
       receivers_.clear();
       room.BeginTick(now, &receivers_);
-      for (MemberLink* m : receivers_) tick_jobs_.push_back({&room.room().frame(), m});
+      for (MemberLink* m : receivers_) tick_jobs_.push_back({&room.room().frame(), m, &room, 0.0});
+      room_work_.Charge(&room, &room.name(), RoomWorkLedger::SecondsSince(work_start));
     };
     if (pass == 0) {
       for (auto& [name, room] : rooms_) {
@@ -370,15 +446,50 @@ void Relay::TickDueRooms(double now) {
         }
       }
     } else {
-      for (RoomHost* room : bulk_rooms_) add(*room);
+      // A due bulk room waits for a light room due within the bulk pass's duration
+      // (BulkTickScheduler), then ticks right after it.
+      double next_light = std::numeric_limits<double>::infinity();
+      if (!bulk_rooms_.empty()) {
+        for (const auto& [name, room] : rooms_) {
+          if (!IsBulk(*room)) next_light = std::min(next_light, room->room().next_tick());
+        }
+      }
+      bulk_hold_until_ = -std::numeric_limits<double>::infinity();
+      for (RoomHost* room : bulk_rooms_) {
+        const double interval = 1.0 / std::max(1.0, room->room().config().tick_rate_hz);
+        if (bulk_scheduler_.ShouldWait(now, room->room().next_tick(), interval, next_light)) {
+          bulk_hold_until_ = next_light;
+          continue;
+        }
+        add(*room);
+      }
     }
     if (tick_jobs_.empty()) continue;
     // Serial: send as we go. Parallel: queue per session, send after the join.
     const bool parallel = physics_pool_.threads() > 1 && tick_jobs_.size() > 1;
     physics_pool_.Run(tick_jobs_.size(), [this, now, parallel](size_t i) {
+      const auto work_start = RoomWorkLedger::Clock::now();
       tick_jobs_[i].member->Replicate(*tick_jobs_[i].frame, now, *counters_, parallel);
+      tick_jobs_[i].seconds = RoomWorkLedger::SecondsSince(work_start);
     });
-    for (const TickJob& job : tick_jobs_) job.member->FlushReplication();
+    // Each room's receivers are consecutive jobs: one charge per room.
+    RoomHost* charged = nullptr;
+    double seconds = 0;
+    for (const TickJob& job : tick_jobs_) {
+      const auto work_start = RoomWorkLedger::Clock::now();
+      job.member->FlushReplication();
+      if (job.room != charged && charged != nullptr) {
+        room_work_.Charge(charged, &charged->name(), seconds);
+        seconds = 0;
+      }
+      charged = job.room;
+      seconds += job.seconds + RoomWorkLedger::SecondsSince(work_start);
+    }
+    if (charged != nullptr) room_work_.Charge(charged, &charged->name(), seconds);
+    if (pass == 1) {
+      bulk_scheduler_.RecordPass(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - pass_start).count());
+    }
   }
   if (due_rooms == 0) return;
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -416,6 +527,7 @@ void Relay::CloseIdleRooms(double now) {
       counters_->entities.fetch_sub(static_cast<int64_t>(room.entities().size()),
                                     std::memory_order_relaxed);
       spdlog::info("room '{}' closed after {:.0f} s empty", room.name(), now - room.empty_since());
+      ForgetRoomWork(*it->second);
       it = rooms_.erase(it);
     } else {
       ++it;
@@ -481,6 +593,7 @@ Status Relay::CloseRoom(const std::string& name, std::string_view reason, double
   for (uint32_t player : players) (void)Kick(name, player, reason, now);
   counters_->entities.fetch_sub(static_cast<int64_t>(it->second->room().entities().size()),
                                 std::memory_order_relaxed);
+  ForgetRoomWork(*it->second);
   rooms_.erase(it);
   spdlog::info("room '{}' closed by the operator: {}", name, reason);
   return Status::Ok();

@@ -34,11 +34,13 @@
 #include "protocol/datagram_socket.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
+#include "relay/bulk_tick_scheduler.h"
 #include "relay/physics_pool.h"
 #include "relay/rate_limit.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
 #include "relay/room_host.h"
+#include "relay/room_work_times.h"
 #include "relay/session.h"
 #include "relay/worker_directory.h"
 
@@ -141,6 +143,15 @@ class Relay final : private SessionHost {
   // Admission: the handshake and the socket.
   void HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
                       uint64_t unix_now_s);
+  // A data or disconnect packet of an established session: opened and handed to its
+  // connection; its time charged to the session's room.
+  void HandleSessionPacket(Session& s, std::span<const uint8_t> data, double now);
+  // Whether `room` ticks in the bulk pass (more than kBulkRoomEntities entities at its last tick).
+  static bool IsBulk(const RoomHost& room) { return room.room().frame().by_id.size() > kBulkRoomEntities; }
+  // Handles the datagrams of bulk rooms' members that this update's receive loop set aside.
+  void HandleDeferredDatagrams(double now);
+  // A room is about to be destroyed: its per-room work series goes.
+  void ForgetRoomWork(const RoomHost& room);
   void HandleHello(const Endpoint& from, std::span<const uint8_t> data, double now);
   void HandleConnect(const Endpoint& from, std::span<const uint8_t> data, double now,
                      uint64_t unix_now_s);
@@ -200,12 +211,32 @@ class Relay final : private SessionHost {
   struct TickJob {
     const ReplicationFrame* frame;
     MemberLink* member;
+    RoomHost* room;
+    double seconds;  // the job's replication time, for the room's work metric
   };
   std::vector<TickJob> tick_jobs_;
   // Rooms with more entities than this tick in a second pass, after the others' datagrams are
   // sent (TickDueRooms).
   static constexpr size_t kBulkRoomEntities = 1024;
   std::vector<RoomHost*> bulk_rooms_;
+  // Due bulk rooms wait for an imminent light room's tick (relay/bulk_tick_scheduler.h); one
+  // that waits is held until bulk_hold_until_ (NextDeadline reports that, not its past due time).
+  BulkTickScheduler bulk_scheduler_;
+  double bulk_hold_until_ = -std::numeric_limits<double>::infinity();
+  // Datagrams of members of bulk rooms received in this update, handled after the light rooms'
+  // tick and before the bulk rooms' (HandleDeferredDatagrams): a bulk room's acks (its
+  // receivers acknowledging thousand-entity packets) never delay a light room's tick. At most
+  // config.max_datagrams_per_update, so bounded by one update's receive loop.
+  struct DeferredDatagram {
+    Endpoint from;
+    uint32_t connection_id;
+    size_t offset;
+    size_t size;
+  };
+  std::vector<DeferredDatagram> deferred_;
+  std::vector<uint8_t> deferred_bytes_;
+  bool deferring_ = false;  // inside Update's receive loop
+  RoomWorkLedger room_work_;
   std::vector<MemberLink*> receivers_;
   double now_ = 0;
   bool admitting_ = true;

@@ -14,6 +14,7 @@
 #include "protocol/connection.h"
 #include "protocol/packet.h"
 #include "relay/room_budget.h"
+#include "relay/room_work_times.h"
 
 namespace edgephys {
 
@@ -130,6 +131,10 @@ struct RelayCounters {
   // Wall time of one room tick (seconds).
   AtomicHistogram<10> tick_seconds{
       {0.00001, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.05}};
+  // Seconds of relay work per room (relay/room_work_times.h): edgephys_room_update_seconds_total.
+  RoomWorkTimes room_work;
+  // Datagrams of bulk rooms' members handled after the light rooms' tick (Relay::Update).
+  Counter bulk_datagrams_deferred{0};
 
   void RejectPacket(DropReason r) { Inc(packets_rejected[static_cast<size_t>(r)]); }
   void RejectUpdate(DropReason r) { Inc(updates_rejected[static_cast<size_t>(r)]); }
