@@ -395,7 +395,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         encoder_->Begin(payload_, payload_ms);
         if (!add()) continue;
       }
-      in_payload_.emplace_back(c.id, c.entity->version);
+      if (shared_ == nullptr) in_payload_.emplace_back(c.id, c.entity->version);  // format 9: count()
       if (delta_ != nullptr) {  // counted here, added to the shared counters once a tick
         static_assert(kRecordPartCount == 6 && static_cast<int>(KeyDue::kMaxInterval) == 2);
         ++records_tick_[c.cause];
@@ -439,6 +439,8 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
 
 void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& out,
                              RelayCounters& counters) {
+  // Format 9 keeps no per-entity list here (its stream records the sends): its count.
+  const size_t entities = shared_ != nullptr ? shared_->count() : in_payload_.size();
   size_t size = encoder_->Finish();
   if (size == 0) {
     in_payload_.clear();
@@ -453,7 +455,7 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
     } else {
       for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
     }
-    RelayCounters::Inc(counters.entity_updates_sent, in_payload_.size());
+    RelayCounters::Inc(counters.entity_updates_sent, entities);
     if (shared_ != nullptr) {
       const SharedDeltaStreamStats& st = shared_->stats();
       RelayCounters::Inc(counters.shared_bodies_cached, st.cache_hits - shared_hits_counted_);
@@ -466,9 +468,9 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
     shared_entities_counted_ = shared_->stats().entities;
   }
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
-  if (!in_payload_.empty()) {
+  if (entities > 0) {
     // Running estimate of one entity's encoded size, for budget decisions before encoding.
-    double per_entity = static_cast<double>(size) / static_cast<double>(in_payload_.size());
+    double per_entity = static_cast<double>(size) / static_cast<double>(entities);
     bytes_per_entity_ = 0.8 * bytes_per_entity_ + 0.2 * per_entity;
   }
   in_payload_.clear();
