@@ -37,9 +37,15 @@ const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
   // Common cases in O(1): the newest version, or an entity that changed every tick since.
   const Version& newest = at(held - 1);
   if (TickAtOrBefore(newest.tick, tick)) return &newest;
+  // At most one version per tick: the version `back` places before the newest is at or before
+  // `tick`, so the answer lies from there on (few versions when the entity changed in most
+  // ticks since).
   const uint32_t back = newest.tick - tick;  // > 0
-  if (back < held && at(held - 1 - back).tick == tick) return &at(held - 1 - back);
-  uint32_t lo = 0, hi = held;  // at(lo) <= tick; at(hi) > tick (or hi == held)
+  uint32_t lo = 0, hi = held - 1;  // at(lo) <= tick; at(hi) > tick
+  if (back < held) {
+    lo = held - 1 - back;
+    if (at(lo).tick == tick) return &at(lo);
+  }
   while (hi - lo > 1) {
     const uint32_t mid = lo + (hi - lo) / 2;
     if (TickAtOrBefore(at(mid).tick, tick)) {

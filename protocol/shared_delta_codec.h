@@ -281,6 +281,16 @@ class SharedDeltaStream final : public StateEncoder {
   // entities the room held at once, as the room reuses slots). For tests. O(1).
   size_t tracked_entities() const { return live_tracks_; }
   size_t track_slots() const { return tracks_.size(); }
+  // Hint: the entity in room slot `slot` is considered soon (Need, Add): starts loading its
+  // record into the cache. The relay walks a room's entities for every receiver each tick, so
+  // the records come from beyond the core's cache; no effect on behaviour. O(1).
+  void Prefetch(uint32_t slot) const {
+    if (slot < tracks_.size()) {
+      const char* p = reinterpret_cast<const char*>(&tracks_[slot]);
+      __builtin_prefetch(p);
+      __builtin_prefetch(p + sizeof(Track) - 1);
+    }
+  }
 
   // Selective synchronisation, as DeltaEncoder::Need, with the held states looked up in the
   // room's versions of `entity` (SharedDeltaRoom::HeldWithin, shared by all receivers) rather
@@ -299,11 +309,13 @@ class SharedDeltaStream final : public StateEncoder {
   struct Sent {
     uint32_t payload = 0;  // payload number (0: none)
     uint32_t tick = 0;     // the tick it was sent in (its key's ref once acknowledged)
-    uint32_t s1 = 0, s2 = 0;
+    // Its key's two older samples, as ticks before `tick` (<= 2 x kMaxReferenceDistance).
+    uint16_t back1 = 0, back2 = 0;
     uint8_t depth = 0;
   };
+  static_assert(2 * kMaxReferenceDistance <= 0xFFFF);
   static constexpr uint32_t kRememberedSends = 4;
-  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 128
+  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 100
   // bytes, everything selection, Add and an ack touch. No ring of sent states: a send is named
   // by its send number, and its record carries the key it was sent with (the room's versions
   // hold its state). A send stays usable as a reference while it is among the last

@@ -108,7 +108,7 @@ void SharedDeltaStream::Resolve(Track& t) const {
     if (p == nullptr || !p->acked) continue;
     if (t.Usable(no)) {
       t.acked_no = no;
-      t.acked_key = {s.tick, s.s1, s.s2, s.depth};
+      t.acked_key = {s.tick, s.tick - s.back1, s.tick - s.back2, s.depth};
     }
     return;
   }
@@ -206,11 +206,11 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   sent.payload = payload_no_;
   sent.tick = tick_;
   if (keyframe) {
-    sent.s1 = sent.s2 = tick_;
+    sent.back1 = sent.back2 = 0;
     sent.depth = 1;
-  } else {
-    sent.s1 = key.ref;
-    sent.s2 = key.s1;
+  } else {  // distance <= kMaxReferenceDistance, and so is key.ref - key.s1 (an older record's)
+    sent.back1 = static_cast<uint16_t>(tick_ - key.ref);
+    sent.back2 = static_cast<uint16_t>(tick_ - key.s1);
     sent.depth = static_cast<uint8_t>(std::min(key.depth + 1, 3));
   }
   last_id_ = id;
