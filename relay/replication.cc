@@ -290,12 +290,15 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   candidates_.clear();
   // The walk below is bound by loading this receiver's per-entity records (views_, the format-9
   // stream's tracks) from beyond the core's cache: start loading them a few entities ahead.
-  constexpr size_t kPrefetchAhead = 4;
+  constexpr size_t kPrefetchAhead = 8;
   const size_t entity_count = frame.by_id.size();
   for (size_t i = 0; i < entity_count; ++i) {  // by id: candidates_ come out in id order
     if (i + kPrefetchAhead < entity_count) {
       const uint32_t ahead = frame.by_id[i + kPrefetchAhead]->slot;
-      if (ahead < views_.size()) __builtin_prefetch(&views_[ahead]);
+      if (ahead < views_.size()) {
+        __builtin_prefetch(&views_[ahead]);
+        __builtin_prefetch(reinterpret_cast<const char*>(&views_[ahead]) + sizeof(View) - 1);
+      }
       if (shared_ != nullptr) shared_->Prefetch(ahead);
     }
     const Entity& e = *frame.by_id[i];
