@@ -240,12 +240,13 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
                                                         const View& v, PriorityClass cls,
                                                         double now, double resend_after,
                                                         RelayCounters& counters) {
+  (void)v;  // its extras (key samples' sent_state_time) are by the entity's slot
   using Need = DeltaEncoder::UpdateNeed;
   if (!config_.velocities) {
     const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
                                    config_.rotation_threshold_deg, now, resend_after);
     if (need != Need::kSend || !KeySampled(e, cls)) return need;
-    const KeyDue due = KeySampleDue(id, e, v.sent_state_time);
+    const KeyDue due = KeySampleDue(id, e, view_extras_[e.slot].sent_state_time);
     last_due_ = due;
     if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
     if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
@@ -316,12 +317,12 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         want = true;  // fixed rate, changed or not
         break;
       case ReplicationMode::kPaper:
-        if (v.ever_sent) {
+        if (const ViewExtra& x = view_extras_[e.slot]; x.ever_sent) {
           fields = 0;
-          if (Distance(e.state.position, v.last_sent_state.position) > config_.position_threshold_m) {
+          if (Distance(e.state.position, x.last_sent_state.position) > config_.position_threshold_m) {
             fields |= kFieldPosition;
           }
-          if (AngleDeg(e.state.rotation, v.last_sent_state.rotation) > config_.rotation_threshold_deg) {
+          if (AngleDeg(e.state.rotation, x.last_sent_state.rotation) > config_.rotation_threshold_deg) {
             fields |= kFieldRotation;
           }
         }
@@ -417,7 +418,6 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       }
       View& v = views_[c.entity->slot];
       v.last_sent = now;
-      v.sent_state_time = payload_ms / 1000.0;
       double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
       // Room-wide send schedule: the entity is due at the points of a grid of its interval,
       // with a phase of its own (from its id) but the same for every receiver, so the room's
@@ -432,9 +432,13 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       } else {
         v.next_due = now + interval;  // a rate of 0: never again on schedule
       }
-      if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
-      if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
-      v.ever_sent = true;
+      if (!view_extras_.empty()) {
+        ViewExtra& x = view_extras_[c.entity->slot];
+        x.sent_state_time = payload_ms / 1000.0;
+        if (c.fields & kFieldPosition) x.last_sent_state.position = c.entity->state.position;
+        if (c.fields & kFieldRotation) x.last_sent_state.rotation = c.entity->state.rotation;
+        x.ever_sent = true;
+      }
     }
     Flush(now, connection, out, counters);
   }
@@ -522,7 +526,7 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   if (delta_ != nullptr) delta_->Forget(entity_id);
   if (shared_ != nullptr) shared_->Forget(entity_id);
   if (const uint32_t* slot = view_slot_of_.Find(entity_id); slot != nullptr) {
-    views_[*slot] = View{};
+    ResetView(*slot);
     view_slot_of_.Erase(entity_id);
     --live_views_;
   }
@@ -539,15 +543,23 @@ ClientReplicator::View& ClientReplicator::ViewOf(const Entity& e) {
     --live_views_;
   }
   if (const uint32_t* old = view_slot_of_.Find(e.id); old != nullptr && *old != e.slot) {
-    views_[*old] = View{};  // the id's previous entity, in another slot
+    ResetView(*old);  // the id's previous entity, in another slot
     --live_views_;
   }
-  v = View{};
+  ResetView(e.slot);
   v.serial = e.serial;
   v.id = e.id;
   *view_slot_of_.TryEmplace(e.id).first = e.slot;
   ++live_views_;
   return v;
+}
+
+void ClientReplicator::ResetView(uint32_t slot) {
+  views_[slot] = View{};
+  if (UsesViewExtras()) {
+    if (view_extras_.size() < views_.size()) view_extras_.resize(views_.size());
+    view_extras_[slot] = ViewExtra{};
+  }
 }
 
 size_t ClientReplicator::tracked_entities() const {
