@@ -25,7 +25,7 @@ constexpr size_t kPacketRecords = 128;
 
 SharedDeltaStream::SharedDeltaStream(const QuantizationParams& params,
                                      const SharedDeltaStreamOptions& options)
-    : params_(params), options_(options), records_(kPacketRecords), payloads_(kPayloadRing) {
+    : params_(params), options_(options), records_(kPacketRecords) {
   const double reach = 0.5 * std::sqrt(3.0) * params_.step * 1.01;
   lattice_reach2_ = reach * reach;
   const double bound_rad =
@@ -41,6 +41,9 @@ void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
   last_id_ = 0;
   prev_distance_ = 1;
   if (++payload_no_ == 0) ++payload_no_;  // 0 names no payload
+  // The payload ring (16 KiB) on the first payload, not before: an idle receiver's stream
+  // stays small (relay/footprint_test.cc). Sends are recorded only after a Begin.
+  if (payloads_.empty()) payloads_.resize(kPayloadRing);
   bits_ = out.size() > kStreamStart ? out.data() + kStreamStart : nullptr;
   bits_size_ = out.size() > kStreamStart ? out.size() - kStreamStart : 0;
   bit_pos_ = 0;
