@@ -34,7 +34,18 @@ const SharedEntity::Version* SharedEntity::At(uint32_t tick) const {
     return versions_[static_cast<size_t>((next_ - held + j) & mask)];
   };
   if (held == 0 || !TickAtOrBefore(at(0).tick, tick)) return nullptr;
-  uint32_t lo = 0, hi = held;  // at(lo) <= tick; at(hi) > tick (or hi == held)
+  // Common cases in O(1): the newest version, or an entity that changed every tick since.
+  const Version& newest = at(held - 1);
+  if (TickAtOrBefore(newest.tick, tick)) return &newest;
+  // At most one version per tick: the version `back` places before the newest is at or before
+  // `tick`, so the answer lies from there on (few versions when the entity changed in most
+  // ticks since).
+  const uint32_t back = newest.tick - tick;  // > 0
+  uint32_t lo = 0, hi = held - 1;  // at(lo) <= tick; at(hi) > tick
+  if (back < held) {
+    lo = held - 1 - back;
+    if (at(lo).tick == tick) return &at(lo);
+  }
   while (hi - lo > 1) {
     const uint32_t mid = lo + (hi - lo) / 2;
     if (TickAtOrBefore(at(mid).tick, tick)) {
@@ -280,16 +291,20 @@ bool SharedDeltaRoom::Body(SharedEntity& e, const SharedBaselineKey& key,
 bool SharedDeltaRoom::HeldWithin(const SharedEntity& e, uint32_t ref_tick,
                                  const EntityState& truth, double pos2, double min_dot,
                                  double reach2, double lattice_min_dot) const {
-  constexpr uint64_t kTickMask = (uint64_t{1} << 31) - 1;
-  const uint64_t tag = ((uint64_t{tick_} & kTickMask) << 33) | (uint64_t{ref_tick} << 1);
-  std::atomic<uint64_t>& memo = e.within_memo_[ref_tick % e.within_memo_.size()];
-  const uint64_t word = memo.load(std::memory_order_relaxed);
-  if ((tick_ & kTickMask) != 0 && (word & ~uint64_t{1}) == tag) return (word & 1) != 0;
-  const SharedEntity::Version* v = e.room_ == this ? e.At(ref_tick) : nullptr;
+  if (e.room_ != this) return false;
+  const uint32_t age = tick_ - ref_tick;
+  std::atomic<uint32_t>* memo =
+      age < SharedEntity::kWithinAges ? &e.within_memo_[age] : nullptr;
+  const uint32_t tag = tick_ << 2;
+  if (memo != nullptr) {
+    const uint32_t word = memo->load(std::memory_order_relaxed);
+    if ((word & ~3u) == tag && (word & 3u) != 0) return (word & 3u) == 2;
+  }
+  const SharedEntity::Version* v = e.At(ref_tick);
   if (v == nullptr) return false;
   delta_internal::WithinThresholds within(q_, truth, pos2, min_dot, reach2, lattice_min_dot);
   const bool ok = within(*v);
-  memo.store(tag | (ok ? 1 : 0), std::memory_order_relaxed);
+  if (memo != nullptr) memo->store(tag | (ok ? 2u : 1u), std::memory_order_relaxed);
   return ok;
 }
 

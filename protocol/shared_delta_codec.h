@@ -32,8 +32,8 @@
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
 // Memory: room ~7 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
-// times); stream 48 bytes per (receiver, entity) plus 24 per record in flight; decoder ~2 KiB per entity, bounded by
-// max_entities.
+// times); stream 100 bytes per (receiver, entity) plus 16 KiB per receiver (its payload ring);
+// decoder ~2 KiB per entity, bounded by max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
 // per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body
 // encode (cache miss) costs about what a format-2 Add does.
@@ -164,10 +164,13 @@ class SharedEntity {
   uint64_t next_ = 0;  // versions ever recorded
   uint32_t cache_tick_ = 0;
   std::array<Slot, kSharedCacheSlots> slots_;
-  // Selective-sync answers of this tick, shared by the room's receivers: word = (tick & 2^31-1)
-  // << 33 | reference tick << 1 | within. Receivers in one send phase hold the same references,
-  // so one threshold test serves them all. Relaxed atomics: a lost write only costs a retest.
-  mutable std::array<std::atomic<uint64_t>, 4> within_memo_{};
+  // Selective-sync answers of this tick, shared by the room's receivers, by the reference's
+  // age in ticks (tick - reference tick, below kWithinAges): word = (tick & 2^30-1) << 2 |
+  // answer (1 not within, 2 within; 0 none). Receivers hold a handful of references per entity
+  // (their acknowledged and in-flight sends), so one threshold test serves all that share one,
+  // and no two ages evict each other. Relaxed atomics: a lost write only costs a retest.
+  static constexpr uint32_t kWithinAges = 64;
+  mutable std::array<std::atomic<uint32_t>, kWithinAges> within_memo_{};
 };
 
 // The room side: tick clock, tick times, coding parameters and the body cache.
@@ -267,7 +270,9 @@ class SharedDeltaStream final : public StateEncoder {
   size_t count() const override { return count_; }
   size_t Finish() override;
   void OnSent(uint16_t packet_sequence, double now);
-  // O(records in that packet): each names its (slot, serial, ring entry), no lookup.
+  // O(1): marks the packet's payload acknowledged. Each entity's record learns it the next
+  // time the entity is considered (Need, Add), from the sends it remembers (kRememberedSends):
+  // an acknowledgement is one flag per payload, not one entry per entity.
   void OnPacketAcked(uint16_t packet_sequence);
   // Drops the record of entity `id` (despawned). O(1). Not needed for correctness (a slot's
   // next occupant has another serial) but frees the id's mapping and the live count.
@@ -276,56 +281,83 @@ class SharedDeltaStream final : public StateEncoder {
   // entities the room held at once, as the room reuses slots). For tests. O(1).
   size_t tracked_entities() const { return live_tracks_; }
   size_t track_slots() const { return tracks_.size(); }
+  // Hint: the entity in room slot `slot` is considered soon (Need, Add): starts loading its
+  // record into the cache. The relay walks a room's entities for every receiver each tick, so
+  // the records come from beyond the core's cache; no effect on behaviour. O(1).
+  void Prefetch(uint32_t slot) const {
+    if (slot < tracks_.size()) {
+      const char* p = reinterpret_cast<const char*>(&tracks_[slot]);
+      __builtin_prefetch(p);
+      __builtin_prefetch(p + sizeof(Track) - 1);
+    }
+  }
 
   // Selective synchronisation, as DeltaEncoder::Need, with the held states looked up in the
   // room's versions of `entity` (SharedDeltaRoom::HeldWithin, shared by all receivers) rather
   // than kept per receiver. `entity` must have been prepared this tick by its room.
   using UpdateNeed = DeltaEncoder::UpdateNeed;
+  // Not const: it first takes in the acknowledgements of the entity's remembered sends.
   UpdateNeed Need(uint32_t id, const SharedEntity& entity, const EntityState& truth,
                   float pos_threshold_m, float rot_threshold_deg, double now,
-                  double resend_after_s) const;
+                  double resend_after_s);
 
   const SharedDeltaStreamStats& stats() const { return stats_; }
 
  private:
-  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 48
-  // bytes, everything selection, Add and an ack touch. No ring of sent versions: a send is
-  // named by its send number, and the packet's record carries the key it was sent with (the
-  // room's versions hold its state). A send stays usable as a reference while it is among the
-  // last kDeltaBaselineWindow sends of the entity (the client keeps that many versions with
-  // the highest ticks, so an acknowledged one in that window is always held).
+  // One of an entity's last kRememberedSends sends (by send number), until acknowledged:
+  // the payload it went in and the key an acknowledgement makes its baseline.
+  struct Sent {
+    uint32_t payload = 0;  // payload number (0: none)
+    uint32_t tick = 0;     // the tick it was sent in (its key's ref once acknowledged)
+    // Its key's two older samples, as ticks before `tick` (<= 2 x kMaxReferenceDistance).
+    uint16_t back1 = 0, back2 = 0;
+    uint8_t depth = 0;
+  };
+  static_assert(2 * kMaxReferenceDistance <= 0xFFFF);
+  static constexpr uint32_t kRememberedSends = 4;
+  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 100
+  // bytes, everything selection, Add and an ack touch. No ring of sent states: a send is named
+  // by its send number, and its record carries the key it was sent with (the room's versions
+  // hold its state). A send stays usable as a reference while it is among the last
+  // kDeltaBaselineWindow sends of the entity (the client keeps that many versions with the
+  // highest ticks, so an acknowledged one in that window is always held); an acknowledgement
+  // is learnt only for the last kRememberedSends (older ones are superseded by newer sends,
+  // or treated as lost).
   struct Track {
     uint32_t serial = 0;  // 0: free
     uint32_t id = 0;
     uint32_t next = 0;    // sends so far (send numbers 0..next-1)
     uint32_t sends_since_keyframe = 0;
     uint32_t acked_no = 0;  // send number + 1 of the newest acknowledged send; 0: none
-    uint32_t sent_no = 0;   // send number + 1 of the newest sent one; 0: none
     SharedBaselineKey acked_key;  // its key (acked_key.ref = the tick it was sent in)
-    bool sent_acked = false;
-    uint32_t sent_ref = 0;
-    double sent_at = 0;
+    std::array<Sent, kRememberedSends> sends;  // by send number % kRememberedSends
     bool Usable(uint32_t no) const { return no != 0 && next - (no - 1) <= kDeltaBaselineWindow; }
   };
-  struct PacketEntry {
-    uint32_t slot;     // entity slot (index into tracks_)
-    uint32_t serial;   // the slot's occupant when sent
-    uint32_t send_no;  // its send number
-    uint32_t s1, s2;   // its key (ref: the record's tick)
-    uint8_t depth;
+  // A payload: its number (0: none), when it was sent and whether it was acknowledged. A ring
+  // by payload number (kPayloadRing): a send whose payload was overwritten counts as lost.
+  struct PayloadRecord {
+    uint32_t number = 0;
+    bool acked = false;
+    double sent_at = 0;
   };
-  // A sent payload: its entries lie in entries_ from `begin` (absolute position, entries
-  // ever stored) for `count`; gone once overwritten (head - begin > capacity).
+  static constexpr uint32_t kPayloadRing = 1024;
+  // Packet sequence -> payload number, for acknowledgements (a ring of kPacketRecords).
   struct PacketRecord {
     bool valid = false;
     uint16_t sequence = 0;
-    uint32_t tick = 0;
-    uint32_t count = 0;
-    uint64_t begin = 0;
+    uint32_t payload = 0;
   };
   // The entity's track, made afresh if its slot holds none or another occupant's.
   Track& ClaimTrack(uint32_t id, const SharedEntity& entity, bool* created);
   void FreeTrack(uint32_t slot);
+  // Takes in acknowledgements of `t`'s remembered sends newer than its acknowledged one.
+  void Resolve(Track& t) const;
+  const PayloadRecord* SentPayload(uint32_t payload) const {
+    const PayloadRecord& p = payloads_[payload & (kPayloadRing - 1)];
+    return payload != 0 && p.number == payload ? &p : nullptr;
+  }
+  // Bit appends into the open payload (the record's header codes, then the room's body).
+  void WriteBits(uint64_t value, int bits);
 
   QuantizationParams params_;
   SharedDeltaStreamOptions options_;
@@ -333,15 +365,8 @@ class SharedDeltaStream final : public StateEncoder {
   FlatIdMap<uint32_t> slot_of_;   // entity id -> slot of its live track (Forget)
   size_t live_tracks_ = 0;
   std::vector<PacketRecord> records_;
-  // The entries of the payloads in flight, a ring shared by all packet records (power-of-two
-  // capacity, at least kEntryRingPayloads of the largest payload: acknowledgements that come
-  // later than that many payloads are ignored, as a lost packet would be). Bounded memory
-  // whatever the payload sizes, no allocation per packet.
-  static constexpr size_t kEntryRingPayloads = 16;
-  std::vector<PacketEntry> entries_;
-  uint64_t entries_head_ = 0;
-  std::vector<PacketEntry> pending_ids_;
-  size_t max_packet_ids_ = 0;
+  std::vector<PayloadRecord> payloads_;  // kPayloadRing, allocated once
+  uint32_t payload_no_ = 0;              // the open (or last) payload's number
   double lattice_reach2_ = 0;
   double lattice_min_dot_ = 1;
   mutable float min_dot_for_deg_ = -1.f;
@@ -358,7 +383,9 @@ class SharedDeltaStream final : public StateEncoder {
   size_t count_ = 0;
   uint32_t last_id_ = 0;
   uint32_t prev_distance_ = 1;
-  BitWriter writer_;
+  uint8_t* bits_ = nullptr;  // the open payload's record stream (after header and count)
+  size_t bits_size_ = 0;     // its bytes
+  size_t bit_pos_ = 0;
 };
 
 struct SharedDeltaDecoderStats {

@@ -2,6 +2,7 @@
 // selection against the room's versions, payload assembly by bit copy of the room's bodies,
 // and the per-slot records that sends and acknowledgements update.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 
@@ -39,13 +40,85 @@ void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
   count_ = 0;
   last_id_ = 0;
   prev_distance_ = 1;
-  pending_ids_.clear();
-  if (pending_ids_.capacity() < max_packet_ids_) pending_ids_.reserve(max_packet_ids_);
-  writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
+  if (++payload_no_ == 0) ++payload_no_;  // 0 names no payload
+  // The payload ring (16 KiB) on the first payload, not before: an idle receiver's stream
+  // stays small (relay/footprint_test.cc). Sends are recorded only after a Begin.
+  if (payloads_.empty()) payloads_.resize(kPayloadRing);
+  bits_ = out.size() > kStreamStart ? out.data() + kStreamStart : nullptr;
+  bits_size_ = out.size() > kStreamStart ? out.size() - kStreamStart : 0;
+  bit_pos_ = 0;
+}
+
+// As BitWriter::WriteBits (LSB-first; bits past the written ones in the bytes touched are
+// zeroed), inline for the record loop; the caller has checked that the bits fit.
+inline void SharedDeltaStream::WriteBits(uint64_t value, int bits) {
+  while (bits > 0) {
+    const int n = bits < 56 ? bits : 32;
+    const uint64_t v = value & ((uint64_t{1} << n) - 1);
+    const size_t byte = bit_pos_ >> 3;
+    const int offset = static_cast<int>(bit_pos_ & 7);
+    if (byte + 8 <= bits_size_) {
+      uint64_t word;
+      std::memcpy(&word, bits_ + byte, 8);
+      word = (word & ((uint64_t{1} << offset) - 1)) | (v << offset);
+      std::memcpy(bits_ + byte, &word, 8);
+    } else {
+      uint64_t rest = v;
+      size_t pos = bit_pos_;
+      for (int left = n; left > 0;) {
+        const size_t b = pos >> 3;
+        const int off = static_cast<int>(pos & 7);
+        if (off == 0) bits_[b] = 0;
+        const int take = left < 8 - off ? left : 8 - off;
+        bits_[b] = static_cast<uint8_t>(bits_[b] | ((rest & ((1u << take) - 1)) << off));
+        rest >>= take;
+        left -= take;
+        pos += static_cast<size_t>(take);
+      }
+    }
+    bit_pos_ += static_cast<size_t>(n);
+    value >>= n;
+    bits -= n;
+  }
+}
+
+namespace {
+
+// Order-0 Exp-Golomb code of u as bits written LSB-first: n - 1 zeros, a one, then the low
+// n - 1 bits of u + 1 (n = bit_width(u + 1)); as BitWriter::WriteExpGolomb(u, 0). Bits
+// 2n - 1 <= 65: split in two (code bits, low bits) when past 56.
+struct Code {
+  uint64_t value[2];
+  int bits[2];
+};
+inline Code ExpGolomb0(uint32_t u) {
+  const uint64_t v = static_cast<uint64_t>(u) + 1;
+  const int n = std::bit_width(v);
+  const uint64_t low = v & ((uint64_t{1} << (n - 1)) - 1);
+  if (2 * n - 1 <= 56) return {{(uint64_t{1} << (n - 1)) | (low << n), 0}, {2 * n - 1, 0}};
+  return {{uint64_t{1} << (n - 1), low}, {n, n - 1}};
+}
+
+}  // namespace
+
+void SharedDeltaStream::Resolve(Track& t) const {
+  if (t.acked_no >= t.next) return;  // nothing newer than the acknowledged send
+  const uint32_t oldest = t.next > kRememberedSends ? t.next - kRememberedSends : 0;
+  // Newest first: the newest acknowledged send is the baseline.
+  for (uint32_t no = t.next; no > oldest && no > t.acked_no; --no) {
+    const Sent& s = t.sends[(no - 1) % kRememberedSends];
+    const PayloadRecord* p = SentPayload(s.payload);
+    if (p == nullptr || !p->acked) continue;
+    if (t.Usable(no)) {
+      t.acked_no = no;
+      t.acked_key = {s.tick, s.tick - s.back1, s.tick - s.back2, s.depth};
+    }
+    return;
+  }
 }
 
 bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
-  if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
+  if (phase_ != Phase::kOpen || bits_ == nullptr) return false;
   const SharedDeltaRoom* room = entity.room();
   if (room == nullptr) return false;
   if (count_ == 0) {
@@ -62,6 +135,7 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (created && options_.keyframe_refresh_sends > 0) {
     track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
   }
+  Resolve(track);
   bool keyframe = true;
   if (track.Usable(track.acked_no)) {
     const uint32_t distance = tick_ - track.acked_key.ref;
@@ -84,24 +158,40 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
     if (!room->Body(entity, key, scratch_, &bits, &nbits, &hit)) return false;
   }
 
-  const size_t mark = writer_.bit_position();
-  BitWriter& w = writer_;
-  bool ok = count_ == 0 ? w.WriteExpGolomb(id, 0) : w.WriteExpGolomb(id - last_id_ - 1, 0);
+  // The record: id gap, reference symbol (format 2's), then the room's body by bit copy.
+  const Code gap = ExpGolomb0(count_ == 0 ? id : id - last_id_ - 1);
   uint32_t distance = 0;
-  if (keyframe) {
-    ok = ok && w.WriteExpGolomb(1, 0);
-  } else {
+  uint32_t sym = 1;  // keyframe
+  if (!keyframe) {
     distance = tick_ - key.ref;
-    const uint32_t sym =
-        distance == prev_distance_
-            ? 0
-            : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
-    ok = ok && w.WriteExpGolomb(sym, 0);
+    sym = distance == prev_distance_
+              ? 0
+              : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
   }
-  ok = ok && w.AppendBits({bits, kSharedBodyMaxBytes}, nbits);
-  if (!ok) {
-    writer_.Rewind(mark);
-    return false;
+  const Code ref = ExpGolomb0(sym);
+  const size_t total = static_cast<size_t>(gap.bits[0] + gap.bits[1] + ref.bits[0] + ref.bits[1]) +
+                       nbits;
+  if (nbits > kSharedBodyMaxBytes * 8 || bit_pos_ + total > bits_size_ * 8) return false;
+  if (gap.bits[1] == 0 && ref.bits[1] == 0 && gap.bits[0] + ref.bits[0] <= 56) {
+    WriteBits(gap.value[0] | (ref.value[0] << gap.bits[0]), gap.bits[0] + ref.bits[0]);
+  } else {
+    for (const Code& c : {gap, ref}) {
+      WriteBits(c.value[0], c.bits[0]);
+      WriteBits(c.value[1], c.bits[1]);
+    }
+  }
+  for (size_t b = 0; nbits > 0; b += 7) {  // 56 bits a step from whole body bytes
+    const int n = nbits < 56 ? static_cast<int>(nbits) : 56;
+    uint64_t v = 0;
+    if (b + 8 <= kSharedBodyMaxBytes) {
+      std::memcpy(&v, bits + b, 8);
+    } else {
+      for (size_t i = 0; b + i < kSharedBodyMaxBytes && i < 8; ++i) {
+        v |= static_cast<uint64_t>(bits[b + i]) << (8 * i);
+      }
+    }
+    WriteBits(v, n);
+    nbits -= static_cast<size_t>(n);
   }
 
   ++stats_.entities;
@@ -115,11 +205,16 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
     ++track.sends_since_keyframe;
   }
   const uint32_t send_no = track.next++;
+  Sent& sent = track.sends[send_no % kRememberedSends];
+  sent.payload = payload_no_;
+  sent.tick = tick_;
   if (keyframe) {
-    pending_ids_.push_back({entity.slot(), entity.serial(), send_no, tick_, tick_, 1});
-  } else {
-    pending_ids_.push_back({entity.slot(), entity.serial(), send_no, key.ref, key.s1,
-                            static_cast<uint8_t>(std::min(key.depth + 1, 3))});
+    sent.back1 = sent.back2 = 0;
+    sent.depth = 1;
+  } else {  // distance <= kMaxReferenceDistance, and so is key.ref - key.s1 (an older record's)
+    sent.back1 = static_cast<uint16_t>(tick_ - key.ref);
+    sent.back2 = static_cast<uint16_t>(tick_ - key.s1);
+    sent.depth = static_cast<uint8_t>(std::min(key.depth + 1, 3));
   }
   last_id_ = id;
   ++count_;
@@ -138,7 +233,7 @@ size_t SharedDeltaStream::Finish() {
   uint8_t cnt[5];
   const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
   std::memcpy(p + kSharedDeltaHeaderSize, cnt, cnt_size);
-  const size_t body = writer_.byte_size();
+  const size_t body = (bit_pos_ + 7) / 8;
   const size_t dst = kSharedDeltaHeaderSize + cnt_size;
   std::memmove(p + dst, p + kStreamStart, body);
   ++stats_.payloads;
@@ -151,29 +246,11 @@ void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
   PacketRecord& r = records_[packet_sequence % kPacketRecords];
   r.valid = true;
   r.sequence = packet_sequence;
-  r.tick = tick_;
-  max_packet_ids_ = std::max(max_packet_ids_, pending_ids_.size());
-  if (entries_.size() < kEntryRingPayloads * max_packet_ids_) {
-    // Grow (rarely: the largest payload so far grew); the payloads in flight lose their acks.
-    size_t capacity = 1024;
-    while (capacity < kEntryRingPayloads * max_packet_ids_) capacity *= 2;
-    entries_.assign(capacity, PacketEntry{});
-    for (PacketRecord& old : records_) old.valid = old.valid && &old == &r;
-  }
-  const size_t mask = entries_.size() - 1;
-  r.begin = entries_head_;
-  r.count = static_cast<uint32_t>(pending_ids_.size());
-  for (const PacketEntry& p : pending_ids_) entries_[entries_head_++ & mask] = p;
-  for (const PacketEntry& p : pending_ids_) {
-    Track& t = tracks_[p.slot];
-    if (t.serial != p.serial || !t.Usable(p.send_no + 1)) continue;
-    if (t.sent_no == 0 || p.send_no + 1 > t.sent_no) {
-      t.sent_no = p.send_no + 1;
-      t.sent_ref = tick_;
-      t.sent_at = now;
-      t.sent_acked = false;
-    }
-  }
+  r.payload = payload_no_;
+  PayloadRecord& p = payloads_[payload_no_ & (kPayloadRing - 1)];
+  p.number = payload_no_;
+  p.acked = false;
+  p.sent_at = now;
 }
 
 void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
@@ -183,26 +260,12 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
     return;
   }
   r.valid = false;
-  if (entries_head_ - r.begin > entries_.size()) {  // overwritten: as if lost
+  PayloadRecord& p = payloads_[r.payload & (kPayloadRing - 1)];
+  if (p.number != r.payload) {  // overwritten: as if lost
     ++stats_.acks_unmatched;
     return;
   }
-  const size_t mask = entries_.size() - 1;
-  for (uint64_t i = r.begin; i < r.begin + r.count; ++i) {
-    const PacketEntry& p = entries_[i & mask];
-    Track& t = tracks_[p.slot];
-    if (t.serial != p.serial) {  // gone (Forget) or the slot has another occupant now
-      ++stats_.acks_unmatched;
-      continue;
-    }
-    const uint32_t no = p.send_no + 1;
-    if (!t.Usable(no)) continue;  // overwritten: the client may no longer hold it
-    if (t.sent_no == no) t.sent_acked = true;
-    if (no > t.acked_no) {
-      t.acked_no = no;
-      t.acked_key = {r.tick, p.s1, p.s2, p.depth};
-    }
-  }
+  p.acked = true;
 }
 
 SharedDeltaStream::Track& SharedDeltaStream::ClaimTrack(uint32_t id, const SharedEntity& entity,
@@ -237,13 +300,14 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
                                                       const EntityState& truth,
                                                       float pos_threshold_m,
                                                       float rot_threshold_deg, double now,
-                                                      double resend_after_s) const {
+                                                      double resend_after_s) {
   (void)id;
   const uint32_t s = entity.slot();
   if (s >= tracks_.size() || tracks_[s].serial != entity.serial() || entity.serial() == 0) {
     return UpdateNeed::kSend;
   }
-  const Track& t = tracks_[s];
+  Track& t = tracks_[s];
+  Resolve(t);
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   if (rot_threshold_deg != min_dot_for_deg_) {
     min_dot_for_deg_ = rot_threshold_deg;
@@ -256,9 +320,13 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
                             lattice_min_dot_);
   };
   if (t.Usable(t.acked_no) && within(t.acked_key.ref)) return UpdateNeed::kAckedWithin;
-  if (t.Usable(t.sent_no) && !t.sent_acked && now - t.sent_at < resend_after_s &&
-      within(t.sent_ref)) {
-    return UpdateNeed::kInFlightWithin;
+  // The newest send, if it left, is not acknowledged yet and is still within its resend time.
+  if (t.next > t.acked_no) {
+    const Sent& newest = t.sends[(t.next - 1) % kRememberedSends];
+    const PayloadRecord* p = SentPayload(newest.payload);
+    if (p != nullptr && !p->acked && now - p->sent_at < resend_after_s && within(newest.tick)) {
+      return UpdateNeed::kInFlightWithin;
+    }
   }
   return UpdateNeed::kSend;
 }

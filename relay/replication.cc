@@ -240,12 +240,13 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
                                                         const View& v, PriorityClass cls,
                                                         double now, double resend_after,
                                                         RelayCounters& counters) {
+  (void)v;  // its extras (key samples' sent_state_time) are by the entity's slot
   using Need = DeltaEncoder::UpdateNeed;
   if (!config_.velocities) {
     const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
                                    config_.rotation_threshold_deg, now, resend_after);
     if (need != Need::kSend || !KeySampled(e, cls)) return need;
-    const KeyDue due = KeySampleDue(id, e, v.sent_state_time);
+    const KeyDue due = KeySampleDue(id, e, view_extras_[e.slot].sent_state_time);
     last_due_ = due;
     if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
     if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
@@ -288,8 +289,20 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
 
   candidates_.clear();
-  for (const Entity* entity : frame.by_id) {  // by id: candidates_ come out in id order
-    const Entity& e = *entity;
+  // The walk below is bound by loading this receiver's per-entity records (views_, the format-9
+  // stream's tracks) from beyond the core's cache: start loading them a few entities ahead.
+  constexpr size_t kPrefetchAhead = 8;
+  const size_t entity_count = frame.by_id.size();
+  for (size_t i = 0; i < entity_count; ++i) {  // by id: candidates_ come out in id order
+    if (i + kPrefetchAhead < entity_count) {
+      const uint32_t ahead = frame.by_id[i + kPrefetchAhead]->slot;
+      if (ahead < views_.size()) {
+        __builtin_prefetch(&views_[ahead]);
+        __builtin_prefetch(reinterpret_cast<const char*>(&views_[ahead]) + sizeof(View) - 1);
+      }
+      if (shared_ != nullptr) shared_->Prefetch(ahead);
+    }
+    const Entity& e = *frame.by_id[i];
     const uint32_t id = e.id;
     if (e.owner == self) continue;
     View& v = ViewOf(e);
@@ -304,12 +317,12 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         want = true;  // fixed rate, changed or not
         break;
       case ReplicationMode::kPaper:
-        if (v.ever_sent) {
+        if (const ViewExtra& x = view_extras_[e.slot]; x.ever_sent) {
           fields = 0;
-          if (Distance(e.state.position, v.last_sent_state.position) > config_.position_threshold_m) {
+          if (Distance(e.state.position, x.last_sent_state.position) > config_.position_threshold_m) {
             fields |= kFieldPosition;
           }
-          if (AngleDeg(e.state.rotation, v.last_sent_state.rotation) > config_.rotation_threshold_deg) {
+          if (AngleDeg(e.state.rotation, x.last_sent_state.rotation) > config_.rotation_threshold_deg) {
             fields |= kFieldRotation;
           }
         }
@@ -395,7 +408,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         encoder_->Begin(payload_, payload_ms);
         if (!add()) continue;
       }
-      in_payload_.emplace_back(c.id, c.entity->version);
+      if (shared_ == nullptr) in_payload_.emplace_back(c.id, c.entity->version);  // format 9: count()
       if (delta_ != nullptr) {  // counted here, added to the shared counters once a tick
         static_assert(kRecordPartCount == 6 && static_cast<int>(KeyDue::kMaxInterval) == 2);
         ++records_tick_[c.cause];
@@ -405,7 +418,6 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       }
       View& v = views_[c.entity->slot];
       v.last_sent = now;
-      v.sent_state_time = payload_ms / 1000.0;
       double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
       // Room-wide send schedule: the entity is due at the points of a grid of its interval,
       // with a phase of its own (from its id) but the same for every receiver, so the room's
@@ -420,9 +432,13 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       } else {
         v.next_due = now + interval;  // a rate of 0: never again on schedule
       }
-      if (c.fields & kFieldPosition) v.last_sent_state.position = c.entity->state.position;
-      if (c.fields & kFieldRotation) v.last_sent_state.rotation = c.entity->state.rotation;
-      v.ever_sent = true;
+      if (!view_extras_.empty()) {
+        ViewExtra& x = view_extras_[c.entity->slot];
+        x.sent_state_time = payload_ms / 1000.0;
+        if (c.fields & kFieldPosition) x.last_sent_state.position = c.entity->state.position;
+        if (c.fields & kFieldRotation) x.last_sent_state.rotation = c.entity->state.rotation;
+        x.ever_sent = true;
+      }
     }
     Flush(now, connection, out, counters);
   }
@@ -439,6 +455,8 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
 
 void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& out,
                              RelayCounters& counters) {
+  // Format 9 keeps no per-entity list here (its stream records the sends): its count.
+  const size_t entities = shared_ != nullptr ? shared_->count() : in_payload_.size();
   size_t size = encoder_->Finish();
   if (size == 0) {
     in_payload_.clear();
@@ -453,7 +471,7 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
     } else {
       for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
     }
-    RelayCounters::Inc(counters.entity_updates_sent, in_payload_.size());
+    RelayCounters::Inc(counters.entity_updates_sent, entities);
     if (shared_ != nullptr) {
       const SharedDeltaStreamStats& st = shared_->stats();
       RelayCounters::Inc(counters.shared_bodies_cached, st.cache_hits - shared_hits_counted_);
@@ -466,9 +484,9 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
     shared_entities_counted_ = shared_->stats().entities;
   }
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
-  if (!in_payload_.empty()) {
+  if (entities > 0) {
     // Running estimate of one entity's encoded size, for budget decisions before encoding.
-    double per_entity = static_cast<double>(size) / static_cast<double>(in_payload_.size());
+    double per_entity = static_cast<double>(size) / static_cast<double>(entities);
     bytes_per_entity_ = 0.8 * bytes_per_entity_ + 0.2 * per_entity;
   }
   in_payload_.clear();
@@ -508,7 +526,7 @@ void ClientReplicator::Forget(uint32_t entity_id) {
   if (delta_ != nullptr) delta_->Forget(entity_id);
   if (shared_ != nullptr) shared_->Forget(entity_id);
   if (const uint32_t* slot = view_slot_of_.Find(entity_id); slot != nullptr) {
-    views_[*slot] = View{};
+    ResetView(*slot);
     view_slot_of_.Erase(entity_id);
     --live_views_;
   }
@@ -525,15 +543,23 @@ ClientReplicator::View& ClientReplicator::ViewOf(const Entity& e) {
     --live_views_;
   }
   if (const uint32_t* old = view_slot_of_.Find(e.id); old != nullptr && *old != e.slot) {
-    views_[*old] = View{};  // the id's previous entity, in another slot
+    ResetView(*old);  // the id's previous entity, in another slot
     --live_views_;
   }
-  v = View{};
+  ResetView(e.slot);
   v.serial = e.serial;
   v.id = e.id;
   *view_slot_of_.TryEmplace(e.id).first = e.slot;
   ++live_views_;
   return v;
+}
+
+void ClientReplicator::ResetView(uint32_t slot) {
+  views_[slot] = View{};
+  if (UsesViewExtras()) {
+    if (view_extras_.size() < views_.size()) view_extras_.resize(views_.size());
+    view_extras_[slot] = ViewExtra{};
+  }
 }
 
 size_t ClientReplicator::tracked_entities() const {

@@ -192,20 +192,26 @@ class ClientReplicator {
   // Bytes a datagram costs beyond its state payload (connection header + chunk header).
   static constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
 
-  // One per entity slot (Entity::slot), valid while `serial` equals the entity's.
+  // One per entity slot (Entity::slot), valid while `serial` equals the entity's. 32 bytes:
+  // every receiver reads one per entity each tick (the walk is bound by loading them), so
+  // what only some modes need is in ViewExtra.
   struct View {
     uint32_t serial = 0;  // 0: free
     uint32_t id = 0;
     double last_sent = -1e9;
     double next_due = -1e9;
-    double accumulator = 0;
-    EntityState last_sent_state;  // paper mode's significance test
-    double sent_state_time = 0;   // the time the newest state sent was stamped with (s)
-    bool ever_sent = false;
     // edgephys mode: the entity version whose state the client has acknowledged within the
     // thresholds (nothing to send until the version changes); 0 = none.
     uint32_t settled_version = 0;
   };
+  // Beside views_ (same slot), only in paper mode and key-sample rooms (UsesViewExtras).
+  struct ViewExtra {
+    EntityState last_sent_state;  // paper mode's significance test
+    double sent_state_time = 0;   // the time the newest state sent was stamped with (s)
+    bool ever_sent = false;
+  };
+  bool UsesViewExtras() const { return paper_ != nullptr || StampsStateTime(); }
+  void ResetView(uint32_t slot);
   struct Candidate {
     double priority;
     uint32_t id;
@@ -289,6 +295,7 @@ class ClientReplicator {
   uint64_t shared_entities_counted_ = 0;
   ReplicationTracker tracker_;              // acks for float / emulation modes
   std::vector<View> views_;            // by entity slot: walked densely, no lookups
+  std::vector<ViewExtra> view_extras_;  // by entity slot, UsesViewExtras() only
   FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
   size_t live_views_ = 0;
   std::vector<Candidate> candidates_;
