@@ -12,59 +12,16 @@
 
 #include "protocol/shared_delta_codec.h"
 #include "protocol/testing/codec_test_util.h"
+#include "protocol/testing/shared_delta_harness.h"
 
 namespace edgephys {
 namespace {
 
 using testing_util::PositionError;
 
-QuantizationParams Params() { return *MakeQuantizationParams(QuantizationConfig{}); }
-
 EntityState At(float x) { return {0, {x, 1, 2}, {0, 0, 0, 1}}; }
 
-struct Harness {
-  QuantizationParams params = Params();
-  SharedDeltaRoom room{params};
-  SharedDeltaStream stream{params};
-  SharedDeltaDecoder decoder{params};
-  uint16_t seq = 0;
-  uint32_t time_ms = 0;
-  std::vector<uint8_t> buf = std::vector<uint8_t>(1179);
-
-  void Tick(const std::vector<std::pair<SharedEntity*, EntityState>>& entities) {
-    time_ms += 16;
-    room.BeginTick(time_ms);
-    for (const auto& [e, s] : entities) room.PrepareEntity(*e, PrepareState(params, s));
-  }
-  // Encodes `ids` (increasing) in one payload; `sent`: handed to the connection (OnSent).
-  std::pair<uint16_t, std::vector<uint8_t>> Send(
-      const std::vector<std::pair<uint32_t, SharedEntity*>>& ids, bool sent = true) {
-    stream.Begin(buf, time_ms);
-    for (const auto& [id, e] : ids) EXPECT_TRUE(stream.Add(id, *e)) << id;
-    const size_t n = stream.Finish();
-    EXPECT_GT(n, 0u);
-    uint16_t s = 0;
-    if (sent) {
-      s = seq++;
-      stream.OnSent(s, time_ms / 1000.0);
-    }
-    return {s, std::vector<uint8_t>(buf.begin(), buf.begin() + n)};
-  }
-  // Decodes `payload`; returns the reference distance (ticks) of entity `id`'s record, -1 for
-  // a keyframe, and its decoded state in *state.
-  int64_t Decode(const std::vector<uint8_t>& payload, uint32_t id, EntityState* state) {
-    StateBatch batch;
-    EXPECT_TRUE(decoder.Decode(payload, &batch).ok());
-    for (const EntityState& s : batch.states) {
-      if (s.entity_id == id) *state = s;
-    }
-    for (const auto& r : decoder.last_references()) {
-      if (r.id == id) return r.reference < 0 ? -1 : r.tick - r.reference;
-    }
-    ADD_FAILURE() << "entity " << id << " not decoded";
-    return -2;
-  }
-};
+using Harness = testing_util::SharedDeltaHarness;
 
 TEST(SharedDeltaAcks, ReorderedAndDuplicatedAcksKeepTheNewestSendAsBaseline) {
   Harness h;
@@ -158,7 +115,7 @@ TEST(SharedDeltaAcks, APayloadThatNeverLeftIsNeverABaseline) {
 // versions are irregular (changes in runs of consecutive ticks, with gaps), every reference age
 // must answer as a direct comparison with the version current at that tick would.
 TEST(SharedDeltaAcks, HeldWithinAnswersEveryAgeOfAnIrregularHistory) {
-  const QuantizationParams params = Params();
+  const QuantizationParams params = *MakeQuantizationParams(QuantizationConfig{});
   SharedDeltaRoom room(params, /*versions_per_entity=*/64);
   SharedEntity e;
   std::vector<float> x_at_tick(1, 0.0f);  // by tick; tick 0 unused

@@ -11,49 +11,14 @@
 
 #include "protocol/shared_delta_codec.h"
 #include "protocol/testing/codec_test_util.h"
+#include "protocol/testing/shared_delta_harness.h"
 
 namespace edgephys {
 namespace {
 
 using testing_util::PositionError;
 
-QuantizationParams Params() { return *MakeQuantizationParams(QuantizationConfig{}); }
-
-struct Harness {
-  QuantizationParams params = Params();
-  SharedDeltaRoom room{params};
-  SharedDeltaStream stream{params};
-  SharedDeltaDecoder decoder{params};
-  uint16_t seq = 0;
-  uint32_t time_ms = 0;
-  std::vector<uint8_t> buf = std::vector<uint8_t>(1179);
-
-  void Tick(const std::vector<std::pair<SharedEntity*, EntityState>>& entities) {
-    time_ms += 16;
-    room.BeginTick(time_ms);
-    for (const auto& [e, s] : entities) room.PrepareEntity(*e, PrepareState(params, s));
-  }
-  // Sends `ids` (increasing) in one payload; returns its sequence and bytes.
-  std::pair<uint16_t, std::vector<uint8_t>> Send(
-      const std::vector<std::pair<uint32_t, SharedEntity*>>& ids) {
-    stream.Begin(buf, time_ms);
-    for (const auto& [id, e] : ids) EXPECT_TRUE(stream.Add(id, *e)) << id;
-    const size_t n = stream.Finish();
-    EXPECT_GT(n, 0u);
-    const uint16_t s = seq++;
-    stream.OnSent(s, time_ms / 1000.0);
-    return {s, std::vector<uint8_t>(buf.begin(), buf.begin() + n)};
-  }
-  EntityState Decode(const std::vector<uint8_t>& payload, uint32_t id) {
-    StateBatch batch;
-    EXPECT_TRUE(decoder.Decode(payload, &batch).ok());
-    for (const EntityState& s : batch.states) {
-      if (s.entity_id == id) return s;
-    }
-    ADD_FAILURE() << "entity " << id << " not decoded";
-    return {};
-  }
-};
+using Harness = testing_util::SharedDeltaHarness;
 
 EntityState At(float x) { return {0, {x, 1, 2}, {0, 0, 0, 1}}; }
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "protocol/testing/in_memory_network.h"
+#include "tests/integration/bulk_rooms.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -57,21 +58,10 @@ double RoomSeconds(const RelayCounters& counters, const std::string& room) {
 
 class BulkRoomTest : public ::testing::TestWithParam<size_t> {
  protected:
-  struct Member {
-    std::unique_ptr<DatagramSocket> socket;
-    std::unique_ptr<Client> client;
-    std::string room;
-    bool join_sent = false;
-  };
+  using Member = BulkRoomsMember;
 
   void SetUp() override {
-    RelayConfig config = LoopbackWorld::DefaultConfig();
-    config.physics_threads = GetParam();
-    config.room_defaults.tick_rate_hz = 30;
-    config.room_defaults.max_entities_per_player = 2000;
-    config.limits.spawns_per_s = 0;
-    config.limits.packets_per_s = 0;
-    config.limits.bytes_per_s = 0;
+    const RelayConfig config = BulkRoomsConfig(GetParam());
     const Endpoint relay_at(asio::ip::make_address("10.0.0.1"), 7777);
     relay_raw_ = network_.CreateSocket(relay_at);
     socket_ = std::make_unique<WatchingSocket>(relay_raw_.get());
@@ -81,35 +71,12 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
       now_ += light_room_phase_s_;
       ASSERT_TRUE(relay_->CreateRoom("b-light", config.room_defaults, now_).ok());
     }
-    ClientConfig cc;
-    cc.require_packet_auth = config.packet_auth;
-    // "a-bulk" sorts first in the relay's rooms.
-    for (const char* room : {"a-bulk", "a-bulk", "b-light", "b-light"}) {
-      Member m;
-      m.room = room;
-      m.socket = network_.CreateSocket(Endpoint(asio::ip::make_address("10.0.0.2"),
-                                                static_cast<uint16_t>(20000 + members_.size())));
-      m.client = std::make_unique<Client>(cc, m.socket.get());
-      ASSERT_TRUE(m.client->Connect(ToRelayAddress(relay_at),
-                                    MintToken(room, static_cast<uint32_t>(members_.size() + 1)), now_)
-                      .ok());
-      members_.push_back(std::move(m));
-    }
+    ConnectBulkRoomsMembers(network_, relay_at, config, now_, &members_);
+    ASSERT_FALSE(HasFatalFailure());
     for (int i = 0; i < 400 && !AllJoined(); ++i) Step(0.005);
     ASSERT_TRUE(AllJoined());
-    // The bulk room: 1,100 entities from its first member; the light room: one hand each.
-    for (int i = 0; i < 1100; ++i) {
-      auto id = members_[0].client->Spawn({.position = {0.01f * i, 0, 0}});
-      ASSERT_TRUE(id.ok());
-      bulk_.push_back(*id);
-    }
-    for (int k : {2, 3}) {
-      auto id = members_[k].client->Spawn({.position = {0, 1, 0}});
-      ASSERT_TRUE(id.ok());
-      light_.push_back(*id);
-    }
-    for (int i = 0; i < 400 && members_[1].client->entities().size() < bulk_.size(); ++i) Step(0.005);
-    ASSERT_EQ(members_[1].client->entities().size(), bulk_.size());
+    SpawnBulkAndLight(members_, [this](double dt) { Step(dt); }, &bulk_, &light_);
+    ASSERT_FALSE(HasFatalFailure());
   }
 
   bool AllJoined() const {
@@ -122,12 +89,7 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
   void Step(double dt) {
     now_ += dt;
     relay_->Update(now_, UnixNow());
-    for (Member& m : members_) {
-      m.client->Update(now_);
-      if (m.client->state() == ClientState::kConnected && !m.join_sent) {
-        m.join_sent = m.client->JoinRoom(m.room).ok();
-      }
-    }
+    for (Member& m : members_) m.Update(now_);
   }
 
   // Everything moves, then one step of a whole tick interval (both rooms tick).

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "protocol/testing/in_memory_network.h"
+#include "tests/integration/bulk_rooms.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -40,65 +41,26 @@ class RecordingSocket final : public DatagramSocket {
 class TickOrderTest : public ::testing::TestWithParam<size_t> {
  protected:
   void Run() {
-    RelayConfig config = LoopbackWorld::DefaultConfig();
-    config.physics_threads = GetParam();
-    config.room_defaults.tick_rate_hz = 30;
-    config.room_defaults.max_entities_per_player = 2000;
-    config.limits.spawns_per_s = 0;
-    config.limits.packets_per_s = 0;
-    config.limits.bytes_per_s = 0;
+    const RelayConfig config = BulkRoomsConfig(GetParam());
     const Endpoint relay_at(asio::ip::make_address("10.0.0.1"), 7777);
     auto relay_raw = network_.CreateSocket(relay_at);
     RecordingSocket socket(relay_raw.get());
     RelayCounters counters;
     Relay relay(config, &socket, &counters);
-    ClientConfig cc;
-    cc.require_packet_auth = config.packet_auth;
-    struct Member {
-      std::unique_ptr<DatagramSocket> socket;
-      std::unique_ptr<Client> client;
-      std::string room;
-      bool join_sent = false;
-    };
-    std::vector<Member> members;
-    for (const char* room : {"a-bulk", "a-bulk", "b-light", "b-light"}) {
-      Member m;
-      m.room = room;
-      m.socket = network_.CreateSocket(
-          Endpoint(asio::ip::make_address("10.0.0.2"), static_cast<uint16_t>(20000 + members.size())));
-      m.client = std::make_unique<Client>(cc, m.socket.get());
-      ASSERT_TRUE(m.client->Connect(ToRelayAddress(relay_at),
-                                    MintToken(room, static_cast<uint32_t>(members.size() + 1)), now_)
-                      .ok());
-      members.push_back(std::move(m));
-    }
+    std::vector<BulkRoomsMember> members;
+    ConnectBulkRoomsMembers(network_, relay_at, config, now_, &members);
+    ASSERT_FALSE(HasFatalFailure());
     auto step = [&](double dt) {
       now_ += dt;
       ++socket.update;
       relay.Update(now_, UnixNow());
-      for (Member& m : members) {
-        m.client->Update(now_);
-        if (m.client->state() == ClientState::kConnected && !m.join_sent) {
-          m.join_sent = m.client->JoinRoom(m.room).ok();
-        }
-      }
+      for (BulkRoomsMember& m : members) m.Update(now_);
     };
     for (int i = 0; i < 400 && !(members[0].client->joined() && members[3].client->joined()); ++i) step(0.005);
-    for (Member& m : members) ASSERT_TRUE(m.client->joined());
-    // The bulk room: 1,100 entities from its first member; the light room: one hand each.
+    for (BulkRoomsMember& m : members) ASSERT_TRUE(m.client->joined());
     std::vector<uint32_t> bulk, light;
-    for (int i = 0; i < 1100; ++i) {
-      auto id = members[0].client->Spawn({.position = {0.01f * i, 0, 0}});
-      ASSERT_TRUE(id.ok());
-      bulk.push_back(*id);
-    }
-    for (int k : {2, 3}) {
-      auto id = members[k].client->Spawn({.position = {0, 1, 0}});
-      ASSERT_TRUE(id.ok());
-      light.push_back(*id);
-    }
-    for (int i = 0; i < 400 && members[1].client->entities().size() < bulk.size(); ++i) step(0.005);
-    ASSERT_EQ(members[1].client->entities().size(), bulk.size());
+    SpawnBulkAndLight(members, step, &bulk, &light);
+    ASSERT_FALSE(HasFatalFailure());
     // Everything moves; steps of a whole tick interval, so both rooms tick in every update.
     const Endpoint bulk_receiver = members[1].socket->LocalEndpoint();
     const Endpoint light_receiver = members[3].socket->LocalEndpoint();
