@@ -119,6 +119,44 @@ std::vector<size_t> KeySamples(const std::vector<Pose>& truth, double threshold_
   return s;
 }
 
+// Key samples at the kink: when the line from the last sample a to the state now (b) strays,
+// the sample is the state in between that lies furthest from the line (the kink, at its own
+// time: the relay's recent states hold it), not the state now; the line from the kink to b is
+// checked again at once (it may need a kink of its own). `lookback` bounds how far back the
+// kink may lie (the relay's recent states: Entity::kRecentStates).
+std::vector<size_t> KinkSamples(const std::vector<Pose>& truth, double threshold_m, size_t max_gap,
+                                size_t lookback) {
+  std::vector<size_t> s = {0};
+  const double rot_threshold = threshold_m * 10.0;
+  for (size_t b = 1; b < truth.size(); ++b) {
+    for (;;) {
+      const size_t a = s.back();
+      size_t worst = 0;
+      double worst_excess = 0;
+      bool stray = false;
+      for (size_t j = a + 1; j < b; ++j) {
+        const Pose line = Lerp(truth[a], truth[b], static_cast<double>(j - a) / static_cast<double>(b - a));
+        const double excess = std::max(Dist(line.p, truth[j].p) / threshold_m,
+                                       AngleRad(line.q, truth[j].q) / rot_threshold);
+        stray = stray || excess > 1.0;
+        if (excess > 1.0 && excess > worst_excess && b - j <= lookback) {
+          worst_excess = excess;
+          worst = j;
+        }
+      }
+      if (worst == 0) {
+        if (stray) s.push_back(b);  // the kink is older than the states kept: the state now
+        break;
+      }
+      s.push_back(worst);
+    }
+    const size_t a = s.back();
+    if (b - a >= max_gap && Moved(truth[a], truth[b])) s.push_back(b);
+  }
+  if (s.back() != truth.size() - 1) s.push_back(truth.size() - 1);
+  return s;
+}
+
 const char* Arg(int argc, char** argv, const char* name, const char* fallback) {
   for (int i = 1; i + 1 < argc; ++i) {
     if (std::strcmp(argv[i], name) == 0) return argv[i + 1];
@@ -183,6 +221,13 @@ int main(int argc, char** argv) {
     for (size_t k = 0; k < n; ++k) Score(truth[k], KeySamples(truth[k], mm / 1000.0, max_gap), &o);
     char name[64];
     std::snprintf(name, sizeof(name), "key samples %.0f mm", mm);
+    report(name, o);
+  }
+  for (double mm : {10.0, 15.0, 20.0, 30.0, 40.0, 50.0}) {
+    Outcome o;
+    for (size_t k = 0; k < n; ++k) Score(truth[k], KinkSamples(truth[k], mm / 1000.0, max_gap, 30), &o);
+    char name[64];
+    std::snprintf(name, sizeof(name), "key samples at the kink %.0f mm", mm);
     report(name, o);
   }
   return 0;

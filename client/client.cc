@@ -492,6 +492,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
       if (j->state_format() == kDeltaStateFormat || j->state_format() == kVelocityDeltaStateFormat ||
           j->state_format() == kPreviousDeltaStateFormat ||
+          j->state_format() == kTimedDeltaStateFormat ||
           j->state_format() == kSharedDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
@@ -603,8 +604,10 @@ Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
     case kDeltaStateFormat:
     case kVelocityDeltaStateFormat:
     case kPreviousDeltaStateFormat:
+    case kTimedDeltaStateFormat:
       batch_.states.clear();
       batch_.velocities.clear();
+      batch_.times_ms.clear();
       if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");
       return delta_decoder_->Decode(payload, &batch_);
     case kSharedDeltaStateFormat:
@@ -664,6 +667,9 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
   // ids in our block and for ids not seen yet.
   const bool with_velocity = batch_.velocities.size() == batch_.states.size() &&
                              !payload.empty() && payload[0] == kVelocityDeltaStateFormat;
+  // Format 14: each state holds at its own time.
+  const bool with_times = batch_.times_ms.size() == batch_.states.size() && !payload.empty() &&
+                          payload[0] == kTimedDeltaStateFormat;
   for (size_t i = 0; i < batch_.states.size(); ++i) {
     const EntityState& st = batch_.states[i];
     const uint32_t id = st.entity_id;
@@ -680,7 +686,7 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     e.has_state = true;
     e.has_velocity = with_velocity;
     e.velocity = with_velocity ? batch_.velocities[i] : EntityVelocity{};
-    e.state_time_ms = batch_.time_ms;
+    e.state_time_ms = with_times ? batch_.times_ms[i] : batch_.time_ms;
     e.arrival_unix_s = packet_arrival_unix_s_;
     if (e.spawned) listener_->OnEntityUpdated(e);
   }

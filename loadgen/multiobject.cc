@@ -296,6 +296,9 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   if (o.key_sample_rotation_deg > 0) rep.key_sample_rotation_deg = o.key_sample_rotation_deg;
   if (o.key_sample_max_interval_s > 0) rep.key_sample_max_interval_s = o.key_sample_max_interval_s;
   if (o.key_sample_check_hz >= 0) rep.key_sample_check_hz = o.key_sample_check_hz;
+  rep.key_sample_at_kink = o.key_sample_at_kink;
+  rep.key_sample_arrival_stamp = o.key_sample_arrival_stamp;
+  rep.stamp_state_time = o.stamp_state_time;
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;

@@ -96,6 +96,9 @@ struct MultiObjectOptions {
   float key_sample_rotation_deg = -1.f;
   double key_sample_max_interval_s = 0;
   double key_sample_check_hz = -1;  // >= 0: ReplicationConfig::key_sample_check_hz
+  bool key_sample_at_kink = false;        // ReplicationConfig::key_sample_at_kink (format 14)
+  bool key_sample_arrival_stamp = false;  // ReplicationConfig::key_sample_arrival_stamp
+  bool stamp_state_time = false;          // ReplicationConfig::stamp_state_time
   // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
   // interpolating.
   double playout_min_delay_s = -1;

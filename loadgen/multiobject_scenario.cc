@@ -20,7 +20,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    extrapolation_max_hz, hermite_max_interval_s,
                                    playout_min_delay_s, key_sample_threshold_m,
                                    key_sample_rotation_deg, key_sample_max_interval_s,
-                                   key_sample_check_hz)
+                                   key_sample_check_hz, key_sample_at_kink,
+                                   key_sample_arrival_stamp, stamp_state_time)
 
 namespace {
 
@@ -232,6 +233,12 @@ class MultiObjectScenario final : public Scenario {
     cmd.add_option("--key-samples-check-hz", o_.key_sample_check_hz,
                    "Key samples: how often boxes are checked (ReplicationConfig::"
                    "key_sample_check_hz; <0: default 30; 0: every tick)");
+    cmd.add_flag("--key-samples-at-kink", o_.key_sample_at_kink,
+                 "Key samples: send the state at the kink with its own time (format 14)");
+    cmd.add_flag("--key-samples-arrival-stamp", o_.key_sample_arrival_stamp,
+                 "Key samples: stamp with the state's time plus the running mean lag to the tick");
+    cmd.add_flag("--stamp-state-time", o_.stamp_state_time,
+                 "Fixed rates: stamp PhyS bodies with the time their states hold");
     cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
                    "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
     cmd.add_option("--ambient-hz", o_.ambient_hz,

@@ -22,6 +22,8 @@ constexpr int kMaxK = 7;
 // The adaptive parameters' statistics are gathered on one delta record in this many (they
 // only rank the candidate orders and k; sampling cuts most of the encoder's cost).
 constexpr uint64_t kStatsSampleEvery = 4;
+// Format 14: the Exp-Golomb parameter of a record time's offset - 1 (ms): 5 bits up to 16 ms.
+constexpr int kRecordTimeK = 4;
 
 }  // namespace
 
@@ -259,7 +261,11 @@ constexpr uint16_t kVelocityParamsShift = 12;
 
 DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderOptions& options)
     : params_(params), options_(options), records_(kPacketRecords) {
-  if (options_.velocities) options_.previous_reference = false;  // format 12 has no such symbol
+  if (options_.velocities) {  // format 12 has no such symbol, nor record times
+    options_.previous_reference = false;
+    options_.record_times = false;
+  }
+  if (options_.record_times) options_.previous_reference = true;  // format 14 extends 13
   // A truth that quantises to a state lies within the quantisation error of that state's
   // dequantised value: half a cell's diagonal in position, the rotation bound in angle. The
   // 1 % slack only makes Need quantise a little more often than needed (the exact lattice
@@ -349,8 +355,14 @@ PreparedState PrepareState(const QuantizationParams& params, const EntityState& 
   return s;
 }
 
-bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
-                       const EntityVelocity* velocity) {
+bool DeltaEncoder::AddAt(const EntityState& truth, const PreparedState* prepared,
+                         uint32_t record_time_ms) {
+  if (!options_.record_times || time_ms_ - record_time_ms > kMaxRecordAgeMs) return false;
+  return AddRecord(truth, prepared, nullptr, record_time_ms);
+}
+
+bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prepared,
+                             const EntityVelocity* velocity, uint32_t record_time_ms) {
   if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
   const uint32_t id = truth.entity_id;
   if (count_ > 0 && id <= last_id_) return false;
@@ -433,7 +445,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     for (int o = 0; o < 3; ++o) {
       if (!sample && o != po) continue;
       Prediction pp;
-      PredictPosition(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pp);
+      PredictPosition(params_, base_hist, MakeTiming(base_hist, o, record_time_ms), &pp);
       pos_zero[o] = true;
       for (int a = 0; a < 3; ++a) {
         pos_res[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
@@ -443,7 +455,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     for (int o = 0; o < 3; ++o) {
       if (!sample && o != ro) continue;
       Prediction pr;
-      PredictRotation(params_, base_hist, MakeTiming(base_hist, o, time_ms_), &pr);
+      PredictRotation(params_, base_hist, MakeTiming(base_hist, o, record_time_ms), &pr);
       const int li = q.rotation.largest;
       const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
       rot_same[o] = li == pr.largest;
@@ -496,6 +508,13 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     }
   }
   const size_t at_rot = w.bit_position();
+  // Format 14: the record's time, back from the payload's.
+  if (options_.record_times) {
+    const uint32_t offset = time_ms_ - record_time_ms;  // <= kMaxRecordAgeMs (AddAt)
+    ok = ok && w.WriteBit(offset != 0);
+    if (offset != 0) ok = ok && w.WriteExpGolomb(offset - 1, kRecordTimeK);
+  }
+  const size_t at_time = w.bit_position();
   // Format 12: the velocity, absolute.
   QuantizedVelocity qv;
   double add_velocity[2][4] = {};
@@ -522,7 +541,8 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
 
   // Committed: record the state as sent-in-this-payload.
   last_bits_[kRecordPartId] = static_cast<uint32_t>(at_id - mark);
-  last_bits_[kRecordPartReference] = static_cast<uint32_t>(at_ref - at_id);
+  last_bits_[kRecordPartReference] =
+      static_cast<uint32_t>(at_ref - at_id) + static_cast<uint32_t>(at_time - at_rot);
   last_bits_[kRecordPartKeyframe] = keyframe ? static_cast<uint32_t>(at_rot - at_ref) : 0;
   last_bits_[kRecordPartMask] = keyframe ? 0 : static_cast<uint32_t>(at_mask - at_ref);
   last_bits_[kRecordPartPosition] = keyframe ? 0 : static_cast<uint32_t>(at_pos - at_mask);
@@ -565,7 +585,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared,
     e.position = prepared->position;
     e.rotation = prepared->rotation;
   }
-  e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(q, prepared->rot4, time_ms_));
+  e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(q, prepared->rot4, record_time_ms));
   e.velocity = qv;
   pending_ids_.emplace_back(id, slot);
   payload_used_ = true;
@@ -579,6 +599,7 @@ size_t DeltaEncoder::Finish() {
   phase_ = Phase::kFinished;
   uint8_t* p = out_.data();
   p[0] = options_.velocities            ? kVelocityDeltaStateFormat
+         : options_.record_times       ? kTimedDeltaStateFormat
          : options_.previous_reference ? kPreviousDeltaStateFormat
                                        : kDeltaStateFormat;
   StoreU32LE(p + 1, time_ms_);
@@ -788,18 +809,19 @@ DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities
 void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
 
 Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed = Status::Malformed("malformed format-2/12 state payload");
+  const Status malformed = Status::Malformed("malformed format-2/12/13/14 state payload");
   auto fail = [&]() {
     ++stats_.malformed;
     return malformed;
   };
   if (payload.size() < kDeltaHeaderSize + 1 ||
       (payload[0] != kDeltaStateFormat && payload[0] != kVelocityDeltaStateFormat &&
-       payload[0] != kPreviousDeltaStateFormat)) {
+       payload[0] != kPreviousDeltaStateFormat && payload[0] != kTimedDeltaStateFormat)) {
     return fail();
   }
   const bool velocities = payload[0] == kVelocityDeltaStateFormat;
-  const bool previous_symbol = payload[0] == kPreviousDeltaStateFormat;
+  const bool record_times = payload[0] == kTimedDeltaStateFormat;
+  const bool previous_symbol = payload[0] == kPreviousDeltaStateFormat || record_times;
   const uint32_t time_ms = LoadU32LE(payload.data() + 1);
   const uint16_t counter16 = LoadU16LE(payload.data() + 5);
   int k[2];
@@ -835,6 +857,18 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
       return fail();
     }
     s.id = f.id;
+    s.time_ms = time_ms;
+    if (record_times) {  // format 14: the record's own time
+      bool own = false;
+      if (!r.ReadBit(&own)) return fail();
+      uint32_t back = 0;
+      if (own && !r.ReadExpGolomb(kRecordTimeK, &back)) return fail();
+      if (own && back >= kMaxRecordAgeMs) {
+        ++stats_.record_times_refused;
+        return fail();
+      }
+      s.time_ms = time_ms - (own ? back + 1 : 0);
+    }
     if (velocities) {
       bool moving = false;
       if (!r.ReadBit(&moving)) return fail();
@@ -850,7 +884,7 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
       s.keyframe = true;
       s.q = f.q;
       s.resolved = true;
-      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
+      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, s.time_ms));
     } else {
       s.reference = f.previous ? -1 : counter - f.distance;
       // Resolve the reference: exact payload counter match (format 13's "previous": the highest
@@ -873,9 +907,9 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
         }
       }
       if (base != nullptr) {
-        if (!ReconstructDelta(params_, base->hist, order, time_ms, f, &s.q)) return fail();
+        if (!ReconstructDelta(params_, base->hist, order, s.time_ms, f, &s.q)) return fail();
         s.resolved = true;
-        s.hist = ExtendHistory(&base->hist, MakeSample(params_, s.q, time_ms));
+        s.hist = ExtendHistory(&base->hist, MakeSample(params_, s.q, s.time_ms));
       }
     }
     staged_.push_back(s);
@@ -892,6 +926,7 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
   out->time_ms = time_ms;
   last_references_.clear();
   if (velocities) out->velocities.resize(out->states.size());
+  if (record_times) out->times_ms.resize(out->states.size(), time_ms);
   for (const Staged& s : staged_) {
     if (!s.resolved) {
       ++stats_.unresolved_references;
@@ -917,6 +952,7 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     if (OutputIfNewer(params_, s.id, s.q, counter, &t.newest_output, out)) {
       ++stats_.entities;
       if (velocities) out->velocities.push_back(DequantizeVelocity(s.velocity));
+      if (record_times) out->times_ms.push_back(s.time_ms);
     } else {
       ++stats_.stale_skipped;
     }

@@ -84,6 +84,16 @@ inline constexpr uint8_t kVelocityDeltaStateFormat =
 inline constexpr uint8_t kPreviousDeltaStateFormat =
     static_cast<uint8_t>(StateFormat::kQuantizedDeltaPrevious);
 
+// State format 14, "quantized delta, timed records" (docs/protocol.md §5i): format 13 whose every
+// record ends with its own time: 1 bit, 0 = the payload's time; 1 = an offset back from it, in
+// ms, Exp-Golomb (k = 4) of offset - 1, at most kMaxRecordAgeMs. A record's prediction runs to
+// its own time. Key samples at the kink send PhyS's state at the kink, with the time it holds,
+// rather than the present one (docs/benchmarks.md, "Display error, session 11").
+inline constexpr uint8_t kTimedDeltaStateFormat =
+    static_cast<uint8_t>(StateFormat::kQuantizedDeltaTimed);
+// Largest offset of a format-14 record's time before its payload's (ms); larger is malformed.
+inline constexpr uint32_t kMaxRecordAgeMs = 2000;
+
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by
   // entity id). Bounds how long a broken baseline chain can last (see the header comment);
@@ -93,6 +103,9 @@ struct DeltaEncoderOptions {
   bool velocities = false;
   // Send format 13 (ignored with `velocities`): "the previous version" references.
   bool previous_reference = false;
+  // Send format 14 (ignored with `velocities`; implies previous_reference): records may hold at
+  // times of their own (AddAt).
+  bool record_times = false;
 };
 
 // Parts of an entity record (DeltaEncoderStats::record_part_bits): the id gap, the reference
@@ -170,7 +183,16 @@ class DeltaEncoder final : public StateEncoder {
   // With DeltaEncoderOptions::velocities, `velocity` is the entity's (nullptr: at rest); it is
   // quantised (QuantizeVelocity) and ignored without that option.
   bool Add(const EntityState& truth, const PreparedState* prepared,
-           const EntityVelocity* velocity = nullptr);
+           const EntityVelocity* velocity = nullptr) {
+    return AddRecord(truth, prepared, velocity, time_ms_);
+  }
+  // Format 14 (DeltaEncoderOptions::record_times): Add a state that holds at `record_time_ms`
+  // (the sender's clock), not at the payload's time: at most kMaxRecordAgeMs before it and not
+  // after it, else false and nothing written (as without record_times). The record's time costs
+  // 1 bit at the payload's time, 7-13 bits at an offset of 16 ms-1 s; it is counted in the
+  // reference part of last_record_bits(). Entity `id`'s times must increase from one Add to the
+  // next for good prediction.
+  bool AddAt(const EntityState& truth, const PreparedState* prepared, uint32_t record_time_ms);
   size_t count() const override { return count_; }
   // Completes the payload; returns its size in bytes (0 if nothing was added).
   size_t Finish() override;
@@ -225,6 +247,8 @@ class DeltaEncoder final : public StateEncoder {
   // The bits by part of the record the last successful Add wrote (DeltaRecordPart).
   const std::array<uint32_t, kRecordPartCount>& last_record_bits() const { return last_bits_; }
   const QuantizationParams& params() const { return params_; }
+  // True when this encoder sends format 14 (AddAt takes record times).
+  bool record_times() const { return options_.record_times; }
 
   // Implementation types (public for the shared prediction code in delta_codec.cc).
   struct Sample {
@@ -285,6 +309,8 @@ class DeltaEncoder final : public StateEncoder {
 
   const Entry* NewestAcked(const Track& t) const;
   void ChooseParams();
+  bool AddRecord(const EntityState& truth, const PreparedState* prepared,
+                 const EntityVelocity* velocity, uint32_t record_time_ms);
 
   QuantizationParams params_;
   DeltaEncoderOptions options_;
@@ -336,15 +362,18 @@ struct DeltaDecoderStats {
   uint64_t unresolved_references = 0;  // records skipped: reference not held (see header)
   uint64_t stale_skipped = 0;          // records decoded but older than the output state
   uint64_t capacity_dropped = 0;       // keyframes for new entities beyond max_entities
+  // Format 14: payloads refused for a record time offset beyond kMaxRecordAgeMs (also counted
+  // in `malformed`).
+  uint64_t record_times_refused = 0;
 };
 
-// Receiver side, one per format-2, format-12 or format-13 stream (the payload's first byte says
-// which; format 12 also fills StateBatch::velocities).
+// Receiver side, one per format-2, format-12, format-13 or format-14 stream (the payload's first
+// byte says which; format 12 also fills StateBatch::velocities, format 14 StateBatch::times_ms).
 class DeltaDecoder {
  public:
   explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
 
-  // Decodes one format-2, -12 or -13 payload (untrusted). On success sets out->time_ms and APPENDS the
+  // Decodes one format-2, -12, -13 or -14 payload (untrusted). On success sets out->time_ms and APPENDS the
   // decoded states that are newer than any state output before for their entity (in
   // increasing id order). Malformed input (truncation, trailing bits, bad header, values out
   // of range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder are
@@ -384,6 +413,7 @@ class DeltaDecoder {
     QuantizedState q;
     DeltaEncoder::History hist;
     QuantizedVelocity velocity;
+    uint32_t time_ms = 0;  // the time the record holds
   };
 
   QuantizationParams params_;

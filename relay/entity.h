@@ -95,6 +95,9 @@ struct ReplicationFrame {
   std::vector<const Entity*> by_id;  // every entity, by increasing id
   std::vector<const Entity*> soft;   // soft bodies with particles, by increasing id
   std::vector<Vec3f> hands;          // positions of the Hand entities (soft-body touch test)
+  // A running mean of how long PhyS's states take to reach the relay (arrival - the time they
+  // hold, Room::ObservePhysicsLag), s; < 0 until an embedded world's first output.
+  double physics_lag_s = -1;
 };
 
 struct Member {

@@ -158,6 +158,14 @@ int main(int argc, char** argv) {
                  "With --key-samples: how often untouched bodies are checked, so that their "
                  "samples share datagrams (0: every tick)")
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+  app.add_flag("--key-samples-at-kink", rep.key_sample_at_kink,
+               "With --key-samples: send the state at the kink, with its own time (state format "
+               "14), instead of the present state when a line strays");
+  app.add_flag("--key-samples-arrival-stamp", rep.key_sample_arrival_stamp,
+               "With --key-samples: stamp PhyS bodies with their state's time plus the running "
+               "mean of how far PhyS's newest state trails the tick");
+  app.add_flag("--stamp-state-time", rep.stamp_state_time,
+               "Format 2: stamp PhyS bodies with the time their states hold, not the tick's");
   app.add_option("--interaction-linger", rep.interaction_linger_s,
                  "Seconds an entity stays out of the ambient class after a grab, release or event")
       ->capture_default_str()->check(CLI::Range(0.0, 3600.0));

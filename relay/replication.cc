@@ -15,6 +15,8 @@ constexpr size_t kEntitiesPerPacketEstimate = 64;
 // Format 12: a body whose state has not changed for this long is sent at rest (PhyS reports
 // only bodies that moved, so its last velocity may be a sleeping body's leftover).
 constexpr double kRestingVelocityAfterS = 0.1;
+// key_sample_arrival_stamp: the largest shift applied (a stalled world's lag is not copied).
+constexpr double kMaxStampLagS = 0.25;
 
 double Weight(PriorityClass c) {
   switch (c) {
@@ -103,6 +105,7 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
         DeltaEncoderOptions options;
         options.velocities = config_.velocities;
         options.previous_reference = UsesPreviousReference(config_);
+        options.record_times = UsesRecordTimes(config_);
         auto delta = std::make_unique<DeltaEncoder>(*params, options);
         delta_ = delta.get();
         encoder_ = std::move(delta);
@@ -150,11 +153,13 @@ bool ClientReplicator::DeadReckoned(const Entity& e, PriorityClass c) const {
 }
 
 bool ClientReplicator::StampsStateTime() const {
-  return delta_ != nullptr && !config_.velocities && config_.key_sample_threshold_m > 0;
+  return delta_ != nullptr && !config_.velocities &&
+         (config_.key_sample_threshold_m > 0 || config_.stamp_state_time);
 }
 
 bool ClientReplicator::KeySampled(const Entity& e, PriorityClass c) const {
-  return StampsStateTime() && e.physics == PhysicsRole::kSimulated && c == PriorityClass::kAmbient;
+  return StampsStateTime() && config_.key_sample_threshold_m > 0 &&
+         e.physics == PhysicsRole::kSimulated && c == PriorityClass::kAmbient;
 }
 
 double ClientReplicator::IntervalFor(const Entity& e, PriorityClass c) const {
@@ -202,7 +207,8 @@ bool ClientReplicator::HermiteDue(uint32_t id, const Entity& e, double now) {
 }
 
 ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entity& e,
-                                                      double sent_state_time) {
+                                                      double sent_state_time, int* kink) {
+  *kink = -1;
   EntityState sent;
   EntityVelocity unused;
   uint32_t sent_ms = 0;
@@ -223,17 +229,29 @@ ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entit
   if (h <= 0) return KeyDue::kNo;
   const double thr = config_.key_sample_threshold_m;
   const double rot_thr = config_.key_sample_rotation_deg;
-  for (const Entity::RecentState& r : e.recent) {
+  // At the kink: the state furthest beyond the thresholds (in multiples of them) is the one to
+  // send; otherwise the first stray decides.
+  const bool at_kink = config_.key_sample_at_kink && delta_->record_times();
+  double worst = 1.0;
+  for (size_t i = 0; i < e.recent.size(); ++i) {
+    const Entity::RecentState& r = e.recent[i];
     const double into = r.t - sent_state_time;
     if (!(into > 0 && into < h)) continue;
     const float u = static_cast<float>(into / h);
     const Vec3f p{sent.position.x + (e.state.position.x - sent.position.x) * u,
                   sent.position.y + (e.state.position.y - sent.position.y) * u,
                   sent.position.z + (e.state.position.z - sent.position.z) * u};
-    if (Distance(p, r.position) > thr) return KeyDue::kStrayed;
-    if (AngleDeg(Nlerp(sent.rotation, e.state.rotation, u), r.rotation) > rot_thr) return KeyDue::kStrayed;
+    const double excess =
+        std::max(Distance(p, r.position) / thr,
+                 AngleDeg(Nlerp(sent.rotation, e.state.rotation, u), r.rotation) / rot_thr);
+    if (excess <= 1.0) continue;
+    if (!at_kink) return KeyDue::kStrayed;
+    if (excess > worst) {
+      worst = excess;
+      *kink = static_cast<int>(i);
+    }
   }
-  return KeyDue::kNo;
+  return *kink >= 0 ? KeyDue::kStrayed : KeyDue::kNo;
 }
 
 DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entity& e,
@@ -246,7 +264,7 @@ DeltaEncoder::UpdateNeed ClientReplicator::VelocityNeed(uint32_t id, const Entit
     const Need need = delta_->Need(id, e.state, config_.position_threshold_m,
                                    config_.rotation_threshold_deg, now, resend_after);
     if (need != Need::kSend || !KeySampled(e, cls)) return need;
-    const KeyDue due = KeySampleDue(id, e, view_extras_[e.slot].sent_state_time);
+    const KeyDue due = KeySampleDue(id, e, view_extras_[e.slot].sent_state_time, &last_kink_);
     last_due_ = due;
     if (due == KeyDue::kStrayed) RelayCounters::Inc(counters.key_samples_strayed);
     if (due == KeyDue::kMaxInterval) RelayCounters::Inc(counters.key_samples_max_interval);
@@ -289,6 +307,8 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
 
   candidates_.clear();
+  const bool arrival_stamp =
+      StampsStateTime() && config_.key_sample_threshold_m > 0 && config_.key_sample_arrival_stamp;
   // The walk below is bound by loading this receiver's per-entity records (views_, the format-9
   // stream's tracks) from beyond the core's cache: start loading them a few entities ahead.
   constexpr size_t kPrefetchAhead = 8;
@@ -312,6 +332,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
     last_due_ = KeyDue::kNo;
+    last_kink_ = -1;
     switch (config_.mode) {
       case ReplicationMode::kPhoton:
         want = true;  // fixed rate, changed or not
@@ -347,7 +368,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     if (!want) continue;
     double waiting = std::max(now - v.last_sent, IntervalFor(e, cls));
     candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields,
-                           static_cast<uint8_t>(last_due_)});
+                           static_cast<uint8_t>(last_due_), static_cast<int8_t>(last_kink_)});
   }
   if (candidates_.empty()) return;
   // Without a budget every candidate goes, already in id order (the delta formats code ids as
@@ -376,16 +397,24 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   // in payloads of their own, so that a receiver's straight lines run through PhyS's states at
   // their times, as KeySampleDue checks them; everything else goes with the tick's time.
   const bool physics_stamped = StampsStateTime();
+  auto to_ms = [](double t) { return static_cast<uint32_t>(static_cast<uint64_t>(t * 1000.0)); };
   uint32_t physics_ms = time_ms_;
+  // key_sample_arrival_stamp: what the wire's times add to the times the states hold (ms): the
+  // room's running mean of PhyS's lag, so that a receiver shows each state when the relay got
+  // it, on average. A running mean moves slowly: a line's two ends are shifted alike.
+  const uint32_t shift_ms = arrival_stamp && frame.physics_lag_s > 0
+                                ? to_ms(std::min(frame.physics_lag_s, kMaxStampLagS) + 0.0005)
+                                : 0;
   if (physics_stamped) {
     double newest = -1;
     for (const Candidate& c : selected_) {
       if (c.entity->physics == PhysicsRole::kSimulated) newest = std::max(newest, c.entity->state_time);
     }
-    if (newest >= 0 && newest <= now) physics_ms = static_cast<uint32_t>(static_cast<uint64_t>(newest * 1000.0));
+    if (newest >= 0 && newest <= now) physics_ms = to_ms(newest);
   }
   for (int pass = physics_stamped ? 0 : 1; pass < 2; ++pass) {
-    const uint32_t payload_ms = pass == 0 ? physics_ms : time_ms_;
+    const uint32_t payload_ms = pass == 0 ? physics_ms + shift_ms : time_ms_;
+    const uint32_t applied_shift_ms = pass == 0 ? payload_ms - physics_ms : 0;
     encoder_->Begin(payload_, payload_ms);
     in_payload_.clear();
     for (const Candidate& c : selected_) {
@@ -395,6 +424,13 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         if (shared_ != nullptr) {  // the room codes the body once for every receiver
           return c.entity->shared != nullptr && c.entity->prepared_valid &&
                  shared_->Add(c.id, *c.entity->shared);
+        }
+        if (delta_ != nullptr && c.kink >= 0) {  // format 14: the kink, at its own time
+          const Entity::RecentState& r = c.entity->recent[static_cast<size_t>(c.kink)];
+          EntityState s = c.entity->state;
+          s.position = r.position;
+          s.rotation = r.rotation;
+          return delta_->AddAt(s, nullptr, to_ms(r.t) + applied_shift_ms);
         }
         if (delta_ != nullptr) {  // the room quantised it once for every receiver
           return delta_->Add(c.entity->state,
@@ -434,7 +470,9 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
       }
       if (!view_extras_.empty()) {
         ViewExtra& x = view_extras_[c.entity->slot];
-        x.sent_state_time = payload_ms / 1000.0;
+        // The time the record holds, unshifted (KeySampleDue draws lines in state times).
+        x.sent_state_time = c.kink >= 0 ? c.entity->recent[static_cast<size_t>(c.kink)].t
+                                        : (payload_ms - applied_shift_ms) / 1000.0;
         if (c.fields & kFieldPosition) x.last_sent_state.position = c.entity->state.position;
         if (c.fields & kFieldRotation) x.last_sent_state.rotation = c.entity->state.rotation;
         x.ever_sent = true;

@@ -128,6 +128,22 @@ struct ReplicationConfig {
   // datagrams (each costs ~55 bytes of headers and seal); the max interval is then checked one
   // period early, so that no sample is sent later than without it. 0: every tick.
   double key_sample_check_hz = 30;
+  // Key samples: when a line strays, send the recent PhyS state furthest beyond the thresholds
+  // (the kink), with the time it holds, instead of the present state, so that the receiver's
+  // line passes through the kink (state format 14: records with times of their own). The next
+  // check draws the line from the kink. Off by default (docs/benchmarks.md, "Display error,
+  // session 11").
+  bool key_sample_at_kink = false;
+  // Key samples: stamp PhyS bodies with the time their states hold plus the room's running mean
+  // of how long PhyS's states take to reach the relay (ReplicationFrame::physics_lag_s):
+  // receivers then show each state about when the relay got it, as the fixed rate's tick stamps
+  // do, instead of at the time PhyS computed it for, which the relay learns that much later.
+  // A slowly moving shift keeps every line straight; the check runs on the unshifted times.
+  // Off by default.
+  bool key_sample_arrival_stamp = false;
+  // Format 2 without key samples: stamp PhyS bodies with the time their states hold
+  // (Entity::state_time), in payloads of their own, instead of the tick's time. Off by default.
+  bool stamp_state_time = false;
   // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
   // versions, protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held,
   // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
@@ -149,6 +165,11 @@ inline bool UsesVelocities(const ReplicationConfig& config) {
 inline bool UsesPreviousReference(const ReplicationConfig& config) {
   return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding &&
          !config.velocities && config.key_sample_threshold_m > 0;
+}
+// True when rooms with `config` send format 14 (format 13 with records at times of their own):
+// key samples at the kink.
+inline bool UsesRecordTimes(const ReplicationConfig& config) {
+  return UsesPreviousReference(config) && config.key_sample_at_kink;
 }
 
 // True when rooms with `config` keep PhyS's recent states per entity (Entity::recent): the
@@ -218,6 +239,7 @@ class ClientReplicator {
     const Entity* entity;
     uint8_t fields;
     uint8_t cause;  // RelayCounters::state_records' index: schedule, strayed, max interval
+    int8_t kink;    // >= 0: send entity->recent[kink] at its time (format 14), not the state
   };
   // The view of `e` (a slot of views_), made afresh if the slot holds none or another
   // occupant's. May grow views_ (invalidating references to other views).
@@ -236,8 +258,11 @@ class ClientReplicator {
   bool HermiteDue(uint32_t id, const Entity& e, double now);
   // Key samples: whether `e` is due (and why), its newest sent state stamped `sent_state_time`.
   enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
-  KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time);
+  // With key_sample_at_kink, *kink is the slot of e.recent furthest beyond the thresholds when
+  // the line strayed, else -1.
+  KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time, int* kink);
   KeyDue last_due_ = KeyDue::kNo;  // VelocityNeed's last key-sample answer (the record's cause)
+  int last_kink_ = -1;             // and its kink (KeySampleDue)
   // This tick's records and their bits by part, by cause (RelayCounters::state_records).
   std::array<uint64_t, 3> records_tick_{};
   std::array<std::array<uint64_t, 6>, 3> record_bits_tick_{};

@@ -51,6 +51,8 @@ class KeySampleTest : public RoomHostTest {
     double at;            // relay time of the tick
     uint32_t payload_ms;  // the time the receiver is told the state holds at
     double state_time;    // Entity::state_time of what was sent
+    uint32_t record_ms;   // the time the record holds (format 14: its own; else payload_ms)
+    Vec3f position;       // what the receiver decodes
   };
 
   // Runs 1 + `seconds` of relay time from 10 s (the box is ambient by then): PhyS steps every
@@ -76,6 +78,11 @@ class KeySampleTest : public RoomHostTest {
     Sends writer;
     std::vector<MemberLink*> receivers;
     std::vector<Sent> sent;
+    // Nothing is acknowledged, so every record is a keyframe: each datagram decodes alone.
+    auto params = MakeQuantizationParams(QuantizationOf(config_.replication));
+    EXPECT_TRUE(params.ok());
+    DeltaDecoder decoder(*params);
+    StateBatch batch;
     const double start = 10.0, measure_from = start + 1.0, end = measure_from + seconds;
     uint64_t strayed_before = 0;
     bool measuring = false;
@@ -111,7 +118,14 @@ class KeySampleTest : public RoomHostTest {
           // Connection header, unreliable chunk header (type, length), then format 2's header:
           // format byte, time (ms).
           const uint8_t* p = writer.packets.back().data() + kConnectionHeaderSize + 3;
-          sent.push_back({now, LoadU32LE(p + 1), Find(box_)->state_time});
+          Sent s{now, LoadU32LE(p + 1), Find(box_)->state_time, LoadU32LE(p + 1), {}};
+          batch.states.clear();
+          batch.times_ms.clear();
+          const uint16_t size = LoadU16LE(p - 2);
+          EXPECT_TRUE(decoder.Decode(std::span<const uint8_t>(p, size), &batch).ok());
+          if (!batch.states.empty()) s.position = batch.states.back().position;
+          if (!batch.times_ms.empty()) s.record_ms = batch.times_ms.back();
+          sent.push_back(s);
         }
       }
     }
@@ -173,6 +187,65 @@ TEST_F(KeySampleTest, ABounceIsSentWithinTwoTicks) {
   EXPECT_LE(sent.size(), 9u + 2u * 5u);
 }
 
+// At the kink (key_sample_at_kink, format 14): the record sent for a bounce is PhyS's state at
+// the bounce, with the time it holds, not the present one: its time within a step of the bounce
+// and its position within 17 mm (1 m/s x a step) of the wall. Fails with the present state sent
+// (the record's time is then the payload's, a step or more after the bounce's first state).
+TEST_F(KeySampleTest, AtTheKinkTheBounceStateIsSentAtItsOwnTime) {
+  config_.replication.key_sample_at_kink = true;
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  const std::vector<Sent> sent = Run(Bouncing, 4.0, 1, 0.008, 0.006);
+  int bounces = 0, timed = 0;
+  for (double b = 2 * kBounceEvery; b < 5.0 - 0.1; b += kBounceEvery, ++bounces) {
+    const double bounce = 10.0 + b;
+    const float wall = std::fmod(b, 2 * kBounceEvery) < 1e-6 ? 0.0f : static_cast<float>(kBounceEvery);
+    bool found = false;
+    for (const Sent& s : sent) {
+      const double t = s.record_ms / 1000.0;
+      if (std::fabs(t - bounce) <= kStep + 0.002 && std::fabs(s.position.x - wall) <= 0.0175f) {
+        found = true;
+        timed += s.record_ms < s.payload_ms ? 1 : 0;
+      }
+    }
+    EXPECT_TRUE(found) << "bounce at " << b << " s";
+  }
+  EXPECT_EQ(bounces, 5);
+  EXPECT_GE(timed, 4);  // sent after the fact, at their own (earlier) times
+  EXPECT_LE(sent.size(), 9u + 2u * 5u);
+  for (const Sent& s : sent) EXPECT_LE(s.record_ms, s.payload_ms);
+}
+
+// key_sample_arrival_stamp: payloads are stamped the running mean of PhyS's lag (here 8-14 ms)
+// later than the times the states hold, and no straight line looks kinked.
+TEST_F(KeySampleTest, ArrivalStampShiftsTheTimesByTheMeanLag) {
+  config_.replication.key_sample_arrival_stamp = true;
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  const std::vector<Sent> sent = Run(Straight, 4.0, 1, 0.008, 0.006);
+  EXPECT_GE(sent.size(), 7u);
+  EXPECT_LE(sent.size(), 9u);
+  EXPECT_EQ(strayed_, 0u);
+  for (const Sent& s : sent) {
+    const double shift = s.payload_ms / 1000.0 - s.state_time;
+    EXPECT_GE(shift, 0.007) << s.at;  // less a ms of rounding
+    EXPECT_LE(shift, 0.0155) << s.at;
+  }
+}
+
+// stamp_state_time without key samples: the fixed rate's payloads hold PhyS's state time.
+TEST_F(KeySampleTest, FixedRateStampedWithTheStateTime) {
+  config_.replication.key_sample_threshold_m = 0;
+  config_.replication.stamp_state_time = true;
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  const std::vector<Sent> sent = Run(Straight, 2.0, 1, 0.008, 0.006);
+  EXPECT_GE(sent.size(), 10u);  // the ambient rate (6 Hz) over 2 s
+  for (const Sent& s : sent) {
+    EXPECT_EQ(s.payload_ms, static_cast<uint32_t>(static_cast<uint64_t>(s.state_time * 1000.0)));
+    EXPECT_LT(s.state_time, s.at);
+  }
+}
 
 // ---- Acknowledgements reach the encoder, in every edgephys format -----------------------------
 // A player's box publishes one state and then stays still. Its receiver acknowledges every

@@ -38,6 +38,7 @@ uint8_t StateFormatOf(const ReplicationConfig& config) {
   switch (config.mode) {
     case ReplicationMode::kEdgephys:
       if (config.shared_encoding) return kSharedDeltaStateFormat;
+      if (UsesRecordTimes(config)) return kTimedDeltaStateFormat;
       if (UsesPreviousReference(config)) return kPreviousDeltaStateFormat;
       return config.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
     case ReplicationMode::kPhoton: return kFormatPhoton;
@@ -369,6 +370,7 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
   // The time the states hold, not their arrival: an asynchronous world's steps arrive a step's
   // computation late and unevenly, and several steps may arrive in one output.
   const double state_time = out.state_time >= 0 ? std::min(out.state_time, now) : now;
+  if (out.state_time >= 0 && !out.moved.empty()) room_.ObservePhysicsLag(now - state_time);
   for (const RoomPhysics::MovedBody& m : out.moved) {
     Entity* e = room_.FindEntity(m.state.entity_id);
     if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
