@@ -33,7 +33,10 @@ physics::MultiObjectParams MultiObjectSceneParams(const MultiObjectOptions& o, u
 
 namespace {
 
-constexpr size_t kRing = 16;  // recent relay states kept per box (at 60 Hz: 0.27 s)
+// Recent relay states kept per box (at 60 Hz: 1.07 s): the "vs sent" error looks for the state
+// a received one was sent from among them, and a key sample at the kink (format 14) may be up
+// to a max interval old.
+constexpr size_t kRing = 64;
 constexpr uint32_t F(schema::EntityFlags f) { return static_cast<uint32_t>(f); }
 
 void Bench(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
