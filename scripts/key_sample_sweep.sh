@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Key samples against the fixed ambient rate on the same scenes (docs/benchmarks.md, "Key
-# samples", sessions 8 and 9): edgephys-loadgen multiobject at 1,000 boxes on the quarter-plus and
+# samples", sessions 8, 9 and 11): edgephys-loadgen multiobject at 1,000 boxes on the quarter-plus and
 # full-stir scenes, one JSON per (scene, point, repeat), then per point the median over repeats
 # of egress, key samples per box per s and the display error under both yardsticks. Bounded:
 # points x 2 scenes x REPEAT runs of about 10 s each. Hold /tmp/edgephys-bench.lock and
@@ -13,14 +13,19 @@ repeat=${3:-1}
 shift $(( $# < 3 ? $# : 3 ))
 points=("$@")
 if (( ${#points[@]} == 0 )); then
-  # Session 9's medians (docs/benchmarks.md, "Key samples, coded"; format 13, 30 Hz checks
-  # unless c0). Session 8's were fixed6, k10r5_025, k10r5_03 and k20r8_05.
+  # Session 11's medians (docs/benchmarks.md, "Display error, session 11"; format 13, 30 Hz
+  # checks unless c0; s = fixed rate stamped with state_time, A = key samples stamped with the
+  # relay's mean PhyS lag). Session 9's were fixed6, k10r5_025c0, k20r20_1, k15r8_05 and k30_1;
+  # session 8's fixed6, k10r5_025, k10r5_03 and k20r8_05.
+  A="--key-samples-arrival-stamp"
   points=(
     "fixed6|"
+    "fixed6s|--stamp-state-time"
     "k10r5_025c0|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.25 --key-samples-check-hz 0"
-    "k20r20_1|--key-samples 0.02 --key-samples-rotation 20 --key-samples-max-interval 1"
-    "k15r8_05|--key-samples 0.015 --key-samples-rotation 8 --key-samples-max-interval 0.5"
-    "k30_1|--key-samples 0.03 --key-samples-rotation 10 --key-samples-max-interval 1"
+    "k10r5_025c0A|--key-samples 0.01 --key-samples-rotation 5 --key-samples-max-interval 0.25 --key-samples-check-hz 0 $A"
+    "k15r8_05A|--key-samples 0.015 --key-samples-rotation 8 --key-samples-max-interval 0.5 $A"
+    "k20r20_1A|--key-samples 0.02 --key-samples-rotation 20 --key-samples-max-interval 1 $A"
+    "k30_1A|--key-samples 0.03 --key-samples-rotation 10 --key-samples-max-interval 1 $A"
   )
 fi
 quarter=(--layers 1 --stirrer-reach 0.75 --stirrer-speed 1.0)
