@@ -113,11 +113,12 @@ class KeySampleTest : public RoomHostTest {
         host_->BeginTick(now, &receivers);
         const size_t before = writer.packets.size();
         replicator.Tick(host_->room().frame(), /*self=*/2, now, connection, writer, counters_);
-        if (writer.packets.size() > before && measuring) {
+        if (writer.packets.size() > before) {
           EXPECT_EQ(writer.packets.size(), before + 1) << "one box: one datagram";
           // Connection header, unreliable chunk header (type, length), then format 2's header:
           // format byte, time (ms).
-          const uint8_t* p = writer.packets.back().data() + kConnectionHeaderSize + 3;
+          const uint8_t* packet = writer.packets.back().data();
+          const uint8_t* p = packet + kConnectionHeaderSize + 3;
           Sent s{now, LoadU32LE(p + 1), Find(box_)->state_time, LoadU32LE(p + 1), {}};
           batch.states.clear();
           batch.times_ms.clear();
@@ -125,7 +126,9 @@ class KeySampleTest : public RoomHostTest {
           EXPECT_TRUE(decoder.Decode(std::span<const uint8_t>(p, size), &batch).ok());
           if (!batch.states.empty()) s.position = batch.states.back().position;
           if (!batch.times_ms.empty()) s.record_ms = batch.times_ms.back();
-          sent.push_back(s);
+          if (measuring) sent.push_back(s);
+          // ack_: the receiver acknowledges at once (the encoder then codes deltas).
+          if (ack_) replicator.OnPacketAcked(LoadU16LE(packet + kPacketPrefixSize));
         }
       }
     }
@@ -135,6 +138,7 @@ class KeySampleTest : public RoomHostTest {
 
   uint32_t box_ = 0;
   uint64_t strayed_ = 0;
+  bool ack_ = false;  // acknowledge every datagram (deltas) instead of none (keyframes)
 };
 
 // Moving straight at constant velocity: sent only at the max interval (0.5 s; checked one
@@ -214,6 +218,27 @@ TEST_F(KeySampleTest, AtTheKinkTheBounceStateIsSentAtItsOwnTime) {
   EXPECT_GE(timed, 4);  // sent after the fact, at their own (earlier) times
   EXPECT_LE(sent.size(), 9u + 2u * 5u);
   for (const Sent& s : sent) EXPECT_LE(s.record_ms, s.payload_ms);
+}
+
+// At the kink with every datagram acknowledged (delta records, "previous" references and record
+// times together): every state the receiver decodes is the box's pose at the time its record
+// holds, within the lattice (0.87 mm) plus the millisecond the time is rounded to (1.04 m/s).
+TEST_F(KeySampleTest, AtTheKinkEveryDecodedStateIsThePoseAtItsTime) {
+  config_.replication.key_sample_at_kink = true;
+  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
+                                     0.0);
+  ack_ = true;
+  const std::vector<Sent> sent = Run(Bouncing, 4.0, 1, 0.008, 0.006);
+  ASSERT_GE(sent.size(), 10u);
+  int timed = 0;
+  for (const Sent& s : sent) {
+    // Run's states: the pose at (state time - 10 s), the state time the end of a step.
+    const Vec3f want = Bouncing(s.record_ms / 1000.0 - 10.0);
+    const float dx = s.position.x - want.x, dy = s.position.y - want.y, dz = s.position.z - want.z;
+    EXPECT_LE(std::sqrt(dx * dx + dy * dy + dz * dz), 0.0019f) << "record at " << s.record_ms;
+    timed += s.record_ms < s.payload_ms ? 1 : 0;
+  }
+  EXPECT_GE(timed, 4);
 }
 
 // key_sample_arrival_stamp: payloads are stamped the running mean of PhyS's lag (here 8-14 ms)
