@@ -320,6 +320,7 @@ RelayConfig InProcessConfig(const IsolationOptions& o) {
       std::max<size_t>(config.connection.max_pending_reliable_bytes, static_cast<size_t>(o.boxes) * 1024);
   config.physics_threads = std::max<size_t>(1, o.physics_threads);
   if (o.physics_nice >= 0) config.physics_nice = o.physics_nice;
+  config.physics_idle = o.physics_idle;
   // As multiobject: one PhyS substep per step, its sleeping thresholds.
   config.physics.max_substeps = 1;
   config.physics.sleep_linear_threshold = 0.1f;

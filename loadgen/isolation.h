@@ -57,6 +57,7 @@ struct IsolationOptions {
   double publish_hz = 30;            // A's pose updates (ccu's rate)
   size_t physics_threads = 1;        // in-process relay (RelayConfig::physics_threads)
   int physics_nice = -1;             // in-process relay: RelayConfig::physics_nice (-1: its default)
+  bool physics_idle = false;         // in-process relay: RelayConfig::physics_idle
   double bin_s = 0.5;                // latency series bins
   uint32_t measure_every = 1;        // only every K-th A bot matches poses (all decode)
   uint32_t seed = 1;

@@ -55,6 +55,7 @@ nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
     j["options"]["tick_rate_hz"] = o.tick_rate_hz;
     j["options"]["physics_threads"] = o.physics_threads;
     j["options"]["physics_nice"] = o.physics_nice;
+    j["options"]["physics_idle"] = o.physics_idle;
     j["relay"] = {{"external", false}, {"cpu_source", "relay thread"}};
   }
   j["summary"] = {{"users", r.users},
@@ -159,6 +160,8 @@ class IsolationScenario final : public Scenario {
                    "In-process relay: niceness of the physics threads (RelayConfig::physics_nice, "
                    "0..19; -1: the relay's default)")
         ->check(CLI::Range(-1, 19));
+    cmd.add_flag("--physics-idle", o_.physics_idle,
+                 "In-process relay: physics threads under SCHED_IDLE (RelayConfig::physics_idle)");
     cmd.add_option("--bin", o_.bin_s, "Seconds per bin of the latency series");
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th A bot matches poses for latency (all still decode; 1: all)");

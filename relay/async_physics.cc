@@ -1,6 +1,7 @@
 #include "relay/async_physics.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -344,12 +345,26 @@ bool LowerThisThreadsPriority(int nice) {
   return true;
 }
 
+// Puts the calling thread in SCHED_IDLE (Linux: runs only when a core has nothing else of
+// SCHED_OTHER to run; no privilege needed to lower one's own policy).
+bool MakeThisThreadIdle() {
+  sched_param param{};
+  if (sched_setscheduler(static_cast<pid_t>(gettid()), SCHED_IDLE, &param) != 0) {
+    spdlog::warn("physics thread: SCHED_IDLE failed: {}", std::strerror(errno));
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
-AsyncPhysicsPool::AsyncPhysicsPool(size_t threads, int nice) : nice_(std::max(0, nice)) {
+AsyncPhysicsPool::AsyncPhysicsPool(size_t threads, int nice, bool idle)
+    : nice_(std::max(0, nice)), sched_idle_(idle) {
   for (size_t i = 0; i < std::max<size_t>(1, threads); ++i) {
     threads_.emplace_back([this] {
-      if (nice_ > 0 && LowerThisThreadsPriority(nice_)) reniced_.fetch_add(1);
+      if (sched_idle_ ? MakeThisThreadIdle() : nice_ > 0 && LowerThisThreadsPriority(nice_)) {
+        reniced_.fetch_add(1);
+      }
       ThreadLoop();
     });
     pthread_setname_np(threads_.back().native_handle(), "edgephys-physs");

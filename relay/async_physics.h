@@ -200,9 +200,17 @@ class AsyncPhysicsRoom {
 // heavy room simulates slower instead of delaying other rooms' packets (docs/benchmarks.md,
 // "Isolation"). Lowering priority needs no privilege; if it fails the thread runs at normal
 // priority and a warning is logged. 0: the threads keep the process's priority.
+//
+// `idle` (Linux): each physics thread puts itself in SCHED_IDLE instead (`nice` is then
+// ignored): it runs only on a core that has no normal-priority thread to run, where niceness
+// 19 still takes a ~1.5 % weighted share and waits out wake-up granularity. On 2 shared cores it
+// brought a neighbouring room's socket p99 ratio from 1.28x to 1.09x (docs/benchmarks.md,
+// "Isolation, session 11"). Cost: on a machine whose cores are always busy with other work,
+// PhyS rooms make no progress at all (their real-time factor falls towards 0); the relay loop
+// itself is unaffected.
 class AsyncPhysicsPool {
  public:
-  explicit AsyncPhysicsPool(size_t threads, int nice = 0);
+  explicit AsyncPhysicsPool(size_t threads, int nice = 0, bool idle = false);
   ~AsyncPhysicsPool();
   AsyncPhysicsPool(const AsyncPhysicsPool&) = delete;
   AsyncPhysicsPool& operator=(const AsyncPhysicsPool&) = delete;
@@ -211,8 +219,10 @@ class AsyncPhysicsPool {
   AsyncPhysicsRoom* Adopt(std::unique_ptr<RoomPhysics> physics,
                           const physics::PhysicsConfig& config, const StepClock& clock);
   size_t threads() const { return threads_.size(); }
-  // The niceness increment the threads asked for (0: none) and how many got it.
+  // The niceness increment the threads asked for (0: none), whether they asked for SCHED_IDLE,
+  // and how many got what they asked for.
   int nice() const { return nice_; }
+  bool idle() const { return sched_idle_; }
   size_t threads_reniced() const { return reniced_.load(); }
   // Blocks until no room is queued or running (every room has stepped up to its last target
   // and applied its commands). For tests.
@@ -224,6 +234,7 @@ class AsyncPhysicsPool {
   void ThreadLoop();
 
   int nice_ = 0;
+  bool sched_idle_ = false;
   std::atomic<size_t> reniced_{0};
   std::mutex mu_;
   std::condition_variable wake_, idle_;

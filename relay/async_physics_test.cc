@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <dirent.h>
+#include <sched.h>
 #include <sys/resource.h>
 
 #include <chrono>
@@ -444,8 +445,9 @@ TEST(AsyncPhysics, DestructionWhileSteppingIsClean) {
 
 
 
-// The niceness of every thread of this process named `name` (Linux: /proc/self/task/*/stat).
-std::vector<int> NicenessOfThreadsNamed(const std::string& name) {
+// Field `index` (1-based, as in proc(5)) of /proc/self/task/*/stat for every thread of this
+// process named `name`: 19 is the niceness, 41 the scheduling policy.
+std::vector<int> StatFieldOfThreadsNamed(const std::string& name, int index) {
   std::vector<int> out;
   DIR* dir = opendir("/proc/self/task");
   if (dir == nullptr) return out;
@@ -459,12 +461,16 @@ std::vector<int> NicenessOfThreadsNamed(const std::string& name) {
     std::getline(std::ifstream(task + "/stat"), stat);
     std::istringstream rest(stat.substr(stat.rfind(')') + 2));  // after "pid (comm) "
     std::string field;
-    for (int i = 3; i <= 19 && rest >> field; ++i) {  // field 19: nice
-      if (i == 19) out.push_back(std::stoi(field));
+    for (int i = 3; i <= index && rest >> field; ++i) {
+      if (i == index) out.push_back(std::stoi(field));
     }
   }
   closedir(dir);
   return out;
+}
+
+std::vector<int> NicenessOfThreadsNamed(const std::string& name) {
+  return StatFieldOfThreadsNamed(name, 19);
 }
 
 TEST(AsyncPhysics, PhysicsThreadsLowerTheirOwnPriorityByTheNicenessAsked) {
@@ -488,6 +494,31 @@ TEST(AsyncPhysics, PhysicsThreadsLowerTheirOwnPriorityByTheNicenessAsked) {
   const std::vector<int> nice = NicenessOfThreadsNamed("edgephys-physs");
   ASSERT_EQ(nice.size(), 1u);
   EXPECT_EQ(nice[0], base);
+}
+
+TEST(AsyncPhysics, IdlePhysicsThreadsRunUnderSchedIdleAndTheCallerKeepsItsPolicy) {
+  const int caller_policy = sched_getscheduler(0);
+  ASSERT_NE(caller_policy, SCHED_IDLE) << "the test process already runs under SCHED_IDLE";
+  {
+    AsyncPhysicsPool pool(2, 5, /*idle=*/true);
+    for (int i = 0; i < 200 && pool.threads_reniced() < 2; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    EXPECT_EQ(pool.threads_reniced(), 2u);
+    EXPECT_TRUE(pool.idle());
+    const std::vector<int> policy = StatFieldOfThreadsNamed("edgephys-physs", 41);
+    ASSERT_EQ(policy.size(), 2u);
+    for (int p : policy) EXPECT_EQ(p, SCHED_IDLE);
+  }
+  EXPECT_EQ(sched_getscheduler(0), caller_policy);
+  // Without `idle` the threads keep the normal policy (niceness is the only change).
+  AsyncPhysicsPool normal(1, 5);
+  for (int i = 0; i < 200 && normal.threads_reniced() < 1; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const std::vector<int> policy = StatFieldOfThreadsNamed("edgephys-physs", 41);
+  ASSERT_EQ(policy.size(), 1u);
+  EXPECT_EQ(policy[0], SCHED_OTHER);
 }
 
 }  // namespace

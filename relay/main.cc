@@ -197,6 +197,9 @@ int main(int argc, char** argv) {
                  "relay loop goes first when every core is busy")
       ->check(CLI::Range(0, 19))
       ->capture_default_str();
+  app.add_flag("--physics-idle", config.physics_idle,
+               "Physics threads run under SCHED_IDLE, only on cores nothing else wants (overrides "
+               "--physics-nice; on a machine that is always busy, PhyS rooms then stall)");
   size_t io_threads = 1;
   app.add_option("--io-threads", io_threads,
                  "Relay shards, each on its own thread, rooms spread over them (1: one thread, "

@@ -4,13 +4,14 @@
 
 namespace edgephys {
 
-PhysicsPool::PhysicsPool(size_t threads, int physics_nice) : physics_nice_(physics_nice) {
+PhysicsPool::PhysicsPool(size_t threads, int physics_nice, bool physics_idle)
+    : physics_nice_(physics_nice), physics_idle_(physics_idle) {
   for (size_t i = 1; i < threads; ++i) workers_.emplace_back([this] { WorkerLoop(); });
 }
 
 AsyncPhysicsPool* PhysicsPool::async_physics() {
   if (workers_.empty()) return nullptr;
-  if (async_ == nullptr) async_ = std::make_unique<AsyncPhysicsPool>(workers_.size(), physics_nice_);
+  if (async_ == nullptr) async_ = std::make_unique<AsyncPhysicsPool>(workers_.size(), physics_nice_, physics_idle_);
   return async_.get();
 }
 

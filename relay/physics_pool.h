@@ -29,9 +29,9 @@ class AsyncPhysicsPool;
 class PhysicsPool {
  public:
   // `threads` workers in total, the caller included (1: everything runs on the caller).
-  // `physics_nice`: passed to the asynchronous PhyS threads (AsyncPhysicsPool); the fork-join
-  // workers keep the caller's priority.
-  explicit PhysicsPool(size_t threads, int physics_nice = 0);
+  // `physics_nice`, `physics_idle`: passed to the asynchronous PhyS threads (AsyncPhysicsPool);
+  // the fork-join workers keep the caller's priority.
+  explicit PhysicsPool(size_t threads, int physics_nice = 0, bool physics_idle = false);
   ~PhysicsPool();
   PhysicsPool(const PhysicsPool&) = delete;
   PhysicsPool& operator=(const PhysicsPool&) = delete;
@@ -57,6 +57,7 @@ class PhysicsPool {
   void WorkerLoop();
   void Drain();
   int physics_nice_ = 0;
+  bool physics_idle_ = false;
   std::vector<std::thread> workers_;
   mutable std::mutex mutex_;
   std::condition_variable start_, done_;

@@ -75,6 +75,9 @@ struct RelayConfig {
   // delaying every room's hand poses and acks (relay/async_physics.h; docs/benchmarks.md,
   // "Isolation").
   int physics_nice = 0;
+  // The physics threads run under SCHED_IDLE (Linux; physics_nice is then ignored): only on
+  // cores the relay loop and other normal-priority work leave idle (AsyncPhysicsPool).
+  bool physics_idle = false;
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
   AbuseLimits limits;
 };
