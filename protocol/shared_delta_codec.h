@@ -32,7 +32,8 @@
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
 // Memory: room ~7 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
-// times); stream 100 bytes per (receiver, entity) plus 16 KiB per receiver (its payload ring);
+// times); stream 68 bytes per (receiver, entity) (a 64-byte record and its id) plus 24 KiB per
+// receiver (its payload ring);
 // decoder ~2 KiB per entity, bounded by max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
 // per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body

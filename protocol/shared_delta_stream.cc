@@ -43,7 +43,7 @@ void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
   last_id_ = 0;
   prev_distance_ = 1;
   if (++payload_no_ == 0) ++payload_no_;  // 0 names no payload
-  // The payload ring (16 KiB) on the first payload, not before: an idle receiver's stream
+  // The payload ring (24 KiB) on the first payload, not before: an idle receiver's stream
   // stays small (relay/footprint_test.cc). Sends are recorded only after a Begin.
   if (payloads_.empty()) payloads_.resize(kPayloadRing);
   bits_ = out.size() > kStreamStart ? out.data() + kStreamStart : nullptr;
