@@ -239,7 +239,8 @@ class SharedDeltaRoom {
 };
 
 struct SharedDeltaStreamOptions {
-  // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas).
+  // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas); at most
+  // 65,535 (larger values are capped).
   uint32_t keyframe_refresh_sends = 120;
 };
 
