@@ -32,7 +32,8 @@
 // threads (the cache claims slots with atomics; a body never changes once published).
 // SharedDeltaStream and SharedDeltaDecoder: one owner thread each.
 // Memory: room ~7 KiB per entity at 60 Hz (versions) + ~0.9 KiB (cache) + 32 KiB per room (tick
-// times); stream 100 bytes per (receiver, entity) plus 16 KiB per receiver (its payload ring);
+// times); stream 68 bytes per (receiver, entity) (a 64-byte record and its id) plus 24 KiB per
+// receiver (its payload ring);
 // decoder ~2 KiB per entity, bounded by max_entities.
 // Cost (bench/shared_codec_bench, 100 receivers x 200 entities, all sent each tick): ~130-160 ns
 // per (receiver, entity) including the room's share, against ~340-410 ns for format 2; a body
@@ -238,7 +239,8 @@ class SharedDeltaRoom {
 };
 
 struct SharedDeltaStreamOptions {
-  // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas).
+  // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas); at most
+  // 65,535 (larger values are capped).
   uint32_t keyframe_refresh_sends = 120;
 };
 
@@ -286,9 +288,7 @@ class SharedDeltaStream final : public StateEncoder {
   // the records come from beyond the core's cache; no effect on behaviour. O(1).
   void Prefetch(uint32_t slot) const {
     if (slot < tracks_.size()) {
-      const char* p = reinterpret_cast<const char*>(&tracks_[slot]);
-      __builtin_prefetch(p);
-      __builtin_prefetch(p + sizeof(Track) - 1);
+      __builtin_prefetch(&tracks_[slot]);  // one line (Track is 64 bytes, aligned)
     }
   }
 
@@ -304,39 +304,48 @@ class SharedDeltaStream final : public StateEncoder {
   const SharedDeltaStreamStats& stats() const { return stats_; }
 
  private:
-  // One of an entity's last kRememberedSends sends (by send number), until acknowledged:
-  // the payload it went in and the key an acknowledgement makes its baseline.
-  struct Sent {
-    uint32_t payload = 0;  // payload number (0: none)
-    uint32_t tick = 0;     // the tick it was sent in (its key's ref once acknowledged)
-    // Its key's two older samples, as ticks before `tick` (<= 2 x kMaxReferenceDistance).
-    uint16_t back1 = 0, back2 = 0;
-    uint8_t depth = 0;
-  };
   static_assert(2 * kMaxReferenceDistance <= 0xFFFF);
   static constexpr uint32_t kRememberedSends = 4;
-  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's; 100
-  // bytes, everything selection, Add and an ack touch. No ring of sent states: a send is named
-  // by its send number, and its record carries the key it was sent with (the room's versions
-  // hold its state). A send stays usable as a reference while it is among the last
-  // kDeltaBaselineWindow sends of the entity (the client keeps that many versions with the
-  // highest ticks, so an acknowledged one in that window is always held); an acknowledgement
-  // is learnt only for the last kRememberedSends (older ones are superseded by newer sends,
-  // or treated as lost).
-  struct Track {
+  // One per entity slot (SharedEntity::slot), valid while `serial` equals the entity's: one
+  // cache line (64 bytes, aligned), everything selection, Add and an ack touch. The relay walks
+  // every receiver's records of a room's entities each tick, beyond what the core's cache
+  // holds, so the walk costs one line per (receiver, entity) (the entity's id, needed only
+  // by Forget, is in track_ids_ beside it). No ring of sent states: a send is named by its
+  // send number, and its record carries the key it was sent with (the room's versions hold
+  // its state; the tick it was sent in is its payload's, PayloadRecord::tick). A send stays
+  // usable as a reference while it is among the last kDeltaBaselineWindow sends of the entity
+  // (the client keeps that many versions with the highest ticks, so an acknowledged one in
+  // that window is always held); an acknowledgement is learnt only for the last
+  // kRememberedSends (older ones are superseded by newer sends, or treated as lost).
+  struct alignas(64) Track {
     uint32_t serial = 0;  // 0: free
-    uint32_t id = 0;
     uint32_t next = 0;    // sends so far (send numbers 0..next-1)
-    uint32_t sends_since_keyframe = 0;
     uint32_t acked_no = 0;  // send number + 1 of the newest acknowledged send; 0: none
-    SharedBaselineKey acked_key;  // its key (acked_key.ref = the tick it was sent in)
-    std::array<Sent, kRememberedSends> sends;  // by send number % kRememberedSends
+    uint32_t acked_ref = 0;  // the tick it was sent in (its key's ref once acknowledged)
+    // Its key's two older samples, as ticks before acked_ref, and the key's depth.
+    uint16_t acked_back1 = 0, acked_back2 = 0;
+    uint16_t sends_since_keyframe = 0;  // saturates (options are capped at 0xFFFF)
+    uint8_t acked_depth = 0;
+    // The stream's acknowledgement count when Resolve last looked (nothing to take in while
+    // no payload was acknowledged since: it runs once per entity and tick, not in Add too).
+    uint32_t resolved_epoch = 0;
+    // The last kRememberedSends sends, by send number % kRememberedSends: the payload each
+    // went in (0: none), and the key an acknowledgement makes its baseline (its two older
+    // samples as ticks before the send's tick, <= 2 x kMaxReferenceDistance; depth).
+    std::array<uint32_t, kRememberedSends> sent_payload{};
+    std::array<uint16_t, kRememberedSends> sent_back1{}, sent_back2{};
+    std::array<uint8_t, kRememberedSends> sent_depth{};
     bool Usable(uint32_t no) const { return no != 0 && next - (no - 1) <= kDeltaBaselineWindow; }
+    SharedBaselineKey acked_key() const {
+      return {acked_ref, acked_ref - acked_back1, acked_ref - acked_back2, acked_depth};
+    }
   };
+  static_assert(sizeof(Track) == 64, "one cache line per (receiver, entity)");
   // A payload: its number (0: none), when it was sent and whether it was acknowledged. A ring
   // by payload number (kPayloadRing): a send whose payload was overwritten counts as lost.
   struct PayloadRecord {
     uint32_t number = 0;
+    uint32_t tick = 0;  // the room tick of its records (every payload holds one tick's)
     bool acked = false;
     double sent_at = 0;
   };
@@ -362,6 +371,8 @@ class SharedDeltaStream final : public StateEncoder {
   QuantizationParams params_;
   SharedDeltaStreamOptions options_;
   std::vector<Track> tracks_;     // by entity slot
+  std::vector<uint32_t> track_ids_;  // by entity slot: the id of its track's entity (Forget)
+  uint32_t ack_epoch_ = 0;        // payloads acknowledged so far (Track::resolved_epoch)
   FlatIdMap<uint32_t> slot_of_;   // entity id -> slot of its live track (Forget)
   size_t live_tracks_ = 0;
   std::vector<PacketRecord> records_;

@@ -26,6 +26,8 @@ constexpr size_t kPacketRecords = 128;
 SharedDeltaStream::SharedDeltaStream(const QuantizationParams& params,
                                      const SharedDeltaStreamOptions& options)
     : params_(params), options_(options), records_(kPacketRecords) {
+  // Track::sends_since_keyframe is 16 bits.
+  options_.keyframe_refresh_sends = std::min<uint32_t>(options_.keyframe_refresh_sends, 0xFFFF);
   const double reach = 0.5 * std::sqrt(3.0) * params_.step * 1.01;
   lattice_reach2_ = reach * reach;
   const double bound_rad =
@@ -41,7 +43,7 @@ void SharedDeltaStream::Begin(std::span<uint8_t> out, uint32_t /*time_ms*/) {
   last_id_ = 0;
   prev_distance_ = 1;
   if (++payload_no_ == 0) ++payload_no_;  // 0 names no payload
-  // The payload ring (16 KiB) on the first payload, not before: an idle receiver's stream
+  // The payload ring (24 KiB) on the first payload, not before: an idle receiver's stream
   // stays small (relay/footprint_test.cc). Sends are recorded only after a Begin.
   if (payloads_.empty()) payloads_.resize(kPayloadRing);
   bits_ = out.size() > kStreamStart ? out.data() + kStreamStart : nullptr;
@@ -103,15 +105,22 @@ inline Code ExpGolomb0(uint32_t u) {
 
 void SharedDeltaStream::Resolve(Track& t) const {
   if (t.acked_no >= t.next) return;  // nothing newer than the acknowledged send
+  // No payload acknowledged since the last look: its sends' flags are as they were then (a
+  // send added since has a payload no ack has marked yet).
+  if (t.resolved_epoch == ack_epoch_) return;
+  t.resolved_epoch = ack_epoch_;
   const uint32_t oldest = t.next > kRememberedSends ? t.next - kRememberedSends : 0;
   // Newest first: the newest acknowledged send is the baseline.
   for (uint32_t no = t.next; no > oldest && no > t.acked_no; --no) {
-    const Sent& s = t.sends[(no - 1) % kRememberedSends];
-    const PayloadRecord* p = SentPayload(s.payload);
+    const uint32_t i = (no - 1) % kRememberedSends;
+    const PayloadRecord* p = SentPayload(t.sent_payload[i]);
     if (p == nullptr || !p->acked) continue;
     if (t.Usable(no)) {
       t.acked_no = no;
-      t.acked_key = {s.tick, s.tick - s.back1, s.tick - s.back2, s.depth};
+      t.acked_ref = p->tick;
+      t.acked_back1 = t.sent_back1[i];
+      t.acked_back2 = t.sent_back2[i];
+      t.acked_depth = t.sent_depth[i];
     }
     return;
   }
@@ -133,12 +142,13 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   bool created = false;
   Track& track = ClaimTrack(id, entity, &created);
   if (created && options_.keyframe_refresh_sends > 0) {
-    track.sends_since_keyframe = (id * 2654435761u) % options_.keyframe_refresh_sends;
+    track.sends_since_keyframe =
+        static_cast<uint16_t>((id * 2654435761u) % options_.keyframe_refresh_sends);
   }
   Resolve(track);
   bool keyframe = true;
   if (track.Usable(track.acked_no)) {
-    const uint32_t distance = tick_ - track.acked_key.ref;
+    const uint32_t distance = tick_ - track.acked_ref;
     keyframe = !(distance >= 1 && distance <= kMaxReferenceDistance);
   }
   bool refresh = false;
@@ -147,7 +157,7 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
     keyframe = refresh = true;
   }
   SharedBaselineKey key;
-  if (!keyframe) key = track.acked_key;
+  if (!keyframe) key = track.acked_key();
   const uint8_t* bits = nullptr;
   size_t nbits = 0;
   bool hit = false;
@@ -202,19 +212,18 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
     if (refresh || track.next > 0) track.sends_since_keyframe = 0;
   } else {
     prev_distance_ = distance;
-    ++track.sends_since_keyframe;
+    if (track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
   }
   const uint32_t send_no = track.next++;
-  Sent& sent = track.sends[send_no % kRememberedSends];
-  sent.payload = payload_no_;
-  sent.tick = tick_;
+  const uint32_t i = send_no % kRememberedSends;
+  track.sent_payload[i] = payload_no_;  // the send's tick is its payload's (OnSent)
   if (keyframe) {
-    sent.back1 = sent.back2 = 0;
-    sent.depth = 1;
+    track.sent_back1[i] = track.sent_back2[i] = 0;
+    track.sent_depth[i] = 1;
   } else {  // distance <= kMaxReferenceDistance, and so is key.ref - key.s1 (an older record's)
-    sent.back1 = static_cast<uint16_t>(tick_ - key.ref);
-    sent.back2 = static_cast<uint16_t>(tick_ - key.s1);
-    sent.depth = static_cast<uint8_t>(std::min(key.depth + 1, 3));
+    track.sent_back1[i] = static_cast<uint16_t>(tick_ - key.ref);
+    track.sent_back2[i] = static_cast<uint16_t>(tick_ - key.s1);
+    track.sent_depth[i] = static_cast<uint8_t>(std::min(key.depth + 1, 3));
   }
   last_id_ = id;
   ++count_;
@@ -249,6 +258,7 @@ void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
   r.payload = payload_no_;
   PayloadRecord& p = payloads_[payload_no_ & (kPayloadRing - 1)];
   p.number = payload_no_;
+  p.tick = tick_;
   p.acked = false;
   p.sent_at = now;
 }
@@ -265,20 +275,25 @@ void SharedDeltaStream::OnPacketAcked(uint16_t packet_sequence) {
     ++stats_.acks_unmatched;
     return;
   }
+  if (!p.acked) ++ack_epoch_;
   p.acked = true;
 }
 
 SharedDeltaStream::Track& SharedDeltaStream::ClaimTrack(uint32_t id, const SharedEntity& entity,
                                                          bool* created) {
   const uint32_t s = entity.slot();
-  if (s >= tracks_.size()) tracks_.resize(s + 1);
+  if (s >= tracks_.size()) {
+    tracks_.resize(s + 1);
+    track_ids_.resize(s + 1);
+  }
   Track& t = tracks_[s];
   *created = t.serial != entity.serial();
   if (!*created) return t;
   FreeTrack(s);  // a previous occupant of the slot
   if (const uint32_t* old = slot_of_.Find(id); old != nullptr && *old != s) FreeTrack(*old);
   t.serial = entity.serial();
-  t.id = id;
+  t.resolved_epoch = ack_epoch_ - 1;  // never "resolved at this epoch" before its first look
+  track_ids_[s] = id;
   *slot_of_.TryEmplace(id).first = s;
   ++live_tracks_;
   return t;
@@ -287,8 +302,10 @@ SharedDeltaStream::Track& SharedDeltaStream::ClaimTrack(uint32_t id, const Share
 void SharedDeltaStream::FreeTrack(uint32_t slot) {
   Track& t = tracks_[slot];
   if (t.serial == 0) return;
-  if (const uint32_t* s = slot_of_.Find(t.id); s != nullptr && *s == slot) slot_of_.Erase(t.id);
+  const uint32_t id = track_ids_[slot];
+  if (const uint32_t* s = slot_of_.Find(id); s != nullptr && *s == slot) slot_of_.Erase(id);
   t = Track{};
+  track_ids_[slot] = 0;
   --live_tracks_;
 }
 
@@ -319,12 +336,11 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
     return room->HeldWithin(entity, ref, truth, pos2, min_dot_, lattice_reach2_,
                             lattice_min_dot_);
   };
-  if (t.Usable(t.acked_no) && within(t.acked_key.ref)) return UpdateNeed::kAckedWithin;
+  if (t.Usable(t.acked_no) && within(t.acked_ref)) return UpdateNeed::kAckedWithin;
   // The newest send, if it left, is not acknowledged yet and is still within its resend time.
   if (t.next > t.acked_no) {
-    const Sent& newest = t.sends[(t.next - 1) % kRememberedSends];
-    const PayloadRecord* p = SentPayload(newest.payload);
-    if (p != nullptr && !p->acked && now - p->sent_at < resend_after_s && within(newest.tick)) {
+    const PayloadRecord* p = SentPayload(t.sent_payload[(t.next - 1) % kRememberedSends]);
+    if (p != nullptr && !p->acked && now - p->sent_at < resend_after_s && within(p->tick)) {
       return UpdateNeed::kInFlightWithin;
     }
   }
