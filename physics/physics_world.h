@@ -89,6 +89,8 @@ struct BodyShapes;  // physics_world_internal.h
 class RestManager;  // rest_manager.h
 class ManifoldReuseCreateFunc;  // manifold_reuse.h
 
+inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
+
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
   // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
@@ -150,6 +152,45 @@ struct PhysicsConfig {
   // The solver stops iterating when the squared residual falls below this (0: always
   // solver_iterations). Cost saved only when islands converge early.
   float solver_residual_threshold = 0.0f;
+  // --- Solver and CCD settings measured on the full stir in session 11 (docs/benchmarks.md,
+  // "Full stir, session 11"; --only names in bench/physics_cost_candidates.cc).
+  // Constraint solver. kSequentialImpulse: Bullet's default (projected Gauss-Seidel).
+  // kNNCG: btNNCGConstraintSolver (nonlinear conjugate gradient on top of the same rows;
+  // meant to converge in fewer iterations, at extra work per iteration).
+  enum class Solver : uint8_t { kSequentialImpulse, kNNCG };
+  Solver solver = Solver::kSequentialImpulse;
+  // Bullet's island manager sorts every contact manifold by island and calls the solver once
+  // per island (batched up to 128 rows). false: one solver call with every body and manifold,
+  // no sorting; sleeping islands still sleep (islands are still built for that).
+  bool split_islands = true;
+  // Friction rows per contact point: Bullet's default is one, along the sliding direction.
+  // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
+  // friction_direction_caching keeps a contact's directions from the step that created it
+  // (SOLVER_ENABLE_FRICTION_DIRECTION_CACHING; Bullet reuses them only together with
+  // two_friction_directions and velocity_dependent_friction = false).
+  bool two_friction_directions = false;
+  bool friction_direction_caching = false;
+  // true (Bullet's default): the first friction direction follows the relative sliding
+  // velocity; false: a fixed tangent basis (SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION).
+  bool velocity_dependent_friction = true;
+  // SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS: each contact's friction rows are solved
+  // right after its normal row instead of after all normal rows.
+  bool interleave_friction = false;
+  // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
+  // against static and kinematic bodies only (the walls a body could pass through), not against
+  // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
+  // box-box part of the sweeps. Accuracy: a fast small body can pass through a thin *dynamic*
+  // body in one step.
+  bool ccd_static_only = false;
+  // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
+  // aabb_margin (m; Bullet: gContactBreakingThreshold, 0.02). Box-box contacts exist only when
+  // boxes overlap and other pairs produce points within ~2-4 mm (the shapes' breaking
+  // thresholds), so a smaller margin means fewer broadphase pairs to test; too small and a pair
+  // is found a step late. aabb_hysteresis (m, 0: off): the broadphase gets the AABB grown by
+  // this much more, and is only updated when the body's AABB leaves it, so small motions cost
+  // no sort; the price is more (looser) pairs for the narrowphase to reject.
+  float aabb_margin = kBulletAabbMargin;
+  float aabb_hysteresis = 0.0f;
   // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
   // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
   // allocates per new contact pair (malloc/free per pair that starts or stops touching), so a
