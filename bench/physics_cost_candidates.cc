@@ -208,6 +208,16 @@ std::vector<Candidate> Candidates() {
          S8Defaults(c).aabb_margin = 0.005f;
          c.aabb_hysteresis = 0.02f;
        }},
+      {"islands-off-aabb-5mm", [](PhysicsConfig& c) {
+         S8Defaults(c).split_islands = false;
+         c.aabb_margin = 0.005f;
+       }},
+      // The session-11 pick: every setting above that passed and saved something, together.
+      {"s11-combo", [](PhysicsConfig& c) {
+         TwoCachedFrictionDirs(S8Defaults(c)).solver_iterations = 4;
+         c.split_islands = false;
+         c.aabb_margin = 0.005f;
+       }},
       {"contact-proc-5mm", [](PhysicsConfig& c) {
          S8Defaults(c).contact_processing_threshold = 0.005f;
        }},

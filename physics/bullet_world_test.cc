@@ -20,28 +20,35 @@ using testing::Pos;
 
 TEST(BulletWorldTest, SolverSettingsReachBullet) {
   {
+    // The defaults (session 11): two cached friction rows in a fixed basis, one solver batch.
     PhysicsWorld world{PhysicsConfig{}};
+    btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
+    EXPECT_EQ(w->getSolverInfo().m_solverMode,
+              SOLVER_USE_WARMSTARTING | SOLVER_SIMD | SOLVER_USE_2_FRICTION_DIRECTIONS |
+                  SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
+                  SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION);
+    EXPECT_EQ(w->getSolverInfo().m_numIterations, 4);
+    EXPECT_FALSE(w->getSimulationIslandManager()->getSplitIslands());
+    EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_SEQUENTIAL_IMPULSE_SOLVER);
+  }
+  {
+    // Bullet's own choices are still reachable.
+    PhysicsConfig cfg;
+    cfg.split_islands = true;
+    cfg.two_friction_directions = false;
+    cfg.friction_direction_caching = false;
+    cfg.velocity_dependent_friction = true;
+    PhysicsWorld world(cfg);
     btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
     EXPECT_EQ(w->getSolverInfo().m_solverMode, SOLVER_USE_WARMSTARTING | SOLVER_SIMD);
     EXPECT_TRUE(w->getSimulationIslandManager()->getSplitIslands());
-    EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_SEQUENTIAL_IMPULSE_SOLVER);
   }
   PhysicsConfig cfg;
   cfg.solver = PhysicsConfig::Solver::kNNCG;
-  cfg.split_islands = false;
-  cfg.two_friction_directions = true;
-  cfg.friction_direction_caching = true;
-  cfg.velocity_dependent_friction = false;
   cfg.interleave_friction = true;
   PhysicsWorld world(cfg);
   btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
-  const int mode = w->getSolverInfo().m_solverMode;
-  EXPECT_TRUE(mode & SOLVER_USE_2_FRICTION_DIRECTIONS);
-  EXPECT_TRUE(mode & SOLVER_ENABLE_FRICTION_DIRECTION_CACHING);
-  EXPECT_TRUE(mode & SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION);
-  EXPECT_TRUE(mode & SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS);
-  EXPECT_TRUE(mode & SOLVER_USE_WARMSTARTING);
-  EXPECT_FALSE(w->getSimulationIslandManager()->getSplitIslands());
+  EXPECT_TRUE(w->getSolverInfo().m_solverMode & SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS);
   EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_NNCG_SOLVER);
 }
 
@@ -64,7 +71,10 @@ std::vector<Vec3f> Drop(const PhysicsConfig& cfg) {
 }
 
 void ExpectSameDrop(const PhysicsConfig& cfg, const char* what) {
-  const std::vector<Vec3f> base = Drop(PhysicsConfig{});
+  PhysicsConfig bullet_pairs;  // Bullet's AABB margin, islands split, CCD against everything
+  bullet_pairs.aabb_margin = kBulletAabbMargin;
+  bullet_pairs.split_islands = true;
+  const std::vector<Vec3f> base = Drop(bullet_pairs);
   const std::vector<Vec3f> got = Drop(cfg);
   for (size_t i = 0; i < base.size(); ++i) {
     EXPECT_LT(testing::Dist(base[i], got[i]), 0.01f) << what << ", body " << i;
@@ -75,6 +85,7 @@ void ExpectSameDrop(const PhysicsConfig& cfg, const char* what) {
 
 TEST(BulletWorldTest, PairFindingSettingsKeepEveryContact) {
   PhysicsConfig small_margin;
+  small_margin.split_islands = true;
   small_margin.aabb_margin = 0.005f;
   ExpectSameDrop(small_margin, "aabb_margin 5 mm");
   PhysicsConfig hysteresis;
@@ -82,11 +93,13 @@ TEST(BulletWorldTest, PairFindingSettingsKeepEveryContact) {
   hysteresis.aabb_hysteresis = 0.02f;
   ExpectSameDrop(hysteresis, "aabb_hysteresis 2 cm");
   PhysicsConfig one_batch;
+  one_batch.aabb_margin = kBulletAabbMargin;
   one_batch.split_islands = false;
   ExpectSameDrop(one_batch, "split_islands off");
   PhysicsConfig static_ccd;
   static_ccd.ccd_static_only = true;
   ExpectSameDrop(static_ccd, "ccd_static_only");
+  ExpectSameDrop(PhysicsConfig{}, "the defaults");
 }
 
 TEST(BulletWorldTest, AabbHysteresisUpdatesTheBroadphaseOnlyWhenTheBodyLeavesIt) {
