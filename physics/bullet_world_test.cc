@@ -20,28 +20,28 @@ using testing::Pos;
 
 TEST(BulletWorldTest, SolverSettingsReachBullet) {
   {
-    // The defaults (session 11): two cached friction rows in a fixed basis, one solver batch.
+    // The defaults: Bullet's solver modes and island batching.
     PhysicsWorld world{PhysicsConfig{}};
+    btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
+    EXPECT_EQ(w->getSolverInfo().m_solverMode, SOLVER_USE_WARMSTARTING | SOLVER_SIMD);
+    EXPECT_EQ(w->getSolverInfo().m_numIterations, 7);
+    EXPECT_TRUE(w->getSimulationIslandManager()->getSplitIslands());
+    EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_SEQUENTIAL_IMPULSE_SOLVER);
+  }
+  {
+    // The session-11 candidates reach Bullet.
+    PhysicsConfig cfg;
+    cfg.split_islands = false;
+    cfg.two_friction_directions = true;
+    cfg.friction_direction_caching = true;
+    cfg.velocity_dependent_friction = false;
+    PhysicsWorld world(cfg);
     btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
     EXPECT_EQ(w->getSolverInfo().m_solverMode,
               SOLVER_USE_WARMSTARTING | SOLVER_SIMD | SOLVER_USE_2_FRICTION_DIRECTIONS |
                   SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
                   SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION);
-    EXPECT_EQ(w->getSolverInfo().m_numIterations, 4);
     EXPECT_FALSE(w->getSimulationIslandManager()->getSplitIslands());
-    EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_SEQUENTIAL_IMPULSE_SOLVER);
-  }
-  {
-    // Bullet's own choices are still reachable.
-    PhysicsConfig cfg;
-    cfg.split_islands = true;
-    cfg.two_friction_directions = false;
-    cfg.friction_direction_caching = false;
-    cfg.velocity_dependent_friction = true;
-    PhysicsWorld world(cfg);
-    btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
-    EXPECT_EQ(w->getSolverInfo().m_solverMode, SOLVER_USE_WARMSTARTING | SOLVER_SIMD);
-    EXPECT_TRUE(w->getSimulationIslandManager()->getSplitIslands());
   }
   PhysicsConfig cfg;
   cfg.solver = PhysicsConfig::Solver::kNNCG;
