@@ -13,7 +13,7 @@
 //
 //   physics_cost_report [--objects 2000] [--layers 3] [--stirrer-reach 0.95]
 //       [--stirrer-speed 1.5] [--warmup 120] [--steps 240] [--only name,name] [--out DIR]
-//       [--render] [--label TEXT] [--realtime 1000,1500,2000,...]
+//       [--render] [--label TEXT] [--realtime 1000,1500,2000,...] [--suite-substep S]
 //
 // --realtime: instead of candidates, steps the default-config scene at each size and prints the
 // median step time and real-time factor (1/60 s over the median), to find the largest box count
@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "loadgen/chart.h"
+#include "bench/physics_cost_candidates.h"
 #include "physics/container_builder.h"
 #include "physics/physics_world.h"
 #include "physics/scenes.h"
@@ -41,143 +42,6 @@ namespace edgephys::physics {
 namespace {
 
 constexpr double kG = 9.81;
-
-struct Candidate {
-  std::string name;
-  std::function<void(PhysicsConfig&)> apply;
-};
-
-// The "combo-broad" candidates' shared part: axis-sweep broadphase, CCD by size, a larger
-// contact pool, Bullet's sleep thresholds, and deactivation after 0.5 s.
-void BroadCombo(PhysicsConfig& c) {
-  c.broadphase = PhysicsConfig::Broadphase::kAxisSweep;
-  c.ccd_motion_fraction = 1.0f;
-  c.contact_pool_size = 32768;
-  c.sleep_linear_threshold = 0.8f;
-  c.sleep_angular_threshold = 1.0f;
-  c.deactivation_time = 0.5f;
-}
-
-// The settings PhyS shipped before this measurement (its old defaults); every single-setting
-// candidate changes one thing from here.
-void OldDefaults(PhysicsConfig& c) {
-  c = PhysicsConfig{};
-  c.rest_freeze = false;  // resting regions came after this measurement
-  c.solver_iterations = 10;
-  c.sleep_linear_threshold = 0.1f;
-  c.sleep_angular_threshold = 0.1f;
-  c.deactivation_time = 2.0f;
-  c.broadphase = PhysicsConfig::Broadphase::kDbvt;
-  c.split_impulse = true;
-  c.randomize_solver_order = false;
-  c.warmstarting_factor = 0.85f;
-  c.solver_residual_threshold = 0;
-  c.contact_pool_size = 4096;
-  c.contact_processing_threshold = 1e18f;
-  c.ccd = true;
-  c.ccd_motion_fraction = 0.5f;
-}
-
-// The current defaults, to change one setting from.
-PhysicsConfig& NewWith(PhysicsConfig& c) {
-  c = PhysicsConfig{};
-  return c;
-}
-
-std::vector<Candidate> Candidates() {
-  using B = PhysicsConfig::Broadphase;
-  auto from_old = [](std::function<void(PhysicsConfig&)> f) {
-    return [f](PhysicsConfig& c) {
-      OldDefaults(c);
-      f(c);
-    };
-  };
-  return {
-      {"old-defaults", from_old([](PhysicsConfig&) {})},
-      {"bullet-sleep", from_old([](PhysicsConfig& c) {
-         c.sleep_linear_threshold = 0.8f;
-         c.sleep_angular_threshold = 1.0f;
-       })},
-      {"deact-0.5s", from_old([](PhysicsConfig& c) { c.deactivation_time = 0.5f; })},
-      {"pools-32k", from_old([](PhysicsConfig& c) { c.contact_pool_size = 32768; })},
-      {"axis-sweep", from_old([](PhysicsConfig& c) {
-         c.broadphase = B::kAxisSweep;
-         c.world_half_extent = 50.0f;
-       })},
-      {"iter-5", from_old([](PhysicsConfig& c) { c.solver_iterations = 5; })},
-      {"iter-5-random", from_old([](PhysicsConfig& c) {
-         c.solver_iterations = 5;
-         c.randomize_solver_order = true;
-       })},
-      {"split-off", from_old([](PhysicsConfig& c) { c.split_impulse = false; })},
-      {"no-warmstart", from_old([](PhysicsConfig& c) { c.warmstarting_factor = 0; })},
-      {"residual-1e-5", from_old([](PhysicsConfig& c) { c.solver_residual_threshold = 1e-5f; })},
-      {"contact-proc-0", from_old([](PhysicsConfig& c) { c.contact_processing_threshold = 0; })},
-      {"ccd-off", from_old([](PhysicsConfig& c) { c.ccd = false; })},
-      {"ccd-by-size", from_old([](PhysicsConfig& c) { c.ccd_motion_fraction = 1.0f; })},
-      {"combo-broad", from_old([](PhysicsConfig& c) {
-         BroadCombo(c);
-       })},
-      {"combo-broad-iter5", from_old([](PhysicsConfig& c) {
-         BroadCombo(c);
-         c.solver_iterations = 5;
-       })},
-      {"combo-broad-iter5-nosplit", from_old([](PhysicsConfig& c) {
-         BroadCombo(c);
-         c.solver_iterations = 5;
-         c.split_impulse = false;
-       })},
-      {"iter-7", from_old([](PhysicsConfig& c) { c.solver_iterations = 7; })},
-      {"combo-iter7", from_old([](PhysicsConfig& c) {
-         c.broadphase = B::kAxisSweep;
-         c.ccd_motion_fraction = 1.0f;
-         c.split_impulse = false;
-         c.solver_iterations = 7;
-       })},
-      {"new-defaults", [](PhysicsConfig& c) { c = PhysicsConfig{}; }},
-      // The defaults with Bullet's own pool size (4,096 manifolds and algorithms preallocated,
-      // ~3.6 MB per world) instead of PhyS's 256: what the smaller pool costs a busy scene.
-      {"pools-4096", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.contact_pool_size = 4096;
-       }},
-      // Resting regions (rest_manager.h): the defaults with freezing off, and variants.
-      {"no-rest", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.rest_freeze = false;
-       }},
-      {"rest-0.25s", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.rest_time = 0.25f;
-       }},
-      {"rest-1s", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.rest_time = 1.0f;
-       }},
-      {"rest-tight", [](PhysicsConfig& c) {  // thresholds halved
-         c = PhysicsConfig{};
-         c.rest_linear_threshold = 0.05f;
-         c.rest_angular_threshold = 0.1f;
-       }},
-      {"rest-margin-2cm", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.rest_wake_margin = 0.02f;
-       }},
-      // The full stir (issue 15, item 1): candidates on top of the defaults.
-      {"reuse-0.5mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.0005f; }},
-      {"reuse-1mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.001f; }},
-      {"reuse-2mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.002f; }},
-      {"reuse-5mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.005f; }},
-      {"new-ccd-by-size", [](PhysicsConfig& c) { NewWith(c).ccd_motion_fraction = 1.0f; }},
-      {"new-ccd-off", [](PhysicsConfig& c) { NewWith(c).ccd = false; }},
-      {"new-ccd-radius-0.5", [](PhysicsConfig& c) { NewWith(c).ccd_swept_radius_fraction = 0.5f; }},
-      {"new-ccd-radius-0.25", [](PhysicsConfig& c) { NewWith(c).ccd_swept_radius_fraction = 0.25f; }},
-      // Physics rate: per step these cost what a step costs; compare them per simulated second
-      // (the sim_s_ratio column), never by the per-step ratio.
-      {"rate-40hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 40.0f; }},
-      {"rate-30hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 30.0f; }},
-  };
-}
 
 // ---------------------------------------------------------------------------------------------
 // Accuracy: the suite's experiments with `base` as the config.
@@ -240,9 +104,18 @@ double FreeFallErr(const PhysicsConfig& base) {
 }
 
 // Apex ratios h(n)/h(n-1) for a sphere dropped from 2 m (4 substeps, as the test).
+// --suite-substep S (seconds, 0: off): the bounce and stack experiments take fixed_dt / S
+// substeps instead of the suite's 4, i.e. they keep the suite's substep length (1/240 s at
+// 60 Hz) at other rates. Diagnostic only: the suite itself (ctest) uses 4.
+double g_suite_substep_s = 0;
+int SuiteSubsteps(const PhysicsConfig& c) {
+  if (g_suite_substep_s <= 0) return 4;
+  return std::max(1, static_cast<int>(std::lround(c.fixed_dt / g_suite_substep_s)));
+}
+
 std::vector<double> BounceRatios(const PhysicsConfig& base, float e, bool ccd) {
   PhysicsConfig cfg = base;
-  cfg.substeps = 4;
+  cfg.substeps = SuiteSubsteps(base);
   cfg.ccd = ccd;
   PhysicsWorld w(cfg);
   const float r = 0.1f;
@@ -356,12 +229,12 @@ Accuracy MeasureAccuracy(const PhysicsConfig& base) {
     if (std::abs(got - expect) > 0.03 * expect + 0.02) a.friction_ok = false;
   }
   PhysicsConfig stack = base;
-  stack.substeps = 4;
+  stack.substeps = SuiteSubsteps(base);
   stack.sleep_linear_threshold = 0.8f;
   stack.sleep_angular_threshold = 1.0f;
   a.stack_drift = StackDrift(stack, 60.0);
   PhysicsConfig awake = base;
-  awake.substeps = 4;
+  awake.substeps = SuiteSubsteps(base);
   awake.sleeping = false;
   a.stack_awake = StackDrift(awake, 60.0);
   a.ccd_max_x = CcdMaxX(base);
@@ -518,11 +391,13 @@ int Main(int argc, char** argv) {
     else if (a == "--no-raw") with_raw = false;  // PhyS only (profiling)
     else if (a == "--realtime") realtime = next();
     else if (a == "--label") label = next();  // the scene, in the chart's title
+    else if (a == "--suite-substep") g_suite_substep_s = std::stod(next());
     else {
       std::fprintf(stderr,
                    "usage: physics_cost_report [--objects N] [--layers L] [--stirrer-reach F] "
                    "[--stirrer-speed W] [--warmup N] [--steps N] [--only a,b] [--out DIR] "
-                   "[--render] [--no-accuracy] [--no-raw] [--label TEXT] [--realtime N,N,...]\n");
+                   "[--render] [--no-accuracy] [--no-raw] [--label TEXT] [--realtime N,N,...] "
+                   "[--suite-substep SECONDS]\n");
       return 2;
     }
   }

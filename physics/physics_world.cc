@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "physics/bullet_world.h"
 #include "physics/manifold_reuse.h"
 #include "physics/physics_world_internal.h"
 
@@ -46,39 +47,20 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
                                              manifold_reuse_.get());
   }
   broadphase_ = NewBroadphase(kInitialSweepHandles);
-  solver_ = std::make_unique<btSequentialImpulseConstraintSolver>();
-  if (config_.soft_body_world) {
-    auto w = std::make_unique<btSoftRigidDynamicsWorld>(dispatcher_.get(), broadphase_.get(),
-                                                         solver_.get(), collision_config_.get());
-    soft_info_ = &w->getWorldInfo();
-    world_ = std::move(w);
-  } else {
-    world_ = std::make_unique<btDiscreteDynamicsWorld>(dispatcher_.get(), broadphase_.get(),
-                                                        solver_.get(), collision_config_.get());
-  }
-  const btVector3 g = ToBt(config_.gravity);
-  world_->setGravity(g);
+  solver_ = internal::NewSolver(config_);
+  world_ = internal::NewBulletWorld(config_, dispatcher_.get(), broadphase_.get(), solver_.get(),
+                                    collision_config_.get(), &soft_info_);
+  internal::ApplyWorldSettings(config_, world_.get());
   if (soft_info_ != nullptr) {
-    soft_info_->m_gravity = g;
+    soft_info_->m_gravity = ToBt(config_.gravity);
     soft_info_->air_density = 0;
     soft_info_->water_density = 0;
   }
-  btContactSolverInfo& solver_info = world_->getSolverInfo();
-  solver_info.m_numIterations = config_.solver_iterations;
-  solver_info.m_splitImpulse = config_.split_impulse;
-  solver_info.m_warmstartingFactor = config_.warmstarting_factor;
-  if (config_.warmstarting_factor <= 0) solver_info.m_solverMode &= ~SOLVER_USE_WARMSTARTING;
-  if (config_.randomize_solver_order) solver_info.m_solverMode |= SOLVER_RANDMIZE_ORDER;
-  solver_info.m_leastSquaresResidualThreshold = config_.solver_residual_threshold;
   // gDeactivationTime is Bullet's process-wide constant; other values are emulated per body
   // (RunGuard scales the time a body has been below the thresholds).
   deactivation_scale_ = config_.deactivation_time > 0
                             ? btScalar(2.0) / config_.deactivation_time - btScalar(1)
                             : btScalar(0);
-  // Static AABBs never change unless we move them (we then update them explicitly).
-  world_->setForceUpdateAllAabbs(false);
-  // CCD creates predictive contacts; without this they silently drop restitution.
-  world_->setApplySpeculativeContactRestitution(true);
   fixed_body_ = std::make_unique<btRigidBody>(0, nullptr, nullptr);
   fixed_body_->setMassProps(0, btVector3(0, 0, 0));
   rest_ = std::make_unique<RestManager>(config_, world_.get());

@@ -89,16 +89,19 @@ struct BodyShapes;  // physics_world_internal.h
 class RestManager;  // rest_manager.h
 class ManifoldReuseCreateFunc;  // manifold_reuse.h
 
+inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
+
 struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
   // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
   // across them). Cost: every substep is a full Bullet step, so Step() grows with substeps.
   // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy and stability").
   int substeps = 1;
-  // Sequential impulse iterations (per substep). 7 keeps the accuracy suite passing in fixed
-  // order, 5 does not (a never-sleeping stack creeps 0.27 m in 60 s; 6 not measured); each
-  // iteration is ~1.5 % of a 2,000-box MultiObject step (docs/benchmarks.md, "PhyS: model no more than
-  // the scene needs").
+  // Sequential impulse iterations (per substep). With one friction row per contact (Bullet's
+  // default) 7 keep the accuracy suite passing and 6 or 5 do not (the never-sleeping stack
+  // creeps 0.29 / 0.27 m in 60 s, bound 0.25); with two cached friction rows (see
+  // two_friction_directions) 4 hold it to 0.09 m. Each iteration is ~1.5-3 % of a 2,000-box
+  // MultiObject step (docs/benchmarks.md, "Full stir, session 11").
   int solver_iterations = 7;
   int max_substeps = 4;               // Advance(): most fixed steps per call (backlog dropped)
   Vec3f gravity{0.0f, -9.81f, 0.0f};  // m/s^2
@@ -150,6 +153,58 @@ struct PhysicsConfig {
   // The solver stops iterating when the squared residual falls below this (0: always
   // solver_iterations). Cost saved only when islands converge early.
   float solver_residual_threshold = 0.0f;
+  // --- Solver and CCD settings measured on the full stir in session 11 (docs/benchmarks.md,
+  // "Full stir, session 11"; --only names in bench/physics_cost_candidates.cc).
+  // Constraint solver. kSequentialImpulse: Bullet's default (projected Gauss-Seidel).
+  // kNNCG: btNNCGConstraintSolver (nonlinear conjugate gradient on top of the same rows;
+  // meant to converge in fewer iterations, at extra work per iteration). Measured: at 7
+  // iterations the never-sleeping stack holds to 0.03 m but a restitution or stick-slip bound
+  // fails; at 5 the stack collapses. Not the default.
+  enum class Solver : uint8_t { kSequentialImpulse, kNNCG };
+  Solver solver = Solver::kSequentialImpulse;
+  // Bullet's island manager sorts every contact manifold by island and calls the solver once
+  // per island (batched up to 128 rows). false: one solver call with every body and manifold,
+  // no sorting; sleeping islands still sleep (islands are still built for that).
+  // Measured (full stir): false saves about 3 % of the step; the report's suite experiments
+  // pass, but it is not the default (see "Full stir, session 11": with the other session-11
+  // picks, four physics tests fail).
+  bool split_islands = true;
+  // Friction rows per contact point: Bullet's default is one, along the sliding direction.
+  // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
+  // friction_direction_caching keeps a contact's directions from the step that created it
+  // (SOLVER_ENABLE_FRICTION_DIRECTION_CACHING; Bullet reuses them only together with
+  // two_friction_directions and velocity_dependent_friction = false).
+  // Measured: two cached rows in a fixed tangent basis cost more rows per iteration but converge
+  // much better (never-sleeping stack 0.04 m against 0.16 m at 7 iterations), so 4 iterations
+  // pass the report's suite experiments where one row needs 7: ~6 % less per step. Not the
+  // default: at 4 iterations the ctest stack test's raw-Bullet reference (same iteration count)
+  // drifts 1.04 cm (bound 1 cm), see "Full stir, session 11".
+  bool two_friction_directions = false;
+  bool friction_direction_caching = false;
+  // true (Bullet's default): the first friction direction follows the relative sliding
+  // velocity; false: a fixed tangent basis (SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION).
+  bool velocity_dependent_friction = true;
+  // SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS: each contact's friction rows are solved
+  // right after its normal row instead of after all normal rows. Measured: converges worse
+  // (never-sleeping stack 0.37 m at 7 iterations, bound 0.25); off.
+  bool interleave_friction = false;
+  // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
+  // against static and kinematic bodies only (the walls a body could pass through), not against
+  // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
+  // box-box part of the sweeps. Accuracy: a fast small body can pass through a thin *dynamic*
+  // body in one step. Measured on the full stir: no saving within the noise, and 5 of 2,000
+  // boxes escaped the container (other boxes push them through a wall); off.
+  bool ccd_static_only = false;
+  // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
+  // aabb_margin (m; Bullet: gContactBreakingThreshold, 0.02). Box-box contacts exist only when
+  // boxes overlap and other pairs produce points within ~2-4 mm (the shapes' breaking
+  // thresholds), so a smaller margin means fewer broadphase pairs to test; too small and a pair
+  // is found a step late. aabb_hysteresis (m, 0: off): the broadphase gets the AABB grown by
+  // this much more, and is only updated when the body's AABB leaves it, so small motions cost
+  // no sort; the price is more (looser) pairs for the narrowphase to reject. Measured (full
+  // stir): 5 mm saves ~2 % of the step; 10 mm and hysteresis of 1-2 cm save nothing measurable.
+  float aabb_margin = kBulletAabbMargin;
+  float aabb_hysteresis = 0.0f;
   // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
   // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
   // allocates per new contact pair (malloc/free per pair that starts or stops touching), so a

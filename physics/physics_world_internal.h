@@ -4,6 +4,7 @@
 // The implementation is split by concern:
 //   physics_world.cc         the front: construction, AddEntity/RemoveEntity, commands, Step(),
 //                            output (CollectStates, DrainEvents, counters)
+//   bullet_world.cc          the Bullet world, solver and solver settings (bullet_world.h)
 //   container_validation.cc  Validate(): component limits, finite values, ids, parents, joints
 //   body_builder.cc          AddEntity's build steps: shapes, rigid body, trigger, joints,
 //                            soft body
