@@ -76,18 +76,7 @@ TEST(DeltaCodec, RandomTransformsRoundTripWithinBoundsForSeveralConfigs) {
 
 TEST(DeltaCodec, LossyReorderedStreamConvergesWithinBoundsAndOnlyReferencesAckedStates) {
   for (uint64_t seed : {1, 2, 3}) {
-    SimConfig c;
-    c.seed = seed;
-    c.entities = 150;
-    c.ticks = 400;
-    c.tick_hz = 48;
-    c.loss = 0.2;
-    c.max_extra_delay_ticks = 3;
-    c.ack_delay_ticks = 2;
-    c.ack_loss = 0.1;
-    c.family = -1;
-    c.freeze_after_tick = 300;
-    c.lossless_after_tick = 340;
+    SimConfig c = LossyReorderedSim(seed);
     c.quant.position_step_m = seed == 2 ? 0.0005f : 0.001f;
     c.quant.rotation_error_deg = seed == 3 ? 0.05f : 0.1f;
     SimResult r = RunStream(c);

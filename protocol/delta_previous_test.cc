@@ -33,16 +33,7 @@ double ReferenceBitsPerDelta(const SimResult& r) {
 // converges, and "previous" references cost fewer bits than format 2's distances.
 TEST(DeltaPreviousCodec, IrregularGapsRoundTripAndReferencesCostLessThanFormat2) {
   for (uint64_t seed = 1; seed <= 8; ++seed) {
-    SimConfig c;
-    c.seed = seed;
-    c.entities = 120;
-    c.ticks = 300;
-    c.tick_hz = 60;
-    c.send_probability = 0.05 + 0.05 * static_cast<double>(seed % 4);
-    c.family = -1;
-    c.freeze_after_tick = 250;
-    c.lossless_after_tick = 260;
-    c.quant.position_step_m = seed % 2 == 0 ? 0.0005f : 0.001f;
+    SimConfig c = IrregularSendsSim(seed, 0.05 + 0.05 * static_cast<double>(seed % 4));
     SimResult two = RunStream(c);
     c.options = Previous();
     SimResult thirteen = RunStream(c);
@@ -65,19 +56,8 @@ TEST(DeltaPreviousCodec, IrregularGapsRoundTripAndReferencesCostLessThanFormat2)
 
 TEST(DeltaPreviousCodec, LossyReorderedStreamConvergesWithinBoundsAndOnlyReferencesAckedStates) {
   for (uint64_t seed : {1, 2, 3, 4}) {
-    SimConfig c;
-    c.seed = seed;
-    c.entities = 150;
-    c.ticks = 400;
-    c.tick_hz = 48;
-    c.loss = 0.2;
-    c.max_extra_delay_ticks = 3;
-    c.ack_delay_ticks = 2;
-    c.ack_loss = 0.1;
-    c.family = -1;
+    SimConfig c = LossyReorderedSim(seed);
     c.send_probability = seed <= 2 ? 0.3 : 1.0;  // sparse (mostly "previous") and every tick
-    c.freeze_after_tick = 300;
-    c.lossless_after_tick = 340;
     c.options = Previous();
     SimResult r = RunStream(c);
     ExpectConvergedUnderLoss(r, c.quant, seed);

@@ -28,16 +28,7 @@ DeltaEncoderOptions Timed() {
 // every decoded state is the one sent, within the lattice, at the time it was sent for.
 TEST(DeltaTimedCodec, PastStatesRoundTripAtTheirOwnTimes) {
   for (uint64_t seed = 1; seed <= 8; ++seed) {
-    SimConfig c;
-    c.seed = seed;
-    c.entities = 120;
-    c.ticks = 300;
-    c.tick_hz = 60;
-    c.send_probability = 0.1 + 0.05 * static_cast<double>(seed % 4);
-    c.family = -1;
-    c.freeze_after_tick = 250;
-    c.lossless_after_tick = 260;
-    c.quant.position_step_m = seed % 2 == 0 ? 0.0005f : 0.001f;
+    SimConfig c = IrregularSendsSim(seed, 0.1 + 0.05 * static_cast<double>(seed % 4));
     c.options = Timed();
     c.record_back_ticks = 8;
     SimResult r = RunStream(c);
@@ -57,25 +48,16 @@ TEST(DeltaTimedCodec, PastStatesRoundTripAtTheirOwnTimes) {
 
 TEST(DeltaTimedCodec, LossyReorderedStreamConvergesWithTheTimesSent) {
   for (uint64_t seed : {1, 2, 3, 4}) {
-    SimConfig c;
-    c.seed = seed;
-    c.entities = 150;
-    c.ticks = 400;
-    c.tick_hz = 48;
-    c.loss = 0.2;
-    c.max_extra_delay_ticks = 3;
-    c.ack_delay_ticks = 2;
-    c.ack_loss = 0.1;
-    c.family = -1;
+    SimConfig c = LossyReorderedSim(seed);
     c.send_probability = seed <= 2 ? 0.3 : 1.0;
-    c.freeze_after_tick = 300;
-    c.lossless_after_tick = 340;
     c.options = Timed();
     c.record_back_ticks = seed <= 2 ? 6 : 0;  // every tick: no room for past states
     SimResult r = RunStream(c);
     ExpectConvergedUnderLoss(r, c.quant, seed);
     EXPECT_EQ(r.time_mismatches, 0u);
-    if (seed <= 2) EXPECT_GT(r.timed_records, 0u);
+    if (seed <= 2) {
+      EXPECT_GT(r.timed_records, 0u);
+    }
   }
 }
 
@@ -155,7 +137,9 @@ std::vector<uint8_t> ForgedKeyframe(const QuantizationParams& p, uint16_t counte
   EXPECT_TRUE(w.WriteBits(3, 2));
   for (int c = 0; c < 3; ++c) EXPECT_TRUE(w.WriteBits(static_cast<uint32_t>(p.rotation_max), p.rotation_bits));
   EXPECT_TRUE(w.WriteBit(own_time));
-  if (own_time) EXPECT_TRUE(w.WriteExpGolomb(back, 4));
+  if (own_time) {
+    EXPECT_TRUE(w.WriteExpGolomb(back, 4));
+  }
   out.resize(kDeltaHeaderSize + 1 + w.byte_size());
   return out;
 }

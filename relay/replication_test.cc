@@ -119,14 +119,14 @@ class KeySampleTest : public RoomHostTest {
           // format byte, time (ms).
           const uint8_t* packet = writer.packets.back().data();
           const uint8_t* p = packet + kConnectionHeaderSize + 3;
-          Sent s{now, LoadU32LE(p + 1), Find(box_)->state_time, LoadU32LE(p + 1), {}};
+          Sent record{now, LoadU32LE(p + 1), Find(box_)->state_time, LoadU32LE(p + 1), {}};
           batch.states.clear();
           batch.times_ms.clear();
           const uint16_t size = LoadU16LE(p - 2);
           EXPECT_TRUE(decoder.Decode(std::span<const uint8_t>(p, size), &batch).ok());
-          if (!batch.states.empty()) s.position = batch.states.back().position;
-          if (!batch.times_ms.empty()) s.record_ms = batch.times_ms.back();
-          if (measuring) sent.push_back(s);
+          if (!batch.states.empty()) record.position = batch.states.back().position;
+          if (!batch.times_ms.empty()) record.record_ms = batch.times_ms.back();
+          if (measuring) sent.push_back(record);
           // ack_: the receiver acknowledges at once (the encoder then codes deltas).
           if (ack_) replicator.OnPacketAcked(LoadU16LE(packet + kPacketPrefixSize));
         }

@@ -141,6 +141,44 @@ struct SimConfig {
   int record_back_ticks = 0;
 };
 
+// The network the convergence tests share: 150 entities over 400 ticks at 48 Hz, 20 % loss,
+// up to 3 ticks of reordering, acks 2 ticks late and 10 % of them lost, alternating motions;
+// the truth freezes at tick 300 and the network is perfect from 340 (so a converged stream can
+// be checked).
+inline SimConfig LossyReorderedSim(uint64_t seed) {
+  SimConfig c;
+  c.seed = seed;
+  c.entities = 150;
+  c.ticks = 400;
+  c.tick_hz = 48;
+  c.loss = 0.2;
+  c.max_extra_delay_ticks = 3;
+  c.ack_delay_ticks = 2;
+  c.ack_loss = 0.1;
+  c.family = -1;
+  c.freeze_after_tick = 300;
+  c.lossless_after_tick = 340;
+  return c;
+}
+
+// Irregular sends (each entity in a tick with probability `send_probability`, as key samples
+// send): 120 entities over 300 ticks at 60 Hz, lossless, alternating motions, a 0.5 mm lattice
+// for even seeds and 1 mm for odd ones; the truth freezes at tick 250, every entity is sent
+// from 260.
+inline SimConfig IrregularSendsSim(uint64_t seed, double send_probability) {
+  SimConfig c;
+  c.seed = seed;
+  c.entities = 120;
+  c.ticks = 300;
+  c.tick_hz = 60;
+  c.send_probability = send_probability;
+  c.family = -1;
+  c.freeze_after_tick = 250;
+  c.lossless_after_tick = 260;
+  c.quant.position_step_m = seed % 2 == 0 ? 0.0005f : 0.001f;
+  return c;
+}
+
 struct SimResult {
   uint64_t bytes = 0, updates = 0, packets = 0, outputs = 0;
   double max_pos_err = 0, max_rot_err = 0;
