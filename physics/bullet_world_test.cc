@@ -52,30 +52,12 @@ TEST(BulletWorldTest, SolverSettingsReachBullet) {
   EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_NNCG_SOLVER);
 }
 
-// Boxes dropped apart and an aligned two-box stack: no chaotic toppling, so every setting that
-// only changes how pairs are found or batched must give the same resting poses.
-std::vector<Vec3f> Drop(const PhysicsConfig& cfg) {
-  PhysicsWorld world(cfg);
-  EXPECT_TRUE(Add(world, Ground(1)).ok());
-  for (uint32_t i = 0; i < 4; ++i) {
-    EXPECT_TRUE(
-        Add(world, DynamicBox(10 + i, {1.0f * i, 0.5f + 0.3f * i, 0}, {0.1f, 0.1f, 0.1f}, 1.0f))
-            .ok());
-  }
-  EXPECT_TRUE(Add(world, DynamicBox(20, {0, 0.5f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
-  EXPECT_TRUE(Add(world, DynamicBox(21, {0, 0.75f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
-  for (int i = 0; i < 180; ++i) world.Step();
-  std::vector<Vec3f> out;
-  for (uint32_t id : {10u, 11u, 12u, 13u, 20u, 21u}) out.push_back(Pos(world, id));
-  return out;
-}
-
 void ExpectSameDrop(const PhysicsConfig& cfg, const char* what) {
   PhysicsConfig bullet_pairs;  // Bullet's AABB margin, islands split, CCD against everything
   bullet_pairs.aabb_margin = kBulletAabbMargin;
   bullet_pairs.split_islands = true;
-  const std::vector<Vec3f> base = Drop(bullet_pairs);
-  const std::vector<Vec3f> got = Drop(cfg);
+  const std::vector<Vec3f> base = testing::DropSceneRestingPositions(bullet_pairs);
+  const std::vector<Vec3f> got = testing::DropSceneRestingPositions(cfg);
   for (size_t i = 0; i < base.size(); ++i) {
     EXPECT_LT(testing::Dist(base[i], got[i]), 0.01f) << what << ", body " << i;
   }

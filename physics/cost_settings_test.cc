@@ -105,19 +105,7 @@ TEST(CostSettingsTest, BroadphasesAgreeOnASimpleScene) {
   auto drop = [](PhysicsConfig::Broadphase b) {
     PhysicsConfig cfg;
     cfg.broadphase = b;
-    PhysicsWorld world(cfg);
-    EXPECT_TRUE(Add(world, Ground(1)).ok());
-    for (uint32_t i = 0; i < 4; ++i) {
-      EXPECT_TRUE(Add(world, DynamicBox(10 + i, {1.0f * i, 0.5f + 0.3f * i, 0}, {0.1f, 0.1f, 0.1f},
-                                        1.0f))
-                      .ok());
-    }
-    EXPECT_TRUE(Add(world, DynamicBox(20, {0, 0.5f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
-    EXPECT_TRUE(Add(world, DynamicBox(21, {0, 0.75f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
-    for (int i = 0; i < 180; ++i) world.Step();
-    std::vector<Vec3f> out;
-    for (uint32_t id : {10u, 11u, 12u, 13u, 20u, 21u}) out.push_back(Pos(world, id));
-    return out;
+    return testing::DropSceneRestingPositions(cfg);
   };
   const std::vector<Vec3f> dbvt = drop(PhysicsConfig::Broadphase::kDbvt);
   const std::vector<Vec3f> sweep = drop(PhysicsConfig::Broadphase::kAxisSweep);

@@ -1,6 +1,8 @@
 // Helpers shared by the physics tests.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <vector>
 
@@ -46,6 +48,25 @@ inline Quatf AxisAngle(float ax, float ay, float az, float angle) {
 inline float Dist(const Vec3f& a, const Vec3f& b) {
   const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+// Four boxes dropped apart and an aligned two-box stack on the ground, stepped 180 times under
+// `cfg`: no chaotic toppling, so settings that only change how pairs are found or batched give
+// the same resting poses. Returns the six boxes' positions (the stack's last: 0.1 and 0.3 m up).
+inline std::vector<Vec3f> DropSceneRestingPositions(const PhysicsConfig& cfg) {
+  PhysicsWorld world(cfg);
+  EXPECT_TRUE(Add(world, Ground(1)).ok());
+  for (uint32_t i = 0; i < 4; ++i) {
+    EXPECT_TRUE(
+        Add(world, DynamicBox(10 + i, {1.0f * i, 0.5f + 0.3f * i, 0}, {0.1f, 0.1f, 0.1f}, 1.0f))
+            .ok());
+  }
+  EXPECT_TRUE(Add(world, DynamicBox(20, {0, 0.5f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
+  EXPECT_TRUE(Add(world, DynamicBox(21, {0, 0.75f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
+  for (int i = 0; i < 180; ++i) world.Step();
+  std::vector<Vec3f> out;
+  for (uint32_t id : {10u, 11u, 12u, 13u, 20u, 21u}) out.push_back(Pos(world, id));
+  return out;
 }
 
 }  // namespace edgephys::physics::testing
