@@ -264,6 +264,14 @@ struct PhysicsConfig {
   float grab_gain = 1.0f;               // fraction of the pose error removed per step
   float grab_max_speed = 10.0f;         // m/s
   float grab_max_angular_speed = 20.0f; // rad/s
+  // A released object leaves at its hand's velocity (and the angular velocity the hand turns
+  // at), estimated from the hand's poses of the last `release_velocity_window_s` seconds with
+  // the times they hold (RoomPhysics::Drive, physics/pose_history.h), not at the drive's last
+  // step, which asks for 0 to ~2x the hand's speed depending on how poses fell between steps.
+  // Longer windows average out more timing jitter but lag a hand that speeds up (they give the
+  // mean velocity over the window). 0: keep the drive's last step (the old behaviour). Cost:
+  // O(8) per release, ~300 bytes per driven entity.
+  float release_velocity_window_s = 0.1f;
   // Validation limits.
   size_t max_colliders = 64;
   size_t max_mesh_vertices = 65536;

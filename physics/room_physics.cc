@@ -68,6 +68,7 @@ void RoomPhysics::Remove(uint32_t id) {
   soft_.erase(id);
   (void)world_.RemoveEntity(id);
   holds_.erase(id);
+  driven_.erase(id);
   for (auto it = holds_.begin(); it != holds_.end();) {
     it = it->second.hand == id ? holds_.erase(it) : std::next(it);
   }
@@ -76,9 +77,13 @@ void RoomPhysics::Remove(uint32_t id) {
   }
 }
 
-void RoomPhysics::Drive(uint32_t id, const EntityState& s) {
+void RoomPhysics::Drive(uint32_t id, const EntityState& s, double time) {
   auto role = roles_.find(id);
   if (role == roles_.end() || role->second != PhysicsRole::kMirrored) return;
+  DrivenPoses& poses = driven_[id];
+  poses.pending = true;
+  poses.time = time;
+  poses.state = s;
   (void)world_.MoveToTransform(id, s.position, s.rotation);
   const Eigen::Quaternionf hand_rot = ToEigen(s.rotation).normalized();
   const Eigen::Vector3f hand_pos = ToEigen(s.position);
@@ -118,9 +123,45 @@ Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, bool require_hover) {
   return Status::Ok();
 }
 
+void RoomPhysics::CommitDrivenPoses() {
+  for (auto& [id, d] : driven_) {
+    if (!d.pending) continue;
+    d.history.Add(d.time, d.state.position, d.state.rotation);
+    d.pending = false;
+  }
+}
+
 Status RoomPhysics::Release(uint32_t entity) {
-  if (holds_.erase(entity) == 0) return Status(StatusCode::kNotFound, "not held");
-  return world_.Release(entity);
+  auto held = holds_.find(entity);
+  if (held == holds_.end()) return Status(StatusCode::kNotFound, "not held");
+  const uint32_t hand = held->second.hand;
+  holds_.erase(held);
+  Status st = world_.Release(entity);
+  const float window = world_.config().release_velocity_window_s;
+  auto poses = driven_.find(hand);
+  if (!st.ok() || !(window > 0) || poses == driven_.end()) return st;
+  // The hand's poses up to now: those committed at each Advance, and the one since.
+  physics::PoseHistory history = poses->second.history;
+  if (poses->second.pending) {
+    history.Add(poses->second.time, poses->second.state.position, poses->second.state.rotation);
+  }
+  Vec3f v_hand, w_hand;
+  double t;
+  Vec3f hand_pos;
+  Quatf hand_rot;
+  if (!history.Estimate(window, &v_hand, &w_hand) || !history.Newest(&t, &hand_pos, &hand_rot)) {
+    return st;
+  }
+  EntityState now_state;
+  if (!world_.GetState(entity, &now_state).ok()) return st;
+  // A point held rigidly by the hand moves at v_hand + w_hand x (its offset from the hand).
+  const Eigen::Vector3f w = ToEigen(w_hand);
+  Eigen::Vector3f v = ToEigen(v_hand) + w.cross(ToEigen(now_state.position) - ToEigen(hand_pos));
+  Eigen::Vector3f wv = w;
+  const physics::PhysicsConfig& c = world_.config();
+  if (v.norm() > c.grab_max_speed) v *= c.grab_max_speed / v.norm();
+  if (wv.norm() > c.grab_max_angular_speed) wv *= c.grab_max_angular_speed / wv.norm();
+  return world_.SetVelocity(entity, FromEigen(v), FromEigen(wv));
 }
 
 uint32_t RoomPhysics::HolderOf(uint32_t entity) const {
@@ -159,6 +200,7 @@ void RoomPhysics::RequestGrab(uint32_t entity, uint32_t hand, bool require_hover
 void RoomPhysics::Advance(double now, StepOutput* out) {
   out->Clear();
   out->grabs.swap(pending_grabs_);
+  CommitDrivenPoses();
   auto start = std::chrono::steady_clock::now();
   // The world accumulates elapsed time and runs whole fixed steps (dropping a backlog beyond
   // max_substeps rather than replaying it).

@@ -24,6 +24,7 @@
 
 #include "edgephys/schema/container_generated.h"
 #include "physics/physics_world.h"
+#include "physics/pose_history.h"
 #include "protocol/state_codec.h"
 
 namespace edgephys {
@@ -43,14 +44,21 @@ class RoomPhysics {
   bool Has(uint32_t id) const { return roles_.count(id) != 0; }
 
   // An owner moved a mirrored entity: the kinematic body follows, and so does whatever that
-  // entity holds.
-  void Drive(uint32_t id, const EntityState& state);
+  // entity holds. `time` is when the pose holds, on the clock of Advance's `now` (the relay's:
+  // when the pose arrived); the poses' times give the velocity a released object leaves with
+  // (Release). The last pose before each Advance is the one kept (as the async link coalesces
+  // drives). A pose whose time is older than the newest kept is not used for the velocity.
+  void Drive(uint32_t id, const EntityState& state, double time);
 
   // Attaches simulated, Interactable `entity` to `hand` at their current relative pose.
   // kFailedPrecondition-like errors (kPermissionDenied) with `*detail` unless the hand's
   // trigger hovers the entity and nobody else holds it.
   // `require_hover` false re-attaches without the trigger check (failover of a held object).
   Status Grab(uint32_t entity, uint32_t hand, bool require_hover = true);
+  // Lets go of `entity`. With PhysicsConfig::release_velocity_window_s > 0 and enough recent
+  // hand poses (physics/pose_history.h), the entity leaves at the hand's velocity at its place
+  // (v_hand + w_hand x (p - p_hand), and the hand's angular velocity, capped at the grab drive's
+  // limits); otherwise with the drive's last velocity. kNotFound if not held.
   Status Release(uint32_t entity);
   // The hand holding `entity`, 0 if none.
   uint32_t HolderOf(uint32_t entity) const;
@@ -129,6 +137,16 @@ class RoomPhysics {
   std::set<uint32_t> soft_;  // entities with a soft body
   std::set<std::pair<uint32_t, uint32_t>> hovering_;  // (trigger entity, entity inside)
   std::unordered_map<uint32_t, Hold> holds_;          // by held entity
+  // Poses of driven (mirrored) entities: the last Drive since the previous Advance, and one
+  // pose per Advance before it (~350 bytes per driven entity).
+  struct DrivenPoses {
+    bool pending = false;
+    double time = 0;
+    EntityState state;
+    physics::PoseHistory history;
+  };
+  std::unordered_map<uint32_t, DrivenPoses> driven_;
+  void CommitDrivenPoses();
   std::vector<EntityState> scratch_states_;
   std::vector<GrabResult> pending_grabs_;
 };

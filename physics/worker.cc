@@ -71,7 +71,7 @@ void PhysicsWorker::OnOtherMessage(const schema::ControlMessage& msg) {
       const auto* m = msg.body_as_WorkerDrive();
       RoomPhysics* room = room_of(m->room());
       if (room == nullptr || m->poses() == nullptr) break;
-      for (const schema::Pose* p : *m->poses()) room->Drive(p->entity_id(), FromPose(*p));
+      for (const schema::Pose* p : *m->poses()) room->Drive(p->entity_id(), FromPose(*p), now_);
       break;
     }
     case schema::Body::WorkerGrab: {

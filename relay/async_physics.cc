@@ -209,6 +209,7 @@ void AsyncPhysicsRoom::Post(PhysicsCommand&& command) {
     for (size_t i = drive_run_; i < inbox_.size(); ++i) {
       if (inbox_[i].id == command.id) {
         inbox_[i].state = command.state;
+        inbox_[i].time = command.time;
         return;
       }
     }
@@ -268,7 +269,7 @@ void AsyncPhysicsRoom::Apply(PhysicsCommand& c) {
       break;
     }
     case K::kRemove: physics_->Remove(c.id); break;
-    case K::kDrive: physics_->Drive(c.id, c.state); break;
+    case K::kDrive: physics_->Drive(c.id, c.state, c.time); break;
     case K::kGrab: physics_->RequestGrab(c.id, c.hand, !c.force); break;
     case K::kRelease: (void)physics_->Release(c.id); break;
     case K::kRestore: physics_->Restore(c.id, c.state, c.linear, c.angular); break;

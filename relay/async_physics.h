@@ -53,6 +53,7 @@ struct PhysicsCommand {
   uint32_t id = 0;                        // the entity
   uint32_t hand = 0;                      // kGrab
   EntityState state{};                    // kDrive, kRestore
+  double time = 0;                        // kDrive: when the pose holds (RoomPhysics::Drive)
   Vec3f linear{}, angular{};              // kRestore
   std::vector<Vec3f> nodes;               // kRestoreNodes: every particle of the soft body
   flatbuffers::DetachedBuffer container;  // kAdd: a finished buffer whose root is a Container

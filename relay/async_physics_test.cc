@@ -297,9 +297,9 @@ TEST(AsyncPhysics, SameOutputAsSynchronousForTheSameCommands) {
     const float x = -1.0f + 0.02f * static_cast<float>(tick);
     const float y = tick > 60 ? 0.1f + 0.01f * static_cast<float>(tick - 60) : 0.1f;
     both([&](PhysicsLink& l) {
-      l.Drive(4, {4, {x - 0.01f, y, 0}, {}});
+      l.Drive(4, {4, {x - 0.01f, y, 0}, {}}, now - 0.004);
       if (tick == 20 || tick == 52) l.RequestGrab(2, 4, false);
-      l.Drive(4, {4, {x, y, 0}, {}});
+      l.Drive(4, {4, {x, y, 0}, {}}, now);
       if (tick == 100) l.Release(2);
       if (tick == 70) {
         l.Remove(3);
@@ -426,7 +426,7 @@ TEST(AsyncPhysics, DestructionWhileSteppingIsClean) {
     const double now = Seconds() + 0.05;
     for (auto& l : links) {
       l->Advance(now, &out);
-      l->Drive(1, {1, {0, -0.4f, 0}, {}});
+      l->Drive(1, {1, {0, -0.4f, 0}, {}}, now);
       l->RequestGrab(physics::kSceneFirstBoxId, 1, true);
       l->Remove(physics::kSceneFirstBoxId + 1);
     }

@@ -59,13 +59,14 @@ void EmbeddedPhysicsLink::Remove(uint32_t id) {
   room_->Post(std::move(command));
 }
 
-void EmbeddedPhysicsLink::Drive(uint32_t id, const EntityState& s) {
-  if (room_ == nullptr) return physics_->Drive(id, s);
+void EmbeddedPhysicsLink::Drive(uint32_t id, const EntityState& s, double time) {
+  if (room_ == nullptr) return physics_->Drive(id, s, time);
   if (admission_.RoleOf(id) != PhysicsRole::kMirrored) return;  // the world ignores it
   PhysicsCommand command;
   command.kind = PhysicsCommand::Kind::kDrive;
   command.id = id;
   command.state = s;
+  command.time = time;
   room_->Post(std::move(command));
 }
 
@@ -198,7 +199,7 @@ void RemotePhysicsLink::Remove(uint32_t id) {
   Send(fbb);
 }
 
-void RemotePhysicsLink::Drive(uint32_t id, const EntityState& s) {
+void RemotePhysicsLink::Drive(uint32_t id, const EntityState& s, double /*time*/) {
   if (admission_.RoleOf(id) == PhysicsRole::kNone) return;
   for (schema::Pose& p : drives_) {
     if (p.entity_id() == id) {

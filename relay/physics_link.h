@@ -47,7 +47,10 @@ class PhysicsLink {
   // detail naming the problem when the components are refused.
   virtual Status Add(const schema::Container& c, PhysicsRole role) = 0;
   virtual void Remove(uint32_t id) = 0;
-  virtual void Drive(uint32_t id, const EntityState& state) = 0;
+  // `time`: when the pose holds, on the relay's clock (its arrival). Embedded PhyS keeps it
+  // for the velocity a released object leaves with (RoomPhysics::Drive); a remote worker stamps
+  // poses with their arrival on its own clock (the wire carries no time).
+  virtual void Drive(uint32_t id, const EntityState& state, double time) = 0;
   // The answer arrives in a later Advance() output. `force` skips the hover check (failover).
   virtual void RequestGrab(uint32_t entity, uint32_t hand, bool force = false) = 0;
   virtual void Release(uint32_t entity) = 0;
@@ -94,7 +97,7 @@ class EmbeddedPhysicsLink final : public PhysicsLink {
   // the commands are queued in order and applied before the next step.
   Status Add(const schema::Container& c, PhysicsRole role) override;
   void Remove(uint32_t id) override;
-  void Drive(uint32_t id, const EntityState& s) override;
+  void Drive(uint32_t id, const EntityState& s, double time) override;
   void RequestGrab(uint32_t entity, uint32_t hand, bool force) override;
   void Release(uint32_t entity) override;
   void Restore(uint32_t id, const EntityState& s, const Vec3f& l, const Vec3f& a) override;
@@ -140,7 +143,7 @@ class RemotePhysicsLink final : public PhysicsLink {
 
   Status Add(const schema::Container& c, PhysicsRole role) override;
   void Remove(uint32_t id) override;
-  void Drive(uint32_t id, const EntityState& state) override;
+  void Drive(uint32_t id, const EntityState& state, double time) override;
   void RequestGrab(uint32_t entity, uint32_t hand, bool force) override;
   void Release(uint32_t entity) override;
   void Restore(uint32_t id, const EntityState& s, const Vec3f& l, const Vec3f& a) override;

@@ -343,7 +343,7 @@ void RoomHost::ApplyStates(MemberLink& link, std::span<const uint8_t> payload, d
     e->changed_at = now;
     e->state_time = now;
     if (e->physics == PhysicsRole::kMirrored && room_.physics() != nullptr) {
-      room_.physics()->Drive(st.entity_id, st);
+      room_.physics()->Drive(st.entity_id, st, now);
     }
     RelayCounters::Inc(env_.counters->entity_updates_received);
   }
@@ -486,7 +486,7 @@ void RoomHost::FailOver(double now) {
       // pose instead, a kinematic body would sweep the room in one step and slam whatever it
       // met (a plate pressing a soft body pushed it through the floor).
       link.Restore(e->id, e->state, {}, {});
-      link.Drive(e->id, e->state);
+      link.Drive(e->id, e->state, e->state_time);
     }
   }
   for (Entity* e : order) {

@@ -114,7 +114,7 @@ class ScriptedPhysics final : public PhysicsLink {
     return Status::Ok();
   }
   void Remove(uint32_t id) override { removed.push_back(id); }
-  void Drive(uint32_t id, const EntityState& s) override { driven[id] = s; }
+  void Drive(uint32_t id, const EntityState& s, double /*time*/) override { driven[id] = s; }
   void RequestGrab(uint32_t entity, uint32_t hand, bool force) override {
     grabs.push_back({entity, hand, force});
   }
