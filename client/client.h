@@ -223,6 +223,9 @@ class Client final {
   // Asks PhyS to attach entity `entity_id` to this client's hand `hand_id` (the hand's trigger
   // must hover it); OnPhysicsEvent(Grabbed) or OnError(GrabRefused) follows.
   Status Grab(uint32_t entity_id, uint32_t hand_id);
+  // Lets go: the entity leaves at the velocity the hand showed over its last ~0.1 s of published
+  // transforms, spinning as the hand turned (throwing), then falls. kNotConnected before
+  // OnJoined; OnError(NotOwner) follows if none of this client's hands holds it.
   Status Release(uint32_t entity_id);
   // Records the latest transform of an owned entity; it goes out at the publish rate.
   // kNotFound if not owned, kInvalidArgument if not finite / not unit.

@@ -288,6 +288,9 @@ EDGEPHYS_API edgephys_status edgephys_client_publish_transform(edgephys_client* 
  * follows. */
 EDGEPHYS_API edgephys_status edgephys_client_grab(edgephys_client* client, uint32_t entity_id,
                                                   uint32_t hand_id);
+/* Lets go of `entity_id`: it leaves at the velocity the hand showed over its last ~0.1 s of
+ * published transforms (so publish the hand's transform every frame while it carries, to throw),
+ * spinning as the hand turned. EDGEPHYS_EVENT_RELEASED follows. */
 EDGEPHYS_API edgephys_status edgephys_client_release(edgephys_client* client, uint32_t entity_id);
 
 /* ---- events ------------------------------------------------------------------------------ */
