@@ -1,5 +1,6 @@
 #include "loadgen/isolation.h"
 
+#include <sched.h>
 #include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
@@ -8,7 +9,9 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <future>
 #include <memory>
 #include <mutex>
@@ -166,6 +169,7 @@ class RoomB : public ClientListener {
   bool ok = false;
   std::string error;
   double spawn_send_s = 0;
+  std::string thread_policy;  // B's thread's scheduling policy as it ran ("other", "idle")
   bool late_ok = false;
   double late_join_s = kUnknown;
   uint32_t late_spawns = 0;
@@ -204,6 +208,17 @@ class RoomB : public ClientListener {
 
   void Run() {
     if (o_.b_thread_nice > 0) (void)setpriority(PRIO_PROCESS, gettid(), o_.b_thread_nice);
+    if (o_.b_thread_idle) {
+      sched_param param{};
+      if (sched_setscheduler(static_cast<pid_t>(gettid()), SCHED_IDLE, &param) != 0) {
+        std::fprintf(stderr, "isolation: B's thread: SCHED_IDLE failed: %s\n", std::strerror(errno));
+      }
+    }
+    {
+      const int policy = sched_getscheduler(static_cast<pid_t>(gettid()));
+      std::lock_guard<std::mutex> lock(mu);
+      thread_policy = policy == SCHED_IDLE ? "idle" : policy == SCHED_OTHER ? "other" : "another";
+    }
     ClientConfig host_config;
     host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
     host_config.handshake_timeout_s = 10;
@@ -528,6 +543,7 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
     result.b_error = b_started ? room_b.error : "B never started";
     result.b_spawn_send_s = room_b.spawn_send_s;
     result.late_join_ok = room_b.late_ok;
+    result.b_thread_policy = room_b.thread_policy;
     result.late_join_s = room_b.late_join_s;
     result.late_join_spawns = room_b.late_spawns;
     result.scene_entities = room_b.scene_entities;

@@ -34,6 +34,10 @@
 //                   (ClientConfig::decode_states; the relay does the same work for them); the
 //                   late joiner still decodes. Takes B's decoding off the load generator's CPU.
 //   --b-thread-nice N   B's clients' thread runs at niceness N, below A's bots.
+//   --b-thread-idle     B's clients' thread runs under SCHED_IDLE: only on a core A's bots and
+//                   the relay leave idle. B's clients stand for users on other machines, so
+//                   their CPU here is the load generator's, not the relay's; B's late joiner
+//                   still has to receive B's scene in time.
 #pragma once
 
 #include <cstdint>
@@ -66,6 +70,7 @@ struct IsolationOptions {
   int burn_nice = 0;                 // its niceness
   bool b_decode = true;              // B's host and receivers decode states (the joiner always)
   int b_thread_nice = 0;             // niceness of B's clients' thread
+  bool b_thread_idle = false;        // B's clients' thread under SCHED_IDLE
   ExternalRelayOptions external;
 };
 
@@ -101,6 +106,7 @@ struct IsolationResult {
   double burn_step_ms_mean = 0;
   std::string b_error;
   double b_spawn_send_s = 0;          // B's host: time to issue every Spawn
+  std::string b_thread_policy;        // scheduling policy B's clients' thread ran under
   bool late_join_ok = false;
   double late_join_s = kUnknown;      // late joiner's join request -> every spawn received
   uint32_t late_join_spawns = 0;      // spawns it received (of scene_entities)

@@ -36,7 +36,8 @@ nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
                   {"b_mode", o.b_burn ? "burn" : "scene"},
                   {"burn_nice", o.burn_nice},
                   {"b_decode", o.b_decode ? "all" : "joiner"},
-                  {"b_thread_nice", o.b_thread_nice}};
+                  {"b_thread_nice", o.b_thread_nice},
+                  {"b_thread_idle", o.b_thread_idle}};
   if (o.external.enabled()) {
     j["relay"] = {{"external", true},
                   {"address", o.external.relay},
@@ -75,6 +76,7 @@ nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
     j["summary"]["burn_step_ms_mean"] = r.burn_step_ms_mean;
   }
   if (!r.b_error.empty()) j["summary"]["b_error"] = r.b_error;
+  if (!r.b_thread_policy.empty()) j["summary"]["b_thread_policy"] = r.b_thread_policy;
   if (!r.metrics_error.empty()) j["summary"]["metrics_error"] = r.metrics_error;
   j["phases"] = r.phases;
   j["series"] = r.bins;
@@ -178,6 +180,8 @@ class IsolationScenario final : public Scenario {
         ->check(CLI::IsMember({"all", "joiner"}));
     cmd.add_option("--b-thread-nice", o_.b_thread_nice, "Niceness of the thread running B's clients")
         ->check(CLI::Range(0, 19));
+    cmd.add_flag("--b-thread-idle", o_.b_thread_idle,
+                 "Run B's clients' thread under SCHED_IDLE (only on cores nothing else wants)");
     AddExternalRelayOptions(cmd, &o_.external);
   }
 

@@ -108,6 +108,12 @@ le 0.000001 "$(num '.summary.p99_ratio_with_b_to_alone' iso.json)" || fail "isol
   --b-decode joiner --b-thread-nice 19 --no-progress --charts '' --json isond.json >/dev/null ||
   fail "isolation --b-decode joiner exited with an error"
 [ "$(num '.summary.late_join_ok' isond.json)" = "true" ] || fail "isolation --b-decode joiner: late joiner incomplete"
+[ "$(jq -r '.summary.b_thread_policy' isond.json)" = "other" ] || fail "isolation: B's thread not SCHED_OTHER by default"
+"$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --no-after --late-join-timeout 20 \
+  --b-decode joiner --b-thread-idle --no-progress --charts '' --json isoidle.json >/dev/null ||
+  fail "isolation --b-thread-idle exited with an error"
+[ "$(jq -r '.summary.b_thread_policy' isoidle.json)" = "idle" ] || fail "isolation --b-thread-idle: B's thread not SCHED_IDLE"
+[ "$(num '.summary.late_join_ok' isoidle.json)" = "true" ] || fail "isolation --b-thread-idle: late joiner incomplete"
 "$lg" isolation --users 4 --boxes 200 --ramp 1 --phase 2 --no-after --b-mode burn --burn-nice 19 \
   --no-progress --charts '' --json isoburn.json >/dev/null || fail "isolation --b-mode burn exited with an error"
 [ "$(num '.summary.b_ok' isoburn.json)" = "true" ] || fail "isolation --b-mode burn: the burner did not run"
