@@ -43,12 +43,14 @@ if yaml:
         addr = cmd[cmd.index("--admin-addr") + 1]
         if not addr.startswith("127.") and "EDGEPHYS_ADMIN_KEY" not in env:
             fail(f"compose: {s} serves the admin API on {addr} without a key")
+        if "--physics-idle" not in cmd: fail(f"compose: {s} runs PhyS threads at normal priority")
     if "edgephys-phys" not in " ".join(services["phys"]["entrypoint"]): fail("compose: phys is not edgephys-phys")
     kinds = {}
     for d in docs["deploy/k8s/relay.yaml"]: kinds.setdefault(d["kind"], []).append(d)
     sts = kinds["StatefulSet"][0]
     c = sts["spec"]["template"]["spec"]["containers"][0]
     if c["livenessProbe"]["httpGet"]["path"] != "/healthz": fail("k8s: liveness is not /healthz")
+    if "--physics-idle" not in c["args"]: fail("k8s: the relay runs PhyS threads at normal priority")
     if c["readinessProbe"]["httpGet"]["path"] != "/readyz": fail("k8s: readiness is not /readyz")
     if sts["spec"]["template"]["metadata"]["annotations"].get("prometheus.io/scrape") != "true":
         fail("k8s: no scrape annotation")
