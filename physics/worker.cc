@@ -69,9 +69,7 @@ void PhysicsWorker::OnOtherMessage(const schema::ControlMessage& msg) {
     }
     case schema::Body::WorkerDrive: {
       const auto* m = msg.body_as_WorkerDrive();
-      RoomPhysics* room = room_of(m->room());
-      if (room == nullptr || m->poses() == nullptr) break;
-      for (const schema::Pose* p : *m->poses()) room->Drive(p->entity_id(), FromPose(*p), now_);
+      if (RoomPhysics* room = room_of(m->room())) ApplyWorkerDrive(*m, *room, now_);
       break;
     }
     case schema::Body::WorkerGrab: {

@@ -14,6 +14,7 @@
 #include <span>
 #include <vector>
 
+#include "edgephys/schema/control_generated.h"
 #include "physics/room_physics.h"
 #include "protocol/soft_body_codec.h"
 
@@ -35,5 +36,11 @@ size_t EncodeWorkerSoftChunk(uint32_t room, uint32_t entity_id, std::span<const 
                              uint32_t first, std::span<uint8_t> out, uint32_t* encoded);
 Status DecodeWorkerSoftChunk(std::span<const uint8_t> payload, uint32_t* room,
                              SoftBodyChunk* chunk);
+
+// Applies a relay's WorkerDrive to `room`: each pose with its time (RoomPhysics::Drive) when
+// the message carries one per pose, else `arrival` (the worker's clock). Poses with a
+// non-finite time still drive the body; their time is ignored for velocities (PoseHistory).
+// O(poses).
+void ApplyWorkerDrive(const schema::WorkerDrive& message, RoomPhysics& room, double arrival);
 
 }  // namespace edgephys

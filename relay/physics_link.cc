@@ -199,15 +199,17 @@ void RemotePhysicsLink::Remove(uint32_t id) {
   Send(fbb);
 }
 
-void RemotePhysicsLink::Drive(uint32_t id, const EntityState& s, double /*time*/) {
+void RemotePhysicsLink::Drive(uint32_t id, const EntityState& s, double time) {
   if (admission_.RoleOf(id) == PhysicsRole::kNone) return;
-  for (schema::Pose& p : drives_) {
-    if (p.entity_id() == id) {
-      p = ToPose(id, s);
+  for (size_t i = 0; i < drives_.size(); ++i) {
+    if (drives_[i].entity_id() == id) {
+      drives_[i] = ToPose(id, s);
+      drive_times_[i] = time;
       return;
     }
   }
   drives_.push_back(ToPose(id, s));
+  drive_times_.push_back(time);
 }
 
 void RemotePhysicsLink::RequestGrab(uint32_t entity, uint32_t hand, bool force) {
@@ -255,10 +257,12 @@ void RemotePhysicsLink::RestoreSoftBody(uint32_t id, std::span<const Vec3f> node
 void RemotePhysicsLink::Advance(double now, StepOutput* out) {
   (void)now;
   if (!drives_.empty()) {
-    flatbuffers::FlatBufferBuilder fbb(64 + drives_.size() * sizeof(schema::Pose));
-    FinishControl(fbb, schema::CreateWorkerDrive(fbb, handle_, fbb.CreateVectorOfStructs(drives_)));
+    flatbuffers::FlatBufferBuilder fbb(64 + drives_.size() * (sizeof(schema::Pose) + 8));
+    FinishControl(fbb, schema::CreateWorkerDrive(fbb, handle_, fbb.CreateVectorOfStructs(drives_),
+                                                 fbb.CreateVector(drive_times_)));
     Send(fbb);
     drives_.clear();
+    drive_times_.clear();
   }
   out->Clear();
   std::swap(*out, pending_);

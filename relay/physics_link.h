@@ -47,9 +47,9 @@ class PhysicsLink {
   // detail naming the problem when the components are refused.
   virtual Status Add(const schema::Container& c, PhysicsRole role) = 0;
   virtual void Remove(uint32_t id) = 0;
-  // `time`: when the pose holds, on the relay's clock (its arrival). Embedded PhyS keeps it
-  // for the velocity a released object leaves with (RoomPhysics::Drive); a remote worker stamps
-  // poses with their arrival on its own clock (the wire carries no time).
+  // `time`: when the pose holds, on the relay's clock (its arrival). PhyS keeps it for the
+  // velocity a released object leaves with (RoomPhysics::Drive); a remote link sends it with
+  // the pose (WorkerDrive::times).
   virtual void Drive(uint32_t id, const EntityState& state, double time) = 0;
   // The answer arrives in a later Advance() output. `force` skips the hover check (failover).
   virtual void RequestGrab(uint32_t entity, uint32_t hand, bool force = false) = 0;
@@ -173,6 +173,7 @@ class RemotePhysicsLink final : public PhysicsLink {
   PhysicsAdmission admission_;
   StepOutput pending_;
   std::vector<schema::Pose> drives_;  // batched per Advance
+  std::vector<double> drive_times_;   // when each holds (Drive's time), parallel to drives_
   double last_heard_;
   double stall_timeout_s_ = 0.75;  // a worker reports every 0.2 s; silence beyond: stalled
   physics::PhysicsCounters counters_{};
