@@ -70,6 +70,12 @@ struct RelayCounters {
   // or no free cache slot). cached / (cached + coded) is the sharing ratio.
   Counter shared_bodies_cached{0};
   Counter shared_bodies_coded{0};
+  // Lockstep rooms (relay/lockstep.h): canonical payloads sent as copies to receivers in
+  // lockstep, receivers that left lockstep (an acknowledgement not in within the ack ticks),
+  // and receivers that (re)joined it.
+  Counter lockstep_sends{0};
+  Counter lockstep_leaves{0};
+  Counter lockstep_rejoins{0};
   // Key samples (ReplicationConfig::key_sample_threshold_m), per receiver: ambient PhyS bodies
   // found due because the straight line a receiver interpolates strayed from PhyS's states in
   // between, or because key_sample_max_interval_s passed (or none was sent yet).
