@@ -317,7 +317,9 @@ TEST_F(LockstepTest, CleanAndLossyReceiversAllConvergeWithNoUnheldReference) {
   EXPECT_GT(counters_.lockstep_rejoins.load(), 0u);
   // The clean receivers spend most ticks in lockstep.
   for (auto& r : receivers_) {
-    if (r->self % 2 == 1) EXPECT_GT(r->ticks_in_lockstep, tick_ * 8 / 10) << "receiver " << r->self;
+    if (r->self % 2 == 1) {
+      EXPECT_GT(r->ticks_in_lockstep, tick_ * 8 / 10) << "receiver " << r->self;
+    }
   }
 }
 
