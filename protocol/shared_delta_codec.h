@@ -240,7 +240,8 @@ class SharedDeltaRoom {
 
 struct SharedDeltaStreamOptions {
   // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas); at most
-  // 65,535 (larger values are capped).
+  // 65,535 (larger values are capped). With ack_delay_ticks > 0 a refresh keyframe goes at the
+  // first send of each period of 2 x this many room ticks instead (phased by entity id).
   uint32_t keyframe_refresh_sends = 120;
   // > 0 (lockstep rooms, relay/lockstep.h): an acknowledgement of a payload sent in room tick T
   // is taken in (its sends become baselines) only from tick T + ack_delay_ticks on; until then
@@ -360,7 +361,9 @@ class SharedDeltaStream final : public StateEncoder {
     uint32_t acked_ref = 0;  // the tick it was sent in (its key's ref once acknowledged)
     // Its key's two older samples, as ticks before acked_ref, and the key's depth.
     uint16_t acked_back1 = 0, acked_back2 = 0;
-    uint16_t sends_since_keyframe = 0;  // saturates (options are capped at 0xFFFF)
+    // Sends since the last keyframe (saturates; options are capped at 0xFFFF); in lockstep
+    // streams (ack_delay_ticks > 0) instead the refresh period of the last keyframe (Add).
+    uint16_t sends_since_keyframe = 0;
     uint8_t acked_depth = 0;
     // The stream's acknowledgement count when Resolve last looked (nothing to take in while
     // no payload was acknowledged since: it runs once per entity and tick, not in Add too).

@@ -143,7 +143,17 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (entity.serial() == 0) return false;
   bool created = false;
   Track& track = ClaimTrack(id, entity, &created);
-  if (created && options_.keyframe_refresh_sends > 0) {
+  // Lockstep streams (ack_delay_ticks > 0) refresh on the room's clock instead of counting
+  // sends: at the first send in each new period of 2 x keyframe_refresh_sends ticks (phased by
+  // id), the record keeping the period of its last keyframe. A keyframe forced by a loss then
+  // never shifts the schedule, so streams that lost differently refresh in the same ticks.
+  const bool by_tick = options_.ack_delay_ticks > 0 && options_.keyframe_refresh_sends > 0;
+  const uint32_t period = 2 * options_.keyframe_refresh_sends;
+  const uint16_t epoch =
+      by_tick ? static_cast<uint16_t>((tick_ + (id * 2654435761u) % period) / period) : 0;
+  if (created && by_tick) {
+    track.sends_since_keyframe = epoch;
+  } else if (created && options_.keyframe_refresh_sends > 0) {
     track.sends_since_keyframe =
         static_cast<uint16_t>((id * 2654435761u) % options_.keyframe_refresh_sends);
   }
@@ -155,7 +165,8 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   }
   bool refresh = false;
   if (!keyframe && options_.keyframe_refresh_sends > 0 &&
-      track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
+      (by_tick ? track.sends_since_keyframe != epoch
+               : track.sends_since_keyframe >= options_.keyframe_refresh_sends)) {
     keyframe = refresh = true;
   }
   SharedBaselineKey key;
@@ -211,10 +222,14 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (keyframe) {
     ++stats_.keyframes;
     if (refresh) ++stats_.refresh_keyframes;
-    if (refresh || track.next > 0) track.sends_since_keyframe = 0;
+    if (by_tick) {
+      track.sends_since_keyframe = epoch;
+    } else if (refresh || track.next > 0) {
+      track.sends_since_keyframe = 0;
+    }
   } else {
     prev_distance_ = distance;
-    if (track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
+    if (!by_tick && track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
   }
   const uint32_t send_no = track.next++;
   const uint32_t i = send_no % kRememberedSends;
