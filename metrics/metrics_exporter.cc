@@ -207,6 +207,10 @@ const FamilySpec kFamilies[] = {
      "Lockstep rooms: receivers that joined lockstep (their references matched the canonical "
      "stream's).",
      CounterSource{&C::lockstep_rejoins}},
+    {"edgephys_lockstep_forced_keyframes_total",
+     "Lockstep rooms: entities a rejoin made the canonical stream send as keyframes (records "
+     "that differed from the joiner's).",
+     CounterSource{&C::lockstep_forced_keyframes}},
     {"edgephys_entity_updates_received_total", "Entity states accepted from their owners.",
      CounterSource{&C::entity_updates_received}},
     {"edgephys_key_samples_strayed_total",

@@ -141,12 +141,26 @@ void LockstepGroup::Leave(ClientReplicator& r, uint32_t due, RelayCounters& coun
   RelayCounters::Inc(counters.lockstep_leaves);
 }
 
-bool LockstepGroup::TryRejoin(ClientReplicator& r, const ReplicationFrame& frame) {
+bool LockstepGroup::TryRejoin(ClientReplicator& r, const ReplicationFrame& frame,
+                              RelayCounters& counters) {
   SharedDeltaStream& mine = *r.shared_;
   SharedDeltaStream& canonical = *canonical_->shared_;
+  // Entities whose records differ (typically ones at rest: each stream acknowledged its own
+  // send of the same version, in different ticks) are allowed up to a budget: the canonical
+  // stream forgets them, so its next send of each is a keyframe, to every lockstep receiver.
+  const size_t budget = std::max<size_t>(kMinForcedKeyframes, frame.by_id.size() / 8);
+  forced_.clear();
   for (const Entity* e : frame.by_id) {
-    if (e->shared != nullptr && !mine.SameBaselines(canonical, *e->shared, tick_)) return false;
+    if (e->shared == nullptr || mine.SameBaselines(canonical, *e->shared, tick_)) continue;
+    if (forced_.size() == budget) return false;
+    forced_.push_back(e);
   }
+  for (const Entity* e : forced_) {
+    canonical.Forget(e->id);
+    // Re-decided at its next due time: no record, so a keyframe (not "settled").
+    if (e->slot < canonical_->views_.size()) canonical_->views_[e->slot].settled_version = 0;
+  }
+  RelayCounters::Inc(counters.lockstep_forced_keyframes, forced_.size());
   LockstepMember& m = *r.member_;
   m.sent.fill({});
   m.ticks.fill({});
@@ -182,7 +196,7 @@ void LockstepGroup::BeginTick(const ReplicationFrame& frame, const SharedDeltaRo
     if (static_cast<int32_t>(tick_ - m.next_check) < 0) continue;
     ++checks;
     m.next_check = tick_ + kRejoinEvery;
-    if (TryRejoin(*r, frame)) RelayCounters::Inc(counters.lockstep_rejoins);
+    if (TryRejoin(*r, frame, counters)) RelayCounters::Inc(counters.lockstep_rejoins);
   }
   // 3. The canonical replicator's tick: this tick's payloads (Capture).
   ClientReplicator& c = *canonical_;

@@ -16,8 +16,11 @@
 // ticks marked as this receiver's acknowledgements have them, and it continues on the normal
 // per-receiver path. So a lockstep receiver is never sent a reference it does not hold.
 // An out-of-lockstep receiver rejoins when, entity by entity, its stream makes the same
-// references as the canonical one (SharedDeltaStream::SameBaselines); its own packets still in
-// flight then stand for the canonical payloads of their ticks and are checked the same way.
+// references as the canonical one (SharedDeltaStream::SameBaselines), or differs on at most a
+// budget of entities, which the canonical stream then forgets (its next send of each is a
+// keyframe, to every lockstep receiver: entities at rest, acknowledged by each stream in a tick
+// of its own, never match otherwise); its own packets still in flight then stand for the
+// canonical payloads of their ticks and are checked the same way.
 // New receivers start out of lockstep.
 //
 // Applies to rooms where UsesLockstep(config): format 9 without a bandwidth budget. Soft
@@ -45,6 +48,7 @@
 
 namespace edgephys {
 
+struct Entity;
 struct ReplicationFrame;
 
 // One receiver's lockstep state (held by its ClientReplicator): whether it is in lockstep, and
@@ -88,6 +92,9 @@ class LockstepGroup {
   // At most this many rejoin checks per tick, each member at most every kRejoinEvery ticks.
   static constexpr size_t kRejoinChecksPerTick = 4;
   static constexpr uint32_t kRejoinEvery = 8;
+  // A rejoin may make the canonical stream forget (and so keyframe) up to this many entities,
+  // or an eighth of the room's if more, whose records differ from the joiner's.
+  static constexpr size_t kMinForcedKeyframes = 16;
 
   // `config` must satisfy UsesLockstep. `tick_rate_hz`: the room's.
   LockstepGroup(const ReplicationConfig& config, double tick_rate_hz);
@@ -128,7 +135,7 @@ class LockstepGroup {
 
  private:
   void Leave(ClientReplicator& r, uint32_t due_tick, RelayCounters& counters);
-  bool TryRejoin(ClientReplicator& r, const ReplicationFrame& frame);
+  bool TryRejoin(ClientReplicator& r, const ReplicationFrame& frame, RelayCounters& counters);
   bool DueAcked(ClientReplicator& r, uint32_t due_tick);
 
   struct TickPayloads {
@@ -154,6 +161,7 @@ class LockstepGroup {
   std::vector<uint32_t> owner_scratch_;
   std::vector<SharedDeltaStream::PayloadFix> fixes_;
   std::vector<SharedDeltaStream::SentPayloadInfo> in_flight_;
+  std::vector<const Entity*> forced_;
 };
 
 }  // namespace edgephys
