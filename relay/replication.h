@@ -24,6 +24,8 @@
 // Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
 // views in an array indexed by the entities' room-local slots), plus O(k log k) for the k
 // candidates only under a bandwidth budget; no allocation per packet once the views exist.
+// In a lockstep room (UsesLockstep, relay/lockstep.h) a receiver in lockstep costs
+// O(payloads) per tick instead: copies of the room's canonical payloads, no walk.
 #pragma once
 
 #include <array>
