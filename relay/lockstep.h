@@ -25,9 +25,11 @@
 //
 // Applies to rooms where UsesLockstep(config): format 9 without a bandwidth budget. Soft
 // bodies are replicated per receiver as before.
-// Thread-safety: BeginTick, Register/Unregister and the members' leave and rejoin on the
-// room's thread (the relay's) before the receivers' ticks; during the receivers' ticks (which
-// may run in parallel) payloads() and tick() are read-only.
+// Thread-safety: BeginTick (and in it the members' leaves and rejoins) on the room's thread
+// (the relay's) before the receivers' ticks; during the receivers' ticks (which may run in
+// parallel) payloads() and tick() are read-only and each receiver touches only its own
+// LockstepMember. Register (a receiver's first tick) and Unregister (its destruction) take a
+// mutex; neither runs during BeginTick.
 // Cost per tick: the canonical replicator's walk (one receiver's worth), O(lockstep members)
 // for the leave checks, and one rejoin check of O(entities) for a bounded number of
 // out-of-lockstep members (kRejoinChecksPerTick, each at most every kRejoinEvery ticks); a
@@ -122,7 +124,7 @@ class LockstepGroup {
   uint32_t ack_ticks() const { return ack_ticks_; }
 
   // Receivers of the room (their ClientReplicator registers on its first tick and unregisters
-  // when destroyed). Room thread.
+  // when destroyed). Thread-safe against each other (a mutex), not against BeginTick.
   void Register(ClientReplicator* r);
   void Unregister(ClientReplicator* r);
   size_t members() const { return members_.size(); }
