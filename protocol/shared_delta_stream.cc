@@ -17,7 +17,6 @@ using namespace delta_internal;  // NOLINT
 
 constexpr size_t kCountReserve = 3;  // varint count reserved while encoding (< 2^21)
 constexpr size_t kStreamStart = kSharedDeltaHeaderSize + kCountReserve;
-constexpr size_t kPacketRecords = 128;
 
 }  // namespace
 
@@ -103,18 +102,21 @@ inline Code ExpGolomb0(uint32_t u) {
 
 }  // namespace
 
-void SharedDeltaStream::Resolve(Track& t) const {
+void SharedDeltaStream::Resolve(Track& t, uint32_t tick) const {
   if (t.acked_no >= t.next) return;  // nothing newer than the acknowledged send
   // No payload acknowledged since the last look: its sends' flags are as they were then (a
-  // send added since has a payload no ack has marked yet).
-  if (t.resolved_epoch == ack_epoch_) return;
-  t.resolved_epoch = ack_epoch_;
+  // send added since has a payload no ack has marked yet). With an ack delay an old ack
+  // becomes due with time: look every time.
+  if (options_.ack_delay_ticks == 0) {
+    if (t.resolved_epoch == ack_epoch_) return;
+    t.resolved_epoch = ack_epoch_;
+  }
   const uint32_t oldest = t.next > kRememberedSends ? t.next - kRememberedSends : 0;
   // Newest first: the newest acknowledged send is the baseline.
   for (uint32_t no = t.next; no > oldest && no > t.acked_no; --no) {
     const uint32_t i = (no - 1) % kRememberedSends;
     const PayloadRecord* p = SentPayload(t.sent_payload[i]);
-    if (p == nullptr || !p->acked) continue;
+    if (p == nullptr || !AckDue(*p, tick)) continue;
     if (t.Usable(no)) {
       t.acked_no = no;
       t.acked_ref = p->tick;
@@ -141,11 +143,21 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (entity.serial() == 0) return false;
   bool created = false;
   Track& track = ClaimTrack(id, entity, &created);
-  if (created && options_.keyframe_refresh_sends > 0) {
+  // Lockstep streams (ack_delay_ticks > 0) refresh on the room's clock instead of counting
+  // sends: at the first send in each new period of 2 x keyframe_refresh_sends ticks (phased by
+  // id), the record keeping the period of its last keyframe. A keyframe forced by a loss then
+  // never shifts the schedule, so streams that lost differently refresh in the same ticks.
+  const bool by_tick = options_.ack_delay_ticks > 0 && options_.keyframe_refresh_sends > 0;
+  const uint32_t period = 2 * options_.keyframe_refresh_sends;
+  const uint16_t epoch =
+      by_tick ? static_cast<uint16_t>((tick_ + (id * 2654435761u) % period) / period) : 0;
+  if (created && by_tick) {
+    track.sends_since_keyframe = epoch;
+  } else if (created && options_.keyframe_refresh_sends > 0) {
     track.sends_since_keyframe =
         static_cast<uint16_t>((id * 2654435761u) % options_.keyframe_refresh_sends);
   }
-  Resolve(track);
+  Resolve(track, tick_);
   bool keyframe = true;
   if (track.Usable(track.acked_no)) {
     const uint32_t distance = tick_ - track.acked_ref;
@@ -153,7 +165,8 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   }
   bool refresh = false;
   if (!keyframe && options_.keyframe_refresh_sends > 0 &&
-      track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
+      (by_tick ? track.sends_since_keyframe != epoch
+               : track.sends_since_keyframe >= options_.keyframe_refresh_sends)) {
     keyframe = refresh = true;
   }
   SharedBaselineKey key;
@@ -209,10 +222,14 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (keyframe) {
     ++stats_.keyframes;
     if (refresh) ++stats_.refresh_keyframes;
-    if (refresh || track.next > 0) track.sends_since_keyframe = 0;
+    if (by_tick) {
+      track.sends_since_keyframe = epoch;
+    } else if (refresh || track.next > 0) {
+      track.sends_since_keyframe = 0;
+    }
   } else {
     prev_distance_ = distance;
-    if (track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
+    if (!by_tick && track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
   }
   const uint32_t send_no = track.next++;
   const uint32_t i = send_no % kRememberedSends;
@@ -324,14 +341,14 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
     return UpdateNeed::kSend;
   }
   Track& t = tracks_[s];
-  Resolve(t);
+  const SharedDeltaRoom* room = entity.room();
+  if (room == nullptr) return UpdateNeed::kSend;
+  Resolve(t, room->tick());
   const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
   if (rot_threshold_deg != min_dot_for_deg_) {
     min_dot_for_deg_ = rot_threshold_deg;
     min_dot_ = std::cos(static_cast<double>(rot_threshold_deg) * (3.14159265358979323846 / 360.0));
   }
-  const SharedDeltaRoom* room = entity.room();
-  if (room == nullptr) return UpdateNeed::kSend;
   auto within = [&](uint32_t ref) {
     return room->HeldWithin(entity, ref, truth, pos2, min_dot_, lattice_reach2_,
                             lattice_min_dot_);
@@ -340,7 +357,8 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
   // The newest send, if it left, is not acknowledged yet and is still within its resend time.
   if (t.next > t.acked_no) {
     const PayloadRecord* p = SentPayload(t.sent_payload[(t.next - 1) % kRememberedSends]);
-    if (p != nullptr && !p->acked && now - p->sent_at < resend_after_s && within(p->tick)) {
+    if (p != nullptr && !AckDue(*p, room->tick()) && now - p->sent_at < resend_after_s &&
+        within(p->tick)) {
       return UpdateNeed::kInFlightWithin;
     }
   }

@@ -91,6 +91,8 @@ using EntityTable = std::unordered_map<uint32_t, Entity>;
 // that no receiver walks or sorts the room's entity table itself). Built on the room's thread
 // before the receivers' ticks; read-only during them (they may run in parallel). Pointers
 // into the room's entity table, valid until the room's entities change.
+class LockstepGroup;
+
 struct ReplicationFrame {
   std::vector<const Entity*> by_id;  // every entity, by increasing id
   std::vector<const Entity*> soft;   // soft bodies with particles, by increasing id
@@ -98,6 +100,9 @@ struct ReplicationFrame {
   // A running mean of how long PhyS's states take to reach the relay (arrival - the time they
   // hold, Room::ObservePhysicsLag), s; < 0 until an embedded world's first output.
   double physics_lag_s = -1;
+  // Lockstep rooms (relay/lockstep.h): the room's group, whose canonical payloads of this tick
+  // its receivers in lockstep are sent; null otherwise.
+  std::shared_ptr<LockstepGroup> lockstep;
 };
 
 struct Member {

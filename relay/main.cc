@@ -115,6 +115,14 @@ int main(int argc, char** argv) {
                "edgephys mode: state format 9 (shared delta: each entity delta encoded once per "
                "room tick for every receiver on the same baseline) instead of format 2; "
                "experimental, off by default");
+  app.add_flag("--shared-lockstep", rep.shared_lockstep,
+               "With --shared-encoding and no bandwidth budget: receivers that acknowledge the "
+               "room's canonical payloads within --lockstep-ack-ticks are sent copies of them "
+               "instead of being walked entity by entity; off by default");
+  app.add_option("--lockstep-ack-ticks", rep.lockstep_ack_ticks,
+                 "Lockstep rooms: room ticks after which an acknowledgement counts as a baseline "
+                 "(and by which a lockstep receiver must have acknowledged)")
+      ->capture_default_str()->check(CLI::Range(1, 32));
   app.add_flag("--velocities", rep.velocities,
                "edgephys mode: state format 12 (format 2 plus velocities): receivers extrapolate "
                "and PhyS bodies are sent only when that strays beyond the extrapolation "

@@ -70,6 +70,14 @@ struct RelayCounters {
   // or no free cache slot). cached / (cached + coded) is the sharing ratio.
   Counter shared_bodies_cached{0};
   Counter shared_bodies_coded{0};
+  // Lockstep rooms (relay/lockstep.h): canonical payloads sent as copies to receivers in
+  // lockstep, receivers that left lockstep (an acknowledgement not in within the ack ticks),
+  // receivers that (re)joined it, and the entities such a rejoin made the canonical stream
+  // send as keyframes (relay/lockstep.h).
+  Counter lockstep_sends{0};
+  Counter lockstep_leaves{0};
+  Counter lockstep_rejoins{0};
+  Counter lockstep_forced_keyframes{0};  // entities a rejoin made the canonical stream keyframe
   // Key samples (ReplicationConfig::key_sample_threshold_m), per receiver: ambient PhyS bodies
   // found due because the straight line a receiver interpolates strayed from PhyS's states in
   // between, or because key_sample_max_interval_s passed (or none was sent yet).

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "relay/entity.h"
+#include "relay/lockstep.h"
 
 namespace edgephys {
 namespace {
@@ -96,7 +97,12 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     case ReplicationMode::kEdgephys: {
       auto params = MakeQuantizationParams(QuantizationOf(config_));
       if (params.ok() && config_.shared_encoding) {
-        auto shared = std::make_unique<SharedDeltaStream>(*params);
+        SharedDeltaStreamOptions options;
+        if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
+          include_own_ = true;
+          options.ack_delay_ticks = config_.lockstep_ack_ticks;
+        }
+        auto shared = std::make_unique<SharedDeltaStream>(*params, options);
         shared_ = shared.get();
         encoder_ = std::move(shared);
         break;
@@ -126,7 +132,9 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
   in_payload_.reserve(kMaxUnreliablePayload / 8);
 }
 
-ClientReplicator::~ClientReplicator() = default;
+ClientReplicator::~ClientReplicator() {
+  if (lockstep_) lockstep_->Unregister(this);
+}
 
 PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
   if ((e.flags & (kFlagAvatar | kFlagHand)) || e.held_by != 0) return PriorityClass::kCritical;
@@ -299,6 +307,23 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
   TickSoftBodies(frame, self, now, resend_after, connection, out, counters);
+  if (frame.lockstep != nullptr && include_own_ && shared_ != nullptr) {
+    if (!lockstep_) {
+      lockstep_ = frame.lockstep;
+      member_ = std::make_unique<LockstepMember>();
+      lockstep_->Register(this);
+    }
+    member_->ticked = true;
+    member_->last_tick = lockstep_->tick();
+    if (member_->in) return CopyCanonical(*lockstep_, self, now, connection, out, counters);
+  }
+  TickEntities(frame, self, now, resend_after, &connection, &out, counters);
+}
+
+void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self, double now,
+                                    double resend_after, Connection* connection,
+                                    PacketWriter* out, RelayCounters& counters) {
+  const bool budgeted = config_.bandwidth_budget_bytes_per_s > 0;
   key_check_tick_ = true;
   if (StampsStateTime() && config_.key_sample_check_hz > 0) {
     const double period = std::floor(now * config_.key_sample_check_hz);
@@ -324,7 +349,7 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
     }
     const Entity& e = *frame.by_id[i];
     const uint32_t id = e.id;
-    if (e.owner == self) continue;
+    if (e.owner == self && !include_own_) continue;
     View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
@@ -445,6 +470,8 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
         if (!add()) continue;
       }
       if (shared_ == nullptr) in_payload_.emplace_back(c.id, c.entity->version);  // format 9: count()
+      if (c.entity->owner == self) ++own_in_payload_;  // include_own_: not counted as delivered
+      if (lockstep_capture_ != nullptr) payload_owners_.push_back(c.entity->owner);
       if (delta_ != nullptr) {  // counted here, added to the shared counters once a tick
         static_assert(kRecordPartCount == 6 && static_cast<int>(KeyDue::kMaxInterval) == 2);
         ++records_tick_[c.cause];
@@ -491,25 +518,38 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
 }
 
-void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& out,
+void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* out,
                              RelayCounters& counters) {
   // Format 9 keeps no per-entity list here (its stream records the sends): its count.
   const size_t entities = shared_ != nullptr ? shared_->count() : in_payload_.size();
+  const size_t own = own_in_payload_;
+  own_in_payload_ = 0;
   size_t size = encoder_->Finish();
   if (size == 0) {
     in_payload_.clear();
+    payload_owners_.clear();
     return;
   }
-  Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
+  // A lockstep group's canonical replicator: the group keeps the payload for its receivers,
+  // and the canonical stream counts it acknowledged (due after the group's ack ticks).
+  Result<uint16_t> seq =
+      lockstep_capture_ != nullptr
+          ? Result<uint16_t>(lockstep_capture_->Capture({payload_.data(), size}, entities,
+                                                        shared_->open_payload(), payload_owners_))
+          : connection->SendUnreliable({payload_.data(), size}, now, *out);
+  payload_owners_.clear();
   if (seq.ok()) {
     if (delta_ != nullptr) {
       delta_->OnSent(*seq, now);
     } else if (shared_ != nullptr) {
       shared_->OnSent(*seq, now);
+      if (lockstep_capture_ != nullptr) shared_->OnPacketAcked(*seq);
     } else {
       for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
     }
-    RelayCounters::Inc(counters.entity_updates_sent, entities);
+    if (lockstep_capture_ == nullptr) {  // the canonical's are counted as its copies are sent
+      RelayCounters::Inc(counters.entity_updates_sent, entities - own);
+    }
     if (shared_ != nullptr) {
       const SharedDeltaStreamStats& st = shared_->stats();
       RelayCounters::Inc(counters.shared_bodies_cached, st.cache_hits - shared_hits_counted_);
@@ -528,80 +568,6 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
     bytes_per_entity_ = 0.8 * bytes_per_entity_ + 0.2 * per_entity;
   }
   in_payload_.clear();
-}
-
-void ClientReplicator::OnPacketAcked(uint16_t sequence) {
-  if (soft_ != nullptr && soft_->OnAcked(sequence)) return;
-  SoftRecord* r_or_null =
-      soft_records_.empty() ? nullptr : &soft_records_[sequence % soft_records_.size()];
-  if (r_or_null != nullptr && r_or_null->valid && r_or_null->sequence == sequence) {
-    SoftRecord& r = *r_or_null;
-    r.valid = false;
-    auto it = soft_views_.find(r.id);
-    if (it != soft_views_.end() && it->second.sent_version == r.version) {
-      SoftView& v = it->second;
-      v.acked_chunks |= uint64_t{1} << r.chunk;
-      if (v.chunk_count > 0 && v.acked_chunks == (v.chunk_count >= 64 ? ~uint64_t{0}
-                                                                        : (uint64_t{1} << v.chunk_count) - 1)) {
-        v.acked_version = r.version;
-      }
-    }
-    return;
-  }
-  if (delta_ != nullptr) {
-    delta_->OnPacketAcked(sequence);
-  } else if (shared_ != nullptr) {
-    shared_->OnPacketAcked(sequence);
-  } else {
-    tracker_.OnAcked(sequence);
-  }
-}
-
-void ClientReplicator::Forget(uint32_t entity_id) {
-  tracker_.Forget(entity_id);
-  soft_views_.erase(entity_id);
-  if (soft_ != nullptr) soft_->Forget(entity_id);
-  if (delta_ != nullptr) delta_->Forget(entity_id);
-  if (shared_ != nullptr) shared_->Forget(entity_id);
-  if (const uint32_t* slot = view_slot_of_.Find(entity_id); slot != nullptr) {
-    ResetView(*slot);
-    view_slot_of_.Erase(entity_id);
-    --live_views_;
-  }
-}
-
-ClientReplicator::View& ClientReplicator::ViewOf(const Entity& e) {
-  if (e.slot >= views_.size()) views_.resize(e.slot + 1);
-  View& v = views_[e.slot];
-  if (v.serial == e.serial) return v;
-  if (v.serial != 0) {  // the slot's previous occupant (not forgotten)
-    if (const uint32_t* s = view_slot_of_.Find(v.id); s != nullptr && *s == e.slot) {
-      view_slot_of_.Erase(v.id);
-    }
-    --live_views_;
-  }
-  if (const uint32_t* old = view_slot_of_.Find(e.id); old != nullptr && *old != e.slot) {
-    ResetView(*old);  // the id's previous entity, in another slot
-    --live_views_;
-  }
-  ResetView(e.slot);
-  v.serial = e.serial;
-  v.id = e.id;
-  *view_slot_of_.TryEmplace(e.id).first = e.slot;
-  ++live_views_;
-  return v;
-}
-
-void ClientReplicator::ResetView(uint32_t slot) {
-  views_[slot] = View{};
-  if (UsesViewExtras()) {
-    if (view_extras_.size() < views_.size()) view_extras_.resize(views_.size());
-    view_extras_[slot] = ViewExtra{};
-  }
-}
-
-size_t ClientReplicator::tracked_entities() const {
-  return std::max(live_views_, soft_views_.size());
 }
 
 }  // namespace edgephys

@@ -24,11 +24,14 @@
 // Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
 // views in an array indexed by the entities' room-local slots), plus O(k log k) for the k
 // candidates only under a bandwidth budget; no allocation per packet once the views exist.
+// In a lockstep room (UsesLockstep, relay/lockstep.h) a receiver in lockstep costs
+// O(payloads) per tick instead: copies of the room's canonical payloads, no walk.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string_view>
 #include <unordered_map>
 #include <vector>
@@ -48,6 +51,8 @@ namespace edgephys {
 
 struct Entity;
 struct ReplicationFrame;
+class LockstepGroup;
+struct LockstepMember;
 
 enum class ReplicationMode : uint8_t { kFloat = 0, kEdgephys, kPhoton, kPaper };
 std::string_view ReplicationModeName(ReplicationMode mode);
@@ -91,6 +96,14 @@ struct ReplicationConfig {
   // once per tick for every receiver on that baseline; each receiver only appends bits. Off by
   // default until measured at scale; clients learn the format from Joined.
   bool shared_encoding = false;
+  // Format 9 rooms without a bandwidth budget: lockstep receivers (relay/lockstep.h). The room
+  // runs one canonical replicator per tick; receivers that acknowledge its payloads within
+  // `lockstep_ack_ticks` ticks are sent copies of them instead of being walked entity by entity
+  // (their own entities' records included); acknowledgements count as baselines only that many
+  // ticks after the send in every stream of such a room. Off by default until measured
+  // (docs/benchmarks.md, "Session 12: lockstep receivers").
+  bool shared_lockstep = false;
+  uint32_t lockstep_ack_ticks = 3;
   // edgephys mode without shared_encoding: send state format 12 (format 2 plus velocities,
   // protocol/delta_codec.h) and dead-reckon: a receiver extrapolates each state with its
   // velocity, and a PhyS-simulated entity outside the critical class is sent only when that
@@ -182,6 +195,12 @@ inline bool UsesSharedEncoding(const ReplicationConfig& config) {
   return config.mode == ReplicationMode::kEdgephys && config.shared_encoding;
 }
 
+// True when rooms with `config` run lockstep receivers (relay/lockstep.h).
+inline bool UsesLockstep(const ReplicationConfig& config) {
+  return UsesSharedEncoding(config) && config.shared_lockstep &&
+         config.bandwidth_budget_bytes_per_s <= 0 && config.lockstep_ack_ticks > 0;
+}
+
 // The quantisation a room with `config` uses (format 2).
 QuantizationConfig QuantizationOf(const ReplicationConfig& config);
 
@@ -195,6 +214,8 @@ class ClientReplicator {
   // Sends this tick's updates for the client `self` (player id) through `connection`.
   // `frame` is the room's offer for this tick (Room::BuildFrame): its entities by id, soft
   // bodies and hands, so the replicator neither walks the room's table nor sorts by id.
+  // In a lockstep room (frame.lockstep) the replicator registers with the room's group on its
+  // first tick and, while in lockstep, sends copies of the canonical payloads instead.
   void Tick(const ReplicationFrame& frame, uint32_t self, double now, Connection& connection,
             PacketWriter& out, RelayCounters& counters);
 
@@ -207,8 +228,11 @@ class ClientReplicator {
   // tracker's entries and the delta encoder's tracks: Tick makes the view first, Forget
   // erases all) or its soft body views if more. For tests and diagnostics. O(1).
   size_t tracked_entities() const;
+  // Lockstep rooms: whether this receiver is in lockstep now (tests, diagnostics).
+  bool in_lockstep() const;
 
  private:
+  friend class LockstepGroup;
   static constexpr double kEpsilon = 1e-6;
   // Bytes a datagram costs beyond its state payload (connection header + chunk header).
   static constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
@@ -275,7 +299,17 @@ class ClientReplicator {
   DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, const View& v,
                                         PriorityClass cls, double now, double resend_after,
                                         RelayCounters& counters);
-  void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
+  // The entity walk, selection and encoding of Tick (connection and out null: the canonical
+  // replicator of a lockstep group, whose payloads go to lockstep_capture_).
+  void TickEntities(const ReplicationFrame& frame, uint32_t self, double now, double resend_after,
+                    Connection* connection, PacketWriter* out, RelayCounters& counters);
+  void Flush(double now, Connection* connection, PacketWriter* out, RelayCounters& counters);
+  // Lockstep (relay/lockstep.cc): sends copies of the group's payloads of this tick.
+  void CopyCanonical(const LockstepGroup& group, uint32_t self, double now,
+                     Connection& connection, PacketWriter& out, RelayCounters& counters);
+  // Lockstep leave: the entity state of `canonical` (views and stream), with `fixes` applied.
+  void AdoptCanonical(const ClientReplicator& canonical,
+                      std::span<const SharedDeltaStream::PayloadFix> fixes);
   // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
   // changed soft body, in chunks, resent until every chunk of that version is acknowledged.
   void TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
@@ -332,6 +366,14 @@ class ClientReplicator {
   double last_tick_ = -1;
   uint32_t time_ms_ = 0;
   EntityVelocity velocity_;  // VelocityOf's result
+  // Lockstep rooms (UsesLockstep): every replicator sends the receiver's own entities too, so
+  // that its stream can match the canonical one's (the client ignores them).
+  bool include_own_ = false;
+  size_t own_in_payload_ = 0;           // records of own entities in the open payload
+  std::shared_ptr<LockstepGroup> lockstep_;  // registered with (receivers)
+  std::unique_ptr<LockstepMember> member_;   // with lockstep_
+  LockstepGroup* lockstep_capture_ = nullptr;  // the group's canonical replicator: its sink
+  std::vector<uint32_t> payload_owners_;       // canonical: owners of the open payload's records
 };
 
 }  // namespace edgephys

@@ -22,6 +22,7 @@
 #include "relay/entity.h"
 #include "relay/physics_link.h"
 #include "relay/relay_config.h"
+#include "relay/relay_counters.h"
 
 namespace edgephys {
 
@@ -80,6 +81,10 @@ class Room {
   // entities came or went since the last call. Room thread, before the receivers' ticks.
   void BuildFrame();
   const ReplicationFrame& frame() const { return frame_; }
+  // Lockstep rooms (UsesLockstep): the canonical replicator's tick and the leave and rejoin
+  // checks (LockstepGroup::BeginTick), after PrepareStates and BuildFrame, before the
+  // receivers' ticks. A no-op in other rooms. Room thread.
+  void TickLockstep(double now, RelayCounters& counters);
   // A PhyS output holding at a time `lag_s` before it reached the relay: folded into
   // frame().physics_lag_s (a running mean, weight 0.05 per output: ~0.3 s at 60 Hz). O(1).
   void ObservePhysicsLag(double lag_s) {
