@@ -188,6 +188,15 @@ struct PhysicsConfig {
   // right after its normal row instead of after all normal rows. Measured: converges worse
   // (never-sleeping stack 0.37 m at 7 iterations, bound 0.25); off.
   bool interleave_friction = false;
+  // Patch friction (physics/contact_solver.h; sequential impulse only, ignored with kNNCG): per
+  // contact manifold two tangent rows at the patch centre clamped together to the friction disk
+  // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
+  // pressure torque), instead of friction rows per contact point; tangent impulses are warm
+  // started. Replaces the per-point friction settings above for manifolds it handles (all but
+  // those with rolling/spinning friction or friction anchors); interleave_friction is ignored.
+  // Rows per 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured in
+  // docs/benchmarks.md, "Full stir, session 12"; tests: physics/contact_solver_test.cc.
+  bool patch_friction = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
