@@ -67,7 +67,10 @@ void ContactSolver<Base>::convertContacts(btPersistentManifold** manifolds, int 
   twist_.resizeNoInitialize(0);
   for (int i = 0; i < count; ++i) {
     btPersistentManifold* m = manifolds[i];
-    if (!Responds(*m)) continue;
+    // A manifold without points adds no rows (Bullet's convertContact would only look up the two
+    // solver bodies); most broadphase pairs of a pile are such, and testing the count first
+    // spares touching the two collision objects.
+    if (m->getNumContacts() == 0 || !Responds(*m)) continue;
     if (patch_ && PatchEligible(*m)) {
       ConvertPatch(m, info);
     } else {

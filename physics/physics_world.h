@@ -165,9 +165,10 @@ struct PhysicsConfig {
   // Bullet's island manager sorts every contact manifold by island and calls the solver once
   // per island (batched up to 128 rows). false: one solver call with every body and manifold,
   // no sorting; sleeping islands still sleep (islands are still built for that).
-  // Measured (full stir): false saves about 3 % of the step; the report's suite experiments
-  // pass, but it is not the default (see "Full stir, session 11": with the other session-11
-  // picks, four physics tests fail).
+  // Measured (full stir): false saves about 3 % of the step. Bullet then hands the solver every
+  // manifold, trigger pairs included (it filters them only per island), so PhyS's ContactSolver
+  // (contact_solver.h) skips pairs that need no response; before session 12 a trigger stopped a
+  // body like a wall with this off (the two trigger tests that failed in "Full stir, session 11").
   bool split_islands = true;
   // Friction rows per contact point: Bullet's default is one, along the sliding direction.
   // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
@@ -176,9 +177,10 @@ struct PhysicsConfig {
   // two_friction_directions and velocity_dependent_friction = false).
   // Measured: two cached rows in a fixed tangent basis cost more rows per iteration but converge
   // much better (never-sleeping stack 0.04 m against 0.16 m at 7 iterations), so 4 iterations
-  // pass the report's suite experiments where one row needs 7: ~6 % less per step. Not the
-  // default: at 4 iterations the ctest stack test's raw-Bullet reference (same iteration count)
-  // drifts 1.04 cm (bound 1 cm), see "Full stir, session 11".
+  // pass the report's suite experiments where one row needs 7: ~6 % less per step. (Bullet keeps
+  // the cached directions only until btPersistentManifold::replaceContactPoint rewrites a point,
+  // i.e. box-box points get fresh ones every step.) With manifold reuse on, a resting pile ends
+  // 7.7 mm off the run without reuse (ManifoldReuseTest's bound: 2 mm), see "Full stir, session 12".
   bool two_friction_directions = false;
   bool friction_direction_caching = false;
   // true (Bullet's default): the first friction direction follows the relative sliding
