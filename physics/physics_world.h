@@ -165,11 +165,12 @@ struct PhysicsConfig {
   // Bullet's island manager sorts every contact manifold by island and calls the solver once
   // per island (batched up to 128 rows). false: one solver call with every body and manifold,
   // no sorting; sleeping islands still sleep (islands are still built for that).
-  // Measured (full stir): false saves about 3 % of the step. Bullet then hands the solver every
+  // Measured (full stir): false saves about 3 % of the step; the default since session 12
+  // (docs/benchmarks.md, "Full stir, session 12"). Bullet then hands the solver every
   // manifold, trigger pairs included (it filters them only per island), so PhyS's ContactSolver
   // (contact_solver.h) skips pairs that need no response; before session 12 a trigger stopped a
   // body like a wall with this off (the two trigger tests that failed in "Full stir, session 11").
-  bool split_islands = true;
+  bool split_islands = false;
   // Friction rows per contact point: Bullet's default is one, along the sliding direction.
   // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
   // friction_direction_caching keeps a contact's directions from the step that created it
@@ -213,8 +214,9 @@ struct PhysicsConfig {
   // is found a step late. aabb_hysteresis (m, 0: off): the broadphase gets the AABB grown by
   // this much more, and is only updated when the body's AABB leaves it, so small motions cost
   // no sort; the price is more (looser) pairs for the narrowphase to reject. Measured (full
-  // stir): 5 mm saves ~2 % of the step; 10 mm and hysteresis of 1-2 cm save nothing measurable.
-  float aabb_margin = kBulletAabbMargin;
+  // stir): 5 mm saves ~2 % of the step (the default since session 12); 10 mm and hysteresis of
+  // 1-2 cm save nothing measurable.
+  float aabb_margin = 0.005f;
   float aabb_hysteresis = 0.0f;
   // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
   // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
