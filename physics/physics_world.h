@@ -181,7 +181,8 @@ struct PhysicsConfig {
   // pass the report's suite experiments where one row needs 7: ~6 % less per step. (Bullet keeps
   // the cached directions only until btPersistentManifold::replaceContactPoint rewrites a point,
   // i.e. box-box points get fresh ones every step.) With manifold reuse on, a resting pile ends
-  // 7.7 mm off the run without reuse (ManifoldReuseTest's bound: 2 mm), see "Full stir, session 12".
+  // 7.7 mm off the run without reuse (ManifoldReuseTest's bound: 2 mm; clearing the cache of
+  // reused points did not help), see "Full stir, session 12".
   bool two_friction_directions = false;
   bool friction_direction_caching = false;
   // true (Bullet's default): the first friction direction follows the relative sliding
@@ -197,8 +198,12 @@ struct PhysicsConfig {
   // pressure torque), instead of friction rows per contact point; tangent impulses are warm
   // started. Replaces the per-point friction settings above for manifolds it handles (all but
   // those with rolling/spinning friction or friction anchors); interleave_friction is ignored.
-  // Rows per 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured in
-  // docs/benchmarks.md, "Full stir, session 12"; tests: physics/contact_solver_test.cc.
+  // Rows per 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full
+  // stir, docs/benchmarks.md "Full stir, session 12"): 0.844x raw Bullet at 7 iterations
+  // against 0.885x without, 0.740x with 4 iterations, one batch and a 5 mm margin (the report's
+  // suite passes; 4 iterations alone fail the sleeping stack, 11.8 mm). Not the default: with
+  // it, ManifoldReuseTest's resting pile ends 4.4-6.5 mm off the run without reuse (bound
+  // 2 mm), not traced further. Tests: physics/contact_solver_test.cc.
   bool patch_friction = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
