@@ -68,8 +68,8 @@ void ContactSolver<Base>::convertContacts(btPersistentManifold** manifolds, int 
   for (int i = 0; i < count; ++i) {
     btPersistentManifold* m = manifolds[i];
     // A manifold without points adds no rows (Bullet's convertContact would only look up the two
-    // solver bodies); most broadphase pairs of a pile are such, and testing the count first
-    // spares touching the two collision objects.
+    // solver bodies); pairs whose AABBs overlap but whose shapes do not touch keep such
+    // manifolds, and testing the count first spares touching the two collision objects.
     if (m->getNumContacts() == 0 || !Responds(*m)) continue;
     if (patch_ && PatchEligible(*m)) {
       ConvertPatch(m, info);
