@@ -54,6 +54,7 @@ PhysicsConfig& S8Defaults(PhysicsConfig& c) {
   c.fixed_dt = 1.0f / 60.0f;
   c.aabb_margin = kBulletAabbMargin;
   c.aabb_hysteresis = 0;
+  c.patch_friction = false;
   return c;
 }
 
@@ -215,6 +216,34 @@ std::vector<Candidate> Candidates() {
       // The session-11 pick: every setting above that passed and saved something, together.
       {"s11-combo", [](PhysicsConfig& c) {
          TwoCachedFrictionDirs(S8Defaults(c)).solver_iterations = 4;
+         c.split_islands = false;
+         c.aabb_margin = 0.005f;
+       }},
+      // Session 12: patch friction (physics/contact_solver.h), two tangent rows and a twist row
+      // per manifold instead of friction rows per contact point.
+      {"patch", [](PhysicsConfig& c) { S8Defaults(c).patch_friction = true; }},
+      {"patch-iter5", [](PhysicsConfig& c) {
+         S8Defaults(c).patch_friction = true;
+         c.solver_iterations = 5;
+       }},
+      {"patch-iter4", [](PhysicsConfig& c) {
+         S8Defaults(c).patch_friction = true;
+         c.solver_iterations = 4;
+       }},
+      {"patch-iter3", [](PhysicsConfig& c) {
+         S8Defaults(c).patch_friction = true;
+         c.solver_iterations = 3;
+       }},
+      // Patch friction with session 11's one solver batch and 5 mm AABB margin.
+      {"s12-combo", [](PhysicsConfig& c) {
+         S8Defaults(c).patch_friction = true;
+         c.solver_iterations = 4;
+         c.split_islands = false;
+         c.aabb_margin = 0.005f;
+       }},
+      {"s12-combo-iter5", [](PhysicsConfig& c) {
+         S8Defaults(c).patch_friction = true;
+         c.solver_iterations = 5;
          c.split_islands = false;
          c.aabb_margin = 0.005f;
        }},

@@ -1,5 +1,7 @@
 #include "physics/bullet_world.h"
 
+#include "physics/contact_solver.h"
+
 #include <BulletCollision/CollisionDispatch/btSimulationIslandManager.h>
 #include <BulletDynamics/ConstraintSolver/btNNCGConstraintSolver.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
@@ -114,8 +116,16 @@ bool Tuned(const PhysicsConfig& c) {
 }  // namespace
 
 std::unique_ptr<btConstraintSolver> NewSolver(const PhysicsConfig& config) {
+  // PhyS's solver (contact_solver.h) only where a setting needs it: one solver batch needs its
+  // response filter, patch friction its rows. Otherwise Bullet's own solver, bit for bit.
+  const bool own = config.patch_friction || !config.split_islands;
   if (config.solver == PhysicsConfig::Solver::kNNCG) {
+    if (own) return std::make_unique<ContactSolver<btNNCGConstraintSolver>>(false);
     return std::make_unique<btNNCGConstraintSolver>();
+  }
+  if (own) {
+    return std::make_unique<ContactSolver<btSequentialImpulseConstraintSolver>>(
+        config.patch_friction);
   }
   return std::make_unique<btSequentialImpulseConstraintSolver>();
 }
@@ -162,7 +172,7 @@ void ApplyWorldSettings(const PhysicsConfig& config, btDiscreteDynamicsWorld* wo
   if (!config.velocity_dependent_friction) {
     info.m_solverMode |= SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION;
   }
-  if (config.interleave_friction) {
+  if (config.interleave_friction && !config.patch_friction) {
     info.m_solverMode |= SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS;
   }
   info.m_leastSquaresResidualThreshold = config.solver_residual_threshold;

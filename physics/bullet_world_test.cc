@@ -20,12 +20,13 @@ using testing::Pos;
 
 TEST(BulletWorldTest, SolverSettingsReachBullet) {
   {
-    // The defaults: Bullet's solver modes and island batching.
+    // The defaults: Bullet's solver modes, one solver batch (session 12; islands are still
+    // built for sleeping), PhyS's solver with its response filter.
     PhysicsWorld world{PhysicsConfig{}};
     btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
     EXPECT_EQ(w->getSolverInfo().m_solverMode, SOLVER_USE_WARMSTARTING | SOLVER_SIMD);
     EXPECT_EQ(w->getSolverInfo().m_numIterations, 7);
-    EXPECT_TRUE(w->getSimulationIslandManager()->getSplitIslands());
+    EXPECT_FALSE(w->getSimulationIslandManager()->getSplitIslands());
     EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_SEQUENTIAL_IMPULSE_SOLVER);
   }
   {

@@ -165,10 +165,12 @@ struct PhysicsConfig {
   // Bullet's island manager sorts every contact manifold by island and calls the solver once
   // per island (batched up to 128 rows). false: one solver call with every body and manifold,
   // no sorting; sleeping islands still sleep (islands are still built for that).
-  // Measured (full stir): false saves about 3 % of the step; the report's suite experiments
-  // pass, but it is not the default (see "Full stir, session 11": with the other session-11
-  // picks, four physics tests fail).
-  bool split_islands = true;
+  // Measured (full stir): false saves about 3 % of the step; the default since session 12
+  // (docs/benchmarks.md, "Full stir, session 12"). Bullet then hands the solver every
+  // manifold, trigger pairs included (it filters them only per island), so PhyS's ContactSolver
+  // (contact_solver.h) skips pairs that need no response; before session 12 a trigger stopped a
+  // body like a wall with this off (the two trigger tests that failed in "Full stir, session 11").
+  bool split_islands = false;
   // Friction rows per contact point: Bullet's default is one, along the sliding direction.
   // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
   // friction_direction_caching keeps a contact's directions from the step that created it
@@ -176,9 +178,11 @@ struct PhysicsConfig {
   // two_friction_directions and velocity_dependent_friction = false).
   // Measured: two cached rows in a fixed tangent basis cost more rows per iteration but converge
   // much better (never-sleeping stack 0.04 m against 0.16 m at 7 iterations), so 4 iterations
-  // pass the report's suite experiments where one row needs 7: ~6 % less per step. Not the
-  // default: at 4 iterations the ctest stack test's raw-Bullet reference (same iteration count)
-  // drifts 1.04 cm (bound 1 cm), see "Full stir, session 11".
+  // pass the report's suite experiments where one row needs 7: ~6 % less per step. (Bullet keeps
+  // the cached directions only until btPersistentManifold::replaceContactPoint rewrites a point,
+  // i.e. box-box points get fresh ones every step.) With manifold reuse on, a resting pile ends
+  // 7.7 mm off the run without reuse (ManifoldReuseTest's bound: 2 mm; clearing the cache of
+  // reused points did not help), see "Full stir, session 12".
   bool two_friction_directions = false;
   bool friction_direction_caching = false;
   // true (Bullet's default): the first friction direction follows the relative sliding
@@ -188,6 +192,19 @@ struct PhysicsConfig {
   // right after its normal row instead of after all normal rows. Measured: converges worse
   // (never-sleeping stack 0.37 m at 7 iterations, bound 0.25); off.
   bool interleave_friction = false;
+  // Patch friction (physics/contact_solver.h; sequential impulse only, ignored with kNNCG): per
+  // contact manifold two tangent rows at the patch centre clamped together to the friction disk
+  // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
+  // pressure torque), instead of friction rows per contact point; tangent impulses are warm
+  // started. Replaces the per-point friction settings above for manifolds it handles (all but
+  // those with rolling/spinning friction or friction anchors); interleave_friction is ignored.
+  // Rows per 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full
+  // stir, docs/benchmarks.md "Full stir, session 12"): 0.844x raw Bullet at 7 iterations
+  // against 0.885x without, 0.740x with 4 iterations, one batch and a 5 mm margin (the report's
+  // suite passes; 4 iterations alone fail the sleeping stack, 11.8 mm). Not the default: with
+  // it, ManifoldReuseTest's resting pile ends 4.4-6.5 mm off the run without reuse (bound
+  // 2 mm), not traced further. Tests: physics/contact_solver_test.cc.
+  bool patch_friction = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
@@ -202,8 +219,9 @@ struct PhysicsConfig {
   // is found a step late. aabb_hysteresis (m, 0: off): the broadphase gets the AABB grown by
   // this much more, and is only updated when the body's AABB leaves it, so small motions cost
   // no sort; the price is more (looser) pairs for the narrowphase to reject. Measured (full
-  // stir): 5 mm saves ~2 % of the step; 10 mm and hysteresis of 1-2 cm save nothing measurable.
-  float aabb_margin = kBulletAabbMargin;
+  // stir): 5 mm saves ~2 % of the step (the default since session 12); 10 mm and hysteresis of
+  // 1-2 cm save nothing measurable.
+  float aabb_margin = 0.005f;
   float aabb_hysteresis = 0.0f;
   // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
   // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet

@@ -1,9 +1,9 @@
-# Session 11 (docs/benchmarks.md, "Full stir, session 11"): physics_cost_report's chart over
+# Sessions 11 and 12 (docs/benchmarks.md, "Full stir, session 11" and "session 12"): physics_cost_report's chart over
 # physics_cost_stir.dat, whose rows come from the runs named in their labels; run in docs/charts.
 do for [fmt in "png svg"] {
   if (fmt eq "png") { set terminal pngcairo size 900,520 font "sans,9" noenhanced } else { set terminal svg size 900,520 font "sans,9" noenhanced }
   set output "physics_cost_stir.".fmt
-  set title "PhyS settings, full stir (2,000 boxes, after 10 s), session 11: step time vs accuracy (the suite at each setting)"
+  set title "PhyS settings, full stir (2,000 boxes, after 10 s), sessions 11-12: step time vs accuracy (the suite at each setting)"
 
   set xlabel "PhyS step CPU time / raw Bullet at its defaults (same run, medians)"
   set ylabel "never-sleeping ten-box stack: drift over 60 s (m, log)"
