@@ -321,7 +321,7 @@ TEST_P(AckedStateTest, AnAcknowledgedStateIsSentOnceAndAnUnacknowledgedOneAgain)
 }
 
 INSTANTIATE_TEST_SUITE_P(Formats, AckedStateTest, ::testing::Bool(),
-                         [](const auto& info) { return info.param ? "format9" : "format2"; });
+                         [](const auto& param_info) { return param_info.param ? "format9" : "format2"; });
 
 }  // namespace
 }  // namespace edgephys::room_host_testing
