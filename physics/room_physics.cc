@@ -157,7 +157,7 @@ Status RoomPhysics::Release(uint32_t entity) {
   // A point held rigidly by the hand moves at v_hand + w_hand x (its offset from the hand).
   const Eigen::Vector3f w = ToEigen(w_hand);
   Eigen::Vector3f v = ToEigen(v_hand) + w.cross(ToEigen(now_state.position) - ToEigen(hand_pos));
-  Eigen::Vector3f wv = w;
+  Eigen::Vector3f wv = w;  // capped below, separately from the w x r above
   const physics::PhysicsConfig& c = world_.config();
   if (v.norm() > c.grab_max_speed) v *= c.grab_max_speed / v.norm();
   if (wv.norm() > c.grab_max_angular_speed) wv *= c.grab_max_angular_speed / wv.norm();

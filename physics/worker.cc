@@ -9,12 +9,6 @@
 namespace edgephys {
 namespace {
 
-EntityState FromPose(const schema::Pose& p) {
-  return {p.entity_id(),
-          {p.position().x(), p.position().y(), p.position().z()},
-          {p.rotation().x(), p.rotation().y(), p.rotation().z(), p.rotation().w()}};
-}
-
 schema::PhysicsEventKind KindOf(physics::PhysicsEventType t) {
   switch (t) {
     case physics::PhysicsEventType::kCollisionEnter: return schema::PhysicsEventKind::CollisionEnter;

@@ -84,6 +84,12 @@ Status DecodeWorkerSoftChunk(std::span<const uint8_t> payload, uint32_t* room,
   return DecodeSoftBodyChunk(payload.subspan(5), kWorkerSoftStepM, 1 << 16, chunk);
 }
 
+EntityState FromPose(const schema::Pose& p) {
+  return {p.entity_id(),
+          {p.position().x(), p.position().y(), p.position().z()},
+          {p.rotation().x(), p.rotation().y(), p.rotation().z(), p.rotation().w()}};
+}
+
 void ApplyWorkerDrive(const schema::WorkerDrive& message, RoomPhysics& room, double arrival) {
   const auto* poses = message.poses();
   if (poses == nullptr) return;
@@ -91,10 +97,7 @@ void ApplyWorkerDrive(const schema::WorkerDrive& message, RoomPhysics& room, dou
   const bool timed = times != nullptr && times->size() == poses->size();
   for (flatbuffers::uoffset_t i = 0; i < poses->size(); ++i) {
     const schema::Pose* p = poses->Get(i);
-    const EntityState s{p->entity_id(),
-                        {p->position().x(), p->position().y(), p->position().z()},
-                        {p->rotation().x(), p->rotation().y(), p->rotation().z(), p->rotation().w()}};
-    room.Drive(p->entity_id(), s, timed ? times->Get(i) : arrival);
+    room.Drive(p->entity_id(), FromPose(*p), timed ? times->Get(i) : arrival);
   }
 }
 

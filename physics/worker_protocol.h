@@ -37,6 +37,9 @@ size_t EncodeWorkerSoftChunk(uint32_t room, uint32_t entity_id, std::span<const 
 Status DecodeWorkerSoftChunk(std::span<const uint8_t> payload, uint32_t* room,
                              SoftBodyChunk* chunk);
 
+// A wire pose as a state. O(1).
+EntityState FromPose(const schema::Pose& p);
+
 // Applies a relay's WorkerDrive to `room`: each pose with its time (RoomPhysics::Drive) when
 // the message carries one per pose, else `arrival` (the worker's clock). Poses with a
 // non-finite time still drive the body; their time is ignored for velocities (PoseHistory).
