@@ -41,7 +41,7 @@ struct CcuOptions {
   double publish_hz = 30;                // bots' pose updates
   uint64_t seed = 1;
   size_t relay_threads = 1;              // relay worker threads (ticks and PhyS), its own included
-  bool shared_encoding = false;          // the in-process relay's rooms use state format 9
+  bool shared_encoding = true;           // the in-process relay's rooms use state format 9 (false: 2)
   bool packet_auth = true;               // the in-process relay seals packets (RelayConfig)
   bool progress = true;
   // --relay: bots join an external edgephys-relay; server-side figures from its /metrics.

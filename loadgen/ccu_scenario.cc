@@ -163,8 +163,9 @@ class CcuScenario final : public Scenario {
     cmd.add_option("--relay-threads", o_.relay_threads,
                    "Relay threads for ticks and PhyS (1: the relay keeps to one core; the bots use "
                    "the other)");
-    cmd.add_flag("--shared-encoding", o_.shared_encoding,
-                 "In-process relay: rooms use the shared-delta state format (9) instead of 2");
+    cmd.add_flag("--shared-encoding,!--no-shared-encoding", o_.shared_encoding,
+                 "In-process relay: rooms use the shared-delta state format 9 (the relay's "
+                 "default); --no-shared-encoding: format 2");
     cmd.add_option("--packet-auth", o_.packet_auth,
                    "In-process relay: seal packets after the handshake (false: measure without)");
     cmd.add_option("--measure-every", o_.measure_every,

@@ -290,6 +290,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   }
   if (o.ambient_hz > 0) config.room_defaults.replication.ambient_hz = o.ambient_hz;
   ReplicationConfig& rep = config.room_defaults.replication;
+  rep.shared_encoding = o.shared_encoding;
   rep.velocities = o.velocities;
   if (o.extrapolation_threshold_m > 0) rep.extrapolation_position_threshold_m = o.extrapolation_threshold_m;
   if (o.extrapolation_rotation_deg > 0) rep.extrapolation_rotation_threshold_deg = o.extrapolation_rotation_deg;

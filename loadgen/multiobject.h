@@ -78,6 +78,8 @@ struct MultiObjectOptions {
   float rotation_threshold_deg = -1.f;
   // ReplicationConfig::ambient_hz (boxes nobody touches); <= 0: the relay's default.
   double ambient_hz = 0;
+  // ReplicationConfig::shared_encoding: state format 9 (the relay's default); false: format 2.
+  bool shared_encoding = true;
   // Dead reckoning (ReplicationConfig::velocities, state format 12): the relay sends
   // velocities and a box only when a receiver's extrapolation strays beyond the thresholds;
   // the display probe's receivers extrapolate with them (Hermite with the sent tangents

@@ -15,7 +15,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    rotation_threshold_deg, stirrer_half_height, sleep_threshold,
                                    moving_speed_mps, bench_warmup_steps, bench_steps, bench_max_s,
                                    receivers, duration_s, relay_settle_steps, relay_max_substeps,
-                                   position_step_m, rotation_bound_deg, ambient_hz, velocities,
+                                   position_step_m, rotation_bound_deg, ambient_hz, shared_encoding, velocities,
                                    extrapolation_threshold_m, extrapolation_rotation_deg,
                                    extrapolation_max_hz, hermite_max_interval_s,
                                    playout_min_delay_s, key_sample_threshold_m,
@@ -210,6 +210,8 @@ class MultiObjectScenario final : public Scenario {
                    "Send when the client's copy is off by more than this (m; <0: relay default 0.001)");
     cmd.add_option("--rotation-threshold", o_.rotation_threshold_deg,
                    "Send when the client's copy is off by more than this (deg; <0: relay default 0.1)");
+    cmd.add_flag("--shared-encoding,!--no-shared-encoding", o_.shared_encoding,
+                 "Relay sends state format 9 (the default); --no-shared-encoding: format 2");
     cmd.add_flag("--velocities", o_.velocities,
                  "Relay sends state format 12 (velocities) and dead-reckons PhyS boxes; receivers "
                  "extrapolate (ReplicationConfig::velocities)");

@@ -104,6 +104,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   r.rotation_bound_deg = o.rotation_bound_deg;
   r.position_threshold_m = o.position_threshold_m;
   r.rotation_threshold_deg = o.rotation_threshold_deg;
+  r.shared_encoding = o.shared_encoding;
 
   auto loopback = asio::ip::make_address("127.0.0.1");
   const auto start = std::chrono::steady_clock::now();

@@ -32,6 +32,7 @@ struct RelayCompareOptions {
   float rotation_bound_deg = 0.1f;
   float position_threshold_m = 0.0005f;
   float rotation_threshold_deg = 0.05f;
+  bool shared_encoding = true;  // edgephys mode: state format 9 (the relay's default); false: 2
   bool progress = true;
   // --relay: an external edgephys-relay started with the replication flags of the one mode
   // measured (--replication-mode, --position-step, ...: the load generator cannot set them).

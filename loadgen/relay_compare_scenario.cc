@@ -26,7 +26,8 @@ nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompare
                        {"duration_s", o.duration_s},
                        {"receivers", o.receivers},
                        {"position_step_m", o.position_step_m},
-                       {"rotation_bound_deg", o.rotation_bound_deg}});
+                       {"rotation_bound_deg", o.rotation_bound_deg},
+                       {"shared_encoding", o.shared_encoding}});
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
     nlohmann::json e = r;
@@ -137,6 +138,8 @@ class RelayCompareScenario final : public Scenario {
     cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
     cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "edgephys rotation bound (deg)");
     cmd.add_option("--position-threshold", o_.position_threshold_m, "Selective sync threshold (m)");
+    cmd.add_flag("--shared-encoding,!--no-shared-encoding", o_.shared_encoding,
+                 "edgephys mode: state format 9 (the relay's default); --no-shared-encoding: 2");
     cmd.add_option("--rotation-threshold", o_.rotation_threshold_deg,
                    "Selective sync threshold (deg)");
     AddExternalRelayOptions(cmd, &o_.external);

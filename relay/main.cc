@@ -111,10 +111,11 @@ int main(int argc, char** argv) {
                  "State encoding: edgephys (quantized delta), float, photon or paper (emulations)")
       ->capture_default_str();
   ReplicationConfig& rep = config.room_defaults.replication;
-  app.add_flag("--shared-encoding", rep.shared_encoding,
+  app.add_flag("--shared-encoding,!--no-shared-encoding", rep.shared_encoding,
                "edgephys mode: state format 9 (shared delta: each entity delta encoded once per "
-               "room tick for every receiver on the same baseline) instead of format 2; "
-               "experimental, off by default");
+               "room tick for every receiver on the same baseline; the default); "
+               "--no-shared-encoding sends format 2. --velocities and --key-samples send their "
+               "own formats either way");
   app.add_flag("--shared-lockstep", rep.shared_lockstep,
                "With --shared-encoding and no bandwidth budget: receivers that acknowledge the "
                "room's canonical payloads within --lockstep-ack-ticks are sent copies of them "

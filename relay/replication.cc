@@ -96,7 +96,7 @@ ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     }
     case ReplicationMode::kEdgephys: {
       auto params = MakeQuantizationParams(QuantizationOf(config_));
-      if (params.ok() && config_.shared_encoding) {
+      if (params.ok() && UsesSharedEncoding(config_)) {
         SharedDeltaStreamOptions options;
         if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
           include_own_ = true;

@@ -91,11 +91,17 @@ struct ReplicationConfig {
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
   float bounds_half_extent_m = 1000.0f;  // room bounds: a cube centred on the origin
-  // edgephys mode only: send state format 9 ("shared delta", protocol/shared_delta_codec.h)
-  // instead of format 2. The room quantises, predicts and codes each (entity, baseline) delta
-  // once per tick for every receiver on that baseline; each receiver only appends bits. Off by
-  // default until measured at scale; clients learn the format from Joined.
-  bool shared_encoding = false;
+  // edgephys mode: send state format 9 ("shared delta", protocol/shared_delta_codec.h); false
+  // sends format 2. The room quantises, predicts and codes each (entity, baseline) delta once
+  // per tick for every receiver on that baseline; each receiver only appends bits. Clients learn
+  // the format from Joined. The default since issue 11 session 13: at 100 users in one room
+  // 4.9x less relay CPU per delivered update than format 2, -4 % bytes per update, a fifth of
+  // the relay's peak RSS (docs/benchmarks.md, "Session 12: lockstep receivers" and "Format 9 by
+  // default"). Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus
+  // 68 bytes per (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
+  // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
+  // sent) when a policy of that family is asked for: velocities, key samples, stamp_state_time.
+  bool shared_encoding = true;
   // Format 9 rooms without a bandwidth budget: lockstep receivers (relay/lockstep.h). The room
   // runs one canonical replicator per tick; receivers that acknowledge its payloads within
   // `lockstep_ack_ticks` ticks are sent copies of them instead of being walked entity by entity
@@ -168,16 +174,29 @@ struct ReplicationConfig {
   double soft_touched_hz = 24;
 };
 
+// True when `config` asks for a policy of the format-2 family (velocities and dead reckoning,
+// key samples, fixed-rate state-time stamps): those take precedence over `shared_encoding`,
+// since format 9 carries none of what they need.
+inline bool WantsFormat2Family(const ReplicationConfig& config) {
+  return config.velocities || config.key_sample_threshold_m > 0 || config.stamp_state_time;
+}
+
+// True when rooms with `config` send format 9 (the edgephys default).
+inline bool UsesSharedEncoding(const ReplicationConfig& config) {
+  return config.mode == ReplicationMode::kEdgephys && config.shared_encoding &&
+         !WantsFormat2Family(config);
+}
+
 // True when rooms with `config` send format 12.
 inline bool UsesVelocities(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding && config.velocities;
+  return config.mode == ReplicationMode::kEdgephys && config.velocities;
 }
 
 // True when rooms with `config` send format 13 (format 2 with "previous version" references):
 // key samples without velocities.
 inline bool UsesPreviousReference(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && !config.shared_encoding &&
-         !config.velocities && config.key_sample_threshold_m > 0;
+  return config.mode == ReplicationMode::kEdgephys && !config.velocities &&
+         config.key_sample_threshold_m > 0;
 }
 // True when rooms with `config` send format 14 (format 13 with records at times of their own):
 // key samples at the kink.
@@ -189,10 +208,6 @@ inline bool UsesRecordTimes(const ReplicationConfig& config) {
 // Hermite and key-sample policies check the receivers' curves against them.
 inline bool KeepsRecentStates(const ReplicationConfig& config) {
   return config.hermite_max_interval_s > 0 || config.key_sample_threshold_m > 0;
-}
-// True when rooms with `config` send format 9.
-inline bool UsesSharedEncoding(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && config.shared_encoding;
 }
 
 // True when rooms with `config` run lockstep receivers (relay/lockstep.h).

@@ -37,7 +37,7 @@ constexpr size_t kMaxEarlyStates = 1024;
 uint8_t StateFormatOf(const ReplicationConfig& config) {
   switch (config.mode) {
     case ReplicationMode::kEdgephys:
-      if (config.shared_encoding) return kSharedDeltaStateFormat;
+      if (UsesSharedEncoding(config)) return kSharedDeltaStateFormat;
       if (UsesRecordTimes(config)) return kTimedDeltaStateFormat;
       if (UsesPreviousReference(config)) return kPreviousDeltaStateFormat;
       return config.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;

@@ -13,6 +13,7 @@ PACKAGES=(
   libhiredis-dev redis-server
   linux-perf
   python3 mono-mcs mono-runtime dpkg-dev debootstrap
+  ccache  # optional: developers build with -DCMAKE_CXX_COMPILER_LAUNCHER=ccache
 )
 
 # The monitor page's browser test (tests/browser) runs on node with npm; a machine that has
