@@ -7,9 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <type_traits>
-static bool DiagEnv(const char* n) { const char* v = std::getenv(n); return v && *v == '1'; }
 
 
 namespace edgephys::physics::internal {
@@ -145,7 +143,7 @@ void ContactSolver<Base>::ConvertPatch(btPersistentManifold* m, const btContactS
   const btVector3 rel_b = centre - origin_b;
   btVector3 t1, t2;
   btPlaneSpace1(normal, t1, t2);
-  const bool warm = (info.m_solverMode & SOLVER_USE_WARMSTARTING) != 0 && !DiagEnv("EP_DIAG_NOWARM");
+  const bool warm = (info.m_solverMode & SOLVER_USE_WARMSTARTING) != 0;
   const btScalar start[2] = {warm ? oldest->m_appliedImpulseLateral1 * info.m_warmstartingFactor : 0,
                              warm ? oldest->m_appliedImpulseLateral2 * info.m_warmstartingFactor : 0};
   const btVector3* dirs[2] = {&t1, &t2};
@@ -161,7 +159,7 @@ void ContactSolver<Base>::ConvertPatch(btPersistentManifold* m, const btContactS
   }
 
   p.twist = -1;
-  if (p.twist_radius > 0 && !DiagEnv("EP_DIAG_NOTWIST")) {
+  if (p.twist_radius > 0) {
     btSolverConstraint& t = twist_.expandNonInitializing();
     t.m_frictionIndex = p.first_normal;
     this->setupTorsionalFrictionConstraint(t, normal, id_a, id_b, *oldest, p.mu * p.twist_radius,

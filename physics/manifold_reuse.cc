@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <new>
-#include <cstdlib>
 
 namespace edgephys::physics {
 namespace {
@@ -32,7 +31,7 @@ class ReusingBoxBoxAlgorithm final : public btBoxBoxCollisionAlgorithm {
     const btVector3 rel_origin = t0.invXform(t1.getOrigin());
     const btMatrix3x3 rel_basis = t0.getBasis().transposeTimes(t1.getBasis());
     if (manifold_ != nullptr && WithinDistance(rel_origin, rel_basis)) {
-      if (!(std::getenv("EP_DIAG_NOTURN") && *std::getenv("EP_DIAG_NOTURN") == '1')) TurnNormals();
+      TurnNormals();
       out->setPersistentManifold(manifold_);
       out->refreshContactPoints();
       ++stats_->reused;

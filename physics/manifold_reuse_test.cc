@@ -3,13 +3,10 @@
 // and what the world computes stays within the stated bound. Speed is measured in
 // bench/physics_cost_report.cc, not here.
 #include <gtest/gtest.h>
-#include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <string>
 #include <limits>
 #include <vector>
 
@@ -152,138 +149,5 @@ TEST(ManifoldReuseTest, BadDistanceMeansOff) {
   }
 }
 
-}  // namespace
-}  // namespace edgephys::physics
-
-// ---- DIAGNOSTIC (session 13, temporary) ----
-namespace edgephys::physics {
-namespace {
-using testing::Add;
-using testing::Dist;
-using testing::Ground;
-using testing::Pos;
-struct DiagRun {
-  std::vector<std::vector<Vec3f>> track;  // per sample, per box
-};
-// scene 0: pile; 1: bottom 4x4 layer only; 2: single box; 3: one top box on 2x2
-DiagRun DiagPile(PhysicsConfig cfg, float nudge, int scene) {
-  PhysicsWorld w(cfg);
-  EXPECT_TRUE(Add(w, Ground(1)).ok());
-  std::vector<uint32_t> ids;
-  const float h = 0.1f;
-  uint32_t id = 100;
-  const int n = scene == 2 ? 1 : scene == 3 ? 2 : 4;
-  for (int i = 0; i < n; ++i)
-    for (int k = 0; k < n; ++k) {
-      EXPECT_TRUE(Add(w, DynamicBox(id, {2 * h * i + (id == 100 ? nudge : 0.f), h, 2 * h * k}, {h, h, h}, 1.0f)).ok());
-      ids.push_back(id++);
-    }
-  const int m = scene == 0 ? 3 : scene == 3 ? 1 : 0;
-  for (int i = 0; i < m; ++i)
-    for (int k = 0; k < m; ++k) {
-      EXPECT_TRUE(Add(w, DynamicBox(id, {h + 2 * h * i, 3 * h, h + 2 * h * k}, {h, h, h}, 1.0f)).ok());
-      ids.push_back(id++);
-    }
-  DiagRun r;
-  auto snap = [&] {
-    std::vector<Vec3f> s;
-    for (uint32_t b : ids) s.push_back(Pos(w, b));
-    r.track.push_back(s);
-  };
-  snap();
-  for (int i = 1; i <= 300; ++i) {
-    w.Step();
-    if (i % 30 == 0) snap();
-  }
-  return r;
-}
-float Worst(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b, int* at = nullptr) {
-  float m = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    if (Dist(a[i], b[i]) > m) { m = Dist(a[i], b[i]); if (at) *at = static_cast<int>(i); }
-  }
-  return m;
-}
-TEST(FricDiag, DISABLED_Pile) {
-  struct V { const char* name; PhysicsConfig cfg; };
-  std::vector<V> vs;
-  auto base = [](bool patch, int it) {
-    PhysicsConfig c;
-    c.sleeping = false;
-    c.patch_friction = patch;
-    c.solver_iterations = it;
-    return c;
-  };
-  const char* only = std::getenv("EP_DIAG_ONLY");
-  const int scene = std::getenv("EP_DIAG_SCENE") ? std::atoi(std::getenv("EP_DIAG_SCENE")) : 0;
-  vs.push_back({"bullet-7", base(false, 7)});
-  vs.push_back({"patch-7", base(true, 7)});
-  vs.push_back({"patch-4", base(true, 4)});
-  for (const V& v : vs) {
-    if (only && std::string(only) != v.name) continue;
-    PhysicsConfig off = v.cfg, on = v.cfg;
-    on.manifold_reuse_distance = 0.001f;
-    DiagRun a = DiagPile(off, 0, scene), b = DiagPile(on, 0, scene), c = DiagPile(off, 1e-5f, scene);
-    std::printf("%-10s t(s):", v.name);
-    for (size_t s = 0; s < a.track.size(); ++s) std::printf(" %5.1f", s * 0.5);
-    std::printf("\n  off-drift(mm)  ");
-    for (size_t s = 0; s < a.track.size(); ++s) std::printf(" %5.2f", 1e3 * Worst(a.track[s], a.track[0]));
-    std::printf("\n  on-drift(mm)   ");
-    for (size_t s = 0; s < a.track.size(); ++s) std::printf(" %5.2f", 1e3 * Worst(b.track[s], b.track[0]));
-    std::printf("\n  on-vs-off(mm)  ");
-    for (size_t s = 0; s < a.track.size(); ++s) std::printf(" %5.2f", 1e3 * Worst(b.track[s], a.track[s]));
-    std::printf("\n  nudge10um(mm)  ");
-    for (size_t s = 0; s < a.track.size(); ++s) std::printf(" %5.2f", 1e3 * Worst(c.track[s], a.track[s]));
-    std::printf("\n  off run, per box displacement at 5 s (mm):\n");
-    const auto& e = a.track.back();
-    const auto& s0 = a.track.front();
-    for (size_t i = 0; i < e.size(); ++i) {
-      std::printf("   box%2zu start(%.2f,%.2f,%.2f) d=(%+.2f,%+.2f,%+.2f)\n", i, s0[i].x, s0[i].y, s0[i].z,
-                  1e3 * (e[i].x - s0[i].x), 1e3 * (e[i].y - s0[i].y), 1e3 * (e[i].z - s0[i].z));
-    }
-  }
-}
-}  // namespace
-}  // namespace edgephys::physics
-namespace edgephys::physics {
-namespace {
-// Two / a row of boxes side by side on the ground; dump manifolds.
-TEST(FricDiag, DISABLED_Row) {
-  const int n = std::getenv("EP_DIAG_N") ? std::atoi(std::getenv("EP_DIAG_N")) : 2;
-  for (bool patch : {false, true}) {
-    PhysicsConfig c;
-    c.sleeping = false;
-    c.patch_friction = patch;
-    PhysicsWorld w(c);
-    EXPECT_TRUE(Add(w, Ground(1)).ok());
-    for (int i = 0; i < n; ++i)
-      for (int k = 0; k < n; ++k)
-        EXPECT_TRUE(Add(w, DynamicBox(100 + i * n + k, {0.2f * i, 0.1f, 0.2f * k}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
-    std::printf("== patch %d n %d\n", patch, n);
-    for (int s = 1; s <= 300; ++s) {
-      w.Step();
-      if (s % 60 == 0 || s == 1 || s == 2 || s == 10) {
-        float worst = 0;
-        for (int i = 0; i < n; ++i)
-          for (int k = 0; k < n; ++k)
-            worst = std::max(worst, Dist(Pos(w, 100 + i * n + k), Vec3f{0.2f * i, 0.1f, 0.2f * k}));
-        std::printf(" step %d worst drift %.3f mm\n", s, worst * 1e3);
-        btDispatcher* d = w.BulletWorldForTesting()->getDispatcher();
-        for (int m = 0; m < d->getNumManifolds() && s <= 10; ++m) {
-          btPersistentManifold* pm = d->getManifoldByIndexInternal(m);
-          if (pm->getNumContacts() == 0) continue;
-          btVector3 nrm = pm->getContactPoint(0).m_normalWorldOnB;
-          std::printf("   mf%d pts %d n(%.3f,%.3f,%.3f):", m, pm->getNumContacts(), nrm.x(), nrm.y(), nrm.z());
-          for (int j = 0; j < pm->getNumContacts(); ++j) {
-            const btManifoldPoint& p = pm->getContactPoint(j);
-            std::printf(" [d %.2e l %d in %.3f t %.3f %.3f]", p.getDistance(), p.getLifeTime(), p.m_appliedImpulse,
-                        p.m_appliedImpulseLateral1, p.m_appliedImpulseLateral2);
-          }
-          std::printf("\n");
-        }
-      }
-    }
-  }
-}
 }  // namespace
 }  // namespace edgephys::physics
