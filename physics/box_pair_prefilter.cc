@@ -4,30 +4,50 @@
 namespace edgephys::physics::internal {
 namespace {
 
-// Bounding radius of a box about its centre, as btBoxBoxDetector sees it (half extents with
-// the collision margin).
-btScalar BoxRadius(const btCollisionShape* shape) {
-  return static_cast<const btBoxShape*>(shape)->getHalfExtentsWithMargin().length();
+// Half extents of a box as btBoxBoxDetector sees it (with the collision margin).
+const btVector3& HalfExtents(const btCollisionObject& o) {
+  return static_cast<const btBoxShape*>(o.getCollisionShape())->getHalfExtentsWithMargin();
+}
+
+// Whether the sphere (centre c, radius r) lies farther than r from box `box`, i.e. misses it.
+bool SphereMissesBox(const btCollisionObject& box, const btVector3& c, btScalar r) {
+  const btVector3 local = box.getWorldTransform().invXform(c);
+  const btVector3& h = HalfExtents(box);
+  btScalar d2 = 0;
+  for (int i = 0; i < 3; ++i) {
+    const btScalar excess = btFabs(local[i]) - h[i];
+    if (excess > 0) d2 += excess * excess;
+  }
+  return d2 > r * r;  // NaN: false
 }
 
 }  // namespace
+
+bool BoxesCannotTouch(const btCollisionObject& a, const btCollisionObject& b) {
+  const btVector3& ha = HalfExtents(a);
+  const btVector3& hb = HalfExtents(b);
+  const btScalar ra = ha.length() + kBoxPrefilterSlack;
+  const btScalar rb = hb.length() + kBoxPrefilterSlack;
+  const btVector3& ca = a.getWorldTransform().getOrigin();
+  const btVector3& cb = b.getWorldTransform().getOrigin();
+  const btScalar d2 = (cb - ca).length2();
+  if (d2 > (ra + rb) * (ra + rb)) return true;  // bounding spheres apart
+  // Inscribed spheres overlap: the boxes overlap, Bullet's test will report contacts.
+  const btScalar ia = btMin(btMin(ha.x(), ha.y()), ha.z());  // inscribed radii
+  const btScalar ib = btMin(btMin(hb.x(), hb.y()), hb.z());
+  if (!(d2 >= (ia + ib) * (ia + ib))) return false;  // also NaN
+  // Each box's bounding sphere against the other box.
+  return SphereMissesBox(a, cb, rb) || SphereMissesBox(b, ca, ra);
+}
 
 void BoxPairPrefilterNearCallback(btBroadphasePair& pair, btCollisionDispatcher& dispatcher,
                                   const btDispatcherInfo& info) {
   auto* o0 = static_cast<btCollisionObject*>(pair.m_pProxy0->m_clientObject);
   auto* o1 = static_cast<btCollisionObject*>(pair.m_pProxy1->m_clientObject);
-  const btCollisionShape* s0 = o0->getCollisionShape();
-  const btCollisionShape* s1 = o1->getCollisionShape();
-  if (pair.m_algorithm == nullptr || s0->getShapeType() != BOX_SHAPE_PROXYTYPE ||
-      s1->getShapeType() != BOX_SHAPE_PROXYTYPE ||
-      info.m_dispatchFunc != btDispatcherInfo::DISPATCH_DISCRETE) {
-    btCollisionDispatcher::defaultNearCallback(pair, dispatcher, info);
-    return;
-  }
-  const btScalar reach = BoxRadius(s0) + BoxRadius(s1) + kBoxPrefilterSlack;
-  const btVector3 d = o1->getWorldTransform().getOrigin() - o0->getWorldTransform().getOrigin();
-  // Written so that NaN fails the test (and takes Bullet's path).
-  if (!(d.length2() > reach * reach)) {
+  if (pair.m_algorithm == nullptr ||
+      o0->getCollisionShape()->getShapeType() != BOX_SHAPE_PROXYTYPE ||
+      o1->getCollisionShape()->getShapeType() != BOX_SHAPE_PROXYTYPE ||
+      info.m_dispatchFunc != btDispatcherInfo::DISPATCH_DISCRETE || !BoxesCannotTouch(*o0, *o1)) {
     btCollisionDispatcher::defaultNearCallback(pair, dispatcher, info);
     return;
   }

@@ -19,8 +19,8 @@ btCollisionDispatcher* Dispatcher(PhysicsWorld& w) {
   return static_cast<btCollisionDispatcher*>(w.BulletWorldForTesting()->getDispatcher());
 }
 
-// Box-box pairs in the broadphase whose bounding spheres are apart by more than the slack:
-// the pairs the prefilter skips in the next step.
+// Box-box pairs in the broadphase that are certainly disjoint: the pairs the prefilter skips in
+// the next step.
 int SkippablePairs(PhysicsWorld& w) {
   btOverlappingPairCache* cache =
       w.BulletWorldForTesting()->getBroadphase()->getOverlappingPairCache();
@@ -33,12 +33,7 @@ int SkippablePairs(PhysicsWorld& w) {
         o1->getCollisionShape()->getShapeType() != BOX_SHAPE_PROXYTYPE) {
       continue;
     }
-    const btScalar r =
-        static_cast<const btBoxShape*>(o0->getCollisionShape())->getHalfExtentsWithMargin().length() +
-        static_cast<const btBoxShape*>(o1->getCollisionShape())->getHalfExtentsWithMargin().length() +
-        internal::kBoxPrefilterSlack;
-    const btVector3 d = o1->getWorldTransform().getOrigin() - o0->getWorldTransform().getOrigin();
-    if (d.length2() > r * r) ++n;
+    if (internal::BoxesCannotTouch(*o0, *o1)) ++n;
   }
   return n;
 }
