@@ -4,15 +4,16 @@
 namespace edgephys::physics::internal {
 namespace {
 
-// Half extents of a box as btBoxBoxDetector sees it (with the collision margin).
-const btVector3& HalfExtents(const btCollisionObject& o) {
+// Half extents of a box as btBoxBoxDetector sees it (with the collision margin; by value, as
+// Bullet returns them).
+btVector3 HalfExtents(const btCollisionObject& o) {
   return static_cast<const btBoxShape*>(o.getCollisionShape())->getHalfExtentsWithMargin();
 }
 
 // Whether the sphere (centre c, radius r) lies farther than r from box `box`, i.e. misses it.
 bool SphereMissesBox(const btCollisionObject& box, const btVector3& c, btScalar r) {
   const btVector3 local = box.getWorldTransform().invXform(c);
-  const btVector3& h = HalfExtents(box);
+  const btVector3 h = HalfExtents(box);
   btScalar d2 = 0;
   for (int i = 0; i < 3; ++i) {
     const btScalar excess = btFabs(local[i]) - h[i];
@@ -24,8 +25,8 @@ bool SphereMissesBox(const btCollisionObject& box, const btVector3& c, btScalar 
 }  // namespace
 
 bool BoxesCannotTouch(const btCollisionObject& a, const btCollisionObject& b) {
-  const btVector3& ha = HalfExtents(a);
-  const btVector3& hb = HalfExtents(b);
+  const btVector3 ha = HalfExtents(a);
+  const btVector3 hb = HalfExtents(b);
   const btScalar ra = ha.length() + kBoxPrefilterSlack;
   const btScalar rb = hb.length() + kBoxPrefilterSlack;
   const btVector3& ca = a.getWorldTransform().getOrigin();
