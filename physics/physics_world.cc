@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "physics/box_pair_prefilter.h"
 #include "physics/bullet_world.h"
 #include "physics/manifold_reuse.h"
 #include "physics/physics_world_internal.h"
@@ -46,10 +45,6 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
     manifold_reuse_ = std::make_unique<ManifoldReuseCreateFunc>(config_.manifold_reuse_distance);
     dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
                                              manifold_reuse_.get());
-  } else {
-    // Box pairs that cannot touch skip Bullet's box-box test (bit-identical; needs Bullet's own
-    // box-box algorithm, which manifold reuse replaces).
-    dispatcher_->setNearCallback(&internal::BoxPairPrefilterNearCallback);
   }
   broadphase_ = NewBroadphase(kInitialSweepHandles);
   solver_ = internal::NewSolver(config_);
