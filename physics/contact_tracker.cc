@@ -1,7 +1,6 @@
 // Contact and trigger tracking, run after every Step(): the touching pairs of this step are
 // diffed against the previous step's into Collision/Trigger Enter and Exit events (sorted by
 // pair, so deterministic). O(contact manifolds + pairs log pairs); the pair vectors are reused.
-// The manifold scan prefetches ahead (it is bound by cache misses, docs/benchmarks.md session 13).
 #include <algorithm>
 
 #include "physics/physics_world_internal.h"
@@ -18,18 +17,6 @@ bool Touching(const btPersistentManifold& m, btScalar touch) {
   return false;
 }
 
-// Asks the cache for the two lines of `m` that Touching reads: the first point's distance, and
-// the body pointers and point count that follow the point cache. Address arithmetic only
-// (getContactPoint checks its index only under BT_DEBUG, which the project never defines).
-void PrefetchManifold(const btPersistentManifold* m) {
-  __builtin_prefetch(&m->getContactPoint(0).m_distance1);
-  __builtin_prefetch(&m->getContactPoint(MANIFOLD_CACHE_SIZE - 1) + 1);
-}
-
-// How many manifolds ahead DiffContacts prefetches: the scan is bound by cache misses on
-// manifolds the solver wrote back long ago (thousands of ~900-byte objects per step).
-constexpr int kPrefetchAhead = 8;
-
 }  // namespace
 
 void PhysicsWorld::DiffContacts() {
@@ -38,10 +25,8 @@ void PhysicsWorld::DiffContacts() {
   new_pairs_.clear();
   const int manifolds = dispatcher_->getNumManifolds();
   const btScalar touch = config_.contact_distance;
-  btPersistentManifold* const* all = dispatcher_->getInternalManifoldPointer();
   for (int i = 0; i < manifolds; ++i) {
-    if (i + kPrefetchAhead < manifolds) PrefetchManifold(all[i + kPrefetchAhead]);
-    const btPersistentManifold* m = all[i];
+    const btPersistentManifold* m = dispatcher_->getManifoldByIndexInternal(i);
     if (!Touching(*m, touch)) continue;
     const btCollisionObject* o0 = m->getBody0();
     const btCollisionObject* o1 = m->getBody1();
