@@ -8,9 +8,6 @@
 #include <algorithm>
 #include <cmath>
 #include <type_traits>
-#include <cstdio>
-#include <cstdlib>
-static bool DiagEnv(const char* n) { const char* v = std::getenv(n); return v && *v == '1'; }
 
 
 namespace edgephys::physics::internal {
@@ -74,8 +71,7 @@ void ContactSolver<Base>::convertContacts(btPersistentManifold** manifolds, int 
     // solver bodies); pairs whose AABBs overlap but whose shapes do not touch keep such
     // manifolds, and testing the count first spares touching the two collision objects.
     if (m->getNumContacts() == 0 || !Responds(*m)) continue;
-    const bool side = std::fabs(m->getContactPoint(0).m_normalWorldOnB.y()) < 0.7f;
-    if (patch_ && PatchEligible(*m) && !(side && DiagEnv("EP_DIAG_NOSIDE")) && !(!side && DiagEnv("EP_DIAG_NOGROUND"))) {
+    if (patch_ && PatchEligible(*m)) {
       ConvertPatch(m, info);
     } else {
       this->convertContact(m, info);
@@ -147,31 +143,23 @@ void ContactSolver<Base>::ConvertPatch(btPersistentManifold* m, const btContactS
   const btVector3 rel_b = centre - origin_b;
   btVector3 t1, t2;
   btPlaneSpace1(normal, t1, t2);
-  const bool warm = (info.m_solverMode & SOLVER_USE_WARMSTARTING) != 0 && !DiagEnv("EP_DIAG_NOWARM");
+  const bool warm = (info.m_solverMode & SOLVER_USE_WARMSTARTING) != 0;
   const btScalar start[2] = {warm ? oldest->m_appliedImpulseLateral1 * info.m_warmstartingFactor : 0,
                              warm ? oldest->m_appliedImpulseLateral2 * info.m_warmstartingFactor : 0};
-  btScalar start_c[2] = {start[0], start[1]};
-  if (DiagEnv("EP_DIAG_CLAMPWARM")) {
-    btScalar wl = 0;
-    for (int j = 0; j < p.normals; ++j) wl += normals[p.first_normal + j].m_appliedImpulse;
-    const btScalar lim = p.mu * std::max(wl, btScalar(0));
-    const btScalar l = std::sqrt(start[0] * start[0] + start[1] * start[1]);
-    if (l > lim) { start_c[0] *= lim / l; start_c[1] *= lim / l; }
-  }
   const btVector3* dirs[2] = {&t1, &t2};
   for (int k = 0; k < 2; ++k) {
     btSolverConstraint& f = this->addFrictionConstraint(*dirs[k], id_a, id_b, p.first_normal,
                                                         *oldest, rel_a, rel_b, o0, o1,
                                                         relaxation, info);
     f.m_friction = p.mu;
-    f.m_appliedImpulse = start_c[k];
-    if (start_c[k] != 0) {
-      Apply(f, this->m_tmpSolverBodyPool[id_a], this->m_tmpSolverBodyPool[id_b], start_c[k]);
+    f.m_appliedImpulse = start[k];
+    if (start[k] != 0) {
+      Apply(f, this->m_tmpSolverBodyPool[id_a], this->m_tmpSolverBodyPool[id_b], start[k]);
     }
   }
 
   p.twist = -1;
-  if (p.twist_radius > 0 && !DiagEnv("EP_DIAG_NOTWIST")) {
+  if (p.twist_radius > 0) {
     btSolverConstraint& t = twist_.expandNonInitializing();
     t.m_frictionIndex = p.first_normal;
     this->setupTorsionalFrictionConstraint(t, normal, id_a, id_b, *oldest, p.mu * p.twist_radius,
@@ -190,29 +178,14 @@ btScalar ContactSolver<Base>::SolvePatch(Patch& p) {
   btScalar load = 0;
   const btConstraintArray& normals = this->m_tmpSolverContactConstraintPool;
   for (int j = 0; j < p.normals; ++j) load += normals[p.first_normal + j].m_appliedImpulse;
+  if (!(load > 0)) return 0;  // as Bullet: no friction without a pushing normal impulse
   btSolverConstraint& c1 = this->m_tmpSolverContactFrictionConstraintPool[p.tangent];
   btSolverConstraint& c2 = this->m_tmpSolverContactFrictionConstraintPool[p.tangent + 1];
   btSolverBody& a = this->m_tmpSolverBodyPool[c1.m_solverBodyIdA];
   btSolverBody& b = this->m_tmpSolverBodyPool[c1.m_solverBodyIdB];
-  if (!(load > 0)) {
-    if (DiagEnv("EP_DIAG_ZEROLOAD")) {
-      Apply(c1, a, b, -c1.m_appliedImpulse);
-      Apply(c2, a, b, -c2.m_appliedImpulse);
-      c1.m_appliedImpulse = 0;
-      c2.m_appliedImpulse = 0;
-    }
-    return 0;  // as Bullet: no friction without a pushing normal impulse
-  }
   // Both tangent rows from the same velocities, then the pair clamped to the friction disk.
   btScalar l1 = c1.m_appliedImpulse + UnclampedDelta(c1, a, b);
-  if (DiagEnv("EP_DIAG_GS")) {
-    Apply(c1, a, b, l1 - c1.m_appliedImpulse);
-    Apply(c2, a, b, 0);
-  }
   btScalar l2 = c2.m_appliedImpulse + UnclampedDelta(c2, a, b);
-  if (DiagEnv("EP_DIAG_GS")) {
-    Apply(c1, a, b, -(l1 - c1.m_appliedImpulse));
-  }
   const btScalar limit = p.mu * load;
   const btScalar len2 = l1 * l1 + l2 * l2;
   if (len2 > limit * limit) {
@@ -266,7 +239,6 @@ btScalar ContactSolver<Base>::solveSingleIteration(int iteration, btCollisionObj
   for (int j = 0; j < rows; ++j) {
     if (next < patches_.size() && patches_[next].tangent == j) {
       residual = std::max(residual, SolvePatch(patches_[next]));
-      if (DiagEnv("EP_DIAG_TWICE")) SolvePatch(patches_[next]);
       ++next;
       ++j;  // its second tangent row
       continue;
@@ -293,22 +265,9 @@ btScalar ContactSolver<Base>::solveGroupCacheFriendlyFinish(btCollisionObject** 
     // Every point carries the patch's tangent impulses (the next step starts from its oldest).
     const btConstraintArray& normals = this->m_tmpSolverContactConstraintPool;
     const btConstraintArray& frictions = this->m_tmpSolverContactFrictionConstraintPool;
-    static int step = 0;
-    ++step;
-    const bool dump = DiagEnv("EP_DIAG_DUMP");
     for (const Patch& p : patches_) {
       const btScalar l1 = frictions[p.tangent].m_appliedImpulse;
       const btScalar l2 = frictions[p.tangent + 1].m_appliedImpulse;
-      if (dump) {
-        btScalar load = 0;
-        for (int j = 0; j < p.normals; ++j) load += normals[p.first_normal + j].m_appliedImpulse;
-        const btVector3 n = p.manifold->getContactPoint(0).m_normalWorldOnB;
-        std::printf("D %d %p %p n %.3f %.3f %.3f pts %d load %.4g l1 %.4g l2 %.4g tw %.4g t1 %.3f %.3f %.3f\n", step,
-                    (void*)p.manifold->getBody0(), (void*)p.manifold->getBody1(), n.x(), n.y(), n.z(),
-                    p.normals, load, l1, l2, p.twist >= 0 ? twist_[p.twist].m_appliedImpulse : 0.0f,
-                    frictions[p.tangent].m_contactNormal1.x(), frictions[p.tangent].m_contactNormal1.y(),
-                    frictions[p.tangent].m_contactNormal1.z());
-      }
       for (int j = 0; j < p.normals; ++j) {
         auto* pt = static_cast<btManifoldPoint*>(normals[p.first_normal + j].m_originalContactPoint);
         pt->m_appliedImpulseLateral1 = l1;

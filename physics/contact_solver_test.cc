@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <vector>
 
 #include "physics/physics_test_util.h"
@@ -255,38 +254,6 @@ TEST(ContactSolverTest, NeverSleepingLayerOfTouchingBoxesStaysPutWithBulletFrict
 // fix must enable it, and then ManifoldReuseTest with patch friction on is the next check.
 TEST(ContactSolverTest, DISABLED_NeverSleepingLayerOfTouchingBoxesStaysPutWithPatchFriction) {
   EXPECT_LT(NeverSleepingLayerDrift(true), 0.0005f);
-}
-
-
-// TEMPORARY diagnostic (removed before the fix is committed): the layer's creep step by step.
-TEST(FricDiagLayer, DISABLED_Trace) {
-  PhysicsConfig cfg;
-  cfg.sleeping = false;
-  cfg.patch_friction = std::getenv("EP_DIAG_BULLET") == nullptr;
-  PhysicsWorld world(cfg);
-  ASSERT_TRUE(Add(world, Ground(1)).ok());
-  std::vector<Vec3f> start;
-  for (int i = 0; i < 4; ++i) {
-    for (int k = 0; k < 4; ++k) {
-      start.push_back(Vec3f{0.2f * i, 0.1f, 0.2f * k});
-      ASSERT_TRUE(Add(world, DynamicBox(100 + 4 * i + k, start.back(), {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
-    }
-  }
-  for (int s = 1; s <= 300; ++s) {
-    std::printf("STEP %d\n", s);
-    world.Step();
-    if (s % 15 != 0) continue;
-    for (uint32_t j = 0; j < start.size(); ++j) {
-      EntityState st;
-      (void)world.GetState(100 + j, &st);
-      Vec3f lin, ang;
-      (void)world.GetVelocity(100 + j, &lin, &ang);
-      std::printf("B %d %u d %.4f %.4f %.4f mm q %.2e %.2e %.2e w %.2e %.2e %.2e v %.2e %.2e %.2e\n", s, j,
-                  (st.position.x - start[j].x) * 1e3, (st.position.y - start[j].y) * 1e3,
-                  (st.position.z - start[j].z) * 1e3, st.rotation.x, st.rotation.y, st.rotation.z,
-                  ang.x, ang.y, ang.z, lin.x, lin.y, lin.z);
-    }
-  }
 }
 
 }  // namespace
