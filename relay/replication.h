@@ -98,8 +98,8 @@ struct ReplicationConfig {
   // 4.9x less relay CPU per delivered update than format 2, -4 % bytes per update, a fifth of
   // the relay's peak RSS (docs/benchmarks.md, "Session 12: lockstep receivers" and "Session
   // 13: format 9 by default"). Memory: ~7 KiB per entity per room at 60 Hz (the room's
-  // version window) plus 68 bytes per (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
-  // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
+  // version window) plus 68 bytes per (receiver, entity), against ~2.3 KiB per (receiver,
+  // entity) for format 2 (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
   // sent) when a policy of that family is asked for: velocities, key samples, stamp_state_time.
   bool shared_encoding = true;
   // Format 9 rooms without a bandwidth budget: lockstep receivers (relay/lockstep.h). The room
