@@ -91,16 +91,16 @@ struct ReplicationConfig {
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
   float bounds_half_extent_m = 1000.0f;  // room bounds: a cube centred on the origin
-  // edgephys mode: send state format 9 ("shared delta", protocol/shared_delta_codec.h); false sends
-  // format 2. The room quantises, predicts and codes each (entity, baseline) delta once per tick for
-  // every receiver on that baseline; each receiver only appends bits. Clients learn the format from
-  // Joined. The default since issue 11 session 13: at 100 users in one room 4.9x less relay CPU per
-  // delivered update than format 2, -4 % bytes per update, a fifth of the relay's peak RSS
-  // (docs/benchmarks.md, "Session 12: lockstep receivers" and "Session 13: format 9 by default").
-  // Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68 bytes per
-  // (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
-  // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is sent)
-  // when a policy of that family is asked for: velocities, key samples, stamp_state_time.
+  // edgephys mode: send state format 9 ("shared delta", protocol/shared_delta_codec.h); false
+  // sends format 2. The room quantises, predicts and codes each (entity, baseline) delta once per
+  // tick for every receiver on that baseline; each receiver only appends bits. Clients learn the
+  // format from Joined. The default since issue 11 session 13: at 100 users in one room 4.9x less
+  // relay CPU per delivered update than format 2, -4 % bytes per update, a fifth of the relay's
+  // peak RSS (docs/benchmarks.md, "Session 12: lockstep receivers" and "Session 13: format 9 by
+  // default"). Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68
+  // bytes per (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
+  // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
+  // sent) when a policy of that family is asked for: velocities, key samples, stamp_state_time.
   bool shared_encoding = true;
   // Format 9 rooms without a bandwidth budget: lockstep receivers (relay/lockstep.h). The room
   // runs one canonical replicator per tick; receivers that acknowledge its payloads within
