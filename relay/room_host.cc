@@ -103,6 +103,8 @@ bool RoomHost::Join(MemberLink& link, double now) {
   return true;
 }
 
+uint8_t RoomHost::state_format() const { return StateFormatOf(room_.config().replication); }
+
 void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
   const ReplicationConfig& rc = room_.config().replication;
   const QuantizationConfig q = QuantizationOf(rc);
@@ -116,7 +118,7 @@ void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
     jb.add_player_id(link.player_id());
     jb.add_entity_id_base(slot * kEntityIdBlock);
     jb.add_tick_rate_hz(static_cast<uint16_t>(room_.config().tick_rate_hz));
-    jb.add_state_format(StateFormatOf(rc));
+    jb.add_state_format(state_format());
     jb.add_position_step_m(q.position_step_m);
     jb.add_rotation_bound_deg(q.rotation_error_deg);
     jb.add_bounds_min(&bmin);

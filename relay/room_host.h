@@ -46,6 +46,10 @@ class RoomHost {
 
   const Room& room() const { return room_; }
   const std::string& name() const { return room_.name(); }
+  // The state format this room's Joined announces and its replication sends (docs/protocol.md
+  // §5): 9 (shared delta) by default, 2/12/13/14 when a policy of the format-2 family or
+  // --no-shared-encoding asks for it, the emulation formats for the baselines. O(1).
+  uint8_t state_format() const;
   // Members or entities: an operator may not replace the room.
   bool in_use() const { return !room_.empty() || !room_.entities().empty(); }
   // Empty for at least the room's idle TTL.

@@ -60,6 +60,7 @@ json RoomInspector::Summary(const Relay& relay, const RoomHost& host) const {
           {"entities", room.entities().size()},
           {"physics", std::move(phys)},
           {"tick_rate_hz", room.config().tick_rate_hz},
+          {"state_format", host.state_format()},
           {"bytes_in_per_s", in},
           {"bytes_out_per_s", out}};
 }

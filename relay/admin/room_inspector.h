@@ -25,7 +25,8 @@ class RoomInspector {
   void Sample(const Relay& relay, double now);
 
   // {"rooms": [summary...]}; a summary is id, players, capacity, entities, physics
-  // {enabled, active, realtime_factor, worker}, tick_rate_hz, bytes_in_per_s, bytes_out_per_s.
+  // {enabled, active, realtime_factor, worker}, tick_rate_hz, state_format (the
+  // number its Joined announces, RoomHost::state_format), bytes_in_per_s, bytes_out_per_s.
   nlohmann::json ListRooms(const Relay& relay) const;
   // The summary plus config, members (player_id, connection_id, address, rtt_ms, rtt_var_ms,
   // loss, bytes_in_per_s, bytes_out_per_s, pending_reliable_bytes, connected_for_s, entities)

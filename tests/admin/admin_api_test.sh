@@ -23,10 +23,11 @@ fail() { echo "FAIL: $*"; echo "--- relay log"; tail -n 40 "$work/relay.log" 2>/
 key="test-key-$RANDOM$RANDOM"
 secret="admin-test-secret"
 
-# Starts a relay with the admin API on a free port; sets relay_pid, admin (host:port), udp.
+# Starts a relay with the admin API on a free port (extra relay flags as arguments); sets
+# relay_pid, admin (host:port), udp.
 start_relay() {
   EDGEPHYS_ADMIN_KEY="$key" "$relay_bin" --bind 127.0.0.1:0 --metrics off --secret "$secret" \
-    --admin-addr 127.0.0.1:0 --physics-threads 1 --run-for 120 --log-level info \
+    --admin-addr 127.0.0.1:0 --physics-threads 1 --run-for 120 --log-level info "$@" \
     >"$work/relay.log" 2>&1 &
   relay_pid=$!
   admin=""; udp=""
@@ -99,7 +100,7 @@ jq -e '.id == "arena" and .players == 0 and .config.capacity == 4 and .config.ti
 expect 409 room_exists POST /v1/rooms '{"id":"arena"}'
 expect 200 - GET /v1/rooms
 jq -e '.rooms[] | select(.id == "arena") | .players == 0 and .capacity == 4 and .tick_rate_hz == 30
-       and .physics.enabled == false' "$work/body" >/dev/null || fail "list: $(cat "$work/body")"
+       and .physics.enabled == false and .state_format == 9' "$work/body" >/dev/null || fail "list: $(cat "$work/body")"
 jq -e '.draining == false' "$work/body" >/dev/null || fail "list: draining"
 
 # --- unknown rooms, members, routes ----------------------------------------------------------
@@ -178,8 +179,11 @@ elapsed=$(( $(date +%s) - drain_start ))
 [ "$elapsed" -ge 2 ] && [ "$elapsed" -le 8 ] || fail "drain took ${elapsed}s for a 3 s deadline"
 echo "drain with one client left: relay exited ${elapsed}s after POST /v1/drain (deadline 3 s)"
 
-# --- drain of an empty relay: exits at once --------------------------------------------------
-start_relay
+# --- drain of an empty relay: exits at once (its rooms announce format 2) ----------------------
+start_relay --no-shared-encoding
+expect 201 - POST /v1/rooms '{"id":"legacy"}'
+jq -e '.state_format == 2' "$work/body" >/dev/null || fail "--no-shared-encoding room: $(cat "$work/body")"
+expect 200 - DELETE /v1/rooms/legacy
 drain_start=$(date +%s)
 expect 202 - POST /v1/drain '{"deadline_s":60}'
 wait_for 5 bash -c "! kill -0 $relay_pid 2>/dev/null" || fail "empty relay did not exit after drain"
