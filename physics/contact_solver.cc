@@ -97,8 +97,9 @@ bool InvertSpd(btScalar (&m)[N][N], int n) {
 }  // namespace
 
 template <class Base>
-ContactSolver<Base>::ContactSolver(bool patch_friction)
-    : patch_(patch_friction && std::is_same_v<Base, btSequentialImpulseConstraintSolver>) {}
+ContactSolver<Base>::ContactSolver(bool patch_friction, bool block_solve)
+    : patch_(patch_friction && std::is_same_v<Base, btSequentialImpulseConstraintSolver>),
+      block_(patch_ && block_solve) {}
 
 template <class Base>
 bool ContactSolver<Base>::PatchEligible(const btPersistentManifold& m) const {
@@ -126,16 +127,21 @@ void ContactSolver<Base>::convertContacts(btPersistentManifold** manifolds, int 
     // manifolds, and testing the count first spares touching the two collision objects.
     if (m->getNumContacts() == 0 || !Responds(*m)) continue;
     if (patch_ && PatchEligible(*m)) {
-      deferred_.push_back(m);
+      if (block_) {
+        deferred_.push_back(m);
+      } else {
+        ConvertPatch(m, info);
+      }
     } else {
       this->convertContact(m, info);
     }
   }
-  // Patches last: rows [patch_rows_, size) of the contact pool are their normal rows, solved in
-  // solveSingleIteration (block or fallback), not by Bullet's loop.
+  // Block solve: patches last, rows [patch_rows_, size) of the contact pool are their normal
+  // rows, solved in solveSingleIteration (block or one by one), not by Bullet's loop.
   patch_rows_ = this->m_tmpSolverContactConstraintPool.size();
   for (btPersistentManifold* m : deferred_) ConvertPatch(m, info);
   deferred_.clear();
+  if (!block_) patch_rows_ = this->m_tmpSolverContactConstraintPool.size();
 }
 
 template <class Base>
@@ -240,6 +246,7 @@ void ContactSolver<Base>::SetupBlock(Patch& p, const btVector3& centre, const bt
   Block& k = p.block;
   k.pressure = 0;
   k.gen = 0;
+  if (!block_) return;
   const int n = p.normals;
   // Lever arms of the points about the centre, in the tangent basis; their principal axes are
   // the tilt axes (the mean of the points is the centre, so the lever arms sum to zero).
@@ -476,8 +483,8 @@ btScalar ContactSolver<Base>::solveSingleIteration(int iteration, btCollisionObj
       btScalar r = 0;
       Patch& p = patches_[next];
       if (!SolveBlock(p, &r)) {
-        // One by one: the normal rows (hidden from Bullet's loop), then the friction rows.
-        for (int i = 0; i < p.normals; ++i) {
+        // One by one: the normal rows if hidden from Bullet's loop, then the friction rows.
+        for (int i = 0; p.first_normal >= patch_rows_ && i < p.normals; ++i) {
           const btSolverConstraint& c = contacts[p.first_normal + i];
           const btScalar n = this->resolveSingleConstraintRowLowerLimit(
               this->m_tmpSolverBodyPool[c.m_solverBodyIdA],

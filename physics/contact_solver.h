@@ -29,7 +29,9 @@
 //    it refreshes or replaces a point); the patch starts from those of its oldest point. The
 //    twist row starts from zero each step. Rows per box pair with 4 points: 4 normal + 3 instead
 //    of 4 + 4 (one row per point) or 4 + 8 (two per point).
-//    Block solve (session 14): each iteration solves a patch's rows TOGETHER: the normal rows
+//    Block solve (session 14; only with block_solve, PhysicsConfig::patch_block_solve, off by
+//    default: it stops the creep below but let boxes escape the full stir, docs/benchmarks.md
+//    "Full stir, session 14"): each iteration solves a patch's rows TOGETHER: the normal rows
 //    as generalised rows at the centre (the normal impulse and up to two tilt moments about the
 //    principal axes of the points' lever arms: 1 row for one point, 2 for an edge, 3 for a
 //    face), the two tangent rows and the twist row; up to 6 unknowns, through the inverse of
@@ -42,8 +44,8 @@
 //    layer of touching boxes rocked with a growing amplitude and crept (2.1 mm in 5 s against
 //    Bullet's 0.01 mm; docs/benchmarks.md, "Full stir, sessions 13 and 14"). A resting box's
 //    patch is never saturated, so its block solution is exact for that patch.
-//    A patch's normal rows are converted after all other manifolds' rows and hidden from
-//    Bullet's loop (solved here only).
+//    With the block solve a patch's normal rows are converted after all other manifolds' rows
+//    and hidden from Bullet's loop (solved here only).
 //    Manifolds with rolling or spinning friction, or with friction anchors, keep Bullet's
 //    per-point rows. SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS is ignored (patch rows are
 //    solved after all normal rows of the iteration).
@@ -72,7 +74,9 @@ template <class Base>
 class ContactSolver final : public Base {
  public:
   // patch_friction: see the header comment (ignored unless Base is the sequential impulse solver).
-  explicit ContactSolver(bool patch_friction);
+  // block_solve: patches solved as blocks (PhysicsConfig::patch_block_solve); without it every
+  // patch is solved one row at a time, as before session 14.
+  explicit ContactSolver(bool patch_friction, bool block_solve = false);
 
  protected:
   void convertContacts(btPersistentManifold** manifolds, int count,
@@ -121,6 +125,7 @@ class ContactSolver final : public Base {
   bool SolveBlock(Patch& p, btScalar* residual);
 
   bool patch_;
+  bool block_;
   int patch_rows_ = 0;  // first contact-pool row Bullet's loop does not solve (patches' rows)
   std::vector<btPersistentManifold*> deferred_;  // patch manifolds, converted after the others
   std::vector<Patch> patches_;

@@ -225,6 +225,7 @@ float NeverSleepingLayerDrift(bool patch_friction, int steps) {
   PhysicsConfig cfg;
   cfg.sleeping = false;
   cfg.patch_friction = patch_friction;
+  cfg.patch_block_solve = patch_friction;
   if (!patch_friction) cfg.solver_iterations = 7;  // Bullet's friction as measured above
   PhysicsWorld world(cfg);
   EXPECT_TRUE(Add(world, Ground(1)).ok());

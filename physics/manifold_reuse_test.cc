@@ -56,6 +56,8 @@ void RestingPile(bool patch_friction) {
   PhysicsConfig on_cfg = Config(0.001f);
   off_cfg.patch_friction = patch_friction;
   on_cfg.patch_friction = patch_friction;
+  off_cfg.patch_block_solve = patch_friction;  // the block solve (session 14) stops the creep
+  on_cfg.patch_block_solve = patch_friction;
   PhysicsWorld off(off_cfg);
   PhysicsWorld on(on_cfg);
   ASSERT_TRUE(Add(off, Ground(1)).ok());
@@ -89,8 +91,9 @@ TEST(ManifoldReuseTest, RestingPileReusesItsManifoldsAndStaysWhereItWouldBe) {
   RestingPile(false);
 }
 
-// The same with patch friction (contact_solver.h); before its block solve (session 14) the pile
-// crept ~4 mm in both runs and this failed (docs/benchmarks.md, "Full stir, session 13").
+// The same with patch friction and its block solve (contact_solver.h); with the rows solved one
+// at a time the pile crept ~4 mm in both runs and this failed (docs/benchmarks.md, "Full stir,
+// sessions 13 and 14").
 TEST(ManifoldReuseTest, RestingPileWithPatchFrictionStaysWhereItWouldBe) {
   RestingPile(true);
 }

@@ -197,7 +197,8 @@ struct PhysicsConfig {
   // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
   // pressure torque), instead of friction rows per contact point; tangent impulses are warm
   // started. Each iteration solves a patch's normal, tangent and twist rows as one block (up to
-  // 6 x 6; session 14), falling back to one row at a time while it slides or lifts off. Replaces
+  // 6 x 6; session 14, patch_block_solve below), falling back to one row at a time while it
+  // slides or lifts off. Replaces
   // the per-point friction settings above for manifolds it handles (all but those with
   // rolling/spinning friction or friction anchors); interleave_friction is ignored. Rows per
   // 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full stir,
@@ -210,8 +211,14 @@ struct PhysicsConfig {
   // the never-sleeping ten-box stack to 3 mm at 4 iterations (docs/benchmarks.md, "Full stir,
   // session 14: a block solve for patch friction"). Still off by default: with it and 4
   // iterations as defaults the SDK's stack-and-grab examples failed (the stacked boxes reported
-  // a collision exit and enter while settling; not traced), see that section.
+  // a collision exit and enter while settling; not traced), and with the block solve boxes
+  // escaped the full stir; see that section.
   bool patch_friction = false;
+  // With patch_friction: solve each patch's rows as one block (contact_solver.h, session 14).
+  // Stops the resting creep above, but in the full stir 248 of 2,000 boxes escaped the container
+  // with it (docs/benchmarks.md, "Full stir, session 14"), so it is off. Without it, patch
+  // friction is exactly sessions 12-13's.
+  bool patch_block_solve = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
