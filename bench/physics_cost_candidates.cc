@@ -267,6 +267,21 @@ std::vector<Candidate> Candidates() {
        }},
       {"s8-rate-30hz", [](PhysicsConfig& c) { S8Defaults(c).fixed_dt = 1.0f / 30.0f; }},
       {"s8-rate-40hz", [](PhysicsConfig& c) { S8Defaults(c).fixed_dt = 1.0f / 40.0f; }},
+      // Session 14: today's defaults with patch friction and its block solve (contact_solver.h)
+      // at 4 and 3 iterations (s12-combo: patch friction without the block, at 4 from session
+      // 8's settings).
+      {"s14-patch-iter4", [](PhysicsConfig& c) {
+         c = PhysicsConfig{};
+         c.patch_friction = true;
+         c.patch_block_solve = true;
+         c.solver_iterations = 4;
+       }},
+      {"s14-patch-iter3", [](PhysicsConfig& c) {
+         c = PhysicsConfig{};
+         c.patch_friction = true;
+         c.patch_block_solve = true;
+         c.solver_iterations = 3;
+       }},
   };
 }
 

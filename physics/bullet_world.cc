@@ -125,7 +125,7 @@ std::unique_ptr<btConstraintSolver> NewSolver(const PhysicsConfig& config) {
   }
   if (own) {
     return std::make_unique<ContactSolver<btSequentialImpulseConstraintSolver>>(
-        config.patch_friction);
+        config.patch_friction, config.patch_block_solve);
   }
   return std::make_unique<btSequentialImpulseConstraintSolver>();
 }

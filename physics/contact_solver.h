@@ -29,6 +29,23 @@
 //    it refreshes or replaces a point); the patch starts from those of its oldest point. The
 //    twist row starts from zero each step. Rows per box pair with 4 points: 4 normal + 3 instead
 //    of 4 + 4 (one row per point) or 4 + 8 (two per point).
+//    Block solve (session 14; only with block_solve, PhysicsConfig::patch_block_solve, off by
+//    default: it stops the creep below but let boxes escape the full stir, docs/benchmarks.md
+//    "Full stir, session 14"): each iteration solves a patch's rows TOGETHER: the normal rows
+//    as generalised rows at the centre (the normal impulse and up to two tilt moments about the
+//    principal axes of the points' lever arms: 1 row for one point, 2 for an edge, 3 for a
+//    face), the two tangent rows and the twist row; up to 6 unknowns, through the inverse of
+//    their effective-mass matrix (built once per step). The new normal impulse and tilts are
+//    spread over the points least-norm. If a point would pull, or the friction leaves its
+//    disk, the block is dropped for that iteration and the patch's rows are solved one by one
+//    as before (normal rows by projected Gauss-Seidel, then the tangent pair and the twist).
+//    Why: with the rows solved one after the other, the centre's tangent rows and the corners'
+//    normal rows trade rotation about the horizontal axes each iteration, and a never-sleeping
+//    layer of touching boxes rocked with a growing amplitude and crept (2.1 mm in 5 s against
+//    Bullet's 0.01 mm; docs/benchmarks.md, "Full stir, sessions 13 and 14"). A resting box's
+//    patch is never saturated, so its block solution is exact for that patch.
+//    With the block solve a patch's normal rows are converted after all other manifolds' rows
+//    and hidden from Bullet's loop (solved here only).
 //    Manifolds with rolling or spinning friction, or with friction anchors, keep Bullet's
 //    per-point rows. SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS is ignored (patch rows are
 //    solved after all normal rows of the iteration).
@@ -37,9 +54,11 @@
 //    against analytic slope, rest-on-slope and spin-down results (contact_solver_test.cc).
 //
 // Thread-safety: none (one PhysicsWorld's thread). Ownership: owned by PhysicsWorld like Bullet's
-// solver. Cost: O(rows) per iteration, as Bullet; setup O(manifold points).
+// solver. Cost: O(rows) per iteration, as Bullet; setup O(manifold points), plus per patch and
+// step a 6 x 6 matrix built and inverted (~1,000 flops), and per iteration a 6 x 6 product.
 #pragma once
 
+#include <BulletCollision/NarrowPhaseCollision/btPersistentManifold.h>
 #include <BulletDynamics/ConstraintSolver/btNNCGConstraintSolver.h>
 #include <BulletDynamics/ConstraintSolver/btSequentialImpulseConstraintSolver.h>
 
@@ -55,7 +74,9 @@ template <class Base>
 class ContactSolver final : public Base {
  public:
   // patch_friction: see the header comment (ignored unless Base is the sequential impulse solver).
-  explicit ContactSolver(bool patch_friction);
+  // block_solve: patches solved as blocks (PhysicsConfig::patch_block_solve); without it every
+  // patch is solved one row at a time, as before session 14.
+  explicit ContactSolver(bool patch_friction, bool block_solve = false);
 
  protected:
   void convertContacts(btPersistentManifold** manifolds, int count,
@@ -68,6 +89,20 @@ class ContactSolver final : public Base {
                                          const btContactSolverInfo& info) override;
 
  private:
+  // The patch's rows solved as one block (see SolveBlock): generalised rows at the patch centre
+  // (normal, up to two tilts, two tangents, twist) mapped onto the solver's rows.
+  struct Block {
+    static constexpr int kMaxPoints = MANIFOLD_CACHE_SIZE;
+    static constexpr int kMaxGen = 6;
+    int pressure = 0;  // generalised normal rows: 1 + tilts (0: no block solve)
+    int gen = 0;       // pressure + 2 tangents (+ 1 twist)
+    // Corner impulse distribution of the generalised normal impulses: f_i = sum_k h[i][k] g_k
+    // (least-norm), and the generalised impulses of corner impulses: g_k = sum_i lever[k][i] f_i.
+    btScalar h[kMaxPoints][3];
+    btScalar lever[3][kMaxPoints];
+    btScalar target[kMaxPoints + 3];  // velocity each row aims at (rhs / jacDiagABInv)
+    btScalar inverse[kMaxGen][kMaxGen];  // inverse of the generalised rows' effective mass
+  };
   struct Patch {
     int first_normal;  // rows [first_normal, first_normal + normals) of the contact pool
     int normals;
@@ -76,13 +111,23 @@ class ContactSolver final : public Base {
     btScalar mu;
     btScalar twist_radius;
     btPersistentManifold* manifold;
+    Block block;
   };
   // Whether the manifold gets patch rows (otherwise Bullet's convertContact).
   bool PatchEligible(const btPersistentManifold& m) const;
   void ConvertPatch(btPersistentManifold* m, const btContactSolverInfo& info);
   btScalar SolvePatch(Patch& p);
+  // Sets up p.block from the patch's rows (after ConvertPatch added them).
+  void SetupBlock(Patch& p, const btVector3& centre, const btVector3& normal,
+                  const btVector3& t1, const btVector3& t2, const btVector3* mids);
+  // Solves the patch's normal, tangent and twist rows together; false (nothing applied) when
+  // the unclamped solution leaves the friction cone or pulls at a point.
+  bool SolveBlock(Patch& p, btScalar* residual);
 
   bool patch_;
+  bool block_;
+  int patch_rows_ = 0;  // first contact-pool row Bullet's loop does not solve (patches' rows)
+  std::vector<btPersistentManifold*> deferred_;  // patch manifolds, converted after the others
   std::vector<Patch> patches_;
   btConstraintArray twist_;
 };

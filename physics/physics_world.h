@@ -196,19 +196,29 @@ struct PhysicsConfig {
   // contact manifold two tangent rows at the patch centre clamped together to the friction disk
   // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
   // pressure torque), instead of friction rows per contact point; tangent impulses are warm
-  // started. Replaces the per-point friction settings above for manifolds it handles (all but
-  // those with rolling/spinning friction or friction anchors); interleave_friction is ignored.
-  // Rows per 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full
-  // stir, docs/benchmarks.md "Full stir, session 12"): 0.844x raw Bullet at 7 iterations
-  // against 0.885x without, 0.740x with 4 iterations, one batch and a 5 mm margin (the report's
-  // suite passes; 4 iterations alone fail the sleeping stack, 11.8 mm). Not the default: a
-  // never-sleeping pile creeps under it (traced in "Full stir, session 13"): a 4 x 4 layer of
-  // touching boxes on the ground moves 2.1 mm in 5 s (Bullet's friction: 0.01 mm), the 25-box
-  // pile of ManifoldReuseTest ~4 mm in both of its runs, and a 10 um nudge of one box moves that
-  // pile as far (4.4 mm) as reuse does, so its reuse bound (2 mm) fails. The warm start and the
-  // twist row feed the creep (without both: 0.15 mm). Manifold reuse is not the cause. Tests:
-  // physics/contact_solver_test.cc (the layer test for patch friction is disabled until fixed).
+  // started. Each iteration solves a patch's normal, tangent and twist rows as one block (up to
+  // 6 x 6; session 14, patch_block_solve below), falling back to one row at a time while it
+  // slides or lifts off. Replaces
+  // the per-point friction settings above for manifolds it handles (all but those with
+  // rolling/spinning friction or friction anchors); interleave_friction is ignored. Rows per
+  // 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full stir,
+  // docs/benchmarks.md "Full stir, session 12"): 0.844x raw Bullet at 7 iterations against
+  // 0.885x without, 0.740x with 4 iterations, one batch and a 5 mm margin.
+  // History: with the rows solved one at a time a never-sleeping pile crept (the boxes rocked
+  // with a growing amplitude: a 4 x 4 layer of touching boxes moved 2.1 mm in 5 s and 9.7 mm in
+  // 20 s, the pile of ManifoldReuseTest 4 mm; session 13). The block solve holds the layer below
+  // 0.001 mm for 20 s (Bullet's friction: 0.04 mm), the pile within ManifoldReuseTest's 2 mm, and
+  // the never-sleeping ten-box stack to 3 mm at 4 iterations (docs/benchmarks.md, "Full stir,
+  // session 14: a block solve for patch friction"). Still off by default: with it and 4
+  // iterations as defaults the SDK's stack-and-grab examples failed (the stacked boxes reported
+  // a collision exit and enter while settling; not traced), and with the block solve boxes
+  // escaped the full stir; see that section.
   bool patch_friction = false;
+  // With patch_friction: solve each patch's rows as one block (contact_solver.h, session 14).
+  // Stops the resting creep above, but in the full stir 248 of 2,000 boxes escaped the container
+  // with it (docs/benchmarks.md, "Full stir, session 14"), so it is off. Without it, patch
+  // friction is exactly sessions 12-13's.
+  bool patch_block_solve = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
