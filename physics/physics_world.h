@@ -87,6 +87,7 @@ namespace internal {
 struct BodyShapes;  // physics_world_internal.h
 }  // namespace internal
 class RestManager;  // rest_manager.h
+class Containment;  // containment.h
 class ManifoldReuseCreateFunc;  // manifold_reuse.h
 
 inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
@@ -216,6 +217,16 @@ struct PhysicsConfig {
   // body in one step. Measured on the full stir: no saving within the noise, and 5 of 2,000
   // boxes escaped the container (other boxes push them through a wall); off.
   bool ccd_static_only = false;
+  // Containment (physics/containment.h): after every Bullet step, a dynamic body that reached
+  // deeper into a static box (wall, floor, ceiling; any orientation) than
+  // containment_depth_fraction of its extent along the face normal, or passed through it, is
+  // moved back out along the normal and its velocity into the face removed (reflected with the
+  // restitution if it came from clear of the box). Analytic, no broadphase queries:
+  // O(active dynamic bodies x static boxes) bounds tests per step. Counted in
+  // PhysicsCounters::contained. Covers static boxes only: static meshes, spheres and compounds,
+  // kinematic and dynamic obstacles still need the CCD sweeps (ccd) where bodies are fast.
+  bool containment = false;
+  float containment_depth_fraction = 0.5f;
   // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
   // aabb_margin (m; Bullet: gContactBreakingThreshold, 0.02). Box-box contacts exist only when
   // boxes overlap and other pairs produce points within ~2-4 mm (the shapes' breaking
@@ -365,6 +376,7 @@ struct PhysicsCounters {
   uint64_t soft_softened = 0;       // soft bodies whose kLST the guard clamped
   uint64_t rejected_containers = 0;
   uint64_t events_dropped = 0;
+  uint64_t contained = 0;           // bodies moved back out of a static box (containment)
 };
 
 class PhysicsWorld {
@@ -492,6 +504,7 @@ class PhysicsWorld {
   std::unique_ptr<btConstraintSolver> solver_;
   std::unique_ptr<btDiscreteDynamicsWorld> world_;
   btSoftBodyWorldInfo* soft_info_ = nullptr;  // owned by world_ (null without soft bodies)
+  const Containment* containment_ = nullptr;  // owned by world_ (null unless config.containment)
   std::unique_ptr<btRigidBody> fixed_body_;   // joint partner for "anchored to the world"
   std::unique_ptr<RestManager> rest_;         // freezing of resting bodies (rest_freeze)
 
