@@ -91,6 +91,10 @@ int Main(int argc, char** argv) {
   std::vector<std::array<Sample, kRing>> ring(static_cast<size_t>(n));
   std::vector<bool> out(static_cast<size_t>(n), false);
   std::vector<int> in_wall_since(static_cast<size_t>(n), -1);  // step the centre passed a face
+  std::vector<bool> above(static_cast<size_t>(n), false);  // ever above the walls' top
+  size_t launched = 0;  // counted after the spawned layers have fallen in (5 s)
+  const int settle = static_cast<int>(5.0 / p.config.fixed_dt);
+  float highest = 0;
   float deepest = 0;
   int deepest_step = 0;
   uint32_t deepest_id = 0;
@@ -125,6 +129,8 @@ int Main(int argc, char** argv) {
       }
       const float depth = dep[wall];
       const bool below_top = cur.p.y < p.wall_height;
+      highest = std::max(highest, cur.p.y);
+      if (!below_top && !above[i] && s > settle) above[i] = true, ++launched;
       if (below_top && depth > deepest && !out[i]) {
         deepest = depth, deepest_step = s, deepest_id = id;
       }
@@ -164,9 +170,10 @@ int Main(int argc, char** argv) {
   const PhysicsCounters c = world.counters();
   std::printf("# %s: %zu escaped in %.0f s (%d steps); deepest centre past a wall's inner face "
               "while inside: %.3f m (box %u, step %d); box half extent %.2f m, wall half "
-              "thickness 0.10 m; contained %llu\n",
+              "thickness 0.10 m; contained %llu; %zu boxes were thrown above the walls' top after "
+              "5 s (highest centre %.2f m)\n",
               only.c_str(), escapes, seconds, steps, deepest, deepest_id, deepest_step, he,
-              static_cast<unsigned long long>(c.contained));
+              static_cast<unsigned long long>(c.contained), launched, highest);
   return 0;
 }
 

@@ -58,9 +58,14 @@ class TunedWorld final : public Base {
     Base::createPredictiveContacts(dt);
     Restore();
   }
-  // The containment pass (containment.h) compares each body's centre before and after.
-  void integrateTransforms(btScalar dt) override {
+  // The containment pass (containment.h) compares each body's centre at the start of the step
+  // (before the solver, whose split-impulse write-back already moves bodies) with its centre
+  // after the integration.
+  void internalSingleStepSimulation(btScalar dt) override {
     if (containment_) containment_->Before(this->m_nonStaticRigidBodies);
+    Base::internalSingleStepSimulation(dt);
+  }
+  void integrateTransforms(btScalar dt) override {
     Narrow();
     Base::integrateTransforms(dt);
     Restore();

@@ -55,9 +55,9 @@ class Containment {
   void OnAdd(btRigidBody* body);
   void OnRemove(btRigidBody* body);
 
-  // Around Bullet's integration of one step (TunedWorld::integrateTransforms): Before records
-  // the centres of `bodies` (the world's non-static rigid bodies), After applies the rule above
-  // to the active dynamic ones. The array must not change in between.
+  // Around one Bullet step (TunedWorld): Before, at its start, records the centres of `bodies`
+  // (the world's non-static rigid bodies); After, right after its integration, applies the rule
+  // above to the active dynamic ones. The array must not change in between.
   void Before(const btAlignedObjectArray<btRigidBody*>& bodies);
   void After(const btAlignedObjectArray<btRigidBody*>& bodies);
 
