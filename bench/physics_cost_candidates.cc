@@ -308,6 +308,18 @@ std::vector<Candidate> Candidates() {
          c.ccd_motion_fraction = 2.0f;
          c.containment = true;
        }},
+      // A body is moved back only once its centre reaches the face (support one full extent
+      // deep), i.e. only where Bullet's own contact is about to lose it.
+      {"contain-f1", [](PhysicsConfig& c) {
+         NewWith(c).ccd = false;
+         c.containment = true;
+         c.containment_depth_fraction = 1.0f;
+       }},
+      {"contain-ccd-f1", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.containment = true;
+         c.containment_depth_fraction = 1.0f;
+       }},
   };
 }
 
