@@ -110,7 +110,10 @@ struct PhysicsConfig {
                                       // and soft-body containers are rejected
   // Continuous collision detection: dynamic bodies sweep a sphere of ccd_swept_radius_fraction *
   // (smallest half extent) whenever they move more than ccd_motion_fraction * (smallest half
-  // extent) in one step, i.e. only small fast bodies pay for it.
+  // extent) in one step, i.e. only small fast bodies pay for it. On the full stir the sweeps
+  // (8.2 % of the step) are what keeps boxes from being thrown out over the walls: their
+  // predictive contacts between fast boxes, not those against walls (session 14, see
+  // containment).
   bool ccd = true;
   // Measured at 1.0 (sweep only bodies that move more than their smallest half extent per
   // step): no step time saved within the noise at 2,000 boxes, and 1-4 of 2,000 stirred boxes
@@ -215,7 +218,9 @@ struct PhysicsConfig {
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
   // box-box part of the sweeps. Accuracy: a fast small body can pass through a thin *dynamic*
   // body in one step. Measured on the full stir: no saving within the noise, and 5 of 2,000
-  // boxes escaped the container (other boxes push them through a wall); off.
+  // boxes escaped the container; off. Traced in session 14 (docs/benchmarks.md, "Full stir,
+  // session 14: containment without sweeps"): 19 of 22 escapes in 30 s were boxes thrown out
+  // over the walls (box-box impacts without predictive contacts), 3 were pushed through a wall.
   bool ccd_static_only = false;
   // Containment (physics/containment.h): after every Bullet step, a dynamic body that reached
   // deeper into a static box (wall, floor, ceiling; any orientation) than
@@ -225,6 +230,12 @@ struct PhysicsConfig {
   // O(active dynamic bodies x static boxes) bounds tests per step. Counted in
   // PhysicsCounters::contained. Covers static boxes only: static meshes, spheres and compounds,
   // kinematic and dynamic obstacles still need the CCD sweeps (ccd) where bodies are fast.
+  // Measured on the full stir (docs/benchmarks.md, "Full stir, session 14: containment without
+  // sweeps"): no box centre passed a wall's inner face with it (44-61 mm without), but with
+  // ccd off 27 boxes in 60 s were thrown out over the open-topped walls, which only the sweeps'
+  // box-box predictive contacts prevent (the step: 0.733x raw Bullet against 0.817x with the
+  // sweeps); with ccd on it saves nothing and threw 4 out where the sweeps alone threw none.
+  // Off.
   bool containment = false;
   float containment_depth_fraction = 0.5f;
   // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
