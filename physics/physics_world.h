@@ -234,8 +234,8 @@ struct PhysicsConfig {
   // sweeps"): no box centre passed a wall's inner face with it (44-61 mm without), but with
   // ccd off 27 boxes in 60 s were thrown out over the open-topped walls, which only the sweeps'
   // box-box predictive contacts prevent (the step: 0.733x raw Bullet against 0.817x with the
-  // sweeps); with ccd on it saves nothing and threw 4 out where the sweeps alone threw none.
-  // Off.
+  // sweeps); with ccd on it cannot save anything (the sweeps still run) and threw 4 out where
+  // the sweeps alone threw none. Off.
   bool containment = false;
   float containment_depth_fraction = 0.5f;
   // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
