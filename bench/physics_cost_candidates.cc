@@ -32,6 +32,7 @@ void OldDefaults(PhysicsConfig& c) {
   c.contact_processing_threshold = 1e18f;
   c.ccd = true;
   c.ccd_motion_fraction = 0.5f;
+  c.containment = false;  // session 14
 }
 
 // The defaults of session 8 (before session 11's candidates), to change one setting from in the
@@ -55,6 +56,7 @@ PhysicsConfig& S8Defaults(PhysicsConfig& c) {
   c.aabb_margin = kBulletAabbMargin;
   c.aabb_hysteresis = 0;
   c.patch_friction = false;
+  c.containment = false;
   return c;
 }
 
@@ -281,6 +283,57 @@ std::vector<Candidate> Candidates() {
          c.patch_friction = true;
          c.patch_block_solve = true;
          c.solver_iterations = 3;
+       }},
+      // Session 14: containment without sweeps (physics/containment.h). `s13-defaults` is the
+      // defaults before it (CCD sweeps on, no containment), spelled out.
+      {"s13-defaults", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.ccd_static_only = false;
+         c.containment = false;
+       }},
+      {"s13-ccd-off", [](PhysicsConfig& c) {
+         NewWith(c).ccd = false;
+         c.containment = false;
+       }},
+      {"s13-ccd-static", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.ccd_static_only = true;
+         c.containment = false;
+       }},
+      {"contain", [](PhysicsConfig& c) {
+         NewWith(c).ccd = false;
+         c.containment = true;
+       }},
+      {"contain-ccd", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.containment = true;
+       }},
+      {"contain-split", [](PhysicsConfig& c) {
+         NewWith(c).ccd = false;
+         c.containment = true;
+         c.split_impulse = true;
+       }},
+      {"contain-ccd-1.0", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.ccd_motion_fraction = 1.0f;
+         c.containment = true;
+       }},
+      {"contain-ccd-2.0", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.ccd_motion_fraction = 2.0f;
+         c.containment = true;
+       }},
+      // A body is moved back only once its centre reaches the face (support one full extent
+      // deep), i.e. only where Bullet's own contact is about to lose it.
+      {"contain-f1", [](PhysicsConfig& c) {
+         NewWith(c).ccd = false;
+         c.containment = true;
+         c.containment_depth_fraction = 1.0f;
+       }},
+      {"contain-ccd-f1", [](PhysicsConfig& c) {
+         NewWith(c).ccd = true;
+         c.containment = true;
+         c.containment_depth_fraction = 1.0f;
        }},
   };
 }

@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "physics/bullet_world.h"
+#include "physics/containment.h"
 #include "physics/manifold_reuse.h"
 #include "physics/physics_world_internal.h"
 
@@ -49,7 +50,7 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
   broadphase_ = NewBroadphase(kInitialSweepHandles);
   solver_ = internal::NewSolver(config_);
   world_ = internal::NewBulletWorld(config_, dispatcher_.get(), broadphase_.get(), solver_.get(),
-                                    collision_config_.get(), &soft_info_);
+                                    collision_config_.get(), &soft_info_, &containment_);
   internal::ApplyWorldSettings(config_, world_.get());
   if (soft_info_ != nullptr) {
     soft_info_->m_gravity = ToBt(config_.gravity);
@@ -561,6 +562,7 @@ PhysicsCounters PhysicsWorld::counters() const {
   }
   c.soft_bodies = soft_entities_.size();
   c.joints = joints_.size();
+  if (containment_ != nullptr) c.contained = containment_->projections();
   return c;
 }
 

@@ -87,6 +87,7 @@ namespace internal {
 struct BodyShapes;  // physics_world_internal.h
 }  // namespace internal
 class RestManager;  // rest_manager.h
+class Containment;  // containment.h
 class ManifoldReuseCreateFunc;  // manifold_reuse.h
 
 inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
@@ -109,7 +110,10 @@ struct PhysicsConfig {
                                       // and soft-body containers are rejected
   // Continuous collision detection: dynamic bodies sweep a sphere of ccd_swept_radius_fraction *
   // (smallest half extent) whenever they move more than ccd_motion_fraction * (smallest half
-  // extent) in one step, i.e. only small fast bodies pay for it.
+  // extent) in one step, i.e. only small fast bodies pay for it. On the full stir the sweeps
+  // (8.2 % of the step) are what keeps boxes from being thrown out over the walls: their
+  // predictive contacts between fast boxes, not those against walls (session 14, see
+  // containment).
   bool ccd = true;
   // Measured at 1.0 (sweep only bodies that move more than their smallest half extent per
   // step): no step time saved within the noise at 2,000 boxes, and 1-4 of 2,000 stirred boxes
@@ -224,8 +228,26 @@ struct PhysicsConfig {
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
   // box-box part of the sweeps. Accuracy: a fast small body can pass through a thin *dynamic*
   // body in one step. Measured on the full stir: no saving within the noise, and 5 of 2,000
-  // boxes escaped the container (other boxes push them through a wall); off.
+  // boxes escaped the container; off. Traced in session 14 (docs/benchmarks.md, "Full stir,
+  // session 14: containment without sweeps"): 19 of 22 escapes in 30 s were boxes thrown out
+  // over the walls (box-box impacts without predictive contacts), 3 were pushed through a wall.
   bool ccd_static_only = false;
+  // Containment (physics/containment.h): after every Bullet step, a dynamic body that reached
+  // deeper into a static box (wall, floor, ceiling; any orientation) than
+  // containment_depth_fraction of its extent along the face normal, or passed through it, is
+  // moved back out along the normal and its velocity into the face removed (reflected with the
+  // restitution if it came from clear of the box). Analytic, no broadphase queries:
+  // O(active dynamic bodies x static boxes) bounds tests per step. Counted in
+  // PhysicsCounters::contained. Covers static boxes only: static meshes, spheres and compounds,
+  // kinematic and dynamic obstacles still need the CCD sweeps (ccd) where bodies are fast.
+  // Measured on the full stir (docs/benchmarks.md, "Full stir, session 14: containment without
+  // sweeps"): no box centre passed a wall's inner face with it (44-61 mm without), but with
+  // ccd off 27 boxes in 60 s were thrown out over the open-topped walls, which only the sweeps'
+  // box-box predictive contacts prevent (the step: 0.733x raw Bullet against 0.817x with the
+  // sweeps); with ccd on it cannot save anything (the sweeps still run) and threw 4 out where
+  // the sweeps alone threw none. Off.
+  bool containment = false;
+  float containment_depth_fraction = 0.5f;
   // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
   // aabb_margin (m; Bullet: gContactBreakingThreshold, 0.02). Box-box contacts exist only when
   // boxes overlap and other pairs produce points within ~2-4 mm (the shapes' breaking
@@ -375,6 +397,7 @@ struct PhysicsCounters {
   uint64_t soft_softened = 0;       // soft bodies whose kLST the guard clamped
   uint64_t rejected_containers = 0;
   uint64_t events_dropped = 0;
+  uint64_t contained = 0;           // bodies moved back out of a static box (containment)
 };
 
 class PhysicsWorld {
@@ -502,6 +525,7 @@ class PhysicsWorld {
   std::unique_ptr<btConstraintSolver> solver_;
   std::unique_ptr<btDiscreteDynamicsWorld> world_;
   btSoftBodyWorldInfo* soft_info_ = nullptr;  // owned by world_ (null without soft bodies)
+  const Containment* containment_ = nullptr;  // owned by world_ (null unless config.containment)
   std::unique_ptr<btRigidBody> fixed_body_;   // joint partner for "anchored to the world"
   std::unique_ptr<RestManager> rest_;         // freezing of resting bodies (rest_freeze)
 
