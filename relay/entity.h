@@ -3,6 +3,7 @@
 // Plain data, owned by a Room; the rules that change them live in RoomHost (relay/room_host.h).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <unordered_map>
@@ -103,6 +104,15 @@ struct ReplicationFrame {
   // Lockstep rooms (relay/lockstep.h): the room's group, whose canonical payloads of this tick
   // its receivers in lockstep are sent; null otherwise.
   std::shared_ptr<LockstepGroup> lockstep;
+  // Format 9 rooms (Room::ScheduleFrame, once per room tick): per entity of by_id (same index),
+  // when a receiver that sends it in this tick next has it due on the room-wide send grid
+  // (ClientReplicator::NextDue of its priority class's interval at `schedule_now`): the same
+  // for every receiver, so computed once, not once per (receiver, send). `schedule_basis`: the
+  // replication settings it was computed with (ScheduleBasisOf, relay/replication.h). A
+  // receiver ticking at another time or with other settings computes its own. Empty otherwise.
+  std::vector<double> next_due;
+  double schedule_now = -1;
+  std::array<double, 6> schedule_basis{};
 };
 
 struct Member {

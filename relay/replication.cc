@@ -136,24 +136,35 @@ ClientReplicator::~ClientReplicator() {
   if (lockstep_) lockstep_->Unregister(this);
 }
 
-PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
+PriorityClass PriorityClassOf(const ReplicationConfig& config, const Entity& e, double now) {
   if ((e.flags & (kFlagAvatar | kFlagHand)) || e.held_by != 0) return PriorityClass::kCritical;
-  if (now - e.changed_at > config_.resting_after_s) return PriorityClass::kResting;
+  if (now - e.changed_at > config.resting_after_s) return PriorityClass::kResting;
   if (e.physics == PhysicsRole::kSimulated && e.touching == 0 &&
-      now - e.interacted_at > config_.interaction_linger_s) {
+      now - e.interacted_at > config.interaction_linger_s) {
     return PriorityClass::kAmbient;
   }
   return PriorityClass::kNormal;
 }
 
-double ClientReplicator::IntervalOf(PriorityClass c) const {
-  if (config_.fixed_rate_hz > 0) return 1.0 / config_.fixed_rate_hz;
+double SendIntervalOf(const ReplicationConfig& config, PriorityClass c) {
+  if (config.fixed_rate_hz > 0) return 1.0 / config.fixed_rate_hz;
   switch (c) {
-    case PriorityClass::kCritical: return 1.0 / config_.critical_hz;
-    case PriorityClass::kAmbient: return 1.0 / config_.ambient_hz;
-    default: return 1.0 / config_.normal_hz;
+    case PriorityClass::kCritical: return 1.0 / config.critical_hz;
+    case PriorityClass::kAmbient: return 1.0 / config.ambient_hz;
+    default: return 1.0 / config.normal_hz;
   }
 }
+
+std::array<double, 6> ScheduleBasisOf(const ReplicationConfig& config) {
+  return {config.critical_hz,     config.normal_hz,       config.ambient_hz,
+          config.fixed_rate_hz,   config.resting_after_s, config.interaction_linger_s};
+}
+
+PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
+  return PriorityClassOf(config_, e, now);
+}
+
+double ClientReplicator::IntervalOf(PriorityClass c) const { return SendIntervalOf(config_, c); }
 
 bool ClientReplicator::DeadReckoned(const Entity& e, PriorityClass c) const {
   return delta_ != nullptr && config_.velocities && e.physics == PhysicsRole::kSimulated &&
@@ -320,10 +331,25 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   TickEntities(frame, self, now, resend_after, &connection, &out, counters);
 }
 
+double ClientReplicator::NextDue(uint32_t id, double interval, double now) {
+  // Room-wide send schedule: the entity is due at the points of a grid of its interval, with a
+  // phase of its own (from its id) but the same for every receiver, so the room's receivers
+  // send it in the same ticks and reference the same versions (shared baseline keys: one body
+  // encode serves them all). One send per grid point while ticks come faster than the
+  // interval, so the long-run rate is exact; a receiver that sent late (loss, budget) is back
+  // on the grid after one send.
+  if (!(interval > 0 && std::isfinite(interval))) return now + interval;  // a rate of 0: never
+  const double phase = static_cast<double>((id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
+  return phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
+}
+
 void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self, double now,
                                     double resend_after, Connection* connection,
                                     PacketWriter* out, RelayCounters& counters) {
   const bool budgeted = config_.bandwidth_budget_bytes_per_s > 0;
+  if (shared_ != nullptr && !budgeted && !two_pass_walk_) {
+    return TickSharedEntities(frame, self, now, resend_after, connection, out, counters);
+  }
   key_check_tick_ = true;
   if (StampsStateTime() && config_.key_sample_check_hz > 0) {
     const double period = std::floor(now * config_.key_sample_check_hz);
@@ -481,20 +507,7 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
       }
       View& v = views_[c.entity->slot];
       v.last_sent = now;
-      double interval = IntervalFor(*c.entity, ClassOf(*c.entity, now));
-      // Room-wide send schedule: the entity is due at the points of a grid of its interval,
-      // with a phase of its own (from its id) but the same for every receiver, so the room's
-      // receivers send it in the same ticks and reference the same versions (shared baseline
-      // keys: one body encode serves them all). One send per grid point while ticks come
-      // faster than the interval, so the long-run rate is exact; a receiver that sent late
-      // (loss, budget) is back on the grid after one send.
-      if (interval > 0 && std::isfinite(interval)) {
-        const double phase =
-            static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
-        v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
-      } else {
-        v.next_due = now + interval;  // a rate of 0: never again on schedule
-      }
+      v.next_due = NextDue(c.id, IntervalFor(*c.entity, ClassOf(*c.entity, now)), now);
       if (!view_extras_.empty()) {
         ViewExtra& x = view_extras_[c.entity->slot];
         // The time the record holds, unshifted (KeySampleDue draws lines in state times).
@@ -538,6 +551,7 @@ void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* o
                                                         shared_->open_payload(), payload_owners_))
           : connection->SendUnreliable({payload_.data(), size}, now, *out);
   payload_owners_.clear();
+  if (!seq.ok()) failed_send_at_ = now;  // its records' views are not trusted as sent (one pass)
   if (seq.ok()) {
     if (delta_ != nullptr) {
       delta_->OnSent(*seq, now);

@@ -219,6 +219,13 @@ inline bool UsesLockstep(const ReplicationConfig& config) {
 // The quantisation a room with `config` uses (format 2).
 QuantizationConfig QuantizationOf(const ReplicationConfig& config);
 
+// The priority class of `e` at `now` under `config`, and a class's send interval (s): what
+// ClientReplicator uses, and Room::ScheduleFrame for the room-wide send grid. O(1).
+PriorityClass PriorityClassOf(const ReplicationConfig& config, const Entity& e, double now);
+double SendIntervalOf(const ReplicationConfig& config, PriorityClass c);
+// The settings PriorityClassOf and SendIntervalOf read (ReplicationFrame::schedule_basis).
+std::array<double, 6> ScheduleBasisOf(const ReplicationConfig& config);
+
 class ClientReplicator {
  public:
   // An edgephys `config` whose quantisation MakeQuantizationParams refuses falls back to
@@ -245,6 +252,14 @@ class ClientReplicator {
   size_t tracked_entities() const;
   // Lockstep rooms: whether this receiver is in lockstep now (tests, diagnostics).
   bool in_lockstep() const;
+  // Format 9 without a budget walks the frame once (TickSharedEntities); this makes it take
+  // the general two-pass walk instead, whose payloads the one pass must equal byte for byte
+  // (relay/replication_walk_test.cc). Tests only.
+  void UseTwoPassWalkForTesting() { two_pass_walk_ = true; }
+  // The room-wide send grid: when an entity with id `id`, sent at `now` with send interval
+  // `interval` (s), is next due (TickEntities; Room::ScheduleFrame computes it once per entity
+  // and tick for every receiver of a format-9 room). O(1).
+  static double NextDue(uint32_t id, double interval, double now);
 
  private:
   friend class LockstepGroup;
@@ -263,7 +278,10 @@ class ClientReplicator {
     // edgephys mode: the entity version whose state the client has acknowledged within the
     // thresholds (nothing to send until the version changes); 0 = none.
     uint32_t settled_version = 0;
+    // Format 9's one-pass walk: the version of the last send (at last_sent); 0 = none.
+    uint32_t sent_version = 0;
   };
+  static_assert(sizeof(View) == 32, "views are walked densely (2 per cache line)");
   // Beside views_ (same slot), only in paper mode and key-sample rooms (UsesViewExtras).
   struct ViewExtra {
     EntityState last_sent_state;  // paper mode's significance test
@@ -318,6 +336,15 @@ class ClientReplicator {
   // replicator of a lockstep group, whose payloads go to lockstep_capture_).
   void TickEntities(const ReplicationFrame& frame, uint32_t self, double now, double resend_after,
                     Connection* connection, PacketWriter* out, RelayCounters& counters);
+  // TickEntities for format 9 without a bandwidth budget (relay/replication_shared_walk.cc):
+  // one pass that decides and appends each entity as it walks (same payloads, byte for byte),
+  // so each (receiver, entity) record is loaded once per tick, not once to pick and again to
+  // append.
+  void TickSharedEntities(const ReplicationFrame& frame, uint32_t self, double now,
+                          double resend_after, Connection* connection, PacketWriter* out,
+                          RelayCounters& counters);
+  bool two_pass_walk_ = false;  // UseTwoPassWalkForTesting
+  double failed_send_at_ = -1;  // the `now` of the last tick in which a payload failed to leave
   void Flush(double now, Connection* connection, PacketWriter* out, RelayCounters& counters);
   // Lockstep (relay/lockstep.cc): sends copies of the group's payloads of this tick.
   void CopyCanonical(const LockstepGroup& group, uint32_t self, double now,

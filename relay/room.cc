@@ -142,6 +142,20 @@ void Room::BuildFrame() {
   }
 }
 
+void Room::ScheduleFrame(double now) {
+  frame_.next_due.clear();
+  frame_.schedule_now = -1;
+  if (!shared_) return;
+  const ReplicationConfig& rc = config_.replication;
+  frame_.next_due.reserve(frame_.by_id.size());
+  for (const Entity* e : frame_.by_id) {
+    frame_.next_due.push_back(ClientReplicator::NextDue(
+        e->id, SendIntervalOf(rc, PriorityClassOf(rc, *e, now)), now));
+  }
+  frame_.schedule_now = now;
+  frame_.schedule_basis = ScheduleBasisOf(rc);
+}
+
 void Room::TickLockstep(double now, RelayCounters& counters) {
   if (frame_.lockstep && shared_) frame_.lockstep->BeginTick(frame_, *shared_, now, counters);
 }

@@ -81,6 +81,10 @@ class Room {
   // entities came or went since the last call. Room thread, before the receivers' ticks.
   void BuildFrame();
   const ReplicationFrame& frame() const { return frame_; }
+  // Format 9 rooms: each entity's next due time if sent at `now` (ReplicationFrame::next_due),
+  // after BuildFrame, before the receivers' ticks. Room thread. O(entities); a no-op (the list
+  // left empty) in other rooms.
+  void ScheduleFrame(double now);
   // Lockstep rooms (UsesLockstep): the canonical replicator's tick and the leave and rejoin
   // checks (LockstepGroup::BeginTick), after PrepareStates and BuildFrame, before the
   // receivers' ticks. A no-op in other rooms. Room thread.
