@@ -24,6 +24,9 @@
 // Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
 // views in an array indexed by the entities' room-local slots), plus O(k log k) for the k
 // candidates only under a bandwidth budget; no allocation per packet once the views exist.
+// Format 9 without a budget walks in one pass (TickSharedEntities), taking each entity's next
+// due time from the frame (computed once per room tick: Room::ScheduleFrame) and skipping a
+// version still in flight from its view alone.
 // In a lockstep room (UsesLockstep, relay/lockstep.h) a receiver in lockstep costs
 // O(payloads) per tick instead: copies of the room's canonical payloads, no walk.
 #pragma once
