@@ -240,6 +240,18 @@ void ContactSolver<Base>::ConvertPatch(btPersistentManifold* m, const btContactS
 }
 
 template <class Base>
+int ContactSolver<Base>::PatchRows(const Patch& p, btSolverConstraint** rows) {
+  btConstraintArray& normals = this->m_tmpSolverContactConstraintPool;
+  btConstraintArray& frictions = this->m_tmpSolverContactFrictionConstraintPool;
+  int count = 0;
+  for (int i = 0; i < p.normals; ++i) rows[count++] = &normals[p.first_normal + i];
+  rows[count++] = &frictions[p.tangent];
+  rows[count++] = &frictions[p.tangent + 1];
+  if (p.twist >= 0) rows[count++] = &twist_[p.twist];
+  return count;
+}
+
+template <class Base>
 void ContactSolver<Base>::SetupBlock(Patch& p, const btVector3& centre, const btVector3& normal,
                                      const btVector3& t1, const btVector3& t2,
                                      const btVector3* mids) {
@@ -281,14 +293,8 @@ void ContactSolver<Base>::SetupBlock(Patch& p, const btVector3& centre, const bt
     ++pressure;
   }
   // The patch's rows: normals, two tangents, the twist; T maps generalised impulses onto them.
-  const btConstraintArray& normals = this->m_tmpSolverContactConstraintPool;
-  const btConstraintArray& frictions = this->m_tmpSolverContactFrictionConstraintPool;
-  const btSolverConstraint* rows[Block::kMaxPoints + 3];
-  int count = 0;
-  for (int i = 0; i < n; ++i) rows[count++] = &normals[p.first_normal + i];
-  rows[count++] = &frictions[p.tangent];
-  rows[count++] = &frictions[p.tangent + 1];
-  if (p.twist >= 0) rows[count++] = &twist_[p.twist];
+  btSolverConstraint* rows[Block::kMaxPoints + 3];
+  const int count = PatchRows(p, rows);
   const int gen = pressure + 2 + (p.twist >= 0 ? 1 : 0);
   btScalar t[Block::kMaxPoints + 3][Block::kMaxGen] = {};
   for (int i = 0; i < n; ++i) {
@@ -352,15 +358,9 @@ template <class Base>
 bool ContactSolver<Base>::SolveBlock(Patch& p, btScalar* residual) {
   Block& k = p.block;
   if (k.pressure == 0) return false;
-  btConstraintArray& normals = this->m_tmpSolverContactConstraintPool;
-  btConstraintArray& frictions = this->m_tmpSolverContactFrictionConstraintPool;
   const int n = p.normals;
   btSolverConstraint* rows[Block::kMaxPoints + 3];
-  int count = 0;
-  for (int i = 0; i < n; ++i) rows[count++] = &normals[p.first_normal + i];
-  rows[count++] = &frictions[p.tangent];
-  rows[count++] = &frictions[p.tangent + 1];
-  if (p.twist >= 0) rows[count++] = &twist_[p.twist];
+  const int count = PatchRows(p, rows);
   btSolverBody& a = this->m_tmpSolverBodyPool[rows[0]->m_solverBodyIdA];
   btSolverBody& b = this->m_tmpSolverBodyPool[rows[0]->m_solverBodyIdB];
   btScalar e[Block::kMaxPoints + 3];
@@ -379,7 +379,7 @@ bool ContactSolver<Base>::SolveBlock(Patch& p, btScalar* residual) {
     y[g] = v;
   }
   // New generalised normal impulses, spread over the points (least-norm): every point pushes.
-  btScalar gn[3];
+  btScalar gn[3] = {};
   for (int g = 0; g < k.pressure; ++g) {
     btScalar v = 0;
     for (int i = 0; i < n; ++i) v += k.lever[g][i] * rows[i]->m_appliedImpulse;

@@ -117,6 +117,9 @@ class ContactSolver final : public Base {
   bool PatchEligible(const btPersistentManifold& m) const;
   void ConvertPatch(btPersistentManifold* m, const btContactSolverInfo& info);
   btScalar SolvePatch(Patch& p);
+  // Points rows at the patch's rows in block order (normals, two tangents, the twist if any);
+  // returns how many (at most Block::kMaxPoints + 3).
+  int PatchRows(const Patch& p, btSolverConstraint** rows);
   // Sets up p.block from the patch's rows (after ConvertPatch added them).
   void SetupBlock(Patch& p, const btVector3& centre, const btVector3& normal,
                   const btVector3& t1, const btVector3& t2, const btVector3* mids);
