@@ -30,7 +30,8 @@
 //       [--stirrer-speed 1.5] [--warmup 120] [--seconds 8] [--max-interval 1.0]
 //       [--bytes-per-update 6.74] [--paper-mbit 1.32] [--curve-gap-limit 1.0] [--kink]
 // Prints CSV: policy, samples per box per s, modelled ratio to the paper, display p50/p99 (mm),
-// rotation p99 (deg). `--kink` adds session 11's "key samples at the kink" rows.
+// rotation p99 (deg), key samples sent because the line or curve strayed per box per s (the rest
+// at the max interval or the window's end; 0 for other policies). `--kink` adds session 11's "key samples at the kink" rows.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -145,6 +146,7 @@ bool Moved(const Pose& a, const Pose& b) {
 
 struct Outcome {
   double samples = 0;                       // over all boxes
+  double strayed = 0;                       // of which sent because the line or curve strayed
   std::vector<double> err_mm, rot_deg;      // every box, every tick with samples on both sides
 };
 
@@ -220,7 +222,8 @@ std::vector<size_t> FixedRate(const std::vector<Pose>& truth, int every, int pha
 // the last sample a to b (Shown: the line, or a curve through the sample before a too) strays
 // from a state in between, or after the max interval while the box moved.
 std::vector<size_t> KeySamples(const std::vector<Pose>& truth, double threshold_m, size_t max_gap,
-                               Curve curve = Curve::kLine, size_t gap_limit = 0) {
+                               Curve curve = Curve::kLine, size_t gap_limit = 0,
+                               double* strayed = nullptr) {
   std::vector<size_t> s = {0};
   const double rot_threshold = threshold_m * 10.0;  // 10 mm ~ 0.1 rad (5.7 deg)
   for (size_t b = 1; b < truth.size(); ++b) {
@@ -232,6 +235,7 @@ std::vector<size_t> KeySamples(const std::vector<Pose>& truth, double threshold_
       stray = Dist(shown.p, truth[j].p) > threshold_m || AngleRad(shown.q, truth[j].q) > rot_threshold;
     }
     if (stray || (b - a >= max_gap && Moved(truth[a], truth[b]))) s.push_back(b);
+    if (stray && strayed != nullptr) *strayed += 1;
   }
   if (s.back() != truth.size() - 1) s.push_back(truth.size() - 1);
   return s;
@@ -320,12 +324,13 @@ int main(int argc, char** argv) {
     }
   }
   std::printf("policy,samples_per_box_per_s,modelled_ratio_to_paper,display_p50_mm,display_p99_mm,"
-              "rotation_p99_deg\n");
+              "rotation_p99_deg,strayed_per_box_per_s\n");
   auto report = [&](const std::string& name, const Outcome& o) {
     const double per_box_s = o.samples / static_cast<double>(n) / seconds;
     const double mbit = per_box_s * static_cast<double>(n) * bytes_per_update * 8 / 1e6;
-    std::printf("%s,%.3f,%.3f,%.2f,%.2f,%.2f\n", name.c_str(), per_box_s, mbit / paper_mbit,
-                Percentile(o.err_mm, 50), Percentile(o.err_mm, 99), Percentile(o.rot_deg, 99));
+    std::printf("%s,%.3f,%.3f,%.2f,%.2f,%.2f,%.3f\n", name.c_str(), per_box_s, mbit / paper_mbit,
+                Percentile(o.err_mm, 50), Percentile(o.err_mm, 99), Percentile(o.rot_deg, 99),
+                o.strayed / static_cast<double>(n) / seconds);
   };
   std::mt19937 rng(7);
   for (int hz : {12, 6, 4, 3}) {
@@ -341,10 +346,11 @@ int main(int argc, char** argv) {
   for (double mm : {5.0, 10.0, 15.0, 20.0, 30.0, 40.0}) {
     Outcome line, hermite;
     for (size_t k = 0; k < n; ++k) {
-      const std::vector<size_t> s = KeySamples(truth[k], mm / 1000.0, max_gap);
+      const std::vector<size_t> s = KeySamples(truth[k], mm / 1000.0, max_gap, Curve::kLine, 0, &line.strayed);
       Score(truth[k], s, &line);
       ScoreHermite(truth[k], s, &hermite, gap_limit);
     }
+    hermite.strayed = line.strayed;
     char name[96];
     std::snprintf(name, sizeof(name), "key samples %.0f mm", mm);
     report(name, line);
@@ -359,7 +365,8 @@ int main(int argc, char** argv) {
     for (double mm : {5.0, 10.0, 15.0, 20.0, 30.0, 40.0}) {
       Outcome o;
       for (size_t k = 0; k < n; ++k) {
-        Score(truth[k], KeySamples(truth[k], mm / 1000.0, max_gap, c.curve, gap_limit), &o, c.curve, gap_limit);
+        Score(truth[k], KeySamples(truth[k], mm / 1000.0, max_gap, c.curve, gap_limit, &o.strayed), &o,
+              c.curve, gap_limit);
       }
       char name[96];
       std::snprintf(name, sizeof(name), "key samples on a %s %.0f mm", c.name, mm);
