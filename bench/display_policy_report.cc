@@ -18,7 +18,9 @@
 //     position; "+rot" also in the rotation's log; "half" bends half as much), built only from
 //     samples the receiver holds once the segment's end arrives (no velocities, playout unchanged);
 //     the line when the sample before lies more than `--curve-gap-limit` s back. "On the line or
-//     a parabola": the relay picks per sample whichever strays least (an unpaid bit a record).
+//     a parabola": the relay picks per sample whichever strays least (an unpaid bit a record);
+//     "after an interval sample": the parabola only when the last sample came a max interval
+//     after the one before it.
 // A receiver shows, at every tick, the lerp/slerp between the two samples around it (the SDK's
 // interpolation; playout delay is not an error here: like the loadgen's display probe, the
 // display is compared with the truth at the displayed time), or the policy's curve; "shown as
