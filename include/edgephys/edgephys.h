@@ -449,7 +449,10 @@ typedef enum edgephys_interpolator {
 /* The pose to render for entity `entity_id` at local time `now_s`: received states are kept in
  * a jitter buffer and played out with an adaptive delay, interpolated by `method`
  * (client/interpolation.h explains each). Call once per rendered frame per entity with
- * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived. */
+ * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived.
+ * Rooms whose relay sends key samples (`--key-samples`) check the straight line between them:
+ * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99,
+ * docs/benchmarks.md, "Display error, session 15"). */
 EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client,
                                                          uint32_t entity_id, double now_s,
                                                          uint32_t method,
