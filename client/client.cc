@@ -484,6 +484,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       joined_ = true;
       room_ = j->room() ? j->room()->str() : std::string();
       entity_id_base_ = j->entity_id_base();
+      state_format_ = j->state_format();
       if (!resumed) next_local_id_ = 1;
       delta_decoder_.reset();
       shared_decoder_.reset();

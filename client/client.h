@@ -238,6 +238,10 @@ class Client final {
   bool joined() const;
   uint32_t player_id() const;
   uint32_t entity_id_base() const;
+  // The state format the joined room sends (its Joined message; docs/protocol.md §5): 2, 9, 12
+  // (velocities), 13 or 14 (key samples: draw them with Interpolator::kLerpSlerp, the line the
+  // relay checks); 0 before the first Joined. Kept after a leave until the next Joined.
+  uint8_t state_format() const;
   const std::string& room() const;
   uint16_t reject_reason() const;
   DisconnectReason disconnect_reason() const;

@@ -184,6 +184,16 @@ Pose Extrapolate(const SnapshotBuffer& b, double ahead_s, Interpolator method,
 
 }  // namespace
 
+Interpolator InterpolatorForStateFormat(uint8_t state_format) {
+  switch (static_cast<StateFormat>(state_format)) {
+    case StateFormat::kQuantizedDeltaPrevious:
+    case StateFormat::kQuantizedDeltaTimed:
+      return Interpolator::kLerpSlerp;
+    default:
+      return Interpolator::kHermite;
+  }
+}
+
 const char* InterpolatorName(Interpolator method) {
   switch (method) {
     case Interpolator::kLerpSlerp:

@@ -58,6 +58,15 @@ enum class Interpolator {
 // Name for logs and benchmark labels ("lerp_slerp", "dq_dlb", "dq_sclerp", "hermite", "none").
 const char* InterpolatorName(Interpolator method);
 
+// The interpolator a room's state format (Client::state_format()) calls for: kLerpSlerp for
+// key-sample rooms (formats 13 and 14), whose relay sends a body when the straight line between
+// its samples strays, so the line is what it vouches for (Hermite over key samples showed
+// 1.4-4.1x the display error's p99: docs/benchmarks.md, "Display error, session 15"); kHermite
+// for every other format (sent velocities as tangents in format 12; finite differences
+// otherwise, the most accurate at send rates up to 30 Hz: "Interpolation: error vs send rate").
+// Unknown formats and 0 (not joined) get kHermite. O(1).
+Interpolator InterpolatorForStateFormat(uint8_t state_format);
+
 struct Pose {
   Vec3f position;  // metres
   Quatf rotation;  // unit quaternion

@@ -403,6 +403,14 @@ edgephys_status edgephys_client_poll_event(edgephys_client* client, edgephys_eve
   return Ok();
 }
 
+edgephys_status edgephys_client_get_state_format(edgephys_client* client, uint32_t* out) {
+  EDGEPHYS_CHECK(client);
+  if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");
+  *out = client->client->state_format();
+  if (*out == 0) return Fail(EDGEPHYS_E_NOT_FOUND, "no room joined yet");
+  return Ok();
+}
+
 edgephys_status edgephys_client_get_info(edgephys_client* client, edgephys_client_info* out) {
   EDGEPHYS_CHECK(client);
   if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");
@@ -505,15 +513,17 @@ edgephys_status edgephys_client_sample_pose(edgephys_client* client, uint32_t en
                                             uint32_t method, edgephys_transform* out) {
   EDGEPHYS_CHECK(client);
   if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");
-  if (method > EDGEPHYS_INTERP_NONE) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "method out of range");
+  if (method > EDGEPHYS_INTERP_AUTO) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "method out of range");
   if (!std::isfinite(now_s)) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "now_s must be finite");
   auto it = client->tracks.find(entity_id);
   if (it == client->tracks.end() || it->second->buffer.empty()) {
     return Fail(EDGEPHYS_E_NOT_FOUND, "no state of that entity has arrived");
   }
   edgephys::SnapshotBuffer& buffer = it->second->buffer;
-  const edgephys::Pose pose =
-      edgephys::Sample(buffer, buffer.RenderTime(now_s), static_cast<edgephys::Interpolator>(method));
+  const edgephys::Interpolator how = method == EDGEPHYS_INTERP_AUTO
+                                         ? edgephys::InterpolatorForStateFormat(client->client->state_format())
+                                         : static_cast<edgephys::Interpolator>(method);
+  const edgephys::Pose pose = edgephys::Sample(buffer, buffer.RenderTime(now_s), how);
   *out = {{pose.position.x, pose.position.y, pose.position.z},
           {pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w}};
   return Ok();

@@ -72,6 +72,7 @@ std::vector<std::pair<std::string, std::function<edgephys_status(edgephys_client
          edgephys_transform t;
          return edgephys_client_sample_pose(c, 1, 1.0, EDGEPHYS_INTERP_DQ_SCLERP, &t);
        }},
+      {"get_state_format", [](edgephys_client* c) { uint32_t f; return edgephys_client_get_state_format(c, &f); }},
   };
 }
 
@@ -415,6 +416,13 @@ TEST_F(CApiClient, QueriesRejectNullsWrongSizesAndUnknownIds) {
   edgephys_transform t;
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_sample_pose(c_, 1, 1.0, 0, nullptr));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_sample_pose(c_, 1, 1.0, 77, &t));
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT,
+                edgephys_client_sample_pose(c_, 1, 1.0, EDGEPHYS_INTERP_AUTO + 1, &t));
+  EXPECT_STATUS(EDGEPHYS_E_NOT_FOUND, edgephys_client_sample_pose(c_, 1, 1.0, EDGEPHYS_INTERP_AUTO, &t));
+  uint32_t format = 5;
+  EXPECT_STATUS(EDGEPHYS_E_NOT_FOUND, edgephys_client_get_state_format(c_, &format));  // not joined
+  EXPECT_EQ(format, 0u);
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_state_format(c_, nullptr));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_sample_pose(c_, 1, std::nan(""), 0, &t));
   EXPECT_STATUS(EDGEPHYS_E_NOT_FOUND, edgephys_client_sample_pose(c_, 1, 1.0, 0, &t));
 }

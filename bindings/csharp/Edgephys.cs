@@ -40,7 +40,8 @@ public enum EntityFlags : uint {
 }
 
 public enum ColliderShape : uint { Box = 0, Sphere, Capsule, Cylinder, ConvexHull, TriangleMesh }
-public enum Interpolator : uint { LerpSlerp = 0, DualQuatDlb, DualQuatSclerp, Hermite, None }
+// Auto: what the joined room's state format calls for (LerpSlerp for key-sample rooms, else Hermite).
+public enum Interpolator : uint { LerpSlerp = 0, DualQuatDlb, DualQuatSclerp, Hermite, None, Auto }
 
 [StructLayout(LayoutKind.Sequential)]
 public struct Vec3 {
@@ -205,6 +206,7 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_get_connection_status(IntPtr client, ref ConnectionStatus s);
   [DllImport(Lib)] public static extern Status edgephys_client_get_entity(IntPtr client, uint id, out Entity e);
   [DllImport(Lib)] public static extern Status edgephys_client_sample_pose(IntPtr client, uint id, double now, uint method, out Transform t);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_state_format(IntPtr client, out uint format);
 
   public static string LastError() { return Marshal.PtrToStringAnsi(edgephys_last_error()); }
   public static string Version() { return Marshal.PtrToStringAnsi(edgephys_version_string()); }
@@ -342,6 +344,10 @@ public sealed class Client : IDisposable {
   public bool TryGetEntity(uint id, out Entity e) { return Native.edgephys_client_get_entity(handle_, id, out e) == Status.Ok; }
   public bool TrySamplePose(uint id, Interpolator method, out Transform t) {
     return Native.edgephys_client_sample_pose(handle_, id, Native.Now(), (uint)method, out t) == Status.Ok;
+  }
+  // The joined room's state format (2, 9, 12, 13, 14); 0 before the first join.
+  public uint StateFormat {
+    get { uint f; return Native.edgephys_client_get_state_format(handle_, out f) == Status.Ok ? f : 0u; }
   }
   public ClientInfo Info() {
     ClientInfo info = new ClientInfo();

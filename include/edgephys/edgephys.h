@@ -443,8 +443,20 @@ typedef enum edgephys_interpolator {
   EDGEPHYS_INTERP_DQ_DLB = 1,
   EDGEPHYS_INTERP_DQ_SCLERP = 2, /* dual-quaternion screw interpolation (the paper's) */
   EDGEPHYS_INTERP_HERMITE = 3,
-  EDGEPHYS_INTERP_NONE = 4       /* hold the latest snapshot */
+  EDGEPHYS_INTERP_NONE = 4,      /* hold the latest snapshot */
+  /* What the joined room's state format calls for (edgephys_client_get_state_format): LERP_SLERP
+   * for key-sample rooms (formats 13 and 14: the relay checks the straight line between
+   * samples), HERMITE otherwise (sent velocities as tangents in format 12, finite differences in
+   * 2 and 9; the best at send rates up to 30 Hz, docs/benchmarks.md "Interpolation"). */
+  EDGEPHYS_INTERP_AUTO = 5
 } edgephys_interpolator;
+
+/* The state format of the joined room, from its Joined message (docs/protocol.md §5): 2, 9
+ * (the relay's default), 12 (velocities), 13 or 14 (key samples). EDGEPHYS_E_NOT_FOUND before
+ * the client first joined a room (then *out is 0); after a leave, the last room's until the next
+ * join. Cost O(1). */
+EDGEPHYS_API edgephys_status edgephys_client_get_state_format(edgephys_client* client,
+                                                              uint32_t* out);
 
 /* The pose to render for entity `entity_id` at local time `now_s`: received states are kept in
  * a jitter buffer and played out with an adaptive delay, interpolated by `method`
@@ -452,7 +464,7 @@ typedef enum edgephys_interpolator {
  * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived.
  * Rooms whose relay sends key samples (`--key-samples`) check the straight line between them:
  * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99,
- * docs/benchmarks.md, "Display error, session 15"). */
+ * docs/benchmarks.md, "Display error, session 15"); EDGEPHYS_INTERP_AUTO picks it for them. */
 EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client,
                                                          uint32_t entity_id, double now_s,
                                                          uint32_t method,

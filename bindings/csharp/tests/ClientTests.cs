@@ -41,6 +41,9 @@ static class ClientTests {
       ExpectStatus(Status.InvalidArgument, () => c.Grab(0, 1), "grab entity 0");
       Entity e;
       Expect(!c.TryGetEntity(1, out e), "unknown entity");
+      Expect(c.StateFormat == 0, "state format before a join");
+      Transform pose;
+      Expect(!c.TrySamplePose(1, Interpolator.Auto, out pose), "Auto pose of an unknown entity");
       c.Dispose();
       ExpectStatus(Status.InvalidHandle, () => c.Join("lobby"), "use after Dispose");
     }
@@ -73,6 +76,7 @@ static class ClientTests {
       receiver.Join(room);
       while (!(sJoined && rJoined) && Native.Now() < end) { sender.Update(); receiver.Update(); System.Threading.Thread.Sleep(5); }
       if (!(sJoined && rJoined)) throw new Exception("no join");
+      Expect(receiver.StateFormat == 9, "the relay's default state format (9), got " + receiver.StateFormat);
       uint[] ids = new uint[entities];
       for (int i = 0; i < entities; ++i) ids[i] = sender.Spawn(new Transform(i, 1, 0), EntityFlags.None);
 

@@ -1,0 +1,137 @@
+// edgephys_client_get_state_format and EDGEPHYS_INTERP_AUTO against a real relay on loopback
+// UDP: a receiver learns the room's state format from its Joined, and AUTO draws a key-sample
+// room's entities with lerp/slerp (the line the relay checks) and every other room's with
+// Hermite.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <string>
+
+#include "edgephys/edgephys.h"
+#include "protocol/join_token.h"
+#include "tests/integration/harness.h"
+
+namespace edgephys::testing {
+namespace {
+
+RelayConfig KeySampleConfig() {
+  RelayConfig c = LoopbackWorld::DefaultConfig();
+  c.room_defaults.replication.key_sample_threshold_m = 0.01;  // format 13 rooms
+  return c;
+}
+
+class CApiFormat : public ::testing::TestWithParam<bool> {  // param: key-sample room
+ protected:
+  CApiFormat() : world_(GetParam() ? KeySampleConfig() : LoopbackWorld::DefaultConfig()) {}
+
+  void SetUp() override {
+    for (int i = 0; i < 2; ++i) {
+      edgephys_client_config cfg;
+      ASSERT_EQ(edgephys_client_config_init(&cfg), EDGEPHYS_OK);
+      cfg.bind_address = "127.0.0.1:0";
+      cfg.publish_rate_hz = 60;
+      ASSERT_EQ(edgephys_client_create(&cfg, &c_[i]), EDGEPHYS_OK) << edgephys_last_error();
+      const std::string token = Base64UrlEncode(MintToken("formats", 11 + i));
+      const std::string relay = "127.0.0.1:" + std::to_string(world_.relay_endpoint().port());
+      ASSERT_EQ(edgephys_client_connect(c_[i], relay.c_str(), token.c_str(), world_.Now()),
+                EDGEPHYS_OK)
+          << edgephys_last_error();
+    }
+  }
+  void TearDown() override {
+    for (edgephys_client* c : c_) edgephys_client_destroy(c);
+  }
+
+  // A point on a circle of 0.3 m radius at 1.5 rad/s: curved, so Hermite and a line differ.
+  static edgephys_transform On(double t) {
+    return {{static_cast<float>(0.3 * std::cos(1.5 * t)), 1.0f, static_cast<float>(0.3 * std::sin(1.5 * t))},
+            {0, 0, 0, 1}};
+  }
+
+  void Step() {
+    world_.Step();
+    const double now = world_.Now();
+    for (int i = 0; i < 2; ++i) {
+      ASSERT_EQ(edgephys_client_update(c_[i], now), EDGEPHYS_OK);
+      edgephys_event ev;
+      while (edgephys_client_poll_event(c_[i], &ev) == EDGEPHYS_OK && ev.type != EDGEPHYS_EVENT_NONE) {
+        if (ev.type == EDGEPHYS_EVENT_CONNECTED) edgephys_client_join(c_[i], "formats");
+        if (ev.type == EDGEPHYS_EVENT_JOINED) joined_[i] = true;
+      }
+    }
+    if (entity_ != 0) {
+      const edgephys_transform t = On(now);
+      edgephys_client_publish_transform(c_[0], entity_, &t);
+    }
+  }
+  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
+    const double end = world_.Now() + timeout_s;
+    while (world_.Now() < end && !done()) Step();
+    return done();
+  }
+
+  static double Distance(const edgephys_transform& a, const edgephys_transform& b) {
+    const double dx = a.position.x - b.position.x, dy = a.position.y - b.position.y,
+                 dz = a.position.z - b.position.z;
+    return std::sqrt(dx * dx + dy * dy + dz * dz);
+  }
+
+  LoopbackWorld world_;
+  edgephys_client* c_[2] = {nullptr, nullptr};
+  bool joined_[2] = {false, false};
+  uint32_t entity_ = 0;
+};
+
+TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
+  const bool key_samples = GetParam();
+  uint32_t format = 77;
+  EXPECT_EQ(edgephys_client_get_state_format(c_[1], &format), EDGEPHYS_E_NOT_FOUND);
+  EXPECT_EQ(format, 0u);  // before a Joined
+  EXPECT_EQ(edgephys_client_get_state_format(c_[1], nullptr), EDGEPHYS_E_INVALID_ARGUMENT);
+  EXPECT_EQ(edgephys_client_get_state_format(nullptr, &format), EDGEPHYS_E_INVALID_HANDLE);
+
+  ASSERT_TRUE(RunUntil([&] { return joined_[0] && joined_[1]; }, 5.0));
+  ASSERT_EQ(edgephys_client_get_state_format(c_[1], &format), EDGEPHYS_OK) << edgephys_last_error();
+  EXPECT_EQ(format, key_samples ? 13u : 9u);
+
+  edgephys_spawn_desc d;
+  ASSERT_EQ(edgephys_spawn_desc_init(&d), EDGEPHYS_OK);
+  d.transform = On(world_.Now());
+  ASSERT_EQ(edgephys_client_spawn(c_[0], &d, &entity_), EDGEPHYS_OK) << edgephys_last_error();
+  edgephys_transform t;
+  ASSERT_TRUE(RunUntil(
+      [&] { return edgephys_client_sample_pose(c_[1], entity_, world_.Now(), EDGEPHYS_INTERP_AUTO, &t) == EDGEPHYS_OK; },
+      5.0));
+  EXPECT_EQ(edgephys_client_sample_pose(c_[1], entity_, world_.Now(), EDGEPHYS_INTERP_AUTO + 1, &t),
+            EDGEPHYS_E_INVALID_ARGUMENT);
+
+  // For 1.5 s of the circle: AUTO is, at every frame, exactly the method the format calls for,
+  // and (the motion being curved) the other method differs from it at some frames.
+  const uint32_t wanted = key_samples ? EDGEPHYS_INTERP_LERP_SLERP : EDGEPHYS_INTERP_HERMITE;
+  const uint32_t other = key_samples ? EDGEPHYS_INTERP_HERMITE : EDGEPHYS_INTERP_LERP_SLERP;
+  int frames = 0, differing = 0;
+  const double end = world_.Now() + 1.5;
+  while (world_.Now() < end) {
+    Step();
+    const double now = world_.Now();
+    edgephys_transform a, w, o;
+    ASSERT_EQ(edgephys_client_sample_pose(c_[1], entity_, now, EDGEPHYS_INTERP_AUTO, &a), EDGEPHYS_OK);
+    ASSERT_EQ(edgephys_client_sample_pose(c_[1], entity_, now, wanted, &w), EDGEPHYS_OK);
+    ASSERT_EQ(edgephys_client_sample_pose(c_[1], entity_, now, other, &o), EDGEPHYS_OK);
+    ASSERT_EQ(Distance(a, w), 0.0) << "frame " << frames;
+    ASSERT_EQ(a.rotation.w, w.rotation.w);
+    ++frames;
+    if (Distance(a, o) > 1e-5) ++differing;
+  }
+  EXPECT_GT(frames, 100);
+  EXPECT_GT(differing, frames / 10) << "the other method should draw the circle differently";
+}
+
+INSTANTIATE_TEST_SUITE_P(Rooms, CApiFormat, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& p) {
+                           return p.param ? std::string("KeySamples") : std::string("Default");
+                         });
+
+}  // namespace
+}  // namespace edgephys::testing
