@@ -33,6 +33,13 @@ class BindingTest(unittest.TestCase):
             self.assertIsNone(c.entity(1))
             self.assertEqual(list(c.events()), [])
             self.assertEqual(c.info().state, 0)
+            self.assertIsNone(c.state_format())  # not joined
+            with self.assertRaises(ep.EdgephysError) as e:
+                c.sample_pose(1, ep.INTERP_AUTO)
+            self.assertEqual(e.exception.status, ep.E_NOT_FOUND)
+            with self.assertRaises(ep.EdgephysError) as e:
+                c.sample_pose(1, ep.INTERP_AUTO + 1)
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
             with self.assertRaises(ep.EdgephysError) as e:
                 c.connection_status()  # no connection yet
             self.assertEqual(e.exception.status, ep.E_NOT_CONNECTED)

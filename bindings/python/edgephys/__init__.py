@@ -32,7 +32,8 @@ FLAG_HAND, FLAG_OFFLOADED, FLAG_REPORT_CONTACTS = 16, 32, 64
 
 SHAPE_BOX, SHAPE_SPHERE, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_CONVEX_HULL, SHAPE_TRIANGLE_MESH = range(6)
 JOINT_FIXED, JOINT_HINGE, JOINT_SPRING = range(3)
-INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE = range(5)
+# INTERP_AUTO: what the joined room's state format calls for (lerp/slerp for key-sample rooms, else Hermite)
+INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE, INTERP_AUTO = range(6)
 
 (EVENT_NONE, EVENT_CONNECTED, EVENT_REJECTED, EVENT_DISCONNECTED, EVENT_JOINED, EVENT_PLAYER_JOINED,
  EVENT_PLAYER_LEFT, EVENT_SPAWNED, EVENT_DESPAWNED, EVENT_STATE, EVENT_SOFT_BODY,
@@ -180,6 +181,7 @@ def _load():
         "edgephys_client_list_entities": ([c, P(u32), sz, P(sz)], ctypes.c_int),
         "edgephys_client_get_soft_body": ([c, u32, P(Vec3), sz, P(sz)], ctypes.c_int),
         "edgephys_client_sample_pose": ([c, u32, f64, u32, P(Transform)], ctypes.c_int),
+        "edgephys_client_get_state_format": ([c, P(u32)], ctypes.c_int),
     }
     for name, (args, res) in sigs.items():
         fn = getattr(lib, name)
@@ -336,6 +338,15 @@ class Client:
         _check(lib.edgephys_client_sample_pose(self._h, entity_id, now_s() if now is None else now, method,
                                                ctypes.byref(t)), "sample_pose")
         return t
+
+    def state_format(self):
+        """The joined room's state format (2, 9, 12, 13, 14); None before the first join."""
+        f = ctypes.c_uint32(0)
+        st = lib.edgephys_client_get_state_format(self._h, ctypes.byref(f))
+        if st == E_NOT_FOUND:
+            return None
+        _check(st, "get_state_format")
+        return f.value
 
     def info(self):
         i = ClientInfo()
