@@ -222,29 +222,28 @@ struct DisplayProbe {
     out->rotation = FromEigen(Slerp(ToEigen(a.q), ToEigen(b.q), u));
     return true;
   }
-  void Sample(double now) {
-    // A buffer with one state (a box at rest since the seed) has no clock of its own: it is
-    // shown at the relay time the others are (the lowest clock offset, the median delay).
-    double offset = 1e9;
+  // A buffer with one state (a box at rest since the seed) has no clock of its own: it is
+  // shown at the relay time the others are (the lowest clock offset, the median delay). Sets
+  // *offset to that lowest offset; false when no buffer has a clock yet.
+  static bool SharedRender(std::vector<SnapshotBuffer>& set, double now, double* offset,
+                           double* render) {
+    *offset = 1e9;
     std::vector<double> delays;
-    for (SnapshotBuffer& b : buffers) {
+    for (SnapshotBuffer& b : set) {
       if (b.size() < 2) continue;
-      offset = std::min(offset, b.clock_offset_s());
+      *offset = std::min(*offset, b.clock_offset_s());
       (void)b.RenderTime(now);
       delays.push_back(b.current_delay_s());
     }
-    if (delays.empty()) return;
-    const double shared_render = now - offset - Percentile(delays, 50);
-    double adaptive_offset = 1e9;
-    std::vector<double> adaptive_delays;
-    for (SnapshotBuffer& b : adaptive_buffers) {
-      if (b.size() < 2) continue;
-      adaptive_offset = std::min(adaptive_offset, b.clock_offset_s());
-      (void)b.RenderTime(now);
-      adaptive_delays.push_back(b.current_delay_s());
-    }
-    const double adaptive_shared =
-        adaptive_delays.empty() ? shared_render : now - adaptive_offset - Percentile(adaptive_delays, 50);
+    if (delays.empty()) return false;
+    *render = now - *offset - Percentile(delays, 50);
+    return true;
+  }
+  void Sample(double now) {
+    double offset = 0, shared_render = 0, adaptive_offset = 0, adaptive_shared = 0;
+    if (!SharedRender(buffers, now, &offset, &shared_render)) return;
+    // The same arrivals, so the adaptive buffers have clocks too.
+    (void)SharedRender(adaptive_buffers, now, &adaptive_offset, &adaptive_shared);
     for (size_t i = 0; i < buffers.size(); ++i) {
       SnapshotBuffer& b = buffers[i];
       if (b.empty()) continue;
