@@ -3,6 +3,7 @@
 #include <time.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "client/client_endpoint.h"
@@ -27,6 +28,12 @@ double RealtimeNow() {
 }
 
 uint64_t UnixNowS() { return static_cast<uint64_t>(RealtimeNow()); }
+
+// Joined.max_send_interval_s from the network: NaN, negative or absurd values read as 0 (play
+// out at the adaptive delay) rather than as a playout delay of minutes.
+double ValidMaxSendInterval(float s) {
+  return std::isfinite(s) && s > 0 && s <= kMaxSendIntervalLimitS ? static_cast<double>(s) : 0.0;
+}
 
 }  // namespace
 
@@ -485,6 +492,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       room_ = j->room() ? j->room()->str() : std::string();
       entity_id_base_ = j->entity_id_base();
       state_format_ = j->state_format();
+      max_send_interval_s_ = ValidMaxSendInterval(j->max_send_interval_s());
       if (!resumed) next_local_id_ = 1;
       delta_decoder_.reset();
       shared_decoder_.reset();

@@ -191,6 +191,9 @@ class ClientListener {
 // pushes PhyS-owned objects.
 using SpawnDesc = EntitySpec;
 
+// Largest Joined.max_send_interval_s a client accepts (seconds); larger ones read as 0.
+inline constexpr double kMaxSendIntervalLimitS = 4.0;
+
 class Client final {
  public:
   // `socket` (and `listener`, if given) are not owned and must outlive the client; the socket
@@ -242,6 +245,12 @@ class Client final {
   // (velocities), 13 or 14 (key samples: draw them with Interpolator::kLerpSlerp, the line the
   // relay checks); 0 before the first Joined. Kept after a leave until the next Joined.
   uint8_t state_format() const;
+  // Seconds: the longest the joined room's relay may leave a moving entity unsent (its
+  // Joined.max_send_interval_s: key samples' or the Hermite checks' max interval), 0 when it
+  // sends at fixed rates; pass it to PlayoutConfigForRoom (client/snapshot_buffer.h) to play out
+  // far enough behind. A value that is not finite or outside (0, kMaxSendIntervalLimitS] reads
+  // as 0. Kept after a leave until the next Joined.
+  double max_send_interval_s() const;
   const std::string& room() const;
   uint16_t reject_reason() const;
   DisconnectReason disconnect_reason() const;

@@ -67,6 +67,21 @@ const char* InterpolatorName(Interpolator method);
 // Unknown formats and 0 (not joined) get kHermite. O(1).
 Interpolator InterpolatorForStateFormat(uint8_t state_format);
 
+// The jitter buffer's configuration for a room with this state format whose relay may leave a
+// moving entity unsent for up to `max_send_interval_s` (Client::max_send_interval_s(), from
+// Joined; 0: fixed rates or dead reckoning). Other fields (capacity, ...) come from `base`. O(1).
+//  * An interval (key samples, formats 13 and 14; Hermite checks in format 12): the playout delay
+//    is that interval plus kPlayoutMarginS (plus any jitter above it), so that the state ending
+//    each segment has arrived when the render time enters it. The adaptive rule (1.5 median
+//    intervals) would play out ahead of the long segments and extrapolate a line the relay never
+//    checked (docs/benchmarks.md, "Display error, session 16: the SDK's playout").
+//  * Format 12 without one (dead reckoning: a body may go unsent for seconds): kPlayoutMarginS
+//    plus jitter; the receiver extrapolates with the sent velocities (SampleOptionsForStateFormat).
+//  * Otherwise `base` unchanged: the adaptive delay follows the fixed rates.
+inline constexpr double kPlayoutMarginS = 0.020;
+SnapshotBufferConfig PlayoutConfigForRoom(uint8_t state_format, double max_send_interval_s,
+                                          const SnapshotBufferConfig& base = {});
+
 struct Pose {
   Vec3f position;  // metres
   Quatf rotation;  // unit quaternion
@@ -77,6 +92,11 @@ struct SampleOptions {
   double max_gap_s = 1.0;              // longer segments: no velocity estimate across them
   double min_velocity_gap_s = 1e-3;    // shorter segments: too noisy to estimate velocity from
 };
+
+// The sampling options for a room with this state format: format 12 (velocities) extrapolates
+// with the sent velocities up to kVelocityExtrapolationLimitS past the newest state (its relay
+// dead-reckons, protocol/velocity.h); every other format the defaults. O(1).
+SampleOptions SampleOptionsForStateFormat(uint8_t state_format);
 
 // The pose of the buffered entity at sender time `render_time_s` (see the file comment).
 Pose Sample(const SnapshotBuffer& buffer, double render_time_s, Interpolator method,

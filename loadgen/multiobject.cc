@@ -132,12 +132,20 @@ struct DisplayProbe {
   std::vector<std::vector<Truth>> truth_state;
   std::vector<double> state_errors;
   std::vector<double> lerp_errors, hermite_errors, rot_errors_deg, delays_ms, playout_ms;
+  // The same arrivals in jitter buffers at the adaptive playout alone (SnapshotBufferConfig{}:
+  // 1.5 median intervals plus jitter, and SampleOptions{}: what the SDK did in every room before
+  // Joined.max_send_interval_s, and still does at fixed rates), drawn with the same method: the
+  // third yardstick (display_err_adaptive_*). At fixed rates it is the first.
+  std::vector<SnapshotBuffer> adaptive_buffers;
+  SnapshotBufferConfig adaptive_config;
+  std::vector<double> adaptive_errors, adaptive_playout_ms;
   double local_now = 0;
   bool velocities = false;
   SampleOptions sample_options;
 
   // `max_interval_s` > 0: the relay sends at irregular intervals up to this (Hermite or key
-  // samples); the playout delay is then that interval + 20 ms (or `min_delay_s`).
+  // samples); the playout delay is then that interval + 20 ms (or `min_delay_s`), as the SDK's
+  // (PlayoutConfigForRoom).
   void Init(size_t boxes, bool with_velocities, double min_delay_s, double max_interval_s) {
     const size_t n = std::min(boxes, kMaxBoxes);
     velocities = with_velocities;
@@ -145,7 +153,7 @@ struct DisplayProbe {
     if (velocities || max_interval_s > 0) {
       config.interval_multiplier = 0;
       const double interval = std::max(max_interval_s, 0.0);
-      config.min_delay_s = min_delay_s >= 0 ? min_delay_s : interval + 0.02;
+      config.min_delay_s = min_delay_s >= 0 ? min_delay_s : interval + kPlayoutMarginS;
       config.max_delay_s = std::max(config.max_delay_s, config.min_delay_s);
     }
     if (velocities) {
@@ -153,6 +161,7 @@ struct DisplayProbe {
       sample_options.max_gap_s = kVelocityExtrapolationLimitS + 1.0;
     }
     buffers.assign(n, SnapshotBuffer(config));
+    adaptive_buffers.assign(n, SnapshotBuffer(adaptive_config));
     truth.assign(n, {});
     truth_state.assign(n, {});
     for (size_t i = 0; i < n; ++i) slot[i * boxes / n] = i;
@@ -176,6 +185,7 @@ struct DisplayProbe {
       s.angular_velocity = e.velocity.angular;
     }
     (void)buffers[it->second].Insert(s, local_now);
+    (void)adaptive_buffers[it->second].Insert(s, local_now);
   }
   // At the start: what the receiver holds for each probed box (a box at rest may get nothing
   // more), and the relay's truth then (recorded again only when it changes).
@@ -225,6 +235,16 @@ struct DisplayProbe {
     }
     if (delays.empty()) return;
     const double shared_render = now - offset - Percentile(delays, 50);
+    double adaptive_offset = 1e9;
+    std::vector<double> adaptive_delays;
+    for (SnapshotBuffer& b : adaptive_buffers) {
+      if (b.size() < 2) continue;
+      adaptive_offset = std::min(adaptive_offset, b.clock_offset_s());
+      (void)b.RenderTime(now);
+      adaptive_delays.push_back(b.current_delay_s());
+    }
+    const double adaptive_shared =
+        adaptive_delays.empty() ? shared_render : now - adaptive_offset - Percentile(adaptive_delays, 50);
     for (size_t i = 0; i < buffers.size(); ++i) {
       SnapshotBuffer& b = buffers[i];
       if (b.empty()) continue;
@@ -243,6 +263,15 @@ struct DisplayProbe {
       rot_errors_deg.push_back(Compare(shown, want).rot_deg);
       delays_ms.push_back((b.newest().sender_time_s - render) * 1000.0);
       playout_ms.push_back((now - offset - render) * 1000.0);
+      SnapshotBuffer& adaptive = adaptive_buffers[i];
+      const double adaptive_render = adaptive.size() >= 2 ? adaptive.RenderTime(now) : adaptive_shared;
+      Pose adaptive_want;
+      if (!adaptive.empty() && TruthAt(i, adaptive_render, &adaptive_want)) {
+        const Pose adaptive_shown = edgephys::Sample(
+            adaptive, adaptive_render, velocities ? Interpolator::kHermite : Interpolator::kLerpSlerp);
+        adaptive_errors.push_back(Dist(adaptive_shown.position, adaptive_want.position));
+        adaptive_playout_ms.push_back((now - adaptive_offset - adaptive_render) * 1000.0);
+      }
     }
   }
 };
@@ -571,6 +600,9 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->display_err_state_p99_m = Percentile(probe.state_errors, 99);
   r->display_err_hermite_p50_m = Percentile(probe.hermite_errors, 50);
   r->display_err_hermite_p99_m = Percentile(probe.hermite_errors, 99);
+  r->display_err_adaptive_p50_m = Percentile(probe.adaptive_errors, 50);
+  r->display_err_adaptive_p99_m = Percentile(probe.adaptive_errors, 99);
+  r->display_adaptive_playout_ms_median = Percentile(probe.adaptive_playout_ms, 50);
   r->display_delay_ms_median = Percentile(probe.delays_ms, 50);
   r->display_playout_ms_median = Percentile(probe.playout_ms, 50);
   r->display_rot_err_p50_deg = Percentile(probe.rot_errors_deg, 50);

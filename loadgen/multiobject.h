@@ -150,6 +150,10 @@ struct MultiObjectResult {
   // The displayed pose against the truth at the time PhyS computed it for (Entity::state_time)
   // rather than at the time the relay got it: includes the step's computation latency.
   double display_err_state_p50_m = 0, display_err_state_p99_m = 0;
+  // The same arrivals played out at the adaptive delay alone (SnapshotBufferConfig{}: what the
+  // SDK used before it learnt Joined.max_send_interval_s), same method.
+  double display_err_adaptive_p50_m = 0, display_err_adaptive_p99_m = 0;
+  double display_adaptive_playout_ms_median = 0;
   double display_delay_ms_median = 0;  // playout delay behind the newest received state
   double display_playout_ms_median = 0;  // render time behind the estimated relay now
   uint64_t display_samples = 0;

@@ -42,6 +42,7 @@ void Unknown(MultiObjectResult* r) {
   r->pos_err_max_m = r->pos_err_p99_m = r->pos_err_sent_max_m = r->pos_err_sent_p99_m = kUnknown;
   r->display_err_p50_m = r->display_err_p99_m = kUnknown;
   r->display_err_hermite_p50_m = r->display_err_hermite_p99_m = kUnknown;
+  r->display_err_adaptive_p50_m = r->display_err_adaptive_p99_m = r->display_adaptive_playout_ms_median = kUnknown;
   r->display_rot_err_p50_deg = r->display_rot_err_p99_deg = kUnknown;
   r->display_delay_ms_median = r->display_playout_ms_median = kUnknown;
 }

@@ -210,6 +210,17 @@ inline bool KeepsRecentStates(const ReplicationConfig& config) {
   return config.hermite_max_interval_s > 0 || config.key_sample_threshold_m > 0;
 }
 
+// Seconds: the longest a moving PhyS body may go unsent to a receiver in rooms with `config`
+// when the policy sends at irregular intervals (key samples, Hermite checks), which receivers
+// learn in Joined.max_send_interval_s to set their playout delay; 0 for fixed rates and dead
+// reckoning.
+inline double MaxSendIntervalOf(const ReplicationConfig& config) {
+  if (config.mode != ReplicationMode::kEdgephys) return 0;
+  if (config.key_sample_threshold_m > 0) return config.key_sample_max_interval_s;
+  if (config.hermite_max_interval_s > 0) return config.hermite_max_interval_s;
+  return 0;
+}
+
 // True when rooms with `config` run lockstep receivers (relay/lockstep.h).
 inline bool UsesLockstep(const ReplicationConfig& config) {
   return UsesSharedEncoding(config) && config.shared_lockstep &&

@@ -123,6 +123,7 @@ void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
     jb.add_rotation_bound_deg(q.rotation_error_deg);
     jb.add_bounds_min(&bmin);
     jb.add_bounds_max(&bmax);
+    jb.add_max_send_interval_s(static_cast<float>(MaxSendIntervalOf(rc)));
     FinishControl(fbb, jb.Finish());
   }
   (void)link.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});

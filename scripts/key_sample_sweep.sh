@@ -3,7 +3,8 @@
 # samples", sessions 8, 9 and 11): edgephys-loadgen multiobject at 1,000 boxes on the quarter-plus and
 # full-stir scenes, one JSON per (scene, point, repeat), then per point the median over repeats
 # of egress, key samples per box per s and the display error under both yardsticks (and, last,
-# the arrival-yardstick error of the same receiver drawing kHermite instead, session 15). Bounded:
+# the arrival-yardstick error of the same receiver drawing kHermite instead, session 15, and the
+# same receiver at the adaptive playout alone, what the SDK did before session 16). Bounded:
 # points x 2 scenes x REPEAT runs of about 10 s each. Hold /tmp/edgephys-bench.lock and
 # /tmp/edgephys-build.lock around it.
 #   usage: scripts/key_sample_sweep.sh [loadgen] [out dir] [REPEAT] ["name|args" ...]
@@ -49,7 +50,9 @@ out, repeat, names = sys.argv[1], int(sys.argv[2]), [p.split("|")[0] for p in sy
 keys = ["egress_ratio_to_paper", "bytes_per_update", "updates_per_s_per_client",
         "key_strayed_per_box_s", "key_interval_per_box_s", "display_err_p50_m", "display_err_p99_m",
         "display_err_state_p99_m", "display_rot_err_p99_deg", "display_playout_ms_median",
-        "pos_err_sent_max_m", "display_err_hermite_p50_m", "display_err_hermite_p99_m"]
+        "pos_err_sent_max_m", "display_err_hermite_p50_m", "display_err_hermite_p99_m",
+        "display_err_adaptive_p50_m", "display_err_adaptive_p99_m",
+        "display_adaptive_playout_ms_median"]
 # Where a state's bytes go (RelayCounters::state_record_bits): a record's mean bits, its
 # reference symbol's and residuals' (position + rotation), and the datagram overhead per update.
 def coding(r):

@@ -520,10 +520,12 @@ edgephys_status edgephys_client_sample_pose(edgephys_client* client, uint32_t en
     return Fail(EDGEPHYS_E_NOT_FOUND, "no state of that entity has arrived");
   }
   edgephys::SnapshotBuffer& buffer = it->second->buffer;
+  const uint8_t format = client->client->state_format();
   const edgephys::Interpolator how = method == EDGEPHYS_INTERP_AUTO
-                                         ? edgephys::InterpolatorForStateFormat(client->client->state_format())
+                                         ? edgephys::InterpolatorForStateFormat(format)
                                          : static_cast<edgephys::Interpolator>(method);
-  const edgephys::Pose pose = edgephys::Sample(buffer, buffer.RenderTime(now_s), how);
+  const edgephys::Pose pose = edgephys::Sample(buffer, buffer.RenderTime(now_s), how,
+                                               edgephys::SampleOptionsForStateFormat(format));
   *out = {{pose.position.x, pose.position.y, pose.position.z},
           {pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w}};
   return Ok();

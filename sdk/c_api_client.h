@@ -13,6 +13,7 @@
 
 #include "client/client.h"
 #include "client/connection_rates.h"
+#include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
 #include "edgephys/edgephys.h"
 #include "edgephys/schema/control_generated.h"
@@ -93,6 +94,10 @@ struct edgephys_client final : edgephys::ClientListener {
   }
   void OnJoined(std::string_view room, uint32_t entity_id_base) override {
     tracks.clear();
+    // Key-sample and Hermite rooms send at irregular intervals: play out behind the longest.
+    snapshot_config = edgephys::PlayoutConfigForRoom(
+        client->state_format(), client->max_send_interval_s(),
+        edgephys::SnapshotBufferConfig{.capacity = snapshot_config.capacity});
     if (auto* ev = Push(EDGEPHYS_EVENT_JOINED)) {
       ev->player_id = client->player_id();
       ev->entity_id = entity_id_base;

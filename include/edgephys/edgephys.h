@@ -459,7 +459,9 @@ EDGEPHYS_API edgephys_status edgephys_client_get_state_format(edgephys_client* c
                                                               uint32_t* out);
 
 /* The pose to render for entity `entity_id` at local time `now_s`: received states are kept in
- * a jitter buffer and played out with an adaptive delay, interpolated by `method`
+ * a jitter buffer and played out with an adaptive delay (in rooms that send at irregular
+ * intervals, key samples or Hermite checks, at least the room's max send interval plus 20 ms
+ * behind, from its Joined), interpolated by `method`
  * (client/interpolation.h explains each). Call once per rendered frame per entity with
  * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived.
  * Rooms whose relay sends key samples (`--key-samples`) check the straight line between them:

@@ -8,6 +8,7 @@
 #include <functional>
 #include <string>
 
+#include "client/interpolation.h"
 #include "edgephys/edgephys.h"
 #include "protocol/join_token.h"
 #include "tests/integration/harness.h"
@@ -126,6 +127,23 @@ TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
   }
   EXPECT_GT(frames, 100);
   EXPECT_GT(differing, frames / 10) << "the other method should draw the circle differently";
+}
+
+// Joined.max_send_interval_s: a key-sample room tells its max interval (0.25 s unless set),
+// which the SDK plays out behind (PlayoutConfigForRoom); a fixed-rate room tells 0.
+TEST_P(CApiFormat, TheRoomsMaxSendIntervalReachesTheClient) {
+  const bool key_samples = GetParam();
+  Client& c = world_.AddClient(MintToken("formats", 21));
+  EXPECT_EQ(c.max_send_interval_s(), 0.0);  // before a Joined
+  ASSERT_TRUE(RunUntil([&] { return c.state() == ClientState::kConnected; }, 5.0));
+  ASSERT_TRUE(c.JoinRoom("formats").ok());
+  ASSERT_TRUE(RunUntil([&] { return c.joined(); }, 5.0));
+  EXPECT_EQ(c.state_format(), key_samples ? 13 : 9);
+  const double want = key_samples ? ReplicationConfig{}.key_sample_max_interval_s : 0.0;
+  EXPECT_NEAR(c.max_send_interval_s(), want, 1e-6);
+  const SnapshotBufferConfig playout = PlayoutConfigForRoom(c.state_format(), c.max_send_interval_s());
+  EXPECT_NEAR(playout.min_delay_s, key_samples ? want + kPlayoutMarginS : SnapshotBufferConfig{}.min_delay_s,
+              1e-6);
 }
 
 INSTANTIATE_TEST_SUITE_P(Rooms, CApiFormat, ::testing::Values(false, true),
