@@ -15,6 +15,10 @@
 //
 //   escape_trace [--objects 2000] [--seconds 60] [--only CANDIDATE] [--history 12]
 //
+// The last line is a contact census at the end of the run (issue 15, session 16): broadphase
+// pairs, those with a collision algorithm, those of two boxes, contact manifolds, and manifolds
+// with at least one point (the opportunity for PhysicsConfig::lazy_box_manifolds).
+//
 // Not a timing: run it under the build lock like a test. Output CSV on stdout; per-escape step
 // histories (depth past the wall's inner face, normal speed, stirrer tip distance) with
 // --history N (the last N steps).
@@ -25,6 +29,8 @@
 #include <cstdlib>
 #include <string>
 #include <vector>
+
+#include <btBulletDynamicsCommon.h>
 
 #include "bench/physics_cost_candidates.h"
 #include "physics/physics_world.h"
@@ -48,6 +54,35 @@ const char* WallName(int w) {
 // Depth of the centre past each wall's inner face (m, positive: past it).
 std::array<float, 5> Depths(const Vec3f& p, float w) {
   return {p.x - w, -p.x - w, p.z - w, -p.z - w, -p.y};
+}
+
+// Pairs, algorithms and manifolds at this moment. O(pairs + manifolds).
+void PrintCensus(const std::string& only, PhysicsWorld& world) {
+  btDiscreteDynamicsWorld* bw = world.BulletWorldForTesting();
+  btOverlappingPairCache* cache = bw->getPairCache();
+  const int pairs = cache->getNumOverlappingPairs();
+  int with_algorithm = 0, box_box = 0;
+  for (int i = 0; i < pairs; ++i) {
+    const btBroadphasePair& pair = cache->getOverlappingPairArray()[i];
+    if (pair.m_algorithm != nullptr) ++with_algorithm;
+    const auto* o0 = static_cast<const btCollisionObject*>(pair.m_pProxy0->m_clientObject);
+    const auto* o1 = static_cast<const btCollisionObject*>(pair.m_pProxy1->m_clientObject);
+    if (o0->getCollisionShape()->getShapeType() == BOX_SHAPE_PROXYTYPE &&
+        o1->getCollisionShape()->getShapeType() == BOX_SHAPE_PROXYTYPE) {
+      ++box_box;
+    }
+  }
+  btDispatcher* d = bw->getDispatcher();
+  const int manifolds = d->getNumManifolds();
+  int with_points = 0;
+  for (int i = 0; i < manifolds; ++i) {
+    if (d->getManifoldByIndexInternal(i)->getNumContacts() > 0) ++with_points;
+  }
+  std::printf("# census %s: broadphase pairs %d, with an algorithm %d, box-box %d; manifolds %d, "
+              "with >= 1 point %d, empty %d (%.1f %%)\n",
+              only.c_str(), pairs, with_algorithm, box_box, manifolds, with_points,
+              manifolds - with_points,
+              manifolds > 0 ? 100.0 * (manifolds - with_points) / manifolds : 0.0);
 }
 
 int Main(int argc, char** argv) {
@@ -174,6 +209,7 @@ int Main(int argc, char** argv) {
               "5 s (highest centre %.2f m)\n",
               only.c_str(), escapes, seconds, steps, deepest, deepest_id, deepest_step, he,
               static_cast<unsigned long long>(c.contained), launched, highest);
+  PrintCensus(only, world);
   return 0;
 }
 

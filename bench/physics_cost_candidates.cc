@@ -335,6 +335,17 @@ std::vector<Candidate> Candidates() {
          c.containment = true;
          c.containment_depth_fraction = 1.0f;
        }},
+      // Session 16 (issue 15, item 1): box-box manifolds only for touching pairs
+      // (physics/lazy_manifolds.h), kept 10 (the default), 0 and 60 empty steps.
+      {"lazy", [](PhysicsConfig& c) { NewWith(c).lazy_box_manifolds = true; }},
+      {"lazy-keep0", [](PhysicsConfig& c) {
+         NewWith(c).lazy_box_manifolds = true;
+         c.lazy_manifold_keep_steps = 0;
+       }},
+      {"lazy-keep60", [](PhysicsConfig& c) {
+         NewWith(c).lazy_box_manifolds = true;
+         c.lazy_manifold_keep_steps = 60;
+       }},
   };
 }
 

@@ -11,6 +11,7 @@
 
 #include "physics/bullet_world.h"
 #include "physics/containment.h"
+#include "physics/lazy_manifolds.h"
 #include "physics/manifold_reuse.h"
 #include "physics/physics_world_internal.h"
 
@@ -46,6 +47,13 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
     manifold_reuse_ = std::make_unique<ManifoldReuseCreateFunc>(config_.manifold_reuse_distance);
     dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
                                              manifold_reuse_.get());
+  } else if (config_.lazy_box_manifolds) {
+    lazy_manifolds_ = std::make_unique<LazyBoxBoxCreateFunc>(
+        config_.lazy_manifold_keep_steps,
+        (dispatcher_->getDispatcherFlags() &
+         btCollisionDispatcher::CD_USE_RELATIVE_CONTACT_BREAKING_THRESHOLD) != 0);
+    dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
+                                             lazy_manifolds_.get());
   }
   broadphase_ = NewBroadphase(kInitialSweepHandles);
   solver_ = internal::NewSolver(config_);

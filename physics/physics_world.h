@@ -89,6 +89,7 @@ struct BodyShapes;  // physics_world_internal.h
 class RestManager;  // rest_manager.h
 class Containment;  // containment.h
 class ManifoldReuseCreateFunc;  // manifold_reuse.h
+class LazyBoxBoxCreateFunc;     // lazy_manifolds.h
 
 inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
 
@@ -276,6 +277,22 @@ struct PhysicsConfig {
   // found up to this distance late. Cost saved: the box-box narrowphase of the qualifying pairs
   // (docs/benchmarks.md, "Full stir: candidates after freezing"; it did not pay there).
   float manifold_reuse_distance = 0.0f;
+  // Box-box manifolds only for touching pairs (physics/lazy_manifolds.h): a box-box pair gets
+  // its contact manifold when btBoxBoxDetector first finds a point, and gives it back after
+  // lazy_manifold_keep_steps + 1 processed steps without one, so pairs whose AABBs overlap
+  // but which do not touch never touch manifold memory (Bullet's algorithm keeps a manifold for
+  // every broadphase pair). Accuracy: the same contact points as Bullet's algorithm for the
+  // same poses; the solver sees manifolds in another order (results differ as any reordering
+  // does); a sleeping box is woken by an active kinematic box when they touch, not when their
+  // AABBs overlap. Ignored when manifold_reuse_distance > 0 (not combined). Cost: the narrowphase
+  // of non-touching pairs no longer refreshes or lists a manifold; one pool (or malloc) manifold
+  // per pair that starts touching after being apart for the keep time. keep_steps < 0 counts
+  // as 0. Measured on the full stir (docs/benchmarks.md, "Full stir, session 16"): half the
+  // manifolds are empty at the defaults; keep 10 saved 0.7-3.2 % of the step, keep 0 4.3-5.6 %
+  // (2.2 % in a fourth sitting), the quarter-plus scene got 3-5 % dearer, and 1 box in 60 s
+  // left the container (0 at the defaults). Off.
+  bool lazy_box_manifolds = false;
+  int lazy_manifold_keep_steps = 10;
   // Resting regions (physics/rest_manager.h): a dynamic body below both rest thresholds for
   // rest_time seconds is FROZEN, i.e. made temporarily static to Bullet (zero inverse mass,
   // CF_STATIC_OBJECT, ISLAND_SLEEPING, AABB no longer updated), so it splits from the moving
@@ -520,6 +537,7 @@ class PhysicsWorld {
   PhysicsConfig config_;
   std::unique_ptr<btCollisionConfiguration> collision_config_;
   std::unique_ptr<ManifoldReuseCreateFunc> manifold_reuse_;  // manifold_reuse_distance > 0
+  std::unique_ptr<LazyBoxBoxCreateFunc> lazy_manifolds_;    // lazy_box_manifolds (no reuse)
   std::unique_ptr<btCollisionDispatcher> dispatcher_;
   std::unique_ptr<btBroadphaseInterface> broadphase_;
   std::unique_ptr<btConstraintSolver> solver_;
