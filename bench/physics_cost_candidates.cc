@@ -278,6 +278,16 @@ std::vector<Candidate> Candidates() {
          c.patch_block_solve = true;
          c.solver_iterations = 4;
        }},
+      // Session 16: session 12's combination with the block solve (session 14's `s12-combo`
+      // was measured with the block built in; the block's escapes, docs/benchmarks.md "Full
+      // stir, session 16").
+      {"s16-combo-block", [](PhysicsConfig& c) {
+         S8Defaults(c).patch_friction = true;
+         c.patch_block_solve = true;
+         c.solver_iterations = 4;
+         c.split_islands = false;
+         c.aabb_margin = 0.005f;
+       }},
       {"s14-patch-iter3", [](PhysicsConfig& c) {
          c = PhysicsConfig{};
          c.patch_friction = true;

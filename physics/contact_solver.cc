@@ -285,7 +285,7 @@ void ContactSolver<Base>::SetupBlock(Patch& p, const btVector3& centre, const bt
     k.h[i][0] = inv_n;
   }
   for (int a = 0; a < 2 && n > 1; ++a) {
-    if (!(eig[a] > btScalar(1e-3) * trace) || !(eig[a] > btScalar(1e-10))) continue;
+    if (!(eig[a] > kTiltEigenFraction * trace) || !(eig[a] > btScalar(1e-10))) continue;
     for (int i = 0; i < n; ++i) {
       k.lever[pressure][i] = g1[i] * axes[a][0] + g2[i] * axes[a][1];
       k.h[i][pressure] = k.lever[pressure][i] / eig[a];
@@ -346,6 +346,16 @@ void ContactSolver<Base>::SetupBlock(Patch& p, const btVector3& centre, const bt
       m[d][g] = v;
     }
   }
+  // What a unit generalised impulse does to each point's normal velocity (the points check).
+  for (int i = 0; i < n; ++i) {
+    const btSolverConstraint& row = *rows[i];
+    for (int g = 0; g < gen; ++g) {
+      k.response[i][g] = row.m_contactNormal1.dot(eff[g].lin_a) +
+                         row.m_relpos1CrossNormal.dot(eff[g].ang_a) +
+                         row.m_contactNormal2.dot(eff[g].lin_b) +
+                         row.m_relpos2CrossNormal.dot(eff[g].ang_b);
+    }
+  }
   if (!InvertSpd(m, gen)) return;
   for (int g = 0; g < gen; ++g) {
     for (int d = 0; d < gen; ++d) k.inverse[g][d] = m[g][d];
@@ -378,21 +388,25 @@ bool ContactSolver<Base>::SolveBlock(Patch& p, btScalar* residual) {
     for (int d = 0; d < k.gen; ++d) v += k.inverse[g][d] * rhs[d];
     y[g] = v;
   }
-  // New generalised normal impulses, spread over the points (least-norm): every point pushes.
-  btScalar gn[3] = {};
-  for (int g = 0; g < k.pressure; ++g) {
-    btScalar v = 0;
-    for (int i = 0; i < n; ++i) v += k.lever[g][i] * rows[i]->m_appliedImpulse;
-    gn[g] = v + y[g];
-  }
-  btScalar f[Block::kMaxPoints];
+  // Every point must end at its own target: with fewer generalised rows than points (a face's
+  // 4 points, 3 rows) the block meets only a least-squares fit of the points' targets, which
+  // pushed touching corners apart (docs/benchmarks.md, "Full stir, session 16").
   for (int i = 0; i < n; ++i) {
-    btScalar v = 0;
-    for (int g = 0; g < k.pressure; ++g) v += k.h[i][g] * gn[g];
+    btScalar v = e[i];
+    for (int g = 0; g < k.gen; ++g) v -= k.response[i][g] * y[g];
+    if (!(std::abs(v) <= kPointTolerance)) return false;
+  }
+  // The change of the generalised normal impulses, spread over the points (least-norm) and
+  // added to each point's impulse: every point pushes.
+  btScalar f[Block::kMaxPoints];
+  btScalar load = 0;
+  for (int i = 0; i < n; ++i) {
+    btScalar v = rows[i]->m_appliedImpulse;
+    for (int g = 0; g < k.pressure; ++g) v += k.h[i][g] * y[g];
     if (!(v >= 0)) return false;
     f[i] = v;
+    load += v;
   }
-  const btScalar load = gn[0];
   btScalar fr[3];
   for (int r = n; r < count; ++r) fr[r - n] = rows[r]->m_appliedImpulse + y[k.pressure + (r - n)];
   const btScalar limit = p.mu * load;

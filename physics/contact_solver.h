@@ -35,10 +35,17 @@
 //    as generalised rows at the centre (the normal impulse and up to two tilt moments about the
 //    principal axes of the points' lever arms: 1 row for one point, 2 for an edge, 3 for a
 //    face), the two tangent rows and the twist row; up to 6 unknowns, through the inverse of
-//    their effective-mass matrix (built once per step). The new normal impulse and tilts are
-//    spread over the points least-norm. If a point would pull, or the friction leaves its
-//    disk, the block is dropped for that iteration and the patch's rows are solved one by one
-//    as before (normal rows by projected Gauss-Seidel, then the tangent pair and the twist).
+//    their effective-mass matrix (built once per step). The change of the normal impulse and
+//    tilts is spread over the points least-norm and added to their impulses (session 16; the
+//    session-14 re-spread of the totals moved impulse the model did not see). The block is
+//    dropped for that iteration, and the patch's rows solved one by one as before (normal rows
+//    by projected Gauss-Seidel, then the tangent pair and the twist), if a point would pull,
+//    the friction leaves its disk, or a point's normal velocity does not end within
+//    kPointTolerance of its target. That last check (session 16) matters where the points
+//    outnumber the generalised rows (a face's 4 points, 3 rows; nearly collinear points whose
+//    tilt is dropped): the block then meets only a least-squares fit of the points' targets
+//    and, without the check, pushed touching corners apart every iteration, which threw 248 of
+//    2,000 boxes out of the full stir (docs/benchmarks.md, "Full stir, session 16").
 //    Why: with the rows solved one after the other, the centre's tangent rows and the corners'
 //    normal rows trade rotation about the horizontal axes each iteration, and a never-sleeping
 //    layer of touching boxes rocked with a growing amplitude and crept (2.1 mm in 5 s against
@@ -68,6 +75,14 @@ namespace edgephys::physics::internal {
 
 // r = kTwistRadiusFactor * mean distance of the patch's points from its centre.
 inline constexpr btScalar kTwistRadiusFactor = btScalar(0.541);
+// Block solve: a tilt row is kept only if its principal moment of the points' lever arms is
+// more than this fraction of their sum (below it, nearly collinear points: the tilt is dropped
+// and the points check below decides). 1e-3 in session 14 let ill-conditioned 3-point blocks
+// through (boxes escaped the full stir, docs/benchmarks.md "Full stir, session 16").
+inline constexpr btScalar kTiltEigenFraction = btScalar(0.05);
+// Block solve: a block is kept only if every point's normal velocity ends within this of its
+// row's target (m/s); otherwise the patch is solved one row at a time that iteration.
+inline constexpr btScalar kPointTolerance = btScalar(0.003);
 
 // Base: btSequentialImpulseConstraintSolver or btNNCGConstraintSolver.
 template <class Base>
@@ -102,6 +117,7 @@ class ContactSolver final : public Base {
     btScalar lever[3][kMaxPoints];
     btScalar target[kMaxPoints + 3];  // velocity each row aims at (rhs / jacDiagABInv)
     btScalar inverse[kMaxGen][kMaxGen];  // inverse of the generalised rows' effective mass
+    btScalar response[kMaxPoints][kMaxGen];  // point i's normal velocity per unit impulse g
   };
   struct Patch {
     int first_normal;  // rows [first_normal, first_normal + normals) of the contact pool

@@ -216,13 +216,14 @@ struct PhysicsConfig {
   // the never-sleeping ten-box stack to 3 mm at 4 iterations (docs/benchmarks.md, "Full stir,
   // session 14: a block solve for patch friction"). Still off by default: with it and 4
   // iterations as defaults the SDK's stack-and-grab examples failed (the stacked boxes reported
-  // a collision exit and enter while settling; not traced), and with the block solve boxes
-  // escaped the full stir; see that section.
+  // a collision exit and enter while settling; not traced); see that section.
   bool patch_friction = false;
   // With patch_friction: solve each patch's rows as one block (contact_solver.h, session 14).
-  // Stops the resting creep above, but in the full stir 248 of 2,000 boxes escaped the container
-  // with it (docs/benchmarks.md, "Full stir, session 14"), so it is off. Without it, patch
-  // friction is exactly sessions 12-13's.
+  // Stops the resting creep above. In session 14 it threw 248 of 2,000 boxes out of the full
+  // stir; since session 16 a block is kept only if every contact point ends at its own target
+  // (a face's 4 points had met only a least-squares fit), and 0 of 2,000 escape in 60 s
+  // (docs/benchmarks.md, "Full stir, session 16"). Off until the lead changes the defaults.
+  // Without it, patch friction is exactly sessions 12-13's.
   bool patch_block_solve = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
