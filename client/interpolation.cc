@@ -217,6 +217,14 @@ SnapshotBufferConfig PlayoutConfigForRoom(uint8_t state_format, double max_send_
   return config;
 }
 
+SnapshotBufferConfig CapPlayoutDelay(const SnapshotBufferConfig& config, double max_delay_s) {
+  SnapshotBufferConfig capped = config;
+  if (!(max_delay_s > 0) || !std::isfinite(max_delay_s)) return capped;
+  capped.min_delay_s = std::min(capped.min_delay_s, max_delay_s);
+  capped.max_delay_s = std::min(capped.max_delay_s, max_delay_s);
+  return capped;
+}
+
 const char* InterpolatorName(Interpolator method) {
   switch (method) {
     case Interpolator::kLerpSlerp:

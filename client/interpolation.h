@@ -82,6 +82,15 @@ inline constexpr double kPlayoutMarginS = 0.020;
 SnapshotBufferConfig PlayoutConfigForRoom(uint8_t state_format, double max_send_interval_s,
                                           const SnapshotBufferConfig& base = {});
 
+// `config` with its playout delay held to at most `max_delay_s` (seconds; an application's
+// latency limit: edgephys_client_set_max_playout_delay). Both delay bounds are lowered to it,
+// so the adaptive delay and a room's playout (above) never exceed it. 0, negative or non-finite:
+// `config` unchanged. The price in a key-sample room is accuracy: the render time runs ahead of
+// the longer segments, and the sampler extrapolates the last line for up to
+// SampleOptions::max_extrapolation_s, a line the relay never checked (docs/benchmarks.md,
+// "Display error, session 16: the SDK's playout"). O(1).
+SnapshotBufferConfig CapPlayoutDelay(const SnapshotBufferConfig& config, double max_delay_s);
+
 struct Pose {
   Vec3f position;  // metres
   Quatf rotation;  // unit quaternion

@@ -68,6 +68,14 @@ SnapshotBuffer::SnapshotBuffer(const SnapshotBufferConfig& config) : config_(con
   Clear();
 }
 
+void SnapshotBuffer::Reconfigure(const SnapshotBufferConfig& config) {
+  config_ = config;
+  config_.capacity = capacity_;
+  config_.max_slew = std::clamp(config_.max_slew, 0.0, 0.9);
+  config_.max_delay_s = std::max(config_.max_delay_s, config_.min_delay_s);
+  UpdateEstimates();
+}
+
 void SnapshotBuffer::Clear() {
   head_ = 0;
   count_ = 0;

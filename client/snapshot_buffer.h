@@ -99,6 +99,13 @@ class SnapshotBuffer {
   // Drops every snapshot and all estimates (e.g. on a sender clock reset or a teleport).
   void Clear();
 
+  // Takes every field of `config` but `capacity` (the ring keeps its size) and keeps the
+  // snapshots, the clock offset and the send-interval and jitter estimates. The target delay is
+  // recomputed at once; the playout clock then slews towards it at most `max_slew` (or jumps, past
+  // `resync_threshold_s`), as after any change of the estimates. O(1).
+  void Reconfigure(const SnapshotBufferConfig& config);
+  const SnapshotBufferConfig& config() const { return config_; }
+
   size_t size() const { return count_; }
   bool empty() const { return count_ == 0; }
   size_t capacity() const { return capacity_; }

@@ -136,8 +136,12 @@ struct DisplayProbe {
   // 1.5 median intervals plus jitter, and SampleOptions{}: what the SDK did in every room before
   // Joined.max_send_interval_s, and still does at fixed rates), drawn with the same method: the
   // third yardstick (display_err_adaptive_*). At fixed rates it is the first.
+  // With a playout limit (MultiObjectOptions::playout_limit_s) the third yardstick is instead the
+  // room's playout held to it (CapPlayoutDelay: edgephys_client_set_max_playout_delay), sampled
+  // with the room's options.
   std::vector<SnapshotBuffer> adaptive_buffers;
   SnapshotBufferConfig adaptive_config;
+  SampleOptions adaptive_options;
   std::vector<double> adaptive_errors, adaptive_playout_ms;
   double local_now = 0;
   bool velocities = false;
@@ -146,7 +150,8 @@ struct DisplayProbe {
   // `max_interval_s` > 0: the relay sends at irregular intervals up to this (Hermite or key
   // samples); the playout delay is then that interval + 20 ms (or `min_delay_s`), as the SDK's
   // (PlayoutConfigForRoom).
-  void Init(size_t boxes, bool with_velocities, double min_delay_s, double max_interval_s) {
+  void Init(size_t boxes, bool with_velocities, double min_delay_s, double max_interval_s,
+            double playout_limit_s) {
     const size_t n = std::min(boxes, kMaxBoxes);
     velocities = with_velocities;
     SnapshotBufferConfig config;
@@ -159,6 +164,10 @@ struct DisplayProbe {
     if (velocities) {
       sample_options.max_extrapolation_s = kVelocityExtrapolationLimitS;
       sample_options.max_gap_s = kVelocityExtrapolationLimitS + 1.0;
+    }
+    if (playout_limit_s > 0) {
+      adaptive_config = CapPlayoutDelay(config, playout_limit_s);
+      adaptive_options = sample_options;
     }
     buffers.assign(n, SnapshotBuffer(config));
     adaptive_buffers.assign(n, SnapshotBuffer(adaptive_config));
@@ -267,7 +276,8 @@ struct DisplayProbe {
       Pose adaptive_want;
       if (!adaptive.empty() && TruthAt(i, adaptive_render, &adaptive_want)) {
         const Pose adaptive_shown = edgephys::Sample(
-            adaptive, adaptive_render, velocities ? Interpolator::kHermite : Interpolator::kLerpSlerp);
+            adaptive, adaptive_render, velocities ? Interpolator::kHermite : Interpolator::kLerpSlerp,
+            adaptive_options);
         adaptive_errors.push_back(Dist(adaptive_shown.position, adaptive_want.position));
         adaptive_playout_ms.push_back((now - adaptive_offset - adaptive_render) * 1000.0);
       }
@@ -377,7 +387,8 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   boxes.count.assign(box_ids.size(), 0);
   DisplayProbe probe;
   probe.Init(box_ids.size(), o.velocities, o.playout_min_delay_s,
-             rep.key_sample_threshold_m > 0 ? rep.key_sample_max_interval_s : o.hermite_max_interval_s);
+             rep.key_sample_threshold_m > 0 ? rep.key_sample_max_interval_s : o.hermite_max_interval_s,
+             o.playout_limit_s);
 
   auto drive_stirrer = [&] {
     Vec3f pos;

@@ -104,6 +104,10 @@ struct MultiObjectOptions {
   // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
   // interpolating.
   double playout_min_delay_s = -1;
+  // > 0: the probe's third yardstick (display_err_adaptive_*) plays the room out held to this
+  // delay (s), as an SDK application under edgephys_client_set_max_playout_delay; else the
+  // adaptive delay alone.
+  double playout_limit_s = 0;
   bool progress = true;
 };
 
@@ -151,7 +155,8 @@ struct MultiObjectResult {
   // rather than at the time the relay got it: includes the step's computation latency.
   double display_err_state_p50_m = 0, display_err_state_p99_m = 0;
   // The same arrivals played out at the adaptive delay alone (SnapshotBufferConfig{}: what the
-  // SDK used before it learnt Joined.max_send_interval_s), same method.
+  // SDK used before it learnt Joined.max_send_interval_s), same method; with playout_limit_s,
+  // the room's playout held to that limit.
   double display_err_adaptive_p50_m = 0, display_err_adaptive_p99_m = 0;
   double display_adaptive_playout_ms_median = 0;
   double display_delay_ms_median = 0;  // playout delay behind the newest received state

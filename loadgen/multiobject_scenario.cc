@@ -18,7 +18,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    position_step_m, rotation_bound_deg, ambient_hz, shared_encoding, velocities,
                                    extrapolation_threshold_m, extrapolation_rotation_deg,
                                    extrapolation_max_hz, hermite_max_interval_s,
-                                   playout_min_delay_s, key_sample_threshold_m,
+                                   playout_min_delay_s, playout_limit_s, key_sample_threshold_m,
                                    key_sample_rotation_deg, key_sample_max_interval_s,
                                    key_sample_check_hz, key_sample_at_kink,
                                    key_sample_arrival_stamp, stamp_state_time)
@@ -246,6 +246,10 @@ class MultiObjectScenario final : public Scenario {
                  "Fixed rates: stamp PhyS bodies with the time their states hold");
     cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
                    "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
+    cmd.add_option("--display-playout-limit", o_.playout_limit_s,
+                   "The display probe's third yardstick: the room's playout held to this delay (s; "
+                   "edgephys_client_set_max_playout_delay); 0: the adaptive delay alone")
+        ->check(CLI::Range(0.0, 4.0));
     cmd.add_option("--ambient-hz", o_.ambient_hz,
                    "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)");
     cmd.add_flag("!--no-bench", o_.bench, "Skip the standalone PhyS vs raw Bullet steps");

@@ -72,6 +72,10 @@ edgephys_status Guarded(F&& body) {
 
 namespace {
 
+// edgephys_client_set_max_playout_delay's upper bound, seconds (the relay's own max send
+// interval is refused past 4 s too: Client::max_send_interval_s).
+constexpr double kMaxPlayoutDelayLimitS = 4.0;
+
 std::mutex g_registry_mutex;
 std::unordered_set<const edgephys_client*>& Registry() {
   static auto* set = new std::unordered_set<const edgephys_client*>();
@@ -214,6 +218,7 @@ edgephys_status edgephys_client_create(const edgephys_client_config* config, edg
     handle->socket = std::move(*socket);
     handle->ring.resize(c.event_queue_capacity);
     handle->snapshot_config.capacity = c.snapshot_capacity;
+    handle->room_config.capacity = c.snapshot_capacity;
     edgephys::ClientConfig cc;
     cc.publish_rate_hz = c.publish_rate_hz;
     cc.handshake_timeout_s = c.handshake_timeout_s;
@@ -528,6 +533,31 @@ edgephys_status edgephys_client_sample_pose(edgephys_client* client, uint32_t en
                                                edgephys::SampleOptionsForStateFormat(format));
   *out = {{pose.position.x, pose.position.y, pose.position.z},
           {pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w}};
+  return Ok();
+}
+
+edgephys_status edgephys_client_set_max_playout_delay(edgephys_client* client, double max_delay_s) {
+  EDGEPHYS_CHECK(client);
+  if (!std::isfinite(max_delay_s) || max_delay_s < 0 || max_delay_s > kMaxPlayoutDelayLimitS) {
+    return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "max_delay_s must be 0 (no limit) or in (0, 4] seconds");
+  }
+  client->max_playout_delay_s = max_delay_s;
+  client->ApplyPlayoutLimit();
+  return Ok();
+}
+
+edgephys_status edgephys_client_get_playout_delay(edgephys_client* client, uint32_t entity_id,
+                                                  double* out_s) {
+  EDGEPHYS_CHECK(client);
+  if (out_s == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out_s is NULL");
+  *out_s = 0;
+  auto it = client->tracks.find(entity_id);
+  if (it == client->tracks.end() || it->second->buffer.empty()) {
+    return Fail(EDGEPHYS_E_NOT_FOUND, "no state of that entity has arrived");
+  }
+  const edgephys::SnapshotBuffer& buffer = it->second->buffer;
+  // Before the first sample_pose the playout clock has not started: report where it will start.
+  *out_s = buffer.current_delay_s() > 0 ? buffer.current_delay_s() : buffer.target_delay_s();
   return Ok();
 }
 

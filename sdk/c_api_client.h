@@ -58,8 +58,18 @@ struct edgephys_client final : edgephys::ClientListener {
     double sender_time_s = 0;
     bool started = false;
   };
+  // The joined room's playout (PlayoutConfigForRoom), and what new tracks get: room_config held
+  // to the application's max_playout_delay_s (CapPlayoutDelay; 0: no limit).
+  edgephys::SnapshotBufferConfig room_config;
   edgephys::SnapshotBufferConfig snapshot_config;
+  double max_playout_delay_s = 0;
   std::unordered_map<uint32_t, std::unique_ptr<Track>> tracks;
+
+  // Applies max_playout_delay_s to the room's playout, for new tracks and the existing ones.
+  void ApplyPlayoutLimit() {
+    snapshot_config = edgephys::CapPlayoutDelay(room_config, max_playout_delay_s);
+    for (auto& [id, track] : tracks) track->buffer.Reconfigure(snapshot_config);
+  }
 
   // Sampled on every edgephys_client_update while connected; read by get_connection_status.
   edgephys::ConnectionRates rates;
@@ -95,9 +105,10 @@ struct edgephys_client final : edgephys::ClientListener {
   void OnJoined(std::string_view room, uint32_t entity_id_base) override {
     tracks.clear();
     // Key-sample and Hermite rooms send at irregular intervals: play out behind the longest.
-    snapshot_config = edgephys::PlayoutConfigForRoom(
+    room_config = edgephys::PlayoutConfigForRoom(
         client->state_format(), client->max_send_interval_s(),
         edgephys::SnapshotBufferConfig{.capacity = snapshot_config.capacity});
+    ApplyPlayoutLimit();
     if (auto* ev = Push(EDGEPHYS_EVENT_JOINED)) {
       ev->player_id = client->player_id();
       ev->entity_id = entity_id_base;

@@ -73,6 +73,8 @@ std::vector<std::pair<std::string, std::function<edgephys_status(edgephys_client
          return edgephys_client_sample_pose(c, 1, 1.0, EDGEPHYS_INTERP_DQ_SCLERP, &t);
        }},
       {"get_state_format", [](edgephys_client* c) { uint32_t f; return edgephys_client_get_state_format(c, &f); }},
+      {"set_max_playout_delay", [](edgephys_client* c) { return edgephys_client_set_max_playout_delay(c, 0.1); }},
+      {"get_playout_delay", [](edgephys_client* c) { double d; return edgephys_client_get_playout_delay(c, 1, &d); }},
   };
 }
 
@@ -425,6 +427,18 @@ TEST_F(CApiClient, QueriesRejectNullsWrongSizesAndUnknownIds) {
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_state_format(c_, nullptr));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_sample_pose(c_, 1, std::nan(""), 0, &t));
   EXPECT_STATUS(EDGEPHYS_E_NOT_FOUND, edgephys_client_sample_pose(c_, 1, 1.0, 0, &t));
+
+  const double inf = std::numeric_limits<double>::infinity();
+  for (double bad : {-0.001, 4.001, 1e300, std::nan(""), inf, -inf}) {
+    EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_set_max_playout_delay(c_, bad));
+  }
+  for (double good : {0.0, 0.001, 0.1, 4.0, 0.0}) {
+    EXPECT_STATUS(EDGEPHYS_OK, edgephys_client_set_max_playout_delay(c_, good));
+  }
+  double delay = 7;
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_playout_delay(c_, 1, nullptr));
+  EXPECT_STATUS(EDGEPHYS_E_NOT_FOUND, edgephys_client_get_playout_delay(c_, 1, &delay));
+  EXPECT_EQ(delay, 0.0);
 }
 
 TEST_F(CApiClient, CloseTwiceIsAnErrorAndDestroyStillFrees) {

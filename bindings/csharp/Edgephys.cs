@@ -207,6 +207,8 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_get_entity(IntPtr client, uint id, out Entity e);
   [DllImport(Lib)] public static extern Status edgephys_client_sample_pose(IntPtr client, uint id, double now, uint method, out Transform t);
   [DllImport(Lib)] public static extern Status edgephys_client_get_state_format(IntPtr client, out uint format);
+  [DllImport(Lib)] public static extern Status edgephys_client_set_max_playout_delay(IntPtr client, double maxDelayS);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_playout_delay(IntPtr client, uint id, out double delayS);
 
   public static string LastError() { return Marshal.PtrToStringAnsi(edgephys_last_error()); }
   public static string Version() { return Marshal.PtrToStringAnsi(edgephys_version_string()); }
@@ -344,6 +346,15 @@ public sealed class Client : IDisposable {
   public bool TryGetEntity(uint id, out Entity e) { return Native.edgephys_client_get_entity(handle_, id, out e) == Status.Ok; }
   public bool TrySamplePose(uint id, Interpolator method, out Transform t) {
     return Native.edgephys_client_sample_pose(handle_, id, Native.Now(), (uint)method, out t) == Status.Ok;
+  }
+  // Latency limit for TrySamplePose in seconds: 0 (no limit) or (0, 4]; see
+  // edgephys_client_set_max_playout_delay for what it costs in key-sample rooms.
+  public void SetMaxPlayoutDelay(double seconds) {
+    Native.Check(Native.edgephys_client_set_max_playout_delay(handle_, seconds), "set_max_playout_delay");
+  }
+  // The delay entity `id` is drawn at, seconds; false if no state of it has arrived.
+  public bool TryGetPlayoutDelay(uint id, out double seconds) {
+    return Native.edgephys_client_get_playout_delay(handle_, id, out seconds) == Status.Ok;
   }
   // The joined room's state format (2, 9, 12, 13, 14); 0 before the first join.
   public uint StateFormat {

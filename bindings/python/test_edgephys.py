@@ -40,6 +40,13 @@ class BindingTest(unittest.TestCase):
             with self.assertRaises(ep.EdgephysError) as e:
                 c.sample_pose(1, ep.INTERP_AUTO + 1)
             self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            for bad in (-0.1, 4.5, math.nan, math.inf):
+                with self.assertRaises(ep.EdgephysError) as e:
+                    c.set_max_playout_delay(bad)
+                self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            c.set_max_playout_delay(0.1)
+            c.set_max_playout_delay(0)
+            self.assertIsNone(c.playout_delay(1))  # nothing of entity 1 has arrived
             with self.assertRaises(ep.EdgephysError) as e:
                 c.connection_status()  # no connection yet
             self.assertEqual(e.exception.status, ep.E_NOT_CONNECTED)

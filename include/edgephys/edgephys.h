@@ -472,6 +472,26 @@ EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client
                                                          uint32_t method,
                                                          edgephys_transform* out);
 
+/* Holds the playout delay of edgephys_client_sample_pose to at most `max_delay_s` seconds (an
+ * application's latency limit), for every entity, at once and in later rooms; 0 (the default)
+ * removes the limit. EDGEPHYS_E_INVALID_ARGUMENT unless 0 or in (0, 4] (NaN and infinities
+ * too). The price is accuracy where a room sends at irregular intervals: a key-sample room plays
+ * out at its max send interval plus 20 ms (0.27 s at the relay's default 0.25 s) because the
+ * relay only vouches for the line between samples; held below that, the render time runs ahead
+ * of the longer segments and the SDK extrapolates the last line for up to 0.1 s. Measured on the
+ * stirred boxes at a 0.3 s limit: 1.2-2.4x the display error's p99 (docs/benchmarks.md,
+ * "Display error, session 16: the SDK's playout"). Fixed-rate rooms play out adaptively
+ * (1.5 send intervals plus jitter, at most 0.3 s), so a limit only matters below that.
+ * A lower limit moves the render clock forward by at most 10 % of real time (it catches up
+ * over a few seconds) or jumps past 1 s of difference. Cost O(entities). */
+EDGEPHYS_API edgephys_status edgephys_client_set_max_playout_delay(edgephys_client* client,
+                                                                   double max_delay_s);
+/* The playout delay entity `entity_id` is drawn at now (seconds behind the relay's clock as this
+ * client estimates it; before its first sample_pose, the delay it will start at).
+ * EDGEPHYS_E_NOT_FOUND (and *out_s 0) if no state of that entity has arrived. Cost O(1). */
+EDGEPHYS_API edgephys_status edgephys_client_get_playout_delay(edgephys_client* client,
+                                                               uint32_t entity_id, double* out_s);
+
 #ifdef __cplusplus
 } /* extern "C" */
 #endif

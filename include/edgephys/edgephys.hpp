@@ -85,6 +85,14 @@ class Client {
   bool SamplePose(uint32_t id, double now_s, edgephys_interpolator method, edgephys_transform* out) {
     return edgephys_client_sample_pose(handle_, id, now_s, method, out) == EDGEPHYS_OK;
   }
+  // Latency limit for SamplePose (edgephys_client_set_max_playout_delay; 0: none).
+  edgephys_status SetMaxPlayoutDelay(double max_delay_s) {
+    return edgephys_client_set_max_playout_delay(handle_, max_delay_s);
+  }
+  // The delay entity `id` is drawn at (seconds); false if no state of it has arrived.
+  bool PlayoutDelay(uint32_t id, double* out_s) const {
+    return edgephys_client_get_playout_delay(handle_, id, out_s) == EDGEPHYS_OK;
+  }
   edgephys_client_info Info() const {
     edgephys_client_info info{};
     info.struct_size = sizeof(info);

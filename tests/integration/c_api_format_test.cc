@@ -146,6 +146,66 @@ TEST_P(CApiFormat, TheRoomsMaxSendIntervalReachesTheClient) {
               1e-6);
 }
 
+// edgephys_client_set_max_playout_delay: a limit below the room's playout brings the delay of an
+// entity already playing down to it (slewing), holds a new entity's from its first frame, and
+// lifting it returns to the room's playout. Poses keep coming throughout.
+TEST_P(CApiFormat, APlayoutLimitHoldsTheDelayOfPlayingAndNewEntities) {
+  const bool key_samples = GetParam();
+  ASSERT_TRUE(RunUntil([&] { return joined_[0] && joined_[1]; }, 5.0));
+  edgephys_spawn_desc d;
+  ASSERT_EQ(edgephys_spawn_desc_init(&d), EDGEPHYS_OK);
+  d.transform = On(world_.Now());
+  ASSERT_EQ(edgephys_client_spawn(c_[0], &d, &entity_), EDGEPHYS_OK) << edgephys_last_error();
+  edgephys_transform t;
+  auto play = [&](uint32_t id, double seconds) {
+    const double end = world_.Now() + seconds;
+    while (world_.Now() < end) {
+      Step();
+      if (edgephys_client_sample_pose(c_[1], id, world_.Now(), EDGEPHYS_INTERP_AUTO, &t) != EDGEPHYS_OK) {
+        return false;
+      }
+    }
+    return true;
+  };
+  ASSERT_TRUE(RunUntil(
+      [&] { return edgephys_client_sample_pose(c_[1], entity_, world_.Now(), EDGEPHYS_INTERP_AUTO, &t) == EDGEPHYS_OK; },
+      5.0));
+  ASSERT_TRUE(play(entity_, 2.0));
+  double room = 0;
+  ASSERT_EQ(edgephys_client_get_playout_delay(c_[1], entity_, &room), EDGEPHYS_OK) << edgephys_last_error();
+  if (key_samples) {
+    EXPECT_NEAR(room, ReplicationConfig{}.key_sample_max_interval_s + kPlayoutMarginS, 0.02);
+  } else {
+    EXPECT_GT(room, 0.0);
+    EXPECT_LE(room, SnapshotBufferConfig{}.max_delay_s + 1e-9);
+  }
+
+  const double limit = key_samples ? 0.1 : room / 2;
+  ASSERT_EQ(edgephys_client_set_max_playout_delay(c_[1], limit), EDGEPHYS_OK) << edgephys_last_error();
+  ASSERT_TRUE(play(entity_, 3.0));
+  double held = 0;
+  ASSERT_EQ(edgephys_client_get_playout_delay(c_[1], entity_, &held), EDGEPHYS_OK);
+  EXPECT_LE(held, limit + 1e-6);
+  EXPECT_GT(held, limit / 2);
+
+  // An entity first seen under the limit starts within it.
+  uint32_t second = 0;
+  d.transform = On(world_.Now());
+  ASSERT_EQ(edgephys_client_spawn(c_[0], &d, &second), EDGEPHYS_OK) << edgephys_last_error();
+  ASSERT_TRUE(RunUntil(
+      [&] { return edgephys_client_sample_pose(c_[1], second, world_.Now(), EDGEPHYS_INTERP_AUTO, &t) == EDGEPHYS_OK; },
+      5.0));
+  double first = 0;
+  ASSERT_EQ(edgephys_client_get_playout_delay(c_[1], second, &first), EDGEPHYS_OK);
+  EXPECT_LE(first, limit + 1e-6);
+
+  ASSERT_EQ(edgephys_client_set_max_playout_delay(c_[1], 0), EDGEPHYS_OK);
+  ASSERT_TRUE(play(entity_, 3.0));
+  double lifted = 0;
+  ASSERT_EQ(edgephys_client_get_playout_delay(c_[1], entity_, &lifted), EDGEPHYS_OK);
+  EXPECT_NEAR(lifted, room, key_samples ? 0.02 : room / 2);
+}
+
 INSTANTIATE_TEST_SUITE_P(Rooms, CApiFormat, ::testing::Values(false, true),
                          [](const ::testing::TestParamInfo<bool>& p) {
                            return p.param ? std::string("KeySamples") : std::string("Default");

@@ -44,6 +44,13 @@ static class ClientTests {
       Expect(c.StateFormat == 0, "state format before a join");
       Transform pose;
       Expect(!c.TrySamplePose(1, Interpolator.Auto, out pose), "Auto pose of an unknown entity");
+      ExpectStatus(Status.InvalidArgument, () => c.SetMaxPlayoutDelay(double.NaN), "NaN playout limit");
+      ExpectStatus(Status.InvalidArgument, () => c.SetMaxPlayoutDelay(-0.1), "negative playout limit");
+      ExpectStatus(Status.InvalidArgument, () => c.SetMaxPlayoutDelay(4.5), "playout limit over 4 s");
+      c.SetMaxPlayoutDelay(0.1);
+      c.SetMaxPlayoutDelay(0);
+      double delay;
+      Expect(!c.TryGetPlayoutDelay(1, out delay), "playout delay of an unknown entity");
       c.Dispose();
       ExpectStatus(Status.InvalidHandle, () => c.Join("lobby"), "use after Dispose");
     }
@@ -112,6 +119,9 @@ static class ClientTests {
       Expect(receiver.TryGetConnectionStatus(out cs), "connection status while connected");
       Expect(cs.State == 2 && cs.ReceiveBytesPerS > 0 && cs.ReceivePacketsPerS > 0 && cs.RttS > 0 && cs.RttS < 1,
              "connection status: receiving, with a round trip (" + cs.ReceiveBytesPerS + " B/s, rtt " + cs.RttS + " s)");
+      double delay;
+      Expect(receiver.TryGetPlayoutDelay(ids[0], out delay) && delay > 0 && delay <= 0.3,
+             "a fixed-rate room's entity plays out at the adaptive delay (0, 0.3] s, got " + delay);
       states = received - received0;
       bytes = allocated;
       ns_per_state = states > 0 ? cpu / states : 0;

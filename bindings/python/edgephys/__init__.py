@@ -182,6 +182,8 @@ def _load():
         "edgephys_client_get_soft_body": ([c, u32, P(Vec3), sz, P(sz)], ctypes.c_int),
         "edgephys_client_sample_pose": ([c, u32, f64, u32, P(Transform)], ctypes.c_int),
         "edgephys_client_get_state_format": ([c, P(u32)], ctypes.c_int),
+        "edgephys_client_set_max_playout_delay": ([c, f64], ctypes.c_int),
+        "edgephys_client_get_playout_delay": ([c, u32, P(f64)], ctypes.c_int),
     }
     for name, (args, res) in sigs.items():
         fn = getattr(lib, name)
@@ -338,6 +340,20 @@ class Client:
         _check(lib.edgephys_client_sample_pose(self._h, entity_id, now_s() if now is None else now, method,
                                                ctypes.byref(t)), "sample_pose")
         return t
+
+    def set_max_playout_delay(self, seconds):
+        """Latency limit for sample_pose in seconds: 0 (none) or (0, 4]. In key-sample rooms a
+        limit below the room's playout costs accuracy (edgephys.h explains)."""
+        _check(lib.edgephys_client_set_max_playout_delay(self._h, float(seconds)), "set_max_playout_delay")
+
+    def playout_delay(self, entity_id):
+        """The delay (s) the entity is drawn at; None if no state of it has arrived."""
+        d = ctypes.c_double(0)
+        st = lib.edgephys_client_get_playout_delay(self._h, entity_id, ctypes.byref(d))
+        if st == E_NOT_FOUND:
+            return None
+        _check(st, "get_playout_delay")
+        return d.value
 
     def state_format(self):
         """The joined room's state format (2, 9, 12, 13, 14); None before the first join."""
