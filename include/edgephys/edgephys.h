@@ -479,9 +479,12 @@ EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client
  * out at its max send interval plus 20 ms (0.27 s at the relay's default 0.25 s) because the
  * relay only vouches for the line between samples; held below that, the render time runs ahead
  * of the longer segments and the SDK extrapolates the last line for up to 0.1 s. Measured on the
- * stirred boxes at a 0.3 s limit: 1.2-2.4x the display error's p99 (docs/benchmarks.md,
- * "Display error, session 16: the SDK's playout"). Fixed-rate rooms play out adaptively
- * (1.5 send intervals plus jitter, at most 0.3 s), so a limit only matters below that.
+ * stirred boxes (display p99 against the room's playout, docs/benchmarks.md, "Display error,
+ * session 17: an application's playout limit"): at the default 0.25 s interval a 0.2 s limit
+ * costs 1.0-1.1x, a 0.1 s limit 2.8-3.6x; a 0.3 s limit costs 1.2-1.6x at a 0.5 s interval and
+ * 1.9-2.5x at 1 s. Keep the limit near the room's interval or ask the operator for a shorter
+ * one. Fixed-rate rooms play out adaptively (1.5 send intervals plus jitter, at most 0.3 s), so
+ * a limit only matters below that (6 Hz held to 0.1 s: 1.1-1.3x).
  * A lower limit moves the render clock forward by at most 10 % of real time (it catches up
  * over a few seconds) or jumps past 1 s of difference. Cost O(entities). */
 EDGEPHYS_API edgephys_status edgephys_client_set_max_playout_delay(edgephys_client* client,
