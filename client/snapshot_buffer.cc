@@ -57,22 +57,25 @@ void SlideWindow(double value, std::array<double, N>& ring, std::array<double, N
   *next = *next + 1 == N ? 0 : *next + 1;
 }
 
+// `config` with its slew clamped to [0, 0.9], max_delay_s at least min_delay_s and `capacity`.
+SnapshotBufferConfig Normalized(SnapshotBufferConfig config, size_t capacity) {
+  config.capacity = capacity;
+  config.max_slew = std::clamp(config.max_slew, 0.0, 0.9);
+  config.max_delay_s = std::max(config.max_delay_s, config.min_delay_s);
+  return config;
+}
+
 }  // namespace
 
-SnapshotBuffer::SnapshotBuffer(const SnapshotBufferConfig& config) : config_(config) {
-  config_.capacity = std::max<size_t>(config_.capacity, 2);
-  config_.max_slew = std::clamp(config_.max_slew, 0.0, 0.9);
-  config_.max_delay_s = std::max(config_.max_delay_s, config_.min_delay_s);
+SnapshotBuffer::SnapshotBuffer(const SnapshotBufferConfig& config)
+    : config_(Normalized(config, std::max<size_t>(config.capacity, 2))) {
   ring_.resize(config_.capacity);
   capacity_ = ring_.size();
   Clear();
 }
 
 void SnapshotBuffer::Reconfigure(const SnapshotBufferConfig& config) {
-  config_ = config;
-  config_.capacity = capacity_;
-  config_.max_slew = std::clamp(config_.max_slew, 0.0, 0.9);
-  config_.max_delay_s = std::max(config_.max_delay_s, config_.min_delay_s);
+  config_ = Normalized(config, capacity_);
   UpdateEstimates();
 }
 
