@@ -72,9 +72,9 @@ edgephys_status Guarded(F&& body) {
 
 namespace {
 
-// edgephys_client_set_max_playout_delay's upper bound, seconds (the relay's own max send
-// interval is refused past 4 s too: Client::max_send_interval_s).
-constexpr double kMaxPlayoutDelayLimitS = 4.0;
+// edgephys_client_set_max_playout_delay's upper bound, seconds: the same bound the client puts on
+// a relay's announced send interval (Client::max_send_interval_s).
+constexpr double kMaxPlayoutDelayLimitS = edgephys::kMaxSendIntervalLimitS;
 
 std::mutex g_registry_mutex;
 std::unordered_set<const edgephys_client*>& Registry() {
