@@ -73,10 +73,13 @@ inline btQuaternion ToBt(const Quatf& q) {
   const btScalar len = r.length();
   return len > btScalar(1e-6) ? r / len : btQuaternion::getIdentity();
 }
-// A quaternion ToBt can normalise: all zero (identity) or of non-negligible length.
+// A quaternion ToBt can normalise: exactly all zero (identity, ToBt's own test) or of
+// non-negligible length. The length is summed in double: in float, denormal components (say
+// w = -5.8e-39) square to 0 and would pass as "all zero", which ToBt then normalises to NaN.
 inline bool QuatUsable(const schema::Quat& q) {
-  const float l2 = q.x() * q.x() + q.y() * q.y() + q.z() * q.z() + q.w() * q.w();
-  return l2 == 0.0f || l2 > 1e-12f;
+  if (q.x() == 0 && q.y() == 0 && q.z() == 0 && q.w() == 0) return true;
+  const double x = q.x(), y = q.y(), z = q.z(), w = q.w();
+  return x * x + y * y + z * z + w * w > 1e-12;
 }
 inline Vec3f ToVec(const btVector3& v) { return Vec3f{v.x(), v.y(), v.z()}; }
 

@@ -104,6 +104,13 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
       {"restitution > 1", [](EntitySpec* s) { s->rigid_body->restitution = 2; },
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      // Denormal components square to 0 in float; such a quaternion is not the all-zero
+      // "identity" and normalises to NaN (the fuzzer's soft-body SDF crash, session 18).
+      {"denormal collider rotation",
+       [](EntitySpec* s) { s->colliders[0].local_rotation = {0, 0, 0, -5.8e-39f}; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"denormal body rotation", [](EntitySpec* s) { s->rotation = {1e-30f, 0, 0, 1e-30f}; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
   };
   for (const InvalidCase& c : cases) {
     EntitySpec spec = DynamicBox(50, {1, 3, 0}, {0.2f, 0.2f, 0.2f}, 1.0f);
