@@ -113,6 +113,11 @@ InvalidReason ValidateRigidBody(const schema::Container& c) {
   if (rb->linear_velocity() && !Finite(*rb->linear_velocity())) return R::kNaN;
   if (rb->angular_velocity() && !Finite(*rb->angular_velocity())) return R::kNaN;
   if (rb->mass() < 0) return R::kNegativeMass;
+  // A dynamic body from 1 mg to a million tonnes: outside it float inverse masses and inertias
+  // overflow or swamp every contact, and the guard would reset the body on every step.
+  if (!rb->kinematic() && rb->mass() > 0 && (rb->mass() < 1e-6f || rb->mass() > 1e9f)) {
+    return R::kOutOfRange;
+  }
   if (rb->linear_damping() < 0 || rb->linear_damping() > 1 || rb->angular_damping() < 0 ||
       rb->angular_damping() > 1 || rb->friction() < 0 || rb->restitution() < 0 ||
       rb->restitution() > 1) {
@@ -145,6 +150,20 @@ InvalidReason ValidateMeshIndices(const schema::Collider& col, const PhysicsConf
   return any_area ? R::kNone : R::kDegenerateMesh;
 }
 
+// A scaled size a collider may have: from 0.1 mm (below it a float product may have
+// underflowed, and Bullet's contact tolerances of centimetres make the shape meaningless) to
+// the world's width (a shape of 1e30 m is a unit error, and Bullet's float broadphase and
+// sparse SDF lose all precision). Offsets and vertices likewise stay within the world's width.
+constexpr float kMinColliderSize = 1e-4f;  // m
+bool SizeUsable(float scaled, const PhysicsConfig& config) {
+  return scaled >= kMinColliderSize && scaled <= 2 * config.world_half_extent;
+}
+bool OffsetUsable(const btVector3& scaled, const PhysicsConfig& config) {
+  const float width = 2 * config.world_half_extent;
+  return std::abs(scaled.x()) <= width && std::abs(scaled.y()) <= width &&
+         std::abs(scaled.z()) <= width;
+}
+
 // ConvexHull and TriangleMesh colliders. A triangle mesh on a dynamic entity is built as the
 // hull of its vertices, so it must also be a valid hull.
 InvalidReason ValidateVertexCollider(const schema::Collider& col, const PhysicsConfig& config,
@@ -155,6 +174,10 @@ InvalidReason ValidateVertexCollider(const schema::Collider& col, const PhysicsC
   if (nv > config.max_mesh_vertices) return R::kTooManyNodes;
   for (float f : *v) {
     if (!Finite(f)) return R::kNaN;
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    const btVector3 p(v->Get(3 * i), v->Get(3 * i + 1), v->Get(3 * i + 2));
+    if (!OffsetUsable(p * scale, config)) return R::kOutOfRange;
   }
   const bool hull = col.shape() == schema::ColliderShape::ConvexHull || dynamic;
   if (col.shape() == schema::ColliderShape::TriangleMesh) {
@@ -172,17 +195,27 @@ InvalidReason ValidateCollider(const schema::Collider& col, const PhysicsConfig&
   if (col.local_rotation() && !Finite(*col.local_rotation())) return R::kNaN;
   if (!Finite(col.radius()) || !Finite(col.height())) return R::kNaN;
   if (col.local_rotation() && !QuatUsable(*col.local_rotation())) return R::kOutOfRange;
+  if (col.local_position() && !OffsetUsable(ToBt(*col.local_position()) * scale, config)) {
+    return R::kOutOfRange;
+  }
+  const float smax = std::max({scale.x(), scale.y(), scale.z()});
   switch (col.shape()) {
     case schema::ColliderShape::Box:
     case schema::ColliderShape::Cylinder: {
       const schema::Vec3* he = col.half_extents();
-      if (he == nullptr || he->x() <= 0 || he->y() <= 0 || he->z() <= 0) return R::kOutOfRange;
+      if (he == nullptr || !SizeUsable(he->x() * scale.x(), config) ||
+          !SizeUsable(he->y() * scale.y(), config) || !SizeUsable(he->z() * scale.z(), config)) {
+        return R::kOutOfRange;
+      }
       return R::kNone;
     }
     case schema::ColliderShape::Sphere:
-      return col.radius() <= 0 ? R::kOutOfRange : R::kNone;
+      return SizeUsable(col.radius() * smax, config) ? R::kNone : R::kOutOfRange;
     case schema::ColliderShape::Capsule:
-      return col.radius() <= 0 || col.height() < 0 ? R::kOutOfRange : R::kNone;
+      return SizeUsable(col.radius() * smax, config) && col.height() >= 0 &&
+                     col.height() * scale.y() <= 2 * config.world_half_extent
+                 ? R::kNone
+                 : R::kOutOfRange;
     case schema::ColliderShape::ConvexHull:
     case schema::ColliderShape::TriangleMesh:
       return ValidateVertexCollider(col, config, scale, dynamic);

@@ -111,6 +111,38 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
       {"denormal body rotation", [](EntitySpec* s) { s->rotation = {1e-30f, 0, 0, 1e-30f}; },
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      // Sizes and offsets are bounded by the world's width (2 km at the default bounds), after
+      // scaling, and sizes from below by 0.1 mm.
+      {"box wider than the world", [](EntitySpec* s) { s->colliders[0].half_extents.x = 2001; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"collider offset beyond the world",
+       [](EntitySpec* s) { s->colliders[0].local_position = {0, 1e30f, 0}; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"scale overflows a sphere",
+       [](EntitySpec* s) {
+         s->colliders[0].shape = schema::ColliderShape::Sphere;
+         s->scale = {1e30f, 1e30f, 1e30f};
+       },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"scale shrinks a box below 0.1 mm", [](EntitySpec* s) { s->scale = {1, 1e-4f, 1}; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"capsule taller than the world",
+       [](EntitySpec* s) {
+         s->colliders[0].shape = schema::ColliderShape::Capsule;
+         s->colliders[0].radius = 0.1f;
+         s->colliders[0].height = 1e30f;
+       },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"dynamic mass under 1 mg", [](EntitySpec* s) { s->rigid_body->mass = 1e-39f; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"dynamic mass over a million tonnes", [](EntitySpec* s) { s->rigid_body->mass = 1e38f; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"hull vertex beyond the world",
+       [](EntitySpec* s) {
+         s->colliders[0].shape = schema::ColliderShape::ConvexHull;
+         s->colliders[0].vertices = {0, 0, 0, 1e30f, 0, 0, 0, 1, 0, 0, 0, 1};
+       },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
   };
   for (const InvalidCase& c : cases) {
     EntitySpec spec = DynamicBox(50, {1, 3, 0}, {0.2f, 0.2f, 0.2f}, 1.0f);
@@ -127,8 +159,10 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
   EXPECT_EQ(world.counters().rejected_containers, cases.size());
   // Nothing leaked into the simulation: both worlds are bit-identical.
   EXPECT_EQ(HashWorldState(world), HashWorldState(reference));
-  // And the world still accepts valid containers.
+  // And the world still accepts valid containers, at the size bounds too.
   EXPECT_TRUE(Add(world, DynamicBox(50, {1, 3, 0}, {0.2f, 0.2f, 0.2f}, 1.0f)).ok());
+  EXPECT_TRUE(Add(world, StaticBox(51, {0, -600, 0}, {2000, 1, 2000})).ok());
+  EXPECT_TRUE(Add(world, DynamicBox(52, {3, 3, 0}, {2e-4f, 2e-4f, 2e-4f}, 0.01f)).ok());
 }
 
 TEST(PhysicsWorldTest, BuildsEveryColliderKindAndCompound) {
