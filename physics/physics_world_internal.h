@@ -62,17 +62,22 @@ inline bool Finite(const btTransform& t) {
 
 inline btVector3 ToBt(const schema::Vec3& v) { return btVector3(v.x(), v.y(), v.z()); }
 inline btVector3 ToBt(const Vec3f& v) { return btVector3(v.x, v.y, v.z); }
+// The unit quaternion along (x, y, z, w), normalised in double: in float, components near
+// FLT_MAX square to inf and denormal ones to 0, and either normalises to zeros, whose rotation
+// matrix is NaN (2 / |q|^2 = inf times 0). Identity when the length is at most 1e-6 or not
+// finite.
+inline btQuaternion UnitOrIdentity(double x, double y, double z, double w) {
+  const double l2 = x * x + y * y + z * z + w * w;
+  if (!(l2 > 1e-12) || !std::isfinite(l2)) return btQuaternion::getIdentity();
+  const double inv = 1.0 / std::sqrt(l2);
+  return btQuaternion(static_cast<btScalar>(x * inv), static_cast<btScalar>(y * inv),
+                      static_cast<btScalar>(z * inv), static_cast<btScalar>(w * inv));
+}
 // All-zero quaternions (a flatbuffers struct left at its default) mean identity.
 inline btQuaternion ToBt(const schema::Quat& q) {
-  if (q.x() == 0 && q.y() == 0 && q.z() == 0 && q.w() == 0) return btQuaternion::getIdentity();
-  btQuaternion r(q.x(), q.y(), q.z(), q.w());
-  return r.normalized();
+  return UnitOrIdentity(q.x(), q.y(), q.z(), q.w());
 }
-inline btQuaternion ToBt(const Quatf& q) {
-  btQuaternion r(q.x, q.y, q.z, q.w);
-  const btScalar len = r.length();
-  return len > btScalar(1e-6) ? r / len : btQuaternion::getIdentity();
-}
+inline btQuaternion ToBt(const Quatf& q) { return UnitOrIdentity(q.x, q.y, q.z, q.w); }
 // A quaternion ToBt can normalise: exactly all zero (identity, ToBt's own test) or of
 // non-negligible length. The length is summed in double: in float, denormal components (say
 // w = -5.8e-39) square to 0 and would pass as "all zero", which ToBt then normalises to NaN.

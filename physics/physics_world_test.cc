@@ -212,6 +212,41 @@ TEST(PhysicsWorldTest, BuildsEveryColliderKindAndCompound) {
   EXPECT_EQ(world.counters().bodies, 4u);
 }
 
+// Quaternions are normalised in double: components near FLT_MAX square to inf in float and
+// used to normalise to zeros, a NaN rotation matrix that crashed Bullet's soft-body SDF (the
+// fuzzer's second finding, session 18). They are a usable direction, so they are accepted.
+TEST(PhysicsWorldTest, HugeQuaternionComponentsBecomeAUnitRotation) {
+  PhysicsWorld world;
+  ASSERT_TRUE(Add(world, Ground(1)).ok());
+  EntitySpec soft;
+  soft.id = 2;
+  soft.soft_body = SoftBodySpec{{0, 0.5f, 0, 0.1f, 0.5f, 0, 0, 0.6f, 0, 0, 0.5f, 0.1f},
+                                {0.1f, 0.1f, 0.1f, 0.1f}, {0, 1, 0, 2, 0, 3, 1, 2, 1, 3, 2, 3},
+                                50, 0.1f};
+  ASSERT_TRUE(Add(world, soft).ok());
+  EntitySpec paddle = StaticBox(3, {0, 0.5f, 0}, {0.3f, 0.3f, 0.3f});
+  paddle.rotation = {0, 0, -1.7e38f, 0};
+  paddle.rigid_body = RigidBodySpec{};
+  paddle.rigid_body->mass = 0;
+  paddle.rigid_body->kinematic = true;
+  paddle.colliders[0].local_rotation = {3e38f, 0, 0, 3e38f};
+  paddle.colliders[0].local_position = {0, 0.01f, 0};  // a compound, as in the finding
+  ASSERT_TRUE(Add(world, paddle).ok());
+  EntityState st;
+  ASSERT_TRUE(world.GetState(3, &st).ok());
+  EXPECT_NEAR(std::abs(st.rotation.z), 1.0f, 1e-6f);
+  ASSERT_TRUE(world.MoveToTransform(3, {0, 0.5f, 0}, {1e38f, 1e38f, 0, 0}).ok());
+  std::vector<Vec3f> nodes;
+  for (int i = 0; i < 30; ++i) {
+    world.Step();
+    ASSERT_TRUE(world.GetSoftBodyNodes(2, &nodes).ok());
+    for (const Vec3f& p : nodes) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z)) << "step " << i;
+  }
+  ASSERT_TRUE(world.GetState(3, &st).ok());
+  EXPECT_NEAR(std::abs(st.rotation.x), std::sqrt(0.5f), 1e-6f);
+  EXPECT_NEAR(std::abs(st.rotation.y), std::sqrt(0.5f), 1e-6f);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Commands
 
