@@ -415,8 +415,12 @@ Status PhysicsWorld::SetSoftBodyNodes(uint32_t id, uint32_t first, std::span<con
   if (first > total || nodes.size() > total - first) {
     return Status::InvalidArgument("nodes beyond the soft body's node count");
   }
+  const float bound = config_.world_half_extent;
   for (const Vec3f& n : nodes) {
     if (!Finite(n)) return Status(StatusCode::kInvalidArgument, "non-finite node position");
+    if (std::abs(n.x) > bound || std::abs(n.y) > bound || std::abs(n.z) > bound) {
+      return Status(StatusCode::kInvalidArgument, "node position outside the world bounds");
+    }
   }
   const btVector3 zero(0, 0, 0);
   for (size_t i = 0; i < nodes.size(); ++i) {

@@ -470,7 +470,7 @@ class PhysicsWorld {
   // the spawn shape, so the body keeps the deformation it had and relaxes from there as it would
   // have. The stability guard's last good state becomes these positions. Errors: kNotFound (not
   // a soft body), kInvalidArgument (first + size above the body's node count, or a non-finite
-  // position); nothing changes on error. O(nodes given).
+  // position or one outside the world bounds); nothing changes on error. O(nodes given).
   Status SetSoftBodyNodes(uint32_t id, uint32_t first, std::span<const Vec3f> nodes);
 
   // Advances exactly one fixed step of config().fixed_dt: applies pending kinematic moves and

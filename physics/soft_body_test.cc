@@ -295,6 +295,11 @@ TEST(SoftBodyTest, SetSoftBodyNodesRefusesBadInputAndChangesNothing) {
   nan[n / 2].y = std::numeric_limits<float>::quiet_NaN();
   EXPECT_EQ(b.world.SetSoftBodyNodes(PressedBunny::kBunny, 0, nan).code(),
             StatusCode::kInvalidArgument);
+  // Finite but beyond the world bounds (Bullet's sparse SDF indexes cells with int casts).
+  std::vector<Vec3f> far = nodes;
+  far[n / 2].x = 1e30f;
+  EXPECT_EQ(b.world.SetSoftBodyNodes(PressedBunny::kBunny, 0, far).code(),
+            StatusCode::kInvalidArgument);
   ASSERT_TRUE(b.world.GetSoftBodyNodes(PressedBunny::kBunny, &after).ok());
   EXPECT_EQ(MaxNodeDistance(nodes, after), 0.0f);
   // A chunk in the middle moves only its particles.
