@@ -1,5 +1,7 @@
 #include "physics/worker_protocol.h"
 
+#include <cstring>
+
 #include "protocol/byte_io.h"
 
 namespace edgephys {
@@ -90,6 +92,19 @@ EntityState FromPose(const schema::Pose& p) {
           {p.rotation().x(), p.rotation().y(), p.rotation().z(), p.rotation().w()}};
 }
 
+namespace {
+
+// times[i], copied out: FlatBuffers' verifier checks a vector's length prefix to 4-byte
+// alignment only, so in a hostile (verified) buffer the doubles may sit 4 bytes off 8-byte
+// alignment, where reading them in place is undefined (UBSan's report from message_fuzz).
+double TimeAt(const flatbuffers::Vector<double>& times, flatbuffers::uoffset_t i) {
+  double t;
+  std::memcpy(&t, times.Data() + static_cast<size_t>(i) * sizeof(double), sizeof t);
+  return flatbuffers::EndianScalar(t);
+}
+
+}  // namespace
+
 void ApplyWorkerDrive(const schema::WorkerDrive& message, RoomPhysics& room, double arrival) {
   const auto* poses = message.poses();
   if (poses == nullptr) return;
@@ -97,7 +112,7 @@ void ApplyWorkerDrive(const schema::WorkerDrive& message, RoomPhysics& room, dou
   const bool timed = times != nullptr && times->size() == poses->size();
   for (flatbuffers::uoffset_t i = 0; i < poses->size(); ++i) {
     const schema::Pose* p = poses->Get(i);
-    room.Drive(p->entity_id(), FromPose(*p), timed ? times->Get(i) : arrival);
+    room.Drive(p->entity_id(), FromPose(*p), timed ? TimeAt(*times, i) : arrival);
   }
 }
 
