@@ -18,6 +18,7 @@
 namespace edgephys::physics {
 
 using internal::Finite;
+using internal::InsideWorld;
 using internal::Kind;
 using internal::SameState;
 using internal::ToBt;
@@ -251,6 +252,9 @@ Status PhysicsWorld::MoveToTransform(uint32_t id, const Vec3f& pos, const Quatf&
   Entity* e = Find(id);
   if (e == nullptr) return Status(StatusCode::kNotFound, "unknown entity");
   if (!Finite(pos) || !Finite(rot)) return Status(StatusCode::kInvalidArgument, "non-finite pose");
+  if (!InsideWorld(pos, config_)) {
+    return Status(StatusCode::kInvalidArgument, "position outside the world bounds");
+  }
   const btTransform t(ToBt(rot), ToBt(pos));
   switch (e->kind) {
     case Kind::kKinematic:
@@ -280,6 +284,9 @@ Status PhysicsWorld::SetTransform(uint32_t id, const Vec3f& pos, const Quatf& ro
   Entity* e = Find(id);
   if (e == nullptr) return Status(StatusCode::kNotFound, "unknown entity");
   if (!Finite(pos) || !Finite(rot)) return Status(StatusCode::kInvalidArgument, "non-finite pose");
+  if (!InsideWorld(pos, config_)) {
+    return Status(StatusCode::kInvalidArgument, "position outside the world bounds");
+  }
   if (e->kind == Kind::kSoft) return Status(StatusCode::kInvalidArgument, "soft body");
   const btTransform t(ToBt(rot), ToBt(pos));
   if (e->body) {
@@ -415,10 +422,9 @@ Status PhysicsWorld::SetSoftBodyNodes(uint32_t id, uint32_t first, std::span<con
   if (first > total || nodes.size() > total - first) {
     return Status::InvalidArgument("nodes beyond the soft body's node count");
   }
-  const float bound = config_.world_half_extent;
   for (const Vec3f& n : nodes) {
     if (!Finite(n)) return Status(StatusCode::kInvalidArgument, "non-finite node position");
-    if (std::abs(n.x) > bound || std::abs(n.y) > bound || std::abs(n.z) > bound) {
+    if (!InsideWorld(n, config_)) {
       return Status(StatusCode::kInvalidArgument, "node position outside the world bounds");
     }
   }

@@ -447,9 +447,12 @@ class PhysicsWorld {
   // Kinematic entities: reach the pose at the end of the next Step() (Bullet derives their
   // velocity from the displacement, so they push dynamic bodies). Grabbed dynamic entities: sets
   // the drive target. Transform-only and static entities: teleport. Dynamic entities that are not
-  // grabbed: kInvalidArgument (use SetTransform to teleport). `rot` is normalised.
+  // grabbed: kInvalidArgument (use SetTransform to teleport). `rot` is normalised (a zero-length
+  // one is identity). A non-finite pose or a position outside the world bounds:
+  // kInvalidArgument, nothing changes.
   Status MoveToTransform(uint32_t id, const Vec3f& pos, const Quatf& rot);
-  // Teleports any entity (failover restore); keeps velocities of dynamic bodies.
+  // Teleports any entity (failover restore); keeps velocities of dynamic bodies. Errors as
+  // MoveToTransform's.
   Status SetTransform(uint32_t id, const Vec3f& pos, const Quatf& rot);
 
   // Starts driving a dynamic entity (with the Interactable flag) by velocity control towards

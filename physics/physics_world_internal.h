@@ -86,6 +86,11 @@ inline bool QuatUsable(const schema::Quat& q) {
   const double x = q.x(), y = q.y(), z = q.z(), w = q.w();
   return x * x + y * y + z * z + w * w > 1e-12;
 }
+// Inside the world bounds (the cube of PhysicsConfig::world_half_extent).
+inline bool InsideWorld(const Vec3f& p, const PhysicsConfig& config) {
+  const float b = config.world_half_extent;
+  return std::abs(p.x) <= b && std::abs(p.y) <= b && std::abs(p.z) <= b;
+}
 inline Vec3f ToVec(const btVector3& v) { return Vec3f{v.x(), v.y(), v.z()}; }
 
 inline EntityState ToState(uint32_t id, const btTransform& t) {

@@ -274,6 +274,12 @@ TEST(PhysicsWorldTest, KinematicFollowsMoveToTransformAndPushes) {
   // Dynamic entities only move through a grab.
   EXPECT_EQ(world.MoveToTransform(3, {0, 1, 0}, {}).code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(world.MoveToTransform(3, {kNaN, 1, 0}, {}).code(), StatusCode::kInvalidArgument);
+  // Finite but outside the world bounds: refused, the paddle stays where it was.
+  const Vec3f before = Pos(world, 2);
+  EXPECT_EQ(world.MoveToTransform(2, {1e30f, 0.25f, 0}, {}).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(world.SetTransform(2, {0, -1001, 0}, {}).code(), StatusCode::kInvalidArgument);
+  world.Step();
+  EXPECT_EQ(testing::Dist(Pos(world, 2), before), 0.0f);
 }
 
 TEST(PhysicsWorldTest, GrabbedCubeFollowsTargetAndStopsAtWall) {
