@@ -13,6 +13,10 @@ namespace {
 
 using R = InvalidReason;
 
+// The masses a dynamic body or a soft-body particle may have (kg).
+constexpr float kMinMass = 1e-6f;
+constexpr float kMaxMass = 1e9f;
+
 // Rejects hulls whose points span no volume. O(n).
 bool HullHasVolume(const flatbuffers::Vector<float>& v, const btVector3& scale) {
   const size_t n = v.size() / 3;
@@ -86,6 +90,9 @@ InvalidReason ValidateSoftBody(const schema::Container& c, const PhysicsConfig& 
     for (float m : *masses) {
       if (!Finite(m)) return R::kNaN;
       if (m < 0) return R::kNegativeMass;
+      // 0 pins the particle; otherwise the range of a dynamic body's mass (1 mg to 1e9 kg):
+      // Bullet stores 1 / mass in float, which a 1e-39 kg particle overflows to inf.
+      if (m != 0 && (m < kMinMass || m > kMaxMass)) return R::kOutOfRange;
     }
   }
   if (const auto* springs = sb->springs()) {
@@ -115,7 +122,7 @@ InvalidReason ValidateRigidBody(const schema::Container& c) {
   if (rb->mass() < 0) return R::kNegativeMass;
   // A dynamic body from 1 mg to a million tonnes: outside it float inverse masses and inertias
   // overflow or swamp every contact, and the guard would reset the body on every step.
-  if (!rb->kinematic() && rb->mass() > 0 && (rb->mass() < 1e-6f || rb->mass() > 1e9f)) {
+  if (!rb->kinematic() && rb->mass() > 0 && (rb->mass() < kMinMass || rb->mass() > kMaxMass)) {
     return R::kOutOfRange;
   }
   if (rb->linear_damping() < 0 || rb->linear_damping() > 1 || rb->angular_damping() < 0 ||

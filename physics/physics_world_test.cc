@@ -81,6 +81,13 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
          }
        },
        InvalidReason::kTooManyNodes, StatusCode::kTooLarge},
+      {"soft particle mass under 1 mg",
+       [](EntitySpec* s) {
+         s->rigid_body.reset();
+         s->colliders.clear();
+         s->soft_body = SoftBodySpec{{0, 1, 0, 1, 1, 0}, {1, 1e-39f}, {0, 1}, 10, 0};
+       },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
       {"spring index out of range",
        [](EntitySpec* s) {
          s->rigid_body.reset();
