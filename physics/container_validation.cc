@@ -60,11 +60,7 @@ InvalidReason ValidateTransform(const schema::Container& c, const PhysicsConfig&
   if (t == nullptr) return R::kNone;
   if (!Finite(t->position()) || !Finite(t->rotation()) || !Finite(t->scale())) return R::kNaN;
   if (!QuatUsable(t->rotation())) return R::kOutOfRange;
-  const float bound = config.world_half_extent;
-  const schema::Vec3& p = t->position();
-  if (std::abs(p.x()) > bound || std::abs(p.y()) > bound || std::abs(p.z()) > bound) {
-    return R::kOutOfRange;
-  }
+  if (!InsideWorld(t->position(), config)) return R::kOutOfRange;
   const btVector3 s = ScaleOf(c);
   if (s.x() <= 0 || s.y() <= 0 || s.z() <= 0) return R::kOutOfRange;
   return R::kNone;
@@ -162,11 +158,12 @@ InvalidReason ValidateMeshIndices(const schema::Collider& col, const PhysicsConf
 // the world's width (a shape of 1e30 m is a unit error, and Bullet's float broadphase and
 // sparse SDF lose all precision). Offsets and vertices likewise stay within the world's width.
 constexpr float kMinColliderSize = 1e-4f;  // m
+float WorldWidth(const PhysicsConfig& config) { return 2 * config.world_half_extent; }
 bool SizeUsable(float scaled, const PhysicsConfig& config) {
-  return scaled >= kMinColliderSize && scaled <= 2 * config.world_half_extent;
+  return scaled >= kMinColliderSize && scaled <= WorldWidth(config);
 }
 bool OffsetUsable(const btVector3& scaled, const PhysicsConfig& config) {
-  const float width = 2 * config.world_half_extent;
+  const float width = WorldWidth(config);
   return std::abs(scaled.x()) <= width && std::abs(scaled.y()) <= width &&
          std::abs(scaled.z()) <= width;
 }
@@ -220,7 +217,7 @@ InvalidReason ValidateCollider(const schema::Collider& col, const PhysicsConfig&
       return SizeUsable(col.radius() * smax, config) ? R::kNone : R::kOutOfRange;
     case schema::ColliderShape::Capsule:
       return SizeUsable(col.radius() * smax, config) && col.height() >= 0 &&
-                     col.height() * scale.y() <= 2 * config.world_half_extent
+                     col.height() * scale.y() <= WorldWidth(config)
                  ? R::kNone
                  : R::kOutOfRange;
     case schema::ColliderShape::ConvexHull:

@@ -251,10 +251,7 @@ Status PhysicsWorld::RemoveEntity(uint32_t id) {
 Status PhysicsWorld::MoveToTransform(uint32_t id, const Vec3f& pos, const Quatf& rot) {
   Entity* e = Find(id);
   if (e == nullptr) return Status(StatusCode::kNotFound, "unknown entity");
-  if (!Finite(pos) || !Finite(rot)) return Status(StatusCode::kInvalidArgument, "non-finite pose");
-  if (!InsideWorld(pos, config_)) {
-    return Status(StatusCode::kInvalidArgument, "position outside the world bounds");
-  }
+  if (Status st = internal::CheckPose(pos, rot, config_); !st.ok()) return st;
   const btTransform t(ToBt(rot), ToBt(pos));
   switch (e->kind) {
     case Kind::kKinematic:
@@ -283,10 +280,7 @@ Status PhysicsWorld::MoveToTransform(uint32_t id, const Vec3f& pos, const Quatf&
 Status PhysicsWorld::SetTransform(uint32_t id, const Vec3f& pos, const Quatf& rot) {
   Entity* e = Find(id);
   if (e == nullptr) return Status(StatusCode::kNotFound, "unknown entity");
-  if (!Finite(pos) || !Finite(rot)) return Status(StatusCode::kInvalidArgument, "non-finite pose");
-  if (!InsideWorld(pos, config_)) {
-    return Status(StatusCode::kInvalidArgument, "position outside the world bounds");
-  }
+  if (Status st = internal::CheckPose(pos, rot, config_); !st.ok()) return st;
   if (e->kind == Kind::kSoft) return Status(StatusCode::kInvalidArgument, "soft body");
   const btTransform t(ToBt(rot), ToBt(pos));
   if (e->body) {

@@ -87,9 +87,23 @@ inline bool QuatUsable(const schema::Quat& q) {
   return x * x + y * y + z * z + w * w > 1e-12;
 }
 // Inside the world bounds (the cube of PhysicsConfig::world_half_extent).
-inline bool InsideWorld(const Vec3f& p, const PhysicsConfig& config) {
+inline bool InsideWorld(float x, float y, float z, const PhysicsConfig& config) {
   const float b = config.world_half_extent;
-  return std::abs(p.x) <= b && std::abs(p.y) <= b && std::abs(p.z) <= b;
+  return std::abs(x) <= b && std::abs(y) <= b && std::abs(z) <= b;
+}
+inline bool InsideWorld(const Vec3f& p, const PhysicsConfig& config) {
+  return InsideWorld(p.x, p.y, p.z, config);
+}
+inline bool InsideWorld(const schema::Vec3& p, const PhysicsConfig& config) {
+  return InsideWorld(p.x(), p.y(), p.z(), config);
+}
+// A pose a command may set: finite, and its position inside the world bounds.
+inline Status CheckPose(const Vec3f& pos, const Quatf& rot, const PhysicsConfig& config) {
+  if (!Finite(pos) || !Finite(rot)) return Status(StatusCode::kInvalidArgument, "non-finite pose");
+  if (!InsideWorld(pos, config)) {
+    return Status(StatusCode::kInvalidArgument, "position outside the world bounds");
+  }
+  return Status::Ok();
 }
 inline Vec3f ToVec(const btVector3& v) { return Vec3f{v.x(), v.y(), v.z()}; }
 
