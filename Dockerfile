@@ -40,7 +40,7 @@ RUN groupadd --system edgephys \
       --shell /usr/sbin/nologin edgephys
 COPY --from=build /src/build/relay/edgephys-relay /usr/local/bin/edgephys-relay
 # The remote PhyS worker ships in the same image: `--entrypoint edgephys-phys`.
-COPY --from=build /src/build/physics/edgephys-phys /usr/local/bin/edgephys-phys
+COPY --from=build /src/build/physics_backend/edgephys-phys /usr/local/bin/edgephys-phys
 # Fail the image build, not the first container start, if a runtime library is missing.
 RUN for b in edgephys-relay edgephys-phys; do \
       if ldd /usr/local/bin/$b | grep -q 'not found'; then ldd /usr/local/bin/$b; exit 1; fi; \

@@ -29,7 +29,7 @@
 #include <BulletCollision/CollisionDispatch/btBoxBoxDetector.h>
 #include <btBulletDynamicsCommon.h>
 
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::physics {
 namespace {

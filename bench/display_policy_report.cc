@@ -44,7 +44,7 @@
 #include <string>
 #include <vector>
 
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::physics {
 namespace {

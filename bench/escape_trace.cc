@@ -33,8 +33,8 @@
 #include <btBulletDynamicsCommon.h>
 
 #include "bench/physics_cost_candidates.h"
-#include "physics/physics_world.h"
-#include "physics/scenes.h"
+#include "physics_backend/physics_world.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::physics {
 namespace {

@@ -15,7 +15,7 @@
 
 #include <memory>
 
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::physics {
 namespace {

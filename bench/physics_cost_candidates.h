@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "physics/physics_world.h"
+#include "physics_backend/physics_world.h"
 
 namespace edgephys::physics {
 

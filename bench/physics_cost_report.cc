@@ -34,9 +34,9 @@
 
 #include "loadgen/chart.h"
 #include "bench/physics_cost_candidates.h"
-#include "physics/container_builder.h"
-#include "physics/physics_world.h"
-#include "physics/scenes.h"
+#include "physics_backend/container_builder.h"
+#include "physics_backend/physics_world.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::physics {
 namespace {

@@ -10,7 +10,7 @@
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/stats.h"
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 

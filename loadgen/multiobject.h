@@ -35,7 +35,7 @@
 
 #include "loadgen/loopback_room.h"
 #include "loadgen/relay_target.h"
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::loadgen {
 

@@ -10,7 +10,7 @@
 #include "loadgen/loopback_room.h"
 #include "loadgen/softbody_scene.h"
 #include "loadgen/stats.h"
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 
 namespace edgephys::loadgen {
 namespace {

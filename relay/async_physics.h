@@ -39,8 +39,8 @@
 #include <vector>
 
 #include "edgephys/schema/container_generated.h"
-#include "physics/physics_world.h"
-#include "physics/room_physics.h"
+#include "physics_backend/physics_world.h"
+#include "physics_backend/room_physics.h"
 
 namespace edgephys {
 

@@ -21,7 +21,7 @@
 #include <set>
 #include <thread>
 
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 #include "protocol/container_builder.h"
 #include "relay/physics_link.h"
 

@@ -8,7 +8,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "physics/room_physics.h"
+#include "physics_backend/room_physics.h"
 #include "protocol/delta_codec.h"
 #include "protocol/shared_delta_codec.h"
 #include "protocol/state_codec.h"

@@ -8,7 +8,7 @@
 #include <memory>
 #include <vector>
 
-#include "physics/room_physics.h"
+#include "physics_backend/room_physics.h"
 #include "protocol/connection.h"
 #include "relay/replication.h"
 

@@ -24,8 +24,8 @@
 #include <vector>
 
 #include "edgephys/schema/control_generated.h"
-#include "physics/room_physics.h"
-#include "physics/worker_protocol.h"
+#include "physics_backend/room_physics.h"
+#include "physics_backend/worker_protocol.h"
 #include "protocol/connection.h"
 #include "relay/async_physics.h"
 

@@ -8,7 +8,7 @@
 #include <thread>
 
 #include "protocol/connection.h"
-#include "physics/physics_world.h"
+#include "physics_backend/physics_world.h"
 #include "relay/replication.h"
 #include "relay/room_budget.h"
 

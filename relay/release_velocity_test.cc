@@ -7,7 +7,7 @@
 #include <memory>
 #include <random>
 
-#include "physics/worker_protocol.h"
+#include "physics_backend/worker_protocol.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "relay/async_physics.h"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "client/client.h"
-#include "physics/worker_protocol.h"
+#include "physics_backend/worker_protocol.h"
 #include "protocol/byte_io.h"
 #include "protocol/container_builder.h"
 #include "protocol/delta_codec.h"

@@ -21,7 +21,7 @@
 #include <cstdint>
 
 #include "client/client_endpoint.h"
-#include "physics/worker.h"
+#include "physics_backend/worker.h"
 #include "protocol/delta_codec.h"
 #include "tests/fuzz/fuzz_world.h"
 #include "client/client_testing.h"

@@ -23,7 +23,7 @@
 #include <cstring>
 #include <unordered_map>
 
-#include "physics/worker_protocol.h"
+#include "physics_backend/worker_protocol.h"
 #include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/join_token.h"

@@ -10,7 +10,7 @@
 #include <cmath>
 #include <map>
 
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 #include "tests/integration/harness.h"
 #include "tests/integration/plated_bunny.h"
 

@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "physics/scenes.h"
+#include "physics_backend/scenes.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {

@@ -1,0 +1,72 @@
+// Helpers shared by the physics tests.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "physics_backend/container_builder.h"
+#include "physics_backend/physics_world.h"
+
+namespace edgephys::physics::testing {
+
+inline Status Add(PhysicsWorld& world, const EntitySpec& spec, InvalidReason* reason = nullptr) {
+  const std::vector<uint8_t> buf = BuildContainer(spec);
+  return world.AddEntity(AsContainer(buf), reason);
+}
+
+inline Vec3f Pos(const PhysicsWorld& world, uint32_t id) {
+  EntityState s;
+  (void)world.GetState(id, &s);
+  return s.position;
+}
+
+inline Vec3f Vel(const PhysicsWorld& world, uint32_t id) {
+  Vec3f lin, ang;
+  (void)world.GetVelocity(id, &lin, &ang);
+  return lin;
+}
+
+// A static ground slab with its top face at y = 0.
+inline EntitySpec Ground(uint32_t id, float friction = 0.5f, float restitution = 0.0f,
+                         float half = 50.0f) {
+  EntitySpec g = StaticBox(id, {0, -0.5f, 0}, {half, 0.5f, half});
+  g.rigid_body = RigidBodySpec{};
+  g.rigid_body->mass = 0;
+  g.rigid_body->friction = friction;
+  g.rigid_body->restitution = restitution;
+  return g;
+}
+
+inline Quatf AxisAngle(float ax, float ay, float az, float angle) {
+  const float s = std::sin(angle * 0.5f);
+  const float len = std::sqrt(ax * ax + ay * ay + az * az);
+  return Quatf{ax / len * s, ay / len * s, az / len * s, std::cos(angle * 0.5f)};
+}
+
+inline float Dist(const Vec3f& a, const Vec3f& b) {
+  const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+// Four boxes dropped apart and an aligned two-box stack on the ground, stepped 180 times under
+// `cfg`: no chaotic toppling, so settings that only change how pairs are found or batched give
+// the same resting poses. Returns the six boxes' positions (the stack's last: 0.1 and 0.3 m up).
+inline std::vector<Vec3f> DropSceneRestingPositions(const PhysicsConfig& cfg) {
+  PhysicsWorld world(cfg);
+  EXPECT_TRUE(Add(world, Ground(1)).ok());
+  for (uint32_t i = 0; i < 4; ++i) {
+    EXPECT_TRUE(
+        Add(world, DynamicBox(10 + i, {1.0f * i, 0.5f + 0.3f * i, 0}, {0.1f, 0.1f, 0.1f}, 1.0f))
+            .ok());
+  }
+  EXPECT_TRUE(Add(world, DynamicBox(20, {0, 0.5f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
+  EXPECT_TRUE(Add(world, DynamicBox(21, {0, 0.75f, 2}, {0.1f, 0.1f, 0.1f}, 1.0f)).ok());
+  for (int i = 0; i < 180; ++i) world.Step();
+  std::vector<Vec3f> out;
+  for (uint32_t id : {10u, 11u, 12u, 13u, 20u, 21u}) out.push_back(Pos(world, id));
+  return out;
+}
+
+}  // namespace edgephys::physics::testing
