@@ -1,5 +1,5 @@
-// Configuration of one relay process. Every field has a flag of the same name in
-// edgephys-relay (relay/main.cc) and a key in its config file.
+// Configuration of one relay process: one line per field (meaning, unit, default). The
+// edgephys-relay command line and config file set them (relay/relay_flags.h).
 #pragma once
 
 #include <cstdint>
@@ -39,14 +39,7 @@ struct AbuseLimits {
 };
 
 // The relay's connections: an ack owed for a client's unreliable payloads waits up to 20 ms
-// for the client's next state datagram (rooms tick every 1/60 s by default) instead of
-// leaving in a sealed datagram of its own; acks for reliable units leave at once. Reliable
-// events leave at once by default; max_reliable_delay_s = 0.02 (--reliable-delay) makes those
-// queued between two ticks wait for the next tick's state datagram (PhyS worker links: always
-// at once). Off by default: the gate for the default, ccu 1,000 users / 40 rooms socket p99
-// under 50 ms with it and --sleep-to-deadline, was not met in issue 11 session 10 (52.5 ms;
-// without them 55.5 ms in the same sitting; docs/benchmarks.md, "Session 10"). The SDK
-// example failures of session 9 were the test's own angle check.
+// for the client's next state datagram instead of leaving in a datagram of its own.
 inline ConnectionConfig RelayConnectionDefaults() {
   ConnectionConfig c;
   c.max_ack_delay_s = 0.02;
@@ -54,32 +47,19 @@ inline ConnectionConfig RelayConnectionDefaults() {
 }
 
 struct RelayConfig {
-  // The operator's secret for join tokens (HMAC-SHA256). The built-in default is for local
-  // development only; the relay warns loudly when it is used.
-  std::string secret = "edgephys-dev-secret";
-  uint32_t max_clients = 4096;     // connections at once; beyond: ServerFull
-  // Every packet after the handshake authenticated and encrypted (protocol/packet_seal.h);
-  // off only to measure its cost: then a Connect without a key is accepted and not sealed.
-  bool packet_auth = true;
-  RoomConfig room_defaults;
-  ConnectionConfig connection = RelayConnectionDefaults();
-  physics::PhysicsConfig physics;  // each room's embedded PhyS world
-  // Threads for embedded PhyS and the parallel replication tick, the relay's own thread
-  // included. 1: PhyS steps synchronously on the relay's thread (deterministic; tests). N > 1:
-  // N - 1 physics threads step rooms' worlds off the relay loop (relay/async_physics.h), which
-  // hands commands over and picks finished steps up without ever waiting for one.
+  std::string secret = "edgephys-dev-secret";  // join-token HMAC key; the default is for development
+  uint32_t max_clients = 4096;       // connections at once; beyond: ServerFull
+  bool packet_auth = true;           // seal every packet after the handshake; false only to measure
+  RoomConfig room_defaults;          // rooms created without an explicit configuration
+  ConnectionConfig connection = RelayConnectionDefaults();  // timeouts, ack delay
+  physics::PhysicsConfig physics;    // each room's embedded PhyS world
+  // Threads for embedded PhyS, the relay's own included. 1: PhyS steps on the relay's thread
+  // (deterministic; tests). N > 1: N - 1 threads step rooms' worlds off the relay loop.
   size_t physics_threads = std::max(1u, std::thread::hardware_concurrency());
-  // Niceness the N - 1 physics threads add to their own priority (Linux; 0..19, 0: none), so
-  // that on a machine whose cores are all busy the relay loop's packets go before a heavy
-  // room's physics, which then simulates slower (its real-time factor, a metric) instead of
-  // delaying every room's hand poses and acks (relay/async_physics.h; docs/benchmarks.md,
-  // "Isolation").
-  int physics_nice = 0;
-  // The physics threads run under SCHED_IDLE (Linux; physics_nice is then ignored): only on
-  // cores the relay loop and other normal-priority work leave idle (AsyncPhysicsPool).
-  bool physics_idle = false;
+  int physics_nice = 0;              // niceness added to the physics threads (0..19)
+  bool physics_idle = false;         // physics threads under SCHED_IDLE (overrides physics_nice)
   size_t max_datagrams_per_update = 4096;  // receive batch bound per Update()
-  AbuseLimits limits;
+  AbuseLimits limits;                // what one peer may cost the relay
 };
 
 inline constexpr char kDevelopmentSecret[] = "edgephys-dev-secret";
