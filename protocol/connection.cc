@@ -135,13 +135,11 @@ struct Connection::Impl {
 
   // New units first, then those whose resend timeout expired, packed greedily in unit order,
   // at most kMaxDataPacketsPerUpdate packets (the rest waits for the next Update()).
-  // With `hold_new`, only resends (new units wait for a later packet).
-  void SendDueUnits(double now, PacketWriter& out, bool hold_new) {
+  void SendDueUnits(double now, PacketWriter& out) {
     double timeout = ResendTimeout();
     size_t size = 0;
     int packets = 0;
     for (bool resends : {false, true}) {
-      if (!resends && hold_new) continue;
       for (size_t i = 0; i < sender.sendable_count(); ++i) {
         if (sender.IsSent(i) != resends || !sender.IsDue(i, now, timeout)) continue;
         ReliableUnitView unit = sender.View(i);
@@ -194,31 +192,11 @@ struct Connection::Impl {
   }
   static constexpr size_t kPiggybackScan = 64;
 
-  // ---- holding new reliable units (ConnectionConfig::max_reliable_delay_s) ----------------
-
-  // A unit was queued: the hold of the oldest unsent one starts now (the last time we were
-  // given: never later than the real queueing, so a unit never waits longer than the delay).
-  void NoteQueued() {
-    if (new_waiting) return;
-    new_waiting = true;
-    new_since = last_now;
-  }
-  // After sending: nothing unsent left ends the hold (a partial send keeps the older start).
-  void NoteSent() {
-    if (sender.unsent_units() == 0) new_waiting = false;
-  }
   // Never-sent units inside the send window (those beyond it wait for acks, not for time).
   size_t SendableUnsent() const {
     const size_t beyond =
         sender.queued_units() > kReliableWindow ? sender.queued_units() - kReliableWindow : 0;
     return sender.unsent_units() > beyond ? sender.unsent_units() - beyond : 0;
-  }
-  bool HoldingNew(double now) const {
-    return new_waiting && config.max_reliable_delay_s > 0 &&
-           now - new_since < config.max_reliable_delay_s;
-  }
-  bool ResendDue(double now) const {
-    return now - sender.OldestInFlight(kReliableWindow) >= ResendTimeout();
   }
 
   // ---- acknowledgements, RTT and loss ----------------------------------------------------
@@ -321,8 +299,6 @@ struct Connection::Impl {
   uint16_t newest_unreliable = 0;  // sequence of the newest unreliable payload delivered
   int pending_disconnect_sends = 0;
   double last_now = 0;       // the latest `now` given to this connection
-  bool new_waiting = false;  // never-sent reliable units are queued ...
-  double new_since = 0;      // ... the oldest since this time (as of last_now)
   std::array<uint8_t, kMaxPacketSize> scratch{};
   std::array<uint16_t, kMaxUnitsPerPacket> units{};  // unit ids of the packet being built
   size_t unit_count = 0;
@@ -338,7 +314,6 @@ Status Connection::SendReliable(std::span<const uint8_t> message) {
   if (!connected()) return Status::NotConnected("connection closed");
   Status status = impl_->sender.Queue(message);
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();
-  if (status.ok()) impl_->NoteQueued();
   return status;
 }
 
@@ -360,7 +335,6 @@ Result<uint16_t> Connection::SendUnreliable(std::span<const uint8_t> payload, do
   size += kUnreliableChunkHeader + payload.size();
   impl_->last_now = now;
   impl_->AppendDueUnits(&size, now);
-  impl_->NoteSent();
   return impl_->FinishPacket(size, /*ack_eliciting=*/true, now, out);
 }
 
@@ -458,10 +432,6 @@ void Connection::SetTimeout(double timeout_s) {
   if (timeout_s > 0) impl_->config.timeout_s = timeout_s;
 }
 
-void Connection::SetMaxReliableDelay(double delay_s) {
-  if (delay_s >= 0) impl_->config.max_reliable_delay_s = delay_s;
-}
-
 double Connection::NextTimer() const {
   const Impl& m = *impl_;
   if (m.pending_disconnect_sends > 0) return m.last_now;
@@ -471,12 +441,8 @@ double Connection::NextTimer() const {
   if (m.ack_pending) {
     t = std::min(t, m.ack_urgent ? m.last_now : m.ack_pending_since + m.config.max_ack_delay_s);
   }
-  if (m.SendableUnsent() > 0) {
-    // Held: until the hold ends; otherwise (Update() stopped at its packet cap) at once.
-    t = std::min(t, m.new_waiting && m.config.max_reliable_delay_s > 0
-                        ? m.new_since + m.config.max_reliable_delay_s
-                        : m.last_now);
-  }
+  // Unsent units left (Update() stopped at its packet cap): at once.
+  if (m.SendableUnsent() > 0) t = std::min(t, m.last_now);
   return std::min(t, m.sender.OldestInFlight(Impl::kPiggybackScan) + m.ResendTimeout());
 }
 
@@ -499,12 +465,7 @@ void Connection::Update(double now, PacketWriter& out) {
   auto keepalive_due = [&] {
     return now - impl_->last_send_time >= impl_->config.keepalive_interval_s;
   };
-  // New units wait for a packet that leaves anyway, up to max_reliable_delay_s; if this
-  // Update() sends one (a resend, an owed ack, a keep-alive), they go in it.
-  const bool hold = impl_->HoldingNew(now) && !ack_due() && !keepalive_due() &&
-                    !impl_->ResendDue(now);
-  impl_->SendDueUnits(now, out, hold);
-  impl_->NoteSent();
+  impl_->SendDueUnits(now, out);
   if (ack_due() || keepalive_due()) impl_->SendAckOnly(now, out);
   stats_.pending_reliable_bytes = impl_->sender.pending_bytes();
 }

@@ -14,8 +14,8 @@
 // Channels:
 //  * Reliable-ordered: SendReliable() queues a message; it is cut into units of at most
 //    kMaxReliableUnitSize bytes, each resent on an RTT-based timeout until the packet carrying
-//    it is acknowledged. A new unit may wait up to ConnectionConfig::max_reliable_delay_s for
-//    a packet that leaves anyway (an unreliable payload's) before leaving in its own. The receiver drops duplicate units and delivers whole messages exactly
+//    it is acknowledged. New units leave on the next Update() or ride on an unreliable payload's
+//    packet if one leaves first. The receiver drops duplicate units and delivers whole messages exactly
 //    once, in send order. Receive-side memory is bounded by the window (kReliableWindow units)
 //    and by ConnectionConfig::max_message_size for the message being reassembled.
 //  * Unreliable-sequenced: SendUnreliable() sends one packet now. The receiver delivers its
@@ -117,8 +117,8 @@ class Connection {
 
   // The earliest time (seconds, the clock of `now`) at which Update() has something to send or
   // check: a due or held new reliable unit, a resend, an owed ack, a keep-alive, the silence
-  // timeout; +infinity once disconnected with nothing left to send. A loop that sleeps between
-  // Update() calls wakes by then (the relay's loop does; docs/operations.md). Valid until the
+  // timeout; +infinity once disconnected with nothing left to send. The relay services a session
+  // again by then. Valid until the
   // connection is next used (ProcessPacket, SendReliable, SendUnreliable, Update). O(units in
   // flight, at most 64 looked at).
   double NextTimer() const;
@@ -129,9 +129,6 @@ class Connection {
 
   // Changes the silence timeout (e.g. shorter for relay <-> worker links). Seconds, > 0.
   void SetTimeout(double timeout_s);
-  // Changes ConnectionConfig::max_reliable_delay_s (0: new units leave on the next Update(),
-  // e.g. relay -> PhyS worker commands). Seconds, >= 0.
-  void SetMaxReliableDelay(double delay_s);
 
   bool connected() const { return disconnect_reason_ == DisconnectReason::kNone; }
   DisconnectReason disconnect_reason() const { return disconnect_reason_; }

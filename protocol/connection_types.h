@@ -36,14 +36,6 @@ struct ConnectionConfig {
   // 20 ms (RelayConnectionDefaults, relay/relay_config.h): its rooms' state datagrams (every
   // 1/60 s) carry the acks, so it seals and sends about half as many datagrams.
   double max_ack_delay_s = 0;
-  // How long a new reliable unit may wait in the queue for a packet that leaves anyway (the
-  // next unreliable payload carries the due units that fit; so do resends, acks and
-  // keep-alives that Update() sends) before Update() sends it in a packet of its own. Counted
-  // from SendReliable() (as of the last time given to this connection). 0: the next Update()
-  // sends it (the client's default). The relay uses 20 ms (RelayConnectionDefaults): events
-  // queued between two 1/60 s room ticks leave in the next tick's state datagram. Resends
-  // are never held; a unit's delivery is delayed by at most this plus the usual resend rules.
-  double max_reliable_delay_s = 0;
 };
 
 // Real-time status of one connection (GameNetworkingSockets style); the relay exports it.

@@ -48,7 +48,7 @@ class DatagramSocket {
   // The address peers send to.
   virtual Endpoint LocalEndpoint() const = 0;
 
-  // Sends whatever a batching socket queued (BatchedSocket); returns how many datagrams the OS
+  // Sends whatever a batching socket queued (relay shards); returns how many datagrams the OS
   // refused (lost, as UDP may lose them). Unbuffered sockets send in SendTo() and return 0.
   virtual size_t Flush() { return 0; }
 };

@@ -236,7 +236,6 @@ void AsyncPhysicsRoom::Advance(double now, Outputs* finished, Outputs* used,
     finished_.clear();
     *counters = counters_;
     if (!scheduled_ && WantsRun()) schedule = scheduled_ = true;
-    next_due_seen_ = scheduled_ ? now + fixed_dt_ : next_due_;
   }
   if (schedule) pool_->Schedule(this);
 }

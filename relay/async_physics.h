@@ -149,9 +149,6 @@ class AsyncPhysicsRoom {
   // the world's counters as of its last step into `*counters`. Queues the room when a step is
   // due or commands wait. Never waits for a step.
   void Advance(double now, Outputs* finished, Outputs* used, physics::PhysicsCounters* counters);
-  // As of the last Advance(): when the next fixed step is due (relay clock), or, if the room
-  // was queued or running then, one fixed step after that call.
-  double next_due_seen() const { return next_due_seen_; }
   // The link is gone: queued commands are dropped and the room is freed on a physics thread
   // (after its current iteration, if one is running). The caller must not use it afterwards.
   void Close();
@@ -169,7 +166,6 @@ class AsyncPhysicsRoom {
   AsyncPhysicsPool* const pool_;
   const float fixed_dt_;
   const int max_substeps_;
-  double next_due_seen_ = 0;  // relay side only (Advance)
 
   std::mutex mu_;
   // Guarded by mu_.

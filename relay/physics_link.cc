@@ -138,11 +138,6 @@ void EmbeddedPhysicsLink::Advance(double now, StepOutput* out) {
   meter_.Record(now, out->steps * static_cast<double>(config_.fixed_dt));
 }
 
-double EmbeddedPhysicsLink::NextStepDue() const {
-  if (room_ != nullptr) return room_->next_due_seen();
-  return clock_.next_due(config_.fixed_dt);
-}
-
 physics::PhysicsCounters EmbeddedPhysicsLink::counters() const {
   if (room_ == nullptr) return physics_->counters();
   physics::PhysicsCounters c = counters_;

@@ -76,12 +76,6 @@ class PhysicsLink {
   // Embedded links: from now on the world steps on `pool`'s threads and Advance() never waits
   // for a step. `pool` must outlive the link. No-op for remote links and when already there.
   virtual void RunOn(AsyncPhysicsPool* pool) { (void)pool; }
-  // The relay-clock time by which Advance() should next be called for the room's steps to
-  // start on time (the next fixed step's due time; while a step runs on a physics thread, one
-  // fixed step after the last Advance()); +infinity when only the relay's own schedule matters
-  // (remote links: their results arrive as datagrams). As of the last Advance(). The relay's
-  // loop wakes by then (Relay::NextDeadline).
-  virtual double NextStepDue() const { return std::numeric_limits<double>::infinity(); }
 };
 
 class EmbeddedPhysicsLink final : public PhysicsLink {
@@ -112,7 +106,6 @@ class EmbeddedPhysicsLink final : public PhysicsLink {
   double realtime_factor() const override { return meter_.value(); }
   void RunOn(AsyncPhysicsPool* pool) override;
   bool asynchronous() const { return room_ != nullptr; }
-  double NextStepDue() const override;
 
  private:
   const physics::PhysicsConfig config_;

@@ -129,21 +129,6 @@ void Relay::FlushSends() {
   RelayCounters::Inc(counters_->send_errors, socket_->Flush());
 }
 
-double Relay::NextDeadline() const {
-  double t = sessions_deadline_;
-  for (const auto& [name, room] : rooms_) {
-    double due = room->room().next_tick();
-    if (due <= now_ && bulk_hold_until_ > now_ && IsBulk(*room)) due = bulk_hold_until_;  // waiting
-    t = std::min(t, due);
-    if (const PhysicsLink* link = room->room().physics(); link != nullptr) {
-      // Not sooner than 1 ms ahead: a step whose output the pool has not taken yet must not
-      // spin the loop.
-      t = std::min(t, std::max(link->NextStepDue(), now_ + 0.001));
-    }
-  }
-  return t;
-}
-
 void Relay::UpdateSessions(double now, bool sample_rtt) {
   removal_scratch_.clear();
   double next = std::numeric_limits<double>::infinity();
@@ -306,7 +291,6 @@ void Relay::OnWorkerHello(Session& s) {
   if (s.is_worker()) return;
   s.set_worker(true);
   s.connection().SetTimeout(kWorkerTimeoutS);
-  s.connection().SetMaxReliableDelay(0);  // PhyS commands leave at once
   workers_.Attach(s.connection().id(), &s);
   counters_->physics_workers.fetch_add(1, std::memory_order_relaxed);
   spdlog::info("PhyS worker {:08x} attached from {}:{}", s.connection().id(),

@@ -82,16 +82,6 @@ class Relay final : private SessionHost {
   // token expiry.
   void Update(double now, uint64_t unix_now_s);
 
-  // The earliest time (Update()'s clock) at which Update() has work that no datagram brings:
-  // a room's tick, an embedded PhyS step to start, a session's connection timer
-  // (Connection::NextTimer: held reliable units, resends, owed acks, keep-alives, the silence
-  // timeout), a closing session's deadline, a join timeout. As of the last Update() (or
-  // earlier, after an operator call). Datagrams that arrive before then wait in the socket:
-  // the relay's loop sleeps until this time (capped) and the next Update() drains them
-  // (relay/main.cc; docs/operations.md, "The relay loop"). Nothing the relay sends depends
-  // on handling a datagram the moment it arrives: poses go out on the room's next tick, and
-  // acks and reliable events ride on its state datagrams. O(rooms).
-  double NextDeadline() const;
 
   // Operator API: creates (or reconfigures an empty) room. kInvalidArgument for a bad name or
   // config, kAlreadyExists if the room has members or entities.
@@ -220,7 +210,7 @@ class Relay final : private SessionHost {
   static constexpr size_t kBulkRoomEntities = 1024;
   std::vector<RoomHost*> bulk_rooms_;
   // Due bulk rooms wait for an imminent light room's tick (relay/bulk_tick_scheduler.h); one
-  // that waits is held until bulk_hold_until_ (NextDeadline reports that, not its past due time).
+  // that waits is held until bulk_hold_until_.
   BulkTickScheduler bulk_scheduler_;
   double bulk_hold_until_ = -std::numeric_limits<double>::infinity();
   // Datagrams of members of bulk rooms received in this update, handled after the light rooms'
