@@ -29,9 +29,28 @@ file(RELATIVE_PATH EDGEPHYS_PC_TO_PREFIX "/p/${CMAKE_INSTALL_LIBDIR}/pkgconfig" 
 configure_file(${PROJECT_SOURCE_DIR}/cmake/edgephys.pc.in ${PROJECT_BINARY_DIR}/edgephys.pc @ONLY)
 install(FILES ${PROJECT_BINARY_DIR}/edgephys.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig COMPONENT sdk)
 
-# The language bindings are sources a project copies or points at; ship them with the docs.
+# The language bindings. Each finds the installed libedgephys with no environment variable:
+#  * Python: share/edgephys/bindings/python is a pip-installable package whose
+#    edgephys/_install.py (written here, at install time, so `--prefix` and DESTDIR hold) names
+#    the library: `pip install <prefix>/share/edgephys/bindings/python`.
+#  * C#: lib/edgephys/dotnet/Edgephys.dll (built with mcs when Mono is present) and its
+#    Edgephys.dll.config, whose dllmap points Mono at the installed library: reference the
+#    assembly and copy both files next to the application.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/bindings/ DESTINATION ${CMAKE_INSTALL_DATADIR}/edgephys/bindings
-        COMPONENT sdk PATTERN "__pycache__" EXCLUDE PATTERN "*.exe" EXCLUDE PATTERN "*.dll" EXCLUDE)
+        COMPONENT sdk PATTERN "__pycache__" EXCLUDE PATTERN "*.exe" EXCLUDE PATTERN "*.dll" EXCLUDE
+        PATTERN "_install.py" EXCLUDE PATTERN "build" EXCLUDE PATTERN "*.egg-info" EXCLUDE)
+set(EDGEPHYS_INSTALLED_LIB "${CMAKE_INSTALL_LIBDIR}/libedgephys.so.1")
+install(CODE "
+  set(lib \"\${CMAKE_INSTALL_PREFIX}/${EDGEPHYS_INSTALLED_LIB}\")
+  file(WRITE \"\$ENV{DESTDIR}\${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_DATADIR}/edgephys/bindings/python/edgephys/_install.py\"
+       \"# Written by cmake --install: the libedgephys this package was installed with.\\nLIBRARY = '\${lib}'\\n\")
+  if(EXISTS \"${PROJECT_BINARY_DIR}/examples/csharp/Edgephys.dll\")
+    set(dotnet \"\$ENV{DESTDIR}\${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_LIBDIR}/edgephys/dotnet\")
+    file(INSTALL \"${PROJECT_BINARY_DIR}/examples/csharp/Edgephys.dll\" DESTINATION \"\${dotnet}\")
+    file(WRITE \"\${dotnet}/Edgephys.dll.config\"
+         \"<configuration>\\n  <dllmap dll=\\\"edgephys\\\" target=\\\"\${lib}\\\"/>\\n</configuration>\\n\")
+  endif()
+" COMPONENT sdk)
 
 # CPack: one .deb with everything (cpack -G DEB in the build directory).
 set(CPACK_PACKAGE_NAME edgephys)

@@ -12,8 +12,9 @@ C status and edgephys_last_error()'s message.
         for ev in c.events():
             if ev.type == ep.EVENT_CONNECTED: c.join("lobby")
 
-The library is found through $EDGEPHYS_LIBRARY (a path), then the system loader (libedgephys.so
-installed with cmake --install or the .deb). A Client is not thread-safe (one thread at a time).
+The library is found through $EDGEPHYS_LIBRARY (a path, to override), then the install it came
+with (`cmake --install` writes its library's path into edgephys/_install.py, which
+`pip install <prefix>/share/edgephys/python` carries along), then the system loader (the .deb). A Client is not thread-safe (one thread at a time).
 """
 import ctypes
 import ctypes.util
@@ -144,9 +145,25 @@ class EdgephysError(RuntimeError):
 
 
 # ---- the library --------------------------------------------------------------------------
+def _library_path():
+    if os.environ.get("EDGEPHYS_LIBRARY"):
+        return os.environ["EDGEPHYS_LIBRARY"]
+    try:
+        from . import _install  # written by cmake --install
+        if os.path.exists(_install.LIBRARY):
+            return _install.LIBRARY
+    except ImportError:
+        pass
+    return ctypes.util.find_library("edgephys") or "libedgephys.so.1"
+
+
 def _load():
-    path = os.environ.get("EDGEPHYS_LIBRARY") or ctypes.util.find_library("edgephys") or "libedgephys.so.1"
-    lib = ctypes.CDLL(path)
+    path = _library_path()
+    try:
+        lib = ctypes.CDLL(path)
+    except OSError as e:
+        raise OSError(f"edgephys: cannot load the native library {path!r}: {e}. Install the SDK "
+                      "(cmake --install or the .deb) or set EDGEPHYS_LIBRARY to libedgephys.so.1") from e
     P = ctypes.POINTER
     c = ctypes.c_void_p
     u32, f64, sz = ctypes.c_uint32, ctypes.c_double, ctypes.c_size_t
