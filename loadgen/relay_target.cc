@@ -57,10 +57,14 @@ std::string ValidateExternalRelay(const ExternalRelayOptions& o) {
     }
     return "";
   }
-  if (!ParseEndpoint(o.relay).ok()) return "--relay: not a numeric HOST:PORT: " + o.relay;
+  if (auto ep = ParseEndpoint(o.relay); !ep.ok()) {
+    return "--relay: " + ep.status().ToString();
+  }
   if (o.secret.empty()) return "--relay needs --secret (the relay's join token secret)";
-  if (o.metrics != "off" && !ParseEndpoint(MetricsAddress(o)).ok()) {
-    return "--metrics: not a numeric HOST:PORT: " + o.metrics;
+  if (o.metrics != "off") {
+    if (auto ep = ParseEndpoint(MetricsAddress(o)); !ep.ok()) {
+      return "--metrics: " + ep.status().ToString();
+    }
   }
   if (o.relay_pid < 0) return "--relay-pid must be positive";
   return "";

@@ -43,7 +43,7 @@ int main(int argc, char** argv) {
   }
   auto endpoint = ParseEndpoint(relay);
   if (!endpoint.ok()) {
-    spdlog::error("--relay {}: {}", relay, endpoint.status().message());
+    spdlog::error("--relay {}: {}", relay, endpoint.status().ToString());
     return 2;
   }
   std::signal(SIGINT, OnSignal);
@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
     auto address = endpoint->address().is_v6() ? asio::ip::make_address("::") : asio::ip::make_address("0.0.0.0");
     auto socket = UdpSocket::Open(Endpoint(address, 0));
     if (!socket.ok()) {
-      spdlog::error("cannot open a UDP socket: {}", socket.status().message());
+      spdlog::error("cannot open a UDP socket: {}", socket.status().ToString());
       return 1;
     }
     JoinToken token;
@@ -66,7 +66,7 @@ int main(int argc, char** argv) {
     token.nonce = SecureRandom64();
     auto signed_token = SignJoinToken(token, key);
     if (!signed_token.ok()) {
-      spdlog::error("cannot sign the worker token: {}", signed_token.status().message());
+      spdlog::error("cannot sign the worker token: {}", signed_token.status().ToString());
       return 2;
     }
     PhysicsWorker worker{physics::PhysicsConfig{}};

@@ -9,8 +9,9 @@
 
 namespace edgephys {
 
-// Accepts a numeric IPv4 or bracketed IPv6 address, or no host (any IPv4 address), then a
-// port. kInvalidArgument otherwise (host names are not resolved).
+// Accepts host:port where host is a numeric IPv4 address, a bracketed IPv6 address, a host
+// name (resolved here with getaddrinfo, blocking; an IPv4 address is preferred) or nothing (any
+// IPv4 address). kInvalidArgument, naming the text or the resolver's error, otherwise.
 Result<Endpoint> ParseEndpoint(std::string_view text);
 std::string FormatEndpoint(const Endpoint& endpoint);
 

@@ -1,5 +1,7 @@
 #include "protocol/udp_socket.h"
 
+#include "protocol/endpoint.h"
+
 #include <gtest/gtest.h>
 #include <time.h>
 
@@ -296,6 +298,17 @@ TEST(UdpSocketTest, ArrivalTimesOverIPv6) {
   EXPECT_EQ(from, (*a)->LocalEndpoint());
   EXPECT_GE(arrival, sent);
   EXPECT_LE(arrival, RealtimeNow());
+}
+
+TEST(UdpSocket, BindErrorNamesTheAddressAndTheReason) {
+  auto first = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
+  ASSERT_TRUE(first.ok());
+  const Endpoint taken = (*first)->LocalEndpoint();
+  auto second = UdpSocket::Open(taken);
+  ASSERT_FALSE(second.ok());
+  const std::string message = second.status().ToString();
+  EXPECT_NE(message.find(FormatEndpoint(taken)), std::string::npos) << message;
+  EXPECT_NE(message.find("in use"), std::string::npos) << message;
 }
 
 }  // namespace

@@ -72,11 +72,22 @@ int main(int argc, char** argv) {
   ClusterOptions& cluster = flags.cluster;
   config.secret = SecretFromEnv(secret);
   if (*flags.token_cmd) {
+    const bool have_secret = !secret.empty() || std::getenv("EDGEPHYS_SECRET") != nullptr;
+    if (!have_secret && !flags.token_dev_secret) {
+      std::fprintf(stderr,
+                   "token: no secret: pass --secret or set EDGEPHYS_SECRET to the relay's secret "
+                   "(--dev-secret signs for a relay run on the development secret)\n");
+      return 2;
+    }
+    if (have_secret && flags.token_dev_secret) {
+      std::fprintf(stderr, "token: --dev-secret and a secret (--secret/EDGEPHYS_SECRET) exclude each other\n");
+      return 2;
+    }
     token.expiry_unix_s = UnixNow() + static_cast<uint64_t>(flags.token_ttl_s);
     token.nonce = SecureRandom64();
     auto bytes = SignJoinToken(token, config.secret);
     if (!bytes.ok()) {
-      std::fprintf(stderr, "token: %s\n", std::string(bytes.status().message()).c_str());
+      std::fprintf(stderr, "token: %s\n", std::string(bytes.status().ToString()).c_str());
       return 2;
     }
     std::cout << Base64UrlEncode(*bytes) << "\n";
@@ -90,12 +101,12 @@ int main(int argc, char** argv) {
   }
   auto endpoint = ParseEndpoint(bind);
   if (!endpoint.ok()) {
-    spdlog::error("--bind {}: {}", bind, endpoint.status().message());
+    spdlog::error("--bind {}: {}", bind, endpoint.status().ToString());
     return 2;
   }
   auto socket = UdpSocket::Open(*endpoint);
   if (!socket.ok()) {
-    spdlog::error("cannot bind UDP {}: {}", bind, socket.status().message());
+    spdlog::error("cannot bind UDP {}: {}", bind, socket.status().ToString());
     return 1;
   }
   RelayCounters counters;
@@ -103,7 +114,7 @@ int main(int argc, char** argv) {
   if (metrics != "off") {
     auto started = MetricsExporter::Start(metrics, &counters);
     if (!started.ok()) {
-      spdlog::error("cannot serve metrics on {}: {}", metrics, started.status().message());
+      spdlog::error("cannot serve metrics on {}: {}", metrics, started.status().ToString());
       return 1;
     }
     exporter = std::move(*started);
@@ -124,7 +135,7 @@ int main(int argc, char** argv) {
     options.shards = io_threads;
     auto shards = RelayShards::Start(config, socket->get(), &counters, options);
     if (!shards.ok()) {
-      spdlog::error("cannot start {} relay shards: {}", io_threads, shards.status().message());
+      spdlog::error("cannot start {} relay shards: {}", io_threads, shards.status().ToString());
       return 1;
     }
     spdlog::info("edgephys-relay listening on udp {} ({} shards)",
@@ -143,7 +154,7 @@ int main(int argc, char** argv) {
   if (!redis.empty()) {
     auto redis_endpoint = ParseEndpoint(redis);
     if (!redis_endpoint.ok()) {
-      spdlog::error("--redis {}: {}", redis, redis_endpoint.status().message());
+      spdlog::error("--redis {}: {}", redis, redis_endpoint.status().ToString());
       return 2;
     }
     cluster::DirectoryOptions& d = cluster.directory;

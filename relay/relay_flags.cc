@@ -196,7 +196,9 @@ void AddToken(CLI::App& app, RelayFlags* f) {
       ->capture_default_str();
   f->token_cmd->add_option("--permissions", f->token.permissions, "Permission bits (1: spawn)")
       ->capture_default_str();
-  f->token_cmd->add_option("--secret", f->secret, "Secret (default: $EDGEPHYS_SECRET)");
+  f->token_cmd->add_option("--secret", f->secret, "The relay's secret (default: $EDGEPHYS_SECRET)");
+  f->token_cmd->add_flag("--dev-secret", f->token_dev_secret,
+                         "Sign with the built-in development secret (a relay run without one)");
 }
 
 }  // namespace
@@ -218,9 +220,8 @@ Status FinishRelayFlags(RelayFlags* flags) {
   flags->admin_addr_given = flags->admin_addr_opt != nullptr && flags->admin_addr_opt->count() > 0;
   if (!ParseReplicationMode(flags->replication_mode,
                             &flags->config.room_defaults.replication.mode)) {
-    return Status::InvalidArgument("--replication-mode: unknown mode '" +
-                                   flags->replication_mode +
-                                   "' (edgephys, float, photon or paper)");
+    return Status::InvalidArgument("--replication-mode: unknown mode (edgephys, float, photon or paper)",
+                                   "'" + flags->replication_mode + "'");
   }
   return Status::Ok();
 }

@@ -47,7 +47,7 @@ for _ in $(seq 1 50); do
 done
 [ -n "$address" ] || { echo "FAIL: the installed relay did not start"; cat "$work/relay.log"; exit 1; }
 
-"$work/cmake-build/consumer" "$address" "$("$prefix/bin/edgephys-relay" token --player 1 --room c)" c | tee "$work/a.log"
-LD_LIBRARY_PATH="$libdir" "$work/consumer-pc" "$address" "$("$prefix/bin/edgephys-relay" token --player 2 --room c)" c | tee "$work/b.log"
+"$work/cmake-build/consumer" "$address" "$("$prefix/bin/edgephys-relay" token --dev-secret --player 1 --room c)" c | tee "$work/a.log"
+LD_LIBRARY_PATH="$libdir" "$work/consumer-pc" "$address" "$("$prefix/bin/edgephys-relay" token --dev-secret --player 2 --room c)" c | tee "$work/b.log"
 grep -q "consumer ok" "$work/a.log" && grep -q "consumer ok" "$work/b.log" || { echo "FAIL: a consumer failed"; exit 1; }
 echo "install consumer test passed"

@@ -9,10 +9,32 @@ pid=""
 cleanup() { [ -n "$pid" ] && kill "$pid" 2>/dev/null || true; rm -rf "$work"; }
 trap cleanup EXIT
 
-token=$("$relay" token --player 7 --room lobby --ttl 60)
+token=$("$relay" token --dev-secret --player 7 --room lobby --ttl 60)
 [[ "$token" =~ ^[A-Za-z0-9_-]{80,}$ ]] || { echo "FAIL: token looks wrong: $token"; exit 1; }
 if "$relay" token --room lobby >/dev/null 2>&1; then echo "FAIL: token without --player accepted"; exit 1; fi
 if "$relay" --bind nonsense --run-for 1 >/dev/null 2>&1; then echo "FAIL: bad --bind accepted"; exit 1; fi
+# A token without a secret is refused with a message that names the way out.
+if (unset EDGEPHYS_SECRET; "$relay" token --player 7 >"$work/nosecret.txt" 2>&1); then
+  echo "FAIL: token without a secret signed with the development secret"; exit 1
+fi
+grep -q -- "--secret" "$work/nosecret.txt" && grep -q "EDGEPHYS_SECRET" "$work/nosecret.txt" ||
+  { echo "FAIL: the refusal does not name --secret/EDGEPHYS_SECRET: $(cat "$work/nosecret.txt")"; exit 1; }
+EDGEPHYS_SECRET=s1 "$relay" token --player 7 >/dev/null || { echo "FAIL: EDGEPHYS_SECRET not taken"; exit 1; }
+# A taken port: the error names the address and the OS's reason.
+taken_log="$work/taken.log"
+python3 - "$relay" "$taken_log" <<'PY'
+import socket, subprocess, sys
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0))
+port = s.getsockname()[1]
+r = subprocess.run([sys.argv[1], "--bind", f"127.0.0.1:{port}", "--metrics", "off",
+                    "--admin-addr", "off", "--run-for", "1"], capture_output=True, text=True)
+open(sys.argv[2], "w").write(f"exit {r.returncode} port {port}\n" + r.stdout + r.stderr)
+PY
+grep -q "exit 1" "$taken_log" && grep -q "in use" "$taken_log" && grep -q "127.0.0.1:" "$taken_log" ||
+  { echo "FAIL: a taken port's error lacks the address or reason: $(cat "$taken_log")"; exit 1; }
+# A host name is resolved where an address is expected.
+"$relay" --bind localhost:0 --metrics off --admin-addr off --run-for 0.2 >"$work/host.log" 2>&1 ||
+  { echo "FAIL: --bind localhost:0 refused: $(cat "$work/host.log")"; exit 1; }
 
 for attempt in 1 2 3 4 5; do
   port=$(( 20000 + RANDOM % 40000 ))
