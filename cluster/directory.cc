@@ -19,11 +19,19 @@ double Seconds(Clock::time_point t) {
 
 // get-or-set: KEYS[1] room key, KEYS[2] rooms set; ARGV[1] relay id, ARGV[2] room name.
 constexpr const char* kPlaceScript =
+    "local t = redis.call('TYPE', KEYS[1]).ok "
+    "if t ~= 'none' and t ~= 'string' then redis.call('DEL', KEYS[1]) end "
     "local o = redis.call('GET', KEYS[1]) "
     "if o then return o end "
     "redis.call('SET', KEYS[1], ARGV[1]) "
     "redis.call('SADD', KEYS[2], ARGV[2]) "
     "return ARGV[1]";
+// write-if-mine: KEYS[1] room key, KEYS[2] state key; ARGV[1] relay id, ARGV[2] snapshot. A
+// relay that lost its room (another claimed it) never overwrites the new owner's state.
+constexpr const char* kSaveScript =
+    "if redis.call('GET', KEYS[1]) == ARGV[1] then "
+    "redis.call('SET', KEYS[2], ARGV[2]) return 1 end "
+    "return 0";
 // compare-and-set: KEYS[1] room key; ARGV[1] expected owner, ARGV[2] new owner.
 constexpr const char* kClaimScript =
     "if redis.call('GET', KEYS[1]) == ARGV[1] then "
@@ -45,6 +53,25 @@ uint64_t Fnv1a(const std::string& s) {
 bool ValidId(const std::string& id) {
   if (id.empty() || id.size() > 64) return false;
   return std::all_of(id.begin(), id.end(), [](char c) { return c > ' ' && c != ':' && c < 127; });
+}
+
+// host:port or [v6]:port with a port in 1..65535 and a host of printable characters.
+bool ValidAddress(const std::string& address) {
+  const size_t colon = address.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 >= address.size() ||
+      address.size() > 255) {
+    return false;
+  }
+  const std::string port = address.substr(colon + 1);
+  if (port.size() > 5 || !std::all_of(port.begin(), port.end(), [](char c) {
+        return c >= '0' && c <= '9';
+      })) {
+    return false;
+  }
+  const int number = std::stoi(port);
+  if (number < 1 || number > 65535) return false;
+  return std::all_of(address.begin(), address.begin() + static_cast<long>(colon),
+                     [](char c) { return c > ' ' && c < 127; });
 }
 
 }  // namespace
@@ -219,71 +246,87 @@ void Directory::Refresh() {
     counters_.redis_errors.fetch_add(1, std::memory_order_relaxed);
     return publish_unhealthy();
   }
-  std::vector<std::string> relay_ids, rooms;
+  std::vector<std::string> listed, rooms;
   for (int i = 0; i < 2; ++i) {
     const RedisReply& r = (*lists)[i];
-    if (r.kind != RedisReply::Kind::kArray) {
+    if (r.kind != RedisReply::Kind::kArray) {  // e.g. the set overwritten with another type
       bad_key();
       continue;
     }
     for (const RedisReply& e : r.elements) {
-      if (e.is_string()) (i == 0 ? relay_ids : rooms).push_back(e.str);
+      if (e.is_string()) (i == 0 ? listed : rooms).push_back(e.str);
     }
   }
-  std::vector<std::string> mget_relays{"MGET"}, mget_rooms{"MGET"};
-  for (const auto& id : relay_ids) mget_relays.push_back(Key("relay:", id));
-  for (const auto& room : rooms) mget_rooms.push_back(Key("room:", room));
-  std::vector<std::vector<std::string>> cmds;
-  if (!relay_ids.empty()) cmds.push_back(mget_relays);
-  if (!rooms.empty()) cmds.push_back(mget_rooms);
-  std::vector<RedisReply> values;
-  if (!cmds.empty()) {
+  // Room owners first (so that every owner's own heartbeat key is read).
+  std::vector<std::vector<std::string>> cmds, stale_rooms;
+  if (!rooms.empty()) {
+    std::vector<std::string> mget_rooms{"MGET"};
+    for (const auto& room : rooms) mget_rooms.push_back(Key("room:", room));
+    cmds.push_back(std::move(mget_rooms));
     auto got = redis_->Pipeline(cmds);
     if (!got.ok()) {
       counters_.redis_errors.fetch_add(1, std::memory_order_relaxed);
       return publish_unhealthy();
     }
-    values = std::move(*got);
-  }
-  size_t next = 0;
-  std::vector<std::vector<std::string>> cleanup;
-  if (!relay_ids.empty()) {
-    const RedisReply& arr = values[next++];
-    for (size_t i = 0; i < relay_ids.size(); ++i) {
-      if (arr.kind != RedisReply::Kind::kArray || i >= arr.elements.size()) break;
-      const RedisReply& v = arr.elements[i];
-      if (v.kind == RedisReply::Kind::kNil) {  // expired (or not a string): out of the cluster
-        cleanup.push_back({"SREM", options_.key_prefix + "relays", relay_ids[i]});
-        continue;
-      }
-      auto j = nlohmann::json::parse(v.str, nullptr, /*allow_exceptions=*/false);
-      if (!j.is_object() || !j.contains("address") || !j["address"].is_string() ||
-          !j.value("users", nlohmann::json()).is_number_unsigned() ||
-          !j.value("rooms", nlohmann::json()).is_number_unsigned()) {
-        bad_key();
-        continue;
-      }
-      RelayInfo info;
-      info.id = relay_ids[i];
-      info.address = j["address"].get<std::string>();
-      info.users = j["users"].get<uint32_t>();
-      info.rooms = j["rooms"].get<uint32_t>();
-      info.draining = j.value("draining", nlohmann::json(false)).is_boolean() &&
-                      j.value("draining", false);
-      view->relays[info.id] = info;
-    }
-  }
-  if (!rooms.empty()) {
-    const RedisReply& arr = values[next++];
+    const RedisReply& arr = (*got)[0];
     for (size_t i = 0; i < rooms.size(); ++i) {
       if (arr.kind != RedisReply::Kind::kArray || i >= arr.elements.size()) break;
       const RedisReply& v = arr.elements[i];
       if (v.is_string()) {
         view->room_owner[rooms[i]] = v.str;
       } else {  // deleted or not a string: forget it (a placement re-creates it)
-        cleanup.push_back({"SREM", options_.key_prefix + "rooms", rooms[i]});
+        stale_rooms.push_back({"SREM", options_.key_prefix + "rooms", rooms[i]});
       }
     }
+    cmds.clear();
+  }
+  // A relay is alive while its own heartbeat key exists: the ids listed in the relay set,
+  // every room owner and this relay are read by key, so a relay missing from the set or an
+  // entry overwritten once does not make a live relay dead (and its rooms claimable).
+  std::set<std::string> ids(listed.begin(), listed.end());
+  for (const auto& [room, owner] : view->room_owner) {
+    if (ValidId(owner)) ids.insert(owner);
+  }
+  ids.insert(options_.relay_id);
+  std::vector<std::string> relay_ids(ids.begin(), ids.end());
+  std::vector<std::string> mget_relays{"MGET"};
+  for (const auto& id : relay_ids) mget_relays.push_back(Key("relay:", id));
+  auto got = redis_->Pipeline({mget_relays});
+  if (!got.ok()) {
+    counters_.redis_errors.fetch_add(1, std::memory_order_relaxed);
+    return publish_unhealthy();
+  }
+  std::vector<std::vector<std::string>> cleanup = std::move(stale_rooms);
+  std::set<std::string> listed_set(listed.begin(), listed.end());
+  const RedisReply& arr = (*got)[0];
+  for (size_t i = 0; i < relay_ids.size(); ++i) {
+    if (arr.kind != RedisReply::Kind::kArray || i >= arr.elements.size()) break;
+    const RedisReply& v = arr.elements[i];
+    if (v.kind == RedisReply::Kind::kNil) {  // expired (or not a string): out of the cluster
+      if (listed_set.count(relay_ids[i]) != 0) {
+        cleanup.push_back({"SREM", options_.key_prefix + "relays", relay_ids[i]});
+      }
+      continue;
+    }
+    auto j = nlohmann::json::parse(v.str, nullptr, /*allow_exceptions=*/false);
+    if (!j.is_object() || !j.contains("address") || !j["address"].is_string() ||
+        !ValidAddress(j["address"].get<std::string>()) ||
+        !j.value("users", nlohmann::json()).is_number_unsigned() ||
+        !j.value("rooms", nlohmann::json()).is_number_unsigned()) {
+      // Alive (its key exists) but unusable: never placed on or redirected to, never claimed
+      // from while its key lives.
+      bad_key();
+      view->unroutable.insert(relay_ids[i]);
+      continue;
+    }
+    RelayInfo info;
+    info.id = relay_ids[i];
+    info.address = j["address"].get<std::string>();
+    info.users = j["users"].get<uint32_t>();
+    info.rooms = j["rooms"].get<uint32_t>();
+    info.draining = j.value("draining", nlohmann::json(false)).is_boolean() &&
+                    j.value("draining", false);
+    view->relays[info.id] = info;
   }
   if (!cleanup.empty()) {
     auto done = redis_->Pipeline(cleanup);
@@ -306,7 +349,7 @@ void Directory::ClaimOrphans(DirectoryView* view) {
   }
   if (candidates.empty()) return;  // std::map: already sorted
   for (auto& [room, owner] : view->room_owner) {
-    if (view->relays.count(owner) != 0) continue;
+    if (view->relays.count(owner) != 0 || view->unroutable.count(owner) != 0) continue;
     if (candidates[Fnv1a(room) % candidates.size()] != options_.relay_id) continue;
     auto claimed = redis_->Command({"EVAL", kClaimScript, "1", Key("room:", room), owner,
                                     options_.relay_id});
@@ -404,7 +447,8 @@ void Directory::FlushSnapshots() {
   uint64_t bytes = 0;
   for (auto& [room, data] : pending) {
     bytes += data.size();
-    cmds.push_back({"SET", Key("state:", room), std::string(data.begin(), data.end())});
+    cmds.push_back({"EVAL", kSaveScript, "2", Key("room:", room), Key("state:", room),
+                    options_.relay_id, std::string(data.begin(), data.end())});
   }
   auto done = redis_->Pipeline(cmds);
   if (!done.ok()) {

@@ -2,7 +2,9 @@
 // (docs/operations.md, "Scale-out and failover"). It
 //   - registers the relay (id, public UDP address, load, draining) with a heartbeat: the key
 //     edgephys:relay:<id> is SET with a TTL (PX) every heartbeat, so a relay that dies drops
-//     out of the cluster when its TTL runs out;
+//     out of the cluster when its TTL runs out. Liveness is that key alone: a relay missing
+//     from the relay set, or whose entry was overwritten with garbage, is still alive (and
+//     its rooms unclaimable) while its key exists;
 //   - places rooms: a room lives on exactly one relay, edgephys:room:<name> = relay id, set
 //     atomically (a Lua get-or-set) so two relays never both own a room; a new room goes to
 //     the least-loaded live, non-draining relay;
@@ -66,6 +68,9 @@ struct DirectoryView {
   bool healthy = false;  // the last refresh succeeded recently
   std::map<std::string, RelayInfo> relays;            // live relays by id
   std::map<std::string, std::string> room_owner;      // room -> relay id (live or not)
+  // Relays whose heartbeat key lives but holds garbage (counted in bad_keys): not dead, so
+  // their rooms are not claimed, but never placed on or redirected to.
+  std::set<std::string> unroutable;
   // The live relay owning `room`, null if unknown or its owner is not live.
   const RelayInfo* OwnerOf(const std::string& room) const;
 };

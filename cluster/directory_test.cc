@@ -199,7 +199,9 @@ TEST_F(DirectoryTest, GarbageInKeysIsCountedNotFatal) {
   auto a = Open(redis_.port(), "a");
   a->RequestPlacement("hashroom", false);
   DirectoryEvent ev = AwaitEvent(*a, "hashroom");
-  EXPECT_EQ(ev.kind, DirectoryEvent::Kind::kPlacementFailed);
+  // A room key of the wrong type is garbage: the placement replaces it.
+  EXPECT_EQ(ev.kind, DirectoryEvent::Kind::kPlaced);
+  EXPECT_EQ(ev.owner, "a");
   // The orphan (owner "ghost" is not live) is claimed; its snapshot is garbage: no snapshot.
   DirectoryEvent claimed = AwaitEvent(*a, "orphan");
   EXPECT_EQ(claimed.kind, DirectoryEvent::Kind::kClaimed);
@@ -208,11 +210,61 @@ TEST_F(DirectoryTest, GarbageInKeysIsCountedNotFatal) {
   auto v = a->view();
   EXPECT_TRUE(v->healthy);
   EXPECT_EQ(v->relays.size(), 1u);  // only "a" is a valid live relay
+  // The garbage entries' keys live: alive but unroutable, not dead.
+  EXPECT_EQ(v->unroutable.size(), 3u);
   // The relays set itself of the wrong type: counted, the directory keeps running.
   ASSERT_TRUE(raw.Command({"DEL", "edgephys:relays"}).ok());
   ASSERT_TRUE(raw.Command({"SET", "edgephys:relays", "oops"}).ok());
   uint64_t before = a->counters().bad_keys.load();
   ASSERT_TRUE(WaitFor([&] { return a->counters().bad_keys.load() > before; }));
+}
+
+// One anomaly in Redis never makes a live relay dead: its room is not claimed while its own
+// heartbeat key lives, whatever the relay set or its entry say; an entry with an unusable
+// address is never placed on.
+TEST_F(DirectoryTest, AnomaliesNeverMakeALiveRelayDead) {
+  RedisClient raw("127.0.0.1", redis_.port(), 1.0);
+  auto a = Open(redis_.port(), "a");
+  auto b = Open(redis_.port(), "b");
+  ASSERT_TRUE(WaitFor([&] { return b->view()->relays.size() == 2; }));
+  a->RequestPlacement("r", true);
+  ASSERT_EQ(AwaitEvent(*a, "r").owner, "a");
+  auto no_claim_for = [&](double seconds) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      for (auto& ev : b->TakeEvents()) {
+        if (ev.kind == DirectoryEvent::Kind::kClaimed) return false;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return b->counters().claims.load() == 0;
+  };
+  // a missing from the relay set (until its next heartbeat re-adds it).
+  ASSERT_TRUE(raw.Command({"SREM", "edgephys:relays", "a"}).ok());
+  EXPECT_TRUE(no_claim_for(0.6));
+  // a's entry overwritten with garbage (its next heartbeat repairs it).
+  ASSERT_TRUE(raw.Command({"SET", "edgephys:relay:a", "{garbage", "PX", "60000"}).ok());
+  EXPECT_TRUE(no_claim_for(0.6));
+  // The relay set of the wrong type.
+  ASSERT_TRUE(raw.Command({"DEL", "edgephys:relays"}).ok());
+  ASSERT_TRUE(raw.Command({"HSET", "edgephys:relays", "f", "v"}).ok());
+  EXPECT_TRUE(no_claim_for(0.6));
+  ASSERT_TRUE(raw.Command({"DEL", "edgephys:relays"}).ok());
+  EXPECT_EQ(a->view()->room_owner.at("r"), "a");
+  // A relay whose entry has an unparseable address: alive, never a placement target (it
+  // would be the least loaded).
+  ASSERT_TRUE(raw.Command({"SADD", "edgephys:relays", "bad"}).ok());
+  ASSERT_TRUE(raw.Command({"SET", "edgephys:relay:bad",
+                           R"({"address":"not an address","users":0,"rooms":0})", "PX", "60000"})
+                  .ok());
+  ASSERT_TRUE(WaitFor([&] { return b->view()->unroutable.count("bad") == 1; }));
+  for (int i = 0; i < 4; ++i) {
+    const std::string room = "spread" + std::to_string(i);
+    b->RequestPlacement(room, false);
+    DirectoryEvent ev = AwaitEvent(*b, room);
+    EXPECT_EQ(ev.kind, DirectoryEvent::Kind::kPlaced);
+    EXPECT_NE(ev.owner, "bad");
+  }
 }
 
 TEST_F(DirectoryTest, RedisDownIsCountedAndTheViewTurnsUnhealthy) {

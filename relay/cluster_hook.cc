@@ -77,10 +77,27 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
                                              std::span<const uint8_t> token_bytes,
                                              uint64_t unix_now_s, std::vector<uint8_t>* packet) {
   if ((token.permissions & kPermissionWorker) != 0) return Route::kLocal;  // PhyS workers
-  if (relay_->rooms_.count(token.room) != 0 || local_fallback_.count(token.room) != 0) {
-    return Route::kLocal;
-  }
   auto view = directory_->view();
+  if (relay_->rooms_.count(token.room) != 0 || local_fallback_.count(token.room) != 0) {
+    // Held here: admitted only while no other live relay holds the room's lease (a copy that
+    // lost it admits nobody; it is handed over in Update()).
+    if (!view->healthy) return Route::kLocal;
+    auto recorded = view->room_owner.find(token.room);
+    if (recorded == view->room_owner.end() || recorded->second == directory_->relay_id()) {
+      return Route::kLocal;  // ours, or not registered yet (SaveSnapshots registers it)
+    }
+    const cluster::RelayInfo* owner = view->OwnerOf(token.room);
+    if (owner == nullptr) {  // the lease names another relay that is not live: wait
+      ++counters_.connects_deferred;
+      return Route::kDeferred;
+    }
+    auto ticket = SignRedirect(token_bytes, owner->address,
+                               unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
+    if (!ticket.ok()) return Route::kDeferred;
+    *packet = BuildRedirectPacket(*ticket);
+    ++counters_.redirects_sent;
+    return Route::kRedirected;
+  }
   if (!view->healthy) {
     ++counters_.local_fallbacks;
     return Route::kLocal;
@@ -97,7 +114,8 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
       ++counters_.redirects_sent;
       return Route::kRedirected;
     }
-    // Owned by a relay that is gone: a live relay claims it on its next refresh.
+    // Owned by a relay that is gone (a live relay claims it on its next refresh), or alive
+    // with an unusable entry: wait, never serve a second copy here.
     ++counters_.connects_deferred;
     return Route::kDeferred;
   }
@@ -118,8 +136,12 @@ void ClusterHook::Update(double now, uint64_t unix_now_s) {
         break;
       case cluster::DirectoryEvent::Kind::kPlacementFailed:
         asked_.erase(ev.room);
-        local_fallback_.insert(ev.room);
-        ++counters_.local_fallbacks;
+        // Redis unreachable: serve the room here. Garbage in its key with Redis up: keep
+        // deferring (the next placement repairs the key), never a second copy.
+        if (!directory_->view()->healthy) {
+          local_fallback_.insert(ev.room);
+          ++counters_.local_fallbacks;
+        }
         break;
       case cluster::DirectoryEvent::Kind::kClaimed:
         Restore(ev, now);
@@ -135,6 +157,7 @@ void ClusterHook::Update(double now, uint64_t unix_now_s) {
                             std::memory_order_relaxed);
   rc.cluster_redirects.store(counters_.redirects_sent, std::memory_order_relaxed);
   rc.cluster_rooms_restored.store(counters_.rooms_restored, std::memory_order_relaxed);
+  HandOverLostRooms(now);
   // Rooms closed since the last update: no longer ours.
   std::set<std::string> rooms;
   for (const auto& [name, room] : relay_->rooms_) rooms.insert(name);
@@ -154,6 +177,31 @@ void ClusterHook::Update(double now, uint64_t unix_now_s) {
   }
 }
 
+void ClusterHook::HandOverLostRooms(double now) {
+  auto view = directory_->view();
+  if (!view->healthy) return;  // Redis unreachable: keep serving what we hold
+  std::vector<std::pair<std::string, std::string>> lost;
+  for (const auto& [name, host] : relay_->rooms_) {
+    if (local_fallback_.count(name) != 0) continue;
+    const cluster::RelayInfo* owner = view->OwnerOf(name);
+    if (owner == nullptr || owner->id == directory_->relay_id()) {
+      lost_since_.erase(name);
+      continue;
+    }
+    // Another live relay holds the lease. Seen over two refreshes before acting, so one
+    // stale read never drops a room.
+    auto [it, fresh] = lost_since_.try_emplace(name, now);
+    if (!fresh && now - it->second >= 2 * options_.directory.refresh_s) {
+      lost.emplace_back(name, owner->id);
+    }
+  }
+  for (const auto& [name, owner] : lost) {
+    lost_since_.erase(name);
+    ++counters_.rooms_handed_over;
+    relay_->HandOverRoom(name, "the room moved to relay " + owner, now);
+  }
+}
+
 void ClusterHook::SaveSnapshots(uint64_t unix_now_s) {
   auto view = directory_->view();
   for (const auto& [name, host] : relay_->rooms_) {
@@ -166,9 +214,9 @@ void ClusterHook::SaveSnapshots(uint64_t unix_now_s) {
         asked_[name] = relay_->now_;
         directory_->RequestPlacement(name, /*prefer_self=*/true);
       }
-    } else if (owner != view->room_owner.end() && owner->second != directory_->relay_id()) {
-      continue;  // another relay owns it: never overwrite its snapshot
     }
+    // Only the lease holder writes (the write is also conditional in Redis).
+    if (owner == view->room_owner.end() || owner->second != directory_->relay_id()) continue;
     uint64_t sig = Signature(room);
     auto saved = saved_sig_.find(name);
     if (saved != saved_sig_.end() && saved->second == sig) continue;

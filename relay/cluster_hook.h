@@ -2,6 +2,10 @@
 // operations.md, "Scale-out and failover"). It is the only relay code that knows of the
 // cluster; the Redis work itself runs on cluster::Directory's thread (cluster/directory.h).
 //
+//   - Fencing: a room is served here only while no other live relay holds it in Redis. A
+//     Connect for a local copy that another live relay holds is redirected there, and the copy
+//     is handed over (members sent on with kServerShutdown, so the SDK resumes at the owner)
+//     once two refreshes agree. Snapshots are written only by the holder.
 //   - Admission: a Connect for a room this relay does not hold is routed by the directory's
 //     view: the room's live owner elsewhere gets a signed Redirect (protocol/redirect.h); an
 //     unplaced room is placed (least-loaded relay) and the Connect is dropped meanwhile (the
@@ -43,6 +47,7 @@ struct ClusterCounters {
   uint64_t entities_restored = 0;
   uint64_t entities_skipped = 0;    // restored snapshot entries that did not verify
   uint64_t snapshots_saved = 0;
+  uint64_t rooms_handed_over = 0;   // local copies dropped: another live relay holds the room
 };
 
 class ClusterHook {
@@ -66,6 +71,7 @@ class ClusterHook {
               std::unique_ptr<cluster::Directory> directory);
   void Restore(const cluster::DirectoryEvent& event, double now);
   void SaveSnapshots(uint64_t unix_now_s);
+  void HandOverLostRooms(double now);
 
   Relay* relay_;
   ClusterOptions options_;
@@ -75,6 +81,7 @@ class ClusterHook {
   std::map<std::string, double> asked_;         // placement asked at (deduplication)
   std::set<std::string> known_rooms_;           // local rooms at the last update
   std::map<std::string, uint64_t> saved_sig_;   // room -> signature of the last snapshot
+  std::map<std::string, double> lost_since_;   // room -> first seen held by another relay
   double next_snapshot_ = 0;
 };
 

@@ -130,6 +130,11 @@ class Relay final : private SessionHost {
   size_t client_count() const;
 
  private:
+  // Cluster: another relay holds `name`'s lease now. Its members' connections end with
+  // kServerShutdown and `reason` (the SDK resumes and is redirected to the owner) and the
+  // local copy is dropped without a snapshot. No-op if the room is not here.
+  void HandOverRoom(const std::string& name, std::string_view reason, double now);
+
   // Admission: the handshake and the socket.
   void HandleDatagram(const Endpoint& from, std::span<const uint8_t> data, double now,
                       uint64_t unix_now_s);

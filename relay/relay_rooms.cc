@@ -131,6 +131,25 @@ Status Relay::CloseRoom(const std::string& name, std::string_view reason, double
   return Status::Ok();
 }
 
+void Relay::HandOverRoom(const std::string& name, std::string_view reason, double now) {
+  auto it = rooms_.find(name);
+  if (it == rooms_.end()) return;
+  std::vector<uint32_t> players;
+  for (const auto& [player, member] : it->second->room().members()) players.push_back(player);
+  for (uint32_t player : players) {
+    auto* s = const_cast<Session*>(FindMemberSession(name, player));
+    if (s == nullptr) continue;
+    s->BeginClose(DisconnectReason::kServerShutdown, reason, now);
+    OnLeaveRoom(*s, now);
+  }
+  sessions_deadline_ = -std::numeric_limits<double>::infinity();
+  counters_->entities.fetch_sub(static_cast<int64_t>(it->second->room().entities().size()),
+                                std::memory_order_relaxed);
+  ForgetRoomWork(*it->second);
+  rooms_.erase(it);
+  spdlog::warn("room '{}' handed over: {} ({} members sent on)", name, reason, players.size());
+}
+
 void Relay::CloseAllSessions(std::string_view reason, double now) {
   for (auto& [id, s] : sessions_) {
     if (s->is_worker()) continue;
