@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # One `isolation` run against edgephys-relay as its own process (docs/operations.md recipe),
 # printing one line: A's p99 with B / alone (SDK, socket), the p99s, relay CPU, B's step, late joiner.
-#   scripts/isolation_run.sh BUILD_DIR OUT.json PHYSICS_NICE [isolation options...]
-# e.g. scripts/isolation_run.sh build/default iso.json 19 --b-decode joiner
+#   bench/isolation_run.sh BUILD_DIR OUT.json PHYSICS_NICE [isolation options...]
+# e.g. bench/isolation_run.sh build/default iso.json 19 --b-decode joiner
 # Hold /tmp/edgephys-bench.lock and /tmp/edgephys-build.lock around it. Ports are picked free;
 # the relay is stopped by its PID; the run is bounded by isolation's own hard end (and --run-for).
 set -euo pipefail

@@ -88,7 +88,7 @@ inline constexpr uint8_t kPreviousDeltaStateFormat =
 // record ends with its own time: 1 bit, 0 = the payload's time; 1 = an offset back from it, in
 // ms, Exp-Golomb (k = 4) of offset - 1, at most kMaxRecordAgeMs. A record's prediction runs to
 // its own time. Key samples at the kink send PhyS's state at the kink, with the time it holds,
-// rather than the present one (docs/benchmarks.md, "Display error, session 11").
+// rather than the present one.
 inline constexpr uint8_t kTimedDeltaStateFormat =
     static_cast<uint8_t>(StateFormat::kQuantizedDeltaTimed);
 // Largest offset of a format-14 record's time before its payload's (ms); larger is malformed.

@@ -201,8 +201,8 @@ class AsyncPhysicsRoom {
 // `idle` (Linux): each physics thread puts itself in SCHED_IDLE instead (`nice` is then
 // ignored): it runs only on a core that has no normal-priority thread to run, where niceness
 // 19 still takes a ~1.5 % weighted share and waits out wake-up granularity. On 2 shared cores it
-// brought a neighbouring room's socket p99 ratio from 1.28x to 1.09x (docs/benchmarks.md,
-// "Isolation, session 11"). Cost: on a machine whose cores are always busy with other work,
+// brought a neighbouring room's socket p99 ratio from 1.28x to 1.09x (`edgephys-loadgen
+// isolation`). Cost: on a machine whose cores are always busy with other work,
 // PhyS rooms make no progress at all (their real-time factor falls towards 0); the relay loop
 // itself is unaffected.
 class AsyncPhysicsPool {

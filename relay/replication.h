@@ -94,10 +94,8 @@ struct ReplicationConfig {
   // edgephys mode: send state format 9 ("shared delta", protocol/shared_delta_codec.h); false
   // sends format 2. The room quantises, predicts and codes each (entity, baseline) delta once per
   // tick for every receiver on that baseline; each receiver only appends bits. Clients learn the
-  // format from Joined. The default since issue 11 session 13: at 100 users in one room 4.9x less
-  // relay CPU per delivered update than format 2, -4 % bytes per update, a fifth of the relay's
-  // peak RSS (docs/benchmarks.md, "Session 12: lockstep receivers" and "Session 13: format 9 by
-  // default"). Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68
+  // format from Joined. The default: at 100 users in one room 4.9x less relay CPU per delivered
+  // update than format 2, -4 % bytes per update, a fifth of the relay's peak RSS. Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68
   // bytes per (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
   // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
   // sent) when a policy of that family is asked for: velocities, key samples, stamp_state_time.
@@ -106,8 +104,7 @@ struct ReplicationConfig {
   // runs one canonical replicator per tick; receivers that acknowledge its payloads within
   // `lockstep_ack_ticks` ticks are sent copies of them instead of being walked entity by entity
   // (their own entities' records included); acknowledgements count as baselines only that many
-  // ticks after the send in every stream of such a room. Off by default until measured
-  // (docs/benchmarks.md, "Session 12: lockstep receivers").
+  // ticks after the send in every stream of such a room. Off by default.
   bool shared_lockstep = false;
   uint32_t lockstep_ack_ticks = 3;
   // edgephys mode without shared_encoding: send state format 12 (format 2 plus velocities,
@@ -150,8 +147,7 @@ struct ReplicationConfig {
   // Key samples: when a line strays, send the recent PhyS state furthest beyond the thresholds
   // (the kink), with the time it holds, instead of the present state, so that the receiver's
   // line passes through the kink (state format 14: records with times of their own). The next
-  // check draws the line from the kink. Off by default (docs/benchmarks.md, "Display error,
-  // session 11").
+  // check draws the line from the kink. Off by default.
   bool key_sample_at_kink = false;
   // Key samples: stamp PhyS bodies with the time their states hold plus the room's running mean
   // of how long PhyS's states take to reach the relay (ReplicationFrame::physics_lag_s):

@@ -465,8 +465,8 @@ EDGEPHYS_API edgephys_status edgephys_client_get_state_format(edgephys_client* c
  * (client/interpolation.h explains each). Call once per rendered frame per entity with
  * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived.
  * Rooms whose relay sends key samples (`--key-samples`) check the straight line between them:
- * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99,
- * docs/benchmarks.md, "Display error, session 15"); EDGEPHYS_INTERP_AUTO picks it for them. */
+ * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99
+ * on the stirred boxes); EDGEPHYS_INTERP_AUTO picks it for them. */
 EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client,
                                                          uint32_t entity_id, double now_s,
                                                          uint32_t method,
@@ -479,8 +479,8 @@ EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client
  * out at its max send interval plus 20 ms (0.27 s at the relay's default 0.25 s) because the
  * relay only vouches for the line between samples; held below that, the render time runs ahead
  * of the longer segments and the SDK extrapolates the last line for up to 0.1 s. Measured on the
- * stirred boxes (display p99 against the room's playout, docs/benchmarks.md, "Display error,
- * session 17: an application's playout limit"): at the default 0.25 s interval a 0.2 s limit
+ * stirred boxes (display p99 against the room's playout, `edgephys-loadgen multiobject
+ * --display-playout-limit`): at the default 0.25 s interval a 0.2 s limit
  * costs 1.0-1.1x, a 0.1 s limit 2.8-3.6x; a 0.3 s limit costs 1.2-1.6x at a 0.5 s interval and
  * 1.9-2.5x at 1 s. Keep the limit near the room's interval or ask the operator for a shorter
  * one. Fixed-rate rooms play out adaptively (1.5 send intervals plus jitter, at most 0.3 s), so
