@@ -1,5 +1,6 @@
-// Pose interpolation between buffered snapshots (client/snapshot_buffer.h). The paper smooths
-// received transforms with a dual-quaternion interpolator; this file offers it (both the
+// Pose interpolation between buffered snapshots (client/snapshot_buffer.h). Decoupled Edge
+// Physics smooths received transforms with a dual-quaternion interpolator; this file offers it
+// (both the
 // normalised linear blend, DLB, and screw linear interpolation, ScLERP) beside lerp+slerp, cubic
 // Hermite, and hold-last, so that their accuracy can be measured side by side
 // (docs/benchmarks.md, "Interpolation: error vs send rate").

@@ -10,8 +10,8 @@
 //   u32 sent time (ms), u32 challenge} | count x { 12-byte command header {u8 type (7 =
 //   send unreliable), u8 channel, u8 flags, u8 reserved, u32 length, u32 sequence} | u8 event
 //   code | u16 view id | 7 x f32 }                                        = 43 bytes per entity
-// Format 4, "paper": the paper's relay: grouped updates, a significance threshold (applied by
-// the scheduler), a per-entity change bitmask and unquantised floats.
+// Format 4, "paper": Decoupled Edge Physics' relay: grouped updates, a significance threshold
+// (applied by the scheduler), a per-entity change bitmask and unquantised floats.
 //   u8 format (4) | u32 time (ms) | u16 count | count x { u32 entity id | u8 mask (bit 0
 //   position, bit 1 rotation) | [3 x f32 position] | [4 x f32 rotation] }   = 33 bytes per entity
 //

@@ -71,7 +71,7 @@ struct ReplicationConfig {
   // PhyS-simulated entities no user interacts with. A receiver interpolates them over a longer
   // interval: the accuracy this costs (display error against the truth) is charted in
   // docs/benchmarks.md ("PhyS: multiobject", ambient rate). Equal to normal_hz: no ambient
-  // class. Default 6 Hz: about the per-object rate the paper's PhyS table implies (its
+  // class. Default 6 Hz: about the per-object rate Decoupled Edge Physics' PhyS table implies (its
   // throughput / 33 bytes per update: 4-5.5 updates per object per second).
   double ambient_hz = 6;
   // An entity counts as interacted with while a trigger overlap or a reported contact naming

@@ -117,7 +117,7 @@ typedef struct edgephys_transform {
 #define EDGEPHYS_FLAG_REPORT_CONTACTS 64u /* collision Enter/Exit events for it */
 #define EDGEPHYS_FLAG_ALL 127u
 
-/* ---- dissection containers (the paper's algorithms 1-3) -------------------------------- */
+/* ---- dissection containers (Decoupled Edge Physics' algorithms 1-3) -------------------- */
 
 typedef enum edgephys_collider_shape {
   EDGEPHYS_SHAPE_BOX = 0,        /* half_extents */
@@ -278,8 +278,8 @@ EDGEPHYS_API edgephys_status edgephys_client_spawn(edgephys_client* client,
                                                    uint32_t* out_id);
 /* EDGEPHYS_E_NOT_FOUND if this client does not own the entity. */
 EDGEPHYS_API edgephys_status edgephys_client_despawn(edgephys_client* client, uint32_t entity_id);
-/* Records the latest transform of an owned entity; it is sent at the publish rate (the paper's
- * MoveToTransform for mirrored kinematic bodies and hands). */
+/* Records the latest transform of an owned entity; it is sent at the publish rate
+ * (Decoupled Edge Physics' MoveToTransform for mirrored kinematic bodies and hands). */
 EDGEPHYS_API edgephys_status edgephys_client_publish_transform(edgephys_client* client,
                                                                uint32_t entity_id,
                                                                const edgephys_transform* transform);
@@ -441,7 +441,8 @@ EDGEPHYS_API edgephys_status edgephys_client_get_soft_body(edgephys_client* clie
 typedef enum edgephys_interpolator {
   EDGEPHYS_INTERP_LERP_SLERP = 0,
   EDGEPHYS_INTERP_DQ_DLB = 1,
-  EDGEPHYS_INTERP_DQ_SCLERP = 2, /* dual-quaternion screw interpolation (the paper's) */
+  EDGEPHYS_INTERP_DQ_SCLERP = 2, /* dual-quaternion screw interpolation (Decoupled Edge
+                                    Physics') */
   EDGEPHYS_INTERP_HERMITE = 3,
   EDGEPHYS_INTERP_NONE = 4,      /* hold the latest snapshot */
   /* What the joined room's state format calls for (edgephys_client_get_state_format): LERP_SLERP
