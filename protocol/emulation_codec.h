@@ -1,6 +1,6 @@
 // Emulation formats: the same relay speaking like the baselines it is compared with, so that a
-// benchmark measures all of them side by side in one run (docs/benchmarks.md, "How the
-// baselines are modelled"). Not for production rooms.
+// benchmark measures all of them side by side in one run (docs/benchmarks.md,
+// "Relay bandwidth"). Not for production rooms.
 //
 // Format 3, "photon": one message per entity per send, full float transform, each message
 // carrying the overhead of Photon's binary UDP protocol (a 12-byte command header per message,
