@@ -3,7 +3,7 @@
 // (both the
 // normalised linear blend, DLB, and screw linear interpolation, ScLERP) beside lerp+slerp, cubic
 // Hermite, and hold-last, so that their accuracy can be measured side by side
-// (docs/benchmarks.md, "Interpolation: error vs send rate").
+// (docs/benchmarks.md, "Interpolation").
 //
 //   Pose pose = Sample(buffer, buffer.RenderTime(now), Interpolator::kDualQuatSclerp);
 //
