@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reruns every figures-page scenario and rewrites docs/benchmarks.md's tables and charts.
 #
-#   scripts/bench.sh                  full mode: every scenario at the page's sizes (about 25 min
+#   scripts/bench.sh                  full mode: every scenario at the page's sizes (about 20 min
 #                                     on 2 cores), rewrites docs/benchmarks.md, docs/charts/
 #                                     figures.json and the charts in docs/charts/
 #   scripts/bench.sh --short --out D  short mode (under 3 minutes on 2 cores): small sizes and
@@ -10,8 +10,7 @@
 #                                     every table it measured has rows with numbers
 # Options:
 #   --build DIR     build tree holding loadgen/edgephys-loadgen (default build/release, the
-#                   `release` preset; bench/codec_bench and bench/physics_accuracy_report are used
-#                   when present there)
+#                   `release` preset; the full mode also runs its bench/codec_bench when present)
 #   --loadgen PATH  the edgephys-loadgen binary (overrides --build's)
 #   --out DIR       where the page, the figures JSON, raw/ and the charts go
 #
@@ -30,7 +29,7 @@ while [ $# -gt 0 ]; do
     --build) build="$2"; shift ;;
     --loadgen) loadgen="$2"; shift ;;
     --out) out="$2"; shift ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
     *) echo "bench.sh: unknown argument $1" >&2; exit 2 ;;
   esac
   shift
