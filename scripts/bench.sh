@@ -67,7 +67,9 @@ failed=0
 run() {  # NAME ARGS...: one scenario into raw/NAME.json, its table on stdout
   local name="$1"; shift
   echo "== $name: edgephys-loadgen $*"
-  if ! "$loadgen" "$@" --json "$raw/$name.json" --no-progress; then
+  local quiet=()  # offline scenarios have no progress line
+  if "$loadgen" "$1" --help 2>/dev/null | grep -q -- --no-progress; then quiet=(--no-progress); fi
+  if ! "$loadgen" "$@" --json "$raw/$name.json" "${quiet[@]}"; then
     echo "bench.sh: $name failed" >&2
     failed=1
     rm -f "$raw/$name.json"

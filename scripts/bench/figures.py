@@ -99,8 +99,8 @@ def t_relay_compare(j):
         n = r["objects"]
         anchor = PAPER_PHOTON_KBPS if r["mode"] == "photon" else PAPER_RELAY_KBPS
         kbps = r["egress_bytes_per_s_per_receiver"] / 1000.0
-        rows.append([r["mode"], n, kbps, anchor.get(n, 0.0),
-                     kbps / anchor[n] if n in anchor else 0.0,
+        rows.append([r["mode"], n, kbps, anchor.get(n),
+                     kbps / anchor[n] if n in anchor else None,
                      r["bytes_per_update"], r["pos_err_max_m"] * 1000, r["rot_err_max_deg"]])
     return rows
 
@@ -111,8 +111,8 @@ def t_multiobject(j):
         n = r["objects"]
         mbps = r.get("egress_mbit_per_s_per_client", 0.0)
         rows.append([n, r.get("step_ms_median", 0.0), r.get("raw_bullet_step_ms_median", 0.0),
-                     r.get("step_ratio_phys_to_raw", 0.0), mbps, PAPER_OBJ_MBPS.get(n, 0.0),
-                     mbps / PAPER_OBJ_MBPS[n] if n in PAPER_OBJ_MBPS else 0.0,
+                     r.get("step_ratio_phys_to_raw", 0.0), mbps, PAPER_OBJ_MBPS.get(n),
+                     mbps / PAPER_OBJ_MBPS[n] if n in PAPER_OBJ_MBPS else None,
                      r.get("display_err_p99_m", 0.0) * 1000, r.get("pos_err_sent_max_m", 0.0) * 1000])
     return rows
 
@@ -122,8 +122,8 @@ def t_softbody(j):
     for r in j["results"]:
         b = r["bunnies"]
         mbps = r["egress_mbit_per_s_per_client"]
-        rows.append([b, r["particles"], r["step_ms_median"], mbps, PAPER_BUNNY_MBPS.get(b, 0.0),
-                     mbps / PAPER_BUNNY_MBPS[b] if b in PAPER_BUNNY_MBPS else 0.0,
+        rows.append([b, r["particles"], r["step_ms_median"], mbps, PAPER_BUNNY_MBPS.get(b),
+                     mbps / PAPER_BUNNY_MBPS[b] if b in PAPER_BUNNY_MBPS else None,
                      r["node_err_p99_m"] * 1000, r["node_err_sent_max_m"] * 1000])
     return rows
 
@@ -159,16 +159,19 @@ def t_interp(j):
     for rate in sorted(by):
         d = by[rate]
         def p99(name):
-            return d[name]["pos_err_p99_m"] * 1000 if name in d else 0.0
+            return d[name]["pos_err_p99_m"] * 1000 if name in d else None
         any_r = next(iter(d.values()))
-        rows.append([rate, p99("lerp-slerp"), p99("hermite"), p99("none"), any_r["display_delay_ms"]])
+        rows.append([rate, p99("lerp_slerp"), p99("hermite"), p99("none"), any_r["display_delay_ms"]])
     return rows
 
 
 def t_codec(j):
+    labels = {"step": ("step, mm", 1000.0), "rotation_bound": ("rotation bound, deg", 1.0),
+              "threshold": ("threshold, mm", 1000.0)}
     rows = []
     for r in j["results"]:
-        rows.append([r["dimension"], r["value"], r["bytes_per_s_per_receiver"] / 1000.0,
+        label, scale = labels.get(r["dimension"], (r["dimension"], 1.0))
+        rows.append([label, r["value"] * scale, r["bytes_per_s_per_receiver"] / 1000.0,
                      r["bytes_per_update"], r["pos_err_max_m"] * 1000, r["rot_err_max_deg"]])
     return rows
 
