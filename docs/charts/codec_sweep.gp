@@ -7,6 +7,6 @@ set ylabel "KB/s per receiver"
 set grid
 set key top left
 set datafile missing '?'
-plot 'codec_sweep.dat' index 0 using 1:2 with linespoints lw 2 title "step, mm KB/s per receiver", \
-     'codec_sweep.dat' index 1 using 1:2 with linespoints lw 2 title "rotation bound, deg KB/s per receiver", \
-     'codec_sweep.dat' index 2 using 1:2 with linespoints lw 2 title "threshold, mm KB/s per receiver"
+plot 'codec_sweep.dat' index 0 using 1:2 with linespoints lw 2 title "step, mm", \
+     'codec_sweep.dat' index 1 using 1:2 with linespoints lw 2 title "rotation bound, deg", \
+     'codec_sweep.dat' index 2 using 1:2 with linespoints lw 2 title "threshold, mm"

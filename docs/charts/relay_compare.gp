@@ -9,6 +9,6 @@ set key top left
 set datafile missing '?'
 set logscale x 2
 set logscale y
-plot 'relay_compare.dat' index 0 using 1:2 with linespoints lw 2 title "photon KB/s per receiver (payload before sealing)", \
-     'relay_compare.dat' index 1 using 1:2 with linespoints lw 2 title "paper KB/s per receiver (payload before sealing)", \
-     'relay_compare.dat' index 2 using 1:2 with linespoints lw 2 title "edgephys KB/s per receiver (payload before sealing)"
+plot 'relay_compare.dat' index 0 using 1:2 with linespoints lw 2 title "photon", \
+     'relay_compare.dat' index 1 using 1:2 with linespoints lw 2 title "paper", \
+     'relay_compare.dat' index 2 using 1:2 with linespoints lw 2 title "edgephys"

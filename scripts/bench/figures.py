@@ -270,7 +270,7 @@ def chart(name, table, chart_dir):
     plots = []
     for gi, key in enumerate(groups):
         for yi, col in enumerate(ys):
-            label = (key + " " if key else "") + cols[col]
+            label = key if key and len(ys) == 1 else (key + " " if key else "") + cols[col]
             using = f"{2 + yi}:xtic(1)" if c.get("categorical") else f"1:{2 + yi}"
             plots.append(f"'{name}.dat' index {gi} using {using} with linespoints lw 2 title {q(label)}")
     gp = os.path.join(chart_dir, name + ".gp")
