@@ -3,7 +3,7 @@ set terminal pngcairo size 800,450 noenhanced font 'sans,10'
 set output 'ccu.png'
 set title "ccu: hand latency at the receiving socket"
 set xlabel "users"
-set ylabel "socket p50 ms"
+set ylabel "hand latency (ms)"
 set grid
 set key top left
 set datafile missing '?'

@@ -3,7 +3,7 @@ set terminal pngcairo size 800,450 noenhanced font 'sans,10'
 set output 'ceiling.png'
 set title "ceiling: relay datagrams/s over iperf3's"
 set xlabel "io threads"
-set ylabel "ratio to iperf3"
+set ylabel "relay / iperf3 datagrams per second"
 set grid
 set key top left
 set datafile missing '?'

@@ -3,7 +3,7 @@ set terminal pngcairo size 800,450 noenhanced font 'sans,10'
 set output 'multiobject_full.png'
 set title "multiobject full stir: step time, PhyS and raw Bullet"
 set xlabel "boxes"
-set ylabel "PhyS step ms"
+set ylabel "step (ms)"
 set grid
 set key top left
 set datafile missing '?'
