@@ -268,8 +268,8 @@ double RawBulletStackDrift(int substeps, int iterations, bool sleeping, double s
 // extents), speculative restitution, split impulse and two friction directions made no
 // systematic difference. Fix: 4 substeps of 1/240 s per 1/60 s Step() and Bullet's default sleep
 // thresholds; the settled stack then sleeps. Both are PhysicsConfig settings, not the defaults
-// (cost, and slow oscillations sleeping early: see docs/benchmarks.md, "PhyS: accuracy and
-// stability").
+// (cost, and slow oscillations sleeping early: see docs/benchmarks.md, "PhyS:
+// accuracy").
 TEST(PhysicsAccuracyTest, TenBoxStackStandsSixtySeconds) {
   PhysicsConfig cfg;  // defaults (dt 1/60, sleeping on) plus 4 substeps and
   cfg.substeps = 4;   // Bullet's default sleep thresholds

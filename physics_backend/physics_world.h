@@ -97,7 +97,7 @@ struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
   // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
   // across them). Cost: every substep is a full Bullet step, so Step() grows with substeps.
-  // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy and stability").
+  // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy").
   int substeps = 1;
   // Sequential impulse iterations (per substep). With one friction row per contact (Bullet's
   // default) 7 keep the accuracy suite passing and 6 or 5 do not (the never-sleeping stack
@@ -127,8 +127,8 @@ struct PhysicsConfig {
   float sleep_angular_threshold = 0.1f;  // rad/s
   float world_half_extent = 1000.0f;  // world bounds: axis-aligned cube, metres from the origin
   // --- What a scene does not need, PhyS does not compute. Each setting below was measured as
-  // step time (2,000-box MultiObject) against the accuracy suite (docs/benchmarks.md, "PhyS:
-  // model no more than the scene needs"); the defaults are the picks from that chart.
+  // step time (2,000-box MultiObject) against the accuracy suite (bench/physics_cost_report); the
+  // defaults are the picks.
   // Seconds an island stays below both sleep thresholds before it sleeps (Bullet: 2 s, a
   // process-wide global; PhyS emulates other values per body, O(active bodies) per step).
   // Shorter: settled piles stop costing sooner; slow damped motion freezes sooner.
@@ -257,7 +257,7 @@ struct PhysicsConfig {
   // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
   // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
   // allocates per new contact pair (malloc/free per pair that starts or stops touching), so a
-  // busy pile pays a little per step: measured in docs/benchmarks.md ("Memory per user"),
+  // busy pile pays a little per step: measured by
   // `physics_cost_report --only new-defaults,pools-4096`. Values below 64 count as 64.
   int contact_pool_size = 256;
   // Contact points farther apart than this (m) get no solver constraint (Bullet's default:
@@ -269,7 +269,7 @@ struct PhysicsConfig {
   // since its last narrowphase keeps its manifold: the points are refreshed from their body-fixed
   // anchors instead of running btBoxBoxDetector. Accuracy: a new contact inside a reused pair is
   // found up to this distance late. Cost saved: the box-box narrowphase of the qualifying pairs
-  // (docs/benchmarks.md, "Full stir: candidates after freezing"; it did not pay there).
+  // (bench/physics_cost_report on the full stir; it did not pay there).
   float manifold_reuse_distance = 0.0f;
   // Box-box manifolds only for touching pairs (physics/lazy_manifolds.h): a box-box pair gets
   // its contact manifold when btBoxBoxDetector first finds a point, and gives it back after
@@ -304,7 +304,7 @@ struct PhysicsConfig {
   // rest_linear_threshold * rest_time of drift is cut off, and its velocity is zeroed); a body
   // hit faster than the look-ahead margin covers (> ~(rest_wake_margin + 2 cm) per step) acts as
   // a static wall for that one step before the impulse rule wakes it. Measured against the
-  // setting off in docs/benchmarks.md ("Rest resting regions") and physics/rest_manager_test.cc.
+  // setting off by bench/physics_cost_report and physics/rest_manager_test.cc.
   // Cost when on: O(broadphase pairs) per step while many are frozen, O(frozen * log n) while
   // few are (a scene where almost nothing rests, e.g. the full stir), O(collision objects)
   // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the

@@ -194,8 +194,8 @@ class AsyncPhysicsRoom {
 // `nice` > 0 (Linux): each physics thread lowers its own scheduling priority by that much
 // (setpriority on the thread, capped at 19) when it starts, so that when the machine's cores
 // are all busy the relay's I/O thread (and anything else at normal priority) runs first and a
-// heavy room simulates slower instead of delaying other rooms' packets (docs/benchmarks.md,
-// "Isolation"). Lowering priority needs no privilege; if it fails the thread runs at normal
+// heavy room simulates slower instead of delaying other rooms' packets (`edgephys-loadgen
+// isolation`). Lowering priority needs no privilege; if it fails the thread runs at normal
 // priority and a warning is logged. 0: the threads keep the process's priority.
 //
 // `idle` (Linux): each physics thread puts itself in SCHED_IDLE instead (`nice` is then

@@ -1,5 +1,5 @@
 // Replication: what the relay sends one client each tick, and how (docs/protocol.md, state
-// formats; docs/benchmarks.md, what it costs and saves).
+// formats; docs/benchmarks.md, what it costs).
 //
 // Per client, per tick, ClientReplicator
 //  1. picks candidates: entities the client does not own that are due by their priority
@@ -69,8 +69,8 @@ struct ReplicationConfig {
   double critical_hz = 48;            // avatars, hands, grabbed objects
   double normal_hz = 12;              // everything else that moves
   // PhyS-simulated entities no user interacts with. A receiver interpolates them over a longer
-  // interval: the accuracy this costs (display error against the truth) is charted in
-  // docs/benchmarks.md ("PhyS: multiobject", ambient rate). Equal to normal_hz: no ambient
+  // interval: the accuracy this costs (display error against the truth) is measured by
+  // `edgephys-loadgen multiobject`. Equal to normal_hz: no ambient
   // class. Default 6 Hz: about the per-object rate Decoupled Edge Physics' PhyS table implies (its
   // throughput / 33 bytes per update: 4-5.5 updates per object per second).
   double ambient_hz = 6;
@@ -83,7 +83,7 @@ struct ReplicationConfig {
   // Selective sync thresholds: an entity whose client copy is within these of the truth is
   // not resent. The defaults equal the quantisation's accuracy (position_step_m,
   // rotation_bound_deg): finer thresholds cannot bring a client closer than the lattice, and
-  // resend slowly creeping entities for nothing (docs/benchmarks.md, "Ambient rate").
+  // resend slowly creeping entities for nothing.
   float position_threshold_m = 0.001f;
   float rotation_threshold_deg = 0.1f;
   double bandwidth_budget_bytes_per_s = 0;  // per client; 0 = unlimited
@@ -135,7 +135,7 @@ struct ReplicationConfig {
   // line is the one checked. Cost: per receiver per tick, a check of up to
   // Entity::kRecentStates states of each ambient body, and a second datagram in ticks that
   // send both PhyS bodies and other entities. Off by default: it meets the display target on
-  // one of the two scenes only (docs/benchmarks.md, "Key samples").
+  // one of the two scenes only.
   float key_sample_threshold_m = 0;
   float key_sample_rotation_deg = 5.0f;
   double key_sample_max_interval_s = 0.25;
@@ -165,7 +165,7 @@ struct ReplicationConfig {
   // reports no contact events for soft bodies), else at normal_hz; other modes send
   // format 5 (absolute particles) at normal_hz. 24 Hz, not critical_hz: a poked bunny costs
   // ~4 bits a particle per version, and the display error during pokes it adds against 48 Hz
-  // is measured in docs/benchmarks.md ("Touched rate: 24 Hz").
+  // is measured by `edgephys-loadgen softbody --soft-touched-hz`.
   float soft_touch_margin_m = 0.1f;
   double soft_touched_hz = 24;
 };
