@@ -1,4 +1,4 @@
-// A sizing spike for issue 15's Done-when line 1 (docs/benchmarks.md, "Full stir, session 17"):
+// A sizing spike for issue 15's Done-when line 1:
 // on the same poses and the same broadphase pairs of the 2,000-box full stir stepped by PhyS at
 // its defaults, what does the box-box narrowphase cost
 //   * through Bullet's dispatcher (collision objects, algorithms, 880-byte manifolds: what a PhyS

@@ -13,7 +13,7 @@
 //     between by more than T (or by T/10 rad in rotation), or when `--max-interval` passed while
 //     it moved; the sample is its state of this tick (what the relay can send without keeping
 //     older states).
-//   * key samples on a curve (session 15): as key samples, but the receiver draws, and the check
+//   * key samples on a curve: as key samples, but the receiver draws, and the check
 //     tests, the parabola through the sample before the last, the last and the state now (in
 //     position; "+rot" also in the rotation's log; "half" bends half as much), built only from
 //     samples the receiver holds once the segment's end arrives (no velocities, playout unchanged);
@@ -34,7 +34,7 @@
 //       [--bytes-per-update 6.74] [--paper-mbit 1.32] [--curve-gap-limit 1.0] [--kink]
 // Prints CSV: policy, samples per box per s, modelled ratio to the paper, display p50/p99 (mm),
 // rotation p99 (deg), key samples sent because the line or curve strayed per box per s (the rest
-// at the max interval or the window's end; 0 for other policies). `--kink` adds session 11's "key samples at the kink" rows.
+// at the max interval or the window's end; 0 for other policies). `--kink` adds the "key samples at the kink" rows.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

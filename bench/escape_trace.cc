@@ -1,5 +1,4 @@
-// escape_trace: where do boxes leave the full-stir container, and how? (docs/benchmarks.md,
-// "Full stir, session 14: containment without sweeps"). Steps the 2,000-box MultiObject scene
+// escape_trace: where do boxes leave the full-stir container, and how? Steps the 2,000-box MultiObject scene
 // (PhysSMultiObjectScene) with a candidate config for --seconds of simulated stirring and, for
 // every box whose centre leaves the container (the report's rule: more than 5 cm past a wall's
 // inner face, or 5 cm below the floor's top), prints one row: when, which box, through which wall,
@@ -15,7 +14,7 @@
 //
 //   escape_trace [--objects 2000] [--seconds 60] [--only CANDIDATE] [--history 12]
 //
-// The last line is a contact census at the end of the run (issue 15, session 16): broadphase
+// The last line is a contact census at the end of the run: broadphase
 // pairs, those with a collision algorithm, those of two boxes, contact manifolds, and manifolds
 // with at least one point (the opportunity for PhysicsConfig::lazy_box_manifolds).
 //

@@ -17,7 +17,7 @@
 //             solver iterations {4,10,20} x substeps {1,2,4}
 //
 // Everything except `speed` is deterministic. Runtime on the 2-core VM: about 12 s,
-// dominated by `speed` (docs/benchmarks.md, "PhyS: accuracy and stability").
+// dominated by `speed` (docs/benchmarks.md, "PhyS: accuracy").
 #include <BulletSoftBody/btSoftBody.h>
 #include <btBulletDynamicsCommon.h>
 

@@ -32,11 +32,11 @@ void OldDefaults(PhysicsConfig& c) {
   c.contact_processing_threshold = 1e18f;
   c.ccd = true;
   c.ccd_motion_fraction = 0.5f;
-  c.containment = false;  // session 14
+  c.containment = false;
 }
 
-// The defaults of session 8 (before session 11's candidates), to change one setting from in the
-// session-11 rows whatever the current defaults are.
+// An earlier set of defaults (named s8; before the solver candidates below), to change one
+// setting from in the solver rows whatever the current defaults are.
 PhysicsConfig& S8Defaults(PhysicsConfig& c) {
   c = PhysicsConfig{};
   c.solver_iterations = 7;
@@ -168,7 +168,7 @@ std::vector<Candidate> Candidates() {
       // (the sim_s_ratio column), never by the per-step ratio.
       {"rate-40hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 40.0f; }},
       {"rate-30hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 30.0f; }},
-      // Session 11, the full stir: solver settings Bullet offers, and CCD against walls only.
+      // The full stir: solver settings Bullet offers, and CCD against walls only.
       {"s8-defaults", [](PhysicsConfig& c) { S8Defaults(c); }},
       {"iter-6", [](PhysicsConfig& c) { S8Defaults(c).solver_iterations = 6; }},
       {"islands-off", [](PhysicsConfig& c) { S8Defaults(c).split_islands = false; }},
@@ -215,13 +215,13 @@ std::vector<Candidate> Candidates() {
          S8Defaults(c).split_islands = false;
          c.aabb_margin = 0.005f;
        }},
-      // The session-11 pick: every setting above that passed and saved something, together.
+      // The pick: every setting above that passed and saved something, together.
       {"s11-combo", [](PhysicsConfig& c) {
          TwoCachedFrictionDirs(S8Defaults(c)).solver_iterations = 4;
          c.split_islands = false;
          c.aabb_margin = 0.005f;
        }},
-      // Session 12: patch friction (physics/contact_solver.h), two tangent rows and a twist row
+      // Patch friction (physics/contact_solver.h), two tangent rows and a twist row
       // per manifold instead of friction rows per contact point.
       {"patch", [](PhysicsConfig& c) { S8Defaults(c).patch_friction = true; }},
       {"patch-iter5", [](PhysicsConfig& c) {
@@ -236,7 +236,7 @@ std::vector<Candidate> Candidates() {
          S8Defaults(c).patch_friction = true;
          c.solver_iterations = 3;
        }},
-      // Patch friction with session 11's one solver batch and 5 mm AABB margin.
+      // Patch friction with one solver batch and a 5 mm AABB margin.
       {"s12-combo", [](PhysicsConfig& c) {
          S8Defaults(c).patch_friction = true;
          c.solver_iterations = 4;
@@ -269,18 +269,15 @@ std::vector<Candidate> Candidates() {
        }},
       {"s8-rate-30hz", [](PhysicsConfig& c) { S8Defaults(c).fixed_dt = 1.0f / 30.0f; }},
       {"s8-rate-40hz", [](PhysicsConfig& c) { S8Defaults(c).fixed_dt = 1.0f / 40.0f; }},
-      // Session 14: today's defaults with patch friction and its block solve (contact_solver.h)
-      // at 4 and 3 iterations (s12-combo: patch friction without the block, at 4 from session
-      // 8's settings).
+      // Today's defaults with patch friction and its block solve (contact_solver.h) at 4 and 3
+      // iterations (s12-combo: patch friction without the block, at 4 from the s8 settings).
       {"s14-patch-iter4", [](PhysicsConfig& c) {
          c = PhysicsConfig{};
          c.patch_friction = true;
          c.patch_block_solve = true;
          c.solver_iterations = 4;
        }},
-      // Session 16: session 12's combination with the block solve (session 14's `s12-combo`
-      // was measured with the block built in; the block's escapes, docs/benchmarks.md "Full
-      // stir, session 16").
+      // s12-combo with the block solve.
       {"s16-combo-block", [](PhysicsConfig& c) {
          S8Defaults(c).patch_friction = true;
          c.patch_block_solve = true;
@@ -294,7 +291,7 @@ std::vector<Candidate> Candidates() {
          c.patch_block_solve = true;
          c.solver_iterations = 3;
        }},
-      // Session 14: containment without sweeps (physics/containment.h). `s13-defaults` is the
+      // Containment without sweeps (physics/containment.h). `s13-defaults` is the
       // defaults before it (CCD sweeps on, no containment), spelled out.
       {"s13-defaults", [](PhysicsConfig& c) {
          NewWith(c).ccd = true;
@@ -345,7 +342,7 @@ std::vector<Candidate> Candidates() {
          c.containment = true;
          c.containment_depth_fraction = 1.0f;
        }},
-      // Session 16 (issue 15, item 1): box-box manifolds only for touching pairs
+      // Box-box manifolds only for touching pairs
       // (physics/lazy_manifolds.h), kept 10 (the default), 0 and 60 empty steps.
       {"lazy", [](PhysicsConfig& c) { NewWith(c).lazy_box_manifolds = true; }},
       {"lazy-keep0", [](PhysicsConfig& c) {

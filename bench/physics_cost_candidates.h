@@ -1,6 +1,5 @@
 // The candidate PhysicsConfig settings that bench/physics_cost_report measures (--only NAME),
-// each as step time against the accuracy suite (docs/benchmarks.md, "PhyS: model no more than
-// the scene needs" and the sessions after it). Every candidate starts from either PhyS's old
+// each as step time against the accuracy suite. Every candidate starts from either PhyS's old
 // defaults (the first sweep) or its current defaults (NewWith) and changes what its name says.
 //
 // Thread-safety: pure functions. Cost: Candidates() builds a small vector.

@@ -182,8 +182,8 @@ class ClientListener {
 
 // What Spawn() sends: an EntitySpec (protocol/entity_spec.h) — the entity's transform,
 // hierarchy (parent_id) and flags (entity_flags::kPersistent, kOffloaded, kHand, ...) and,
-// the paper's dissection, its physics components. Spawn() ignores `id` and `owner`: it picks the
-// id from this player's block and the owner is this player.
+// Decoupled Edge Physics' dissection, its physics components. Spawn() ignores `id` and
+// `owner`: it picks the id from this player's block and the owner is this player.
 // With the Offloaded flag, a dynamic rigid body or a soft body is handed to PhyS: the relay
 // simulates it and it becomes PhyS-owned (this client receives its state like everyone else and
 // may still despawn, grab and release it). Without Offloaded, colliders and bodies are mirrored

@@ -1,8 +1,9 @@
-// Pose interpolation between buffered snapshots (client/snapshot_buffer.h). The paper smooths
-// received transforms with a dual-quaternion interpolator; this file offers it (both the
+// Pose interpolation between buffered snapshots (client/snapshot_buffer.h). Decoupled Edge
+// Physics smooths received transforms with a dual-quaternion interpolator; this file offers it
+// (both the
 // normalised linear blend, DLB, and screw linear interpolation, ScLERP) beside lerp+slerp, cubic
 // Hermite, and hold-last, so that their accuracy can be measured side by side
-// (docs/benchmarks.md, "Interpolation: error vs send rate").
+// (docs/benchmarks.md, "Interpolation").
 //
 //   Pose pose = Sample(buffer, buffer.RenderTime(now), Interpolator::kDualQuatSclerp);
 //
@@ -61,9 +62,9 @@ const char* InterpolatorName(Interpolator method);
 // The interpolator a room's state format (Client::state_format()) calls for: kLerpSlerp for
 // key-sample rooms (formats 13 and 14), whose relay sends a body when the straight line between
 // its samples strays, so the line is what it vouches for (Hermite over key samples showed
-// 1.4-4.1x the display error's p99: docs/benchmarks.md, "Display error, session 15"); kHermite
+// 1.4-4.1x the display error's p99 on the stirred boxes); kHermite
 // for every other format (sent velocities as tangents in format 12; finite differences
-// otherwise, the most accurate at send rates up to 30 Hz: "Interpolation: error vs send rate").
+// otherwise, the most accurate at send rates up to 30 Hz: docs/benchmarks.md, "Interpolation").
 // Unknown formats and 0 (not joined) get kHermite. O(1).
 Interpolator InterpolatorForStateFormat(uint8_t state_format);
 
@@ -74,7 +75,7 @@ Interpolator InterpolatorForStateFormat(uint8_t state_format);
 //    is that interval plus kPlayoutMarginS (plus any jitter above it), so that the state ending
 //    each segment has arrived when the render time enters it. The adaptive rule (1.5 median
 //    intervals) would play out ahead of the long segments and extrapolate a line the relay never
-//    checked (docs/benchmarks.md, "Display error, session 16: the SDK's playout").
+//    checked.
 //  * Format 12 without one (dead reckoning: a body may go unsent for seconds): kPlayoutMarginS
 //    plus jitter; the receiver extrapolates with the sent velocities (SampleOptionsForStateFormat).
 //  * Otherwise `base` unchanged: the adaptive delay follows the fixed rates.
@@ -87,8 +88,8 @@ SnapshotBufferConfig PlayoutConfigForRoom(uint8_t state_format, double max_send_
 // so the adaptive delay and a room's playout (above) never exceed it. 0, negative or non-finite:
 // `config` unchanged. The price in a key-sample room is accuracy: the render time runs ahead of
 // the longer segments, and the sampler extrapolates the last line for up to
-// SampleOptions::max_extrapolation_s, a line the relay never checked (docs/benchmarks.md,
-// "Display error, session 17: an application's playout limit": 1.0-1.1x the p99 at 80 % of a
+// SampleOptions::max_extrapolation_s, a line the relay never checked (display p99 on the
+// stirred boxes: 1.0-1.1x the p99 at 80 % of a
 // 0.25 s interval, 2.8-3.6x at 40 %). O(1).
 SnapshotBufferConfig CapPlayoutDelay(const SnapshotBufferConfig& config, double max_delay_s);
 

@@ -1,5 +1,5 @@
 // edgephys-cluster-failover: the scale-out and failover benchmark of issue 12
-// (docs/benchmarks.md, "Scale-out and failover (issue 12)"). Starts a real redis-server and
+// (docs/benchmarks.md, "Scale-out and failover"). Starts a real redis-server and
 // --relays edgephys-relay processes (--redis) on free loopback ports, joins --users bots to
 // --rooms rooms, each through relay (i mod relays) (tokens name only the room), and checks
 // every bot lands on its room's relay. Each bot owns one Persistent entity and publishes it at

@@ -1,4 +1,4 @@
-// multiobject: the paper's MultiObject scenario (PhyS throughput "Obj_N").
+// multiobject: Decoupled Edge Physics' MultiObject scenario (PhyS throughput "Obj_N").
 //
 // For every object count N, in one run:
 //  1. Step time, PhyS vs raw Bullet: the scene of physics/scenes.h (N boxes dropped into
@@ -14,8 +14,9 @@
 //     Offloaded|Kinematic body it drives with PublishTransform — mirrored into PhyS, it pushes
 //     the boxes. Receivers join the room. Measured over `duration_s` after the pile has had
 //     `relay_settle_steps` PhyS steps: relay egress per receiver (its per-connection
-//     bytes_sent, Mb/s with 1 Mb = 10^6 bits) beside the paper's Obj_N column, entity updates
-//     per second, the relay's own mean step time (RelayCounters), PhyS simulated seconds per
+//     bytes_sent, Mb/s with 1 Mb = 10^6 bits) beside Decoupled Edge Physics' Obj_N column,
+//     entity updates per second, the relay's own mean step time (RelayCounters), PhyS
+//     simulated seconds per
 //     wall second, the moving share from the states the receiver holds, and the receivers'
 //     position error: against the relay's entity state at the same moment (sampled every
 //     0.1 s), and against the state the relay had when it sent (best match among the relay's
@@ -124,7 +125,7 @@ struct MultiObjectResult {
   bool relay_ok = false;
   double egress_mbit_per_s_per_client = 0;  // relay's counters, mean over receivers
   double socket_mbit_per_s_per_client = 0;  // receiving sockets
-  double paper_mbit_per_s = 0;              // paper's Obj_N (0: not in the paper)
+  double paper_mbit_per_s = 0;              // Decoupled Edge Physics' Obj_N (0: none)
   double updates_per_s_per_client = 0;
   // Key samples (--key-samples): ambient boxes found due per box per second per receiver, by
   // reason (RelayCounters::key_samples_*): the line strayed, or the max interval passed.
@@ -175,7 +176,7 @@ physics::MultiObjectParams MultiObjectSceneParams(const MultiObjectOptions& opti
 void ExternalMultiObjectRun(const MultiObjectOptions& options, uint32_t objects,
                             MultiObjectResult* result);
 
-// The paper's PhyS throughput for Obj_N, Mb/s (0 where the paper has none).
+// Decoupled Edge Physics' PhyS throughput for Obj_N, Mb/s (0 where it has none).
 double PaperObjMbitPerS(uint32_t objects);
 
 }  // namespace edgephys::loadgen

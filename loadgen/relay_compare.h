@@ -1,4 +1,5 @@
-// relay-compare: the paper's relay experiment (section 5, "Relay outgoing bandwidth vs Photon").
+// relay-compare: Decoupled Edge Physics' relay experiment (section 5, "Relay outgoing bandwidth
+// vs Photon").
 //
 // For every mode and object count, in one run: an in-process relay on loopback UDP configured
 // with that mode, a host client owning all objects (users of 4: head, two hands, one held
@@ -52,14 +53,14 @@ struct RelayCompareResult {
   double bytes_per_update = 0;
   double pos_err_max_m = 0, pos_err_p99_m = 0;
   double rot_err_max_deg = 0, rot_err_p99_deg = 0;
-  double paper_bytes_per_s = 0;                       // the paper's column for this mode/size
+  double paper_bytes_per_s = 0;                       // Decoupled Edge Physics' column
   uint64_t samples = 0;
 };
 
 // Runs every (mode, objects) pair in sequence; returns one result each.
 std::vector<RelayCompareResult> RunRelayCompare(const RelayCompareOptions& options);
 
-// The paper's figures (paper-figures.md), bytes/s: 0 where the paper has none.
+// Decoupled Edge Physics' figures, bytes/s: 0 where it has none.
 double PaperRelayBytesPerS(uint32_t objects);
 double PaperPhotonBytesPerS(uint32_t objects);
 

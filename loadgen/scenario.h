@@ -106,7 +106,7 @@ Report MakeReport(const Options& o, Results results,
   return report;
 }
 
-// a / b, or 0 where b is not positive (a ratio to a paper figure the paper does not have).
+// a / b, or 0 where b is not positive (a ratio to a Decoupled Edge Physics figure it lacks).
 inline double RatioOr0(double a, double b) { return b > 0 ? a / b : 0.0; }
 
 // The JSON of a Motion's parameters: speed_mps, spin_dps and seed.

@@ -1,4 +1,4 @@
-// softbody: the paper's Softbody scenario (PhyS throughput "Bunny_1", "Bunny_3").
+// softbody: Decoupled Edge Physics' Softbody scenario (PhyS throughput "Bunny_1", "Bunny_3").
 //
 // For every bunny count N, in one run:
 //  1. Step time: a standalone PhysicsWorld with the scene (a static floor, N bunny soft bodies
@@ -13,7 +13,7 @@
 //     offloaded entities (PhyS simulates the bunnies) and the hands as Offloaded|Hand|Kinematic
 //     bodies it drives with PublishTransform (mirrored into PhyS, they push the bunnies).
 //     Receivers join the room. Measured over `duration_s`: relay egress per receiver (Mb/s,
-//     10^6 bits) beside the paper's Bunny_N, soft-body updates received per second, the
+//     10^6 bits) beside Decoupled Edge Physics' Bunny_N, soft-body updates received per second, the
 //     relay's mean PhyS step time, simulated seconds per wall second, bunny 0's deformation
 //     (largest change of a spring's length from rest; its spread shows that the hands poke),
 //     and the receivers' particle error: against the relay's particles at the same moment
@@ -63,7 +63,7 @@ struct SoftBodyResult {
   bool relay_ok = false;
   double egress_mbit_per_s_per_client = 0;  // relay's counters, mean over receivers
   double socket_mbit_per_s_per_client = 0;
-  double paper_mbit_per_s = 0;              // Bunny_1 / Bunny_3 (0: not in the paper)
+  double paper_mbit_per_s = 0;              // Bunny_1 / Bunny_3 (0: not in Decoupled Edge Physics)
   double soft_updates_per_s_per_client = 0; // OnSoftBodyUpdated (one per chunk)
   double relay_step_ms_mean = 0;
   double sim_speed = 0;

@@ -1,6 +1,6 @@
 // Internal to physics/: the Bullet world, solver and solver settings a PhysicsConfig asks for
-// (PhysicsWorld's constructor). Split out so that the settings measured in docs/benchmarks.md
-// ("PhyS: model no more than the scene needs", "Full stir, session 11") live in one place.
+// (PhysicsWorld's constructor). Split out so that the settings measured on the full stir
+// (bench/physics_cost_report.cc) live in one place.
 //
 // Thread-safety: none; everything returned is owned and used by one PhysicsWorld.
 // Ownership: the caller owns what is returned; the world does not own the dispatcher,

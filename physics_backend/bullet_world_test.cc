@@ -1,6 +1,6 @@
 // The Bullet-level settings of PhysicsConfig (physics/bullet_world.h): each reaches Bullet, and
 // each keeps the world correct where its header comment says it does. Speed is measured in
-// bench/physics_cost_report.cc (docs/benchmarks.md, "Full stir, session 11"), not here.
+// bench/physics_cost_report.cc, not here.
 #include <gtest/gtest.h>
 
 #include <BulletCollision/CollisionDispatch/btSimulationIslandManager.h>
@@ -20,7 +20,7 @@ using testing::Pos;
 
 TEST(BulletWorldTest, SolverSettingsReachBullet) {
   {
-    // The defaults: Bullet's solver modes, one solver batch (session 12; islands are still
+    // The defaults: Bullet's solver modes, one solver batch (islands are still
     // built for sleeping), PhyS's solver with its response filter.
     PhysicsWorld world{PhysicsConfig{}};
     btDiscreteDynamicsWorld* w = world.BulletWorldForTesting();
@@ -30,7 +30,7 @@ TEST(BulletWorldTest, SolverSettingsReachBullet) {
     EXPECT_EQ(w->getConstraintSolver()->getSolverType(), BT_SEQUENTIAL_IMPULSE_SOLVER);
   }
   {
-    // The session-11 candidates reach Bullet.
+    // The solver candidates reach Bullet.
     PhysicsConfig cfg;
     cfg.split_islands = false;
     cfg.two_friction_directions = true;

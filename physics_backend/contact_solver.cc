@@ -390,7 +390,7 @@ bool ContactSolver<Base>::SolveBlock(Patch& p, btScalar* residual) {
   }
   // Every point must end at its own target: with fewer generalised rows than points (a face's
   // 4 points, 3 rows) the block meets only a least-squares fit of the points' targets, which
-  // pushed touching corners apart (docs/benchmarks.md, "Full stir, session 16").
+  // pushed touching corners apart (boxes thrown out of the full stir).
   for (int i = 0; i < n; ++i) {
     btScalar v = e[i];
     for (int g = 0; g < k.gen; ++g) v -= k.response[i][g] * y[g];

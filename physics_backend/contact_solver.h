@@ -7,7 +7,7 @@
 //    not both static/kinematic) when it splits islands, but with setSplitIslands(false) it hands it
 //    EVERY manifold of the dispatcher, and btSequentialImpulseConstraintSolver::convertContact does
 //    not check: a trigger (a non-responding object) then stops a body like a wall
-//    (PhysicsConfig::split_islands = false, docs/benchmarks.md "Full stir, session 12"). The filter
+//    (PhysicsConfig::split_islands = false). The filter
 //    skips those manifolds in both paths (in the split path it never finds one). O(manifolds).
 //
 // 2. Patch friction (PhysicsConfig::patch_friction; sequential impulse only, ignored with NNCG).
@@ -29,27 +29,26 @@
 //    it refreshes or replaces a point); the patch starts from those of its oldest point. The
 //    twist row starts from zero each step. Rows per box pair with 4 points: 4 normal + 3 instead
 //    of 4 + 4 (one row per point) or 4 + 8 (two per point).
-//    Block solve (session 14; only with block_solve, PhysicsConfig::patch_block_solve, off by
-//    default: it stops the creep below but let boxes escape the full stir, docs/benchmarks.md
-//    "Full stir, session 14"): each iteration solves a patch's rows TOGETHER: the normal rows
+//    Block solve (only with block_solve, PhysicsConfig::patch_block_solve, off by
+//    default: it stops the creep below but let boxes escape the full stir): each iteration solves a patch's rows TOGETHER: the normal rows
 //    as generalised rows at the centre (the normal impulse and up to two tilt moments about the
 //    principal axes of the points' lever arms: 1 row for one point, 2 for an edge, 3 for a
 //    face), the two tangent rows and the twist row; up to 6 unknowns, through the inverse of
 //    their effective-mass matrix (built once per step). The change of the normal impulse and
-//    tilts is spread over the points least-norm and added to their impulses (session 16; the
-//    session-14 re-spread of the totals moved impulse the model did not see). The block is
+//    tilts is spread over the points least-norm and added to their impulses (re-spreading
+//    the totals instead moves impulse the model does not see). The block is
 //    dropped for that iteration, and the patch's rows solved one by one as before (normal rows
 //    by projected Gauss-Seidel, then the tangent pair and the twist), if a point would pull,
 //    the friction leaves its disk, or a point's normal velocity does not end within
-//    kPointTolerance of its target. That last check (session 16) matters where the points
+//    kPointTolerance of its target. That last check matters where the points
 //    outnumber the generalised rows (a face's 4 points, 3 rows; nearly collinear points whose
 //    tilt is dropped): the block then meets only a least-squares fit of the points' targets
 //    and, without the check, pushed touching corners apart every iteration, which threw 248 of
-//    2,000 boxes out of the full stir (docs/benchmarks.md, "Full stir, session 16").
+//    2,000 boxes out of the full stir.
 //    Why: with the rows solved one after the other, the centre's tangent rows and the corners'
 //    normal rows trade rotation about the horizontal axes each iteration, and a never-sleeping
 //    layer of touching boxes rocked with a growing amplitude and crept (2.1 mm in 5 s against
-//    Bullet's 0.01 mm; docs/benchmarks.md, "Full stir, sessions 13 and 14"). A resting box's
+//    Bullet's 0.01 mm). A resting box's
 //    patch is never saturated, so its block solution is exact for that patch.
 //    With the block solve a patch's normal rows are converted after all other manifolds' rows
 //    and hidden from Bullet's loop (solved here only).
@@ -77,8 +76,8 @@ namespace edgephys::physics::internal {
 inline constexpr btScalar kTwistRadiusFactor = btScalar(0.541);
 // Block solve: a tilt row is kept only if its principal moment of the points' lever arms is
 // more than this fraction of their sum (below it, nearly collinear points: the tilt is dropped
-// and the points check below decides). 1e-3 in session 14 let ill-conditioned 3-point blocks
-// through (boxes escaped the full stir, docs/benchmarks.md "Full stir, session 16").
+// and the points check below decides). 1e-3 lets ill-conditioned 3-point blocks
+// through (boxes escape the full stir).
 inline constexpr btScalar kTiltEigenFraction = btScalar(0.05);
 // Block solve: a block is kept only if every point's normal velocity ends within this of its
 // row's target (m/s); otherwise the patch is solved one row at a time that iteration.
@@ -90,7 +89,7 @@ class ContactSolver final : public Base {
  public:
   // patch_friction: see the header comment (ignored unless Base is the sequential impulse solver).
   // block_solve: patches solved as blocks (PhysicsConfig::patch_block_solve); without it every
-  // patch is solved one row at a time, as before session 14.
+  // patch is solved one row at a time.
   explicit ContactSolver(bool patch_friction, bool block_solve = false);
 
  protected:

@@ -1,7 +1,6 @@
 // Containment: the analytic guarantee that keeps dynamic bodies out of static boxes (walls,
 // floors, ceilings, any static box of any orientation), without CCD sweeps
-// (PhysicsConfig::containment; docs/benchmarks.md, "Full stir, session 14: containment without
-// sweeps").
+// (PhysicsConfig::containment).
 //
 // The rule, per Bullet step, for every active dynamic body that responds to contacts and every
 // static box it can collide with (collision filters; Bullet's own pairing rule): let d be how

@@ -1,7 +1,7 @@
 // Containment (physics/containment.h): dynamic bodies stay out of static boxes without CCD
 // sweeps, and bodies the rule does not concern are left exactly as Bullet moves them. The
-// full-stir figures (escapes, step time) are in docs/benchmarks.md, "Full stir, session 14:
-// containment without sweeps"; no timing here.
+// full-stir figures (escapes, step time) come from bench/physics_cost_report.cc; no timing
+// here.
 #include <gtest/gtest.h>
 
 #include <btBulletDynamicsCommon.h>

@@ -6,8 +6,7 @@
 // its constructor, i.e. for EVERY broadphase pair of two boxes, touching or not, and every step
 // that manifold is refreshed and then walked by the island manager, by PhyS's contact diff
 // (contact_tracker.cc), by RestManager and by the solver setup. In the 2,000-box full stir most
-// broadphase pairs do not touch (half the manifolds are empty: docs/benchmarks.md, "Full stir,
-// session 16", where it is measured; it saved ~5 % at best and stays off); session 13's
+// broadphase pairs do not touch (half the manifolds are empty; it saved ~5 % at best and stays off); a
 // profile put the narrowphase's cost in touching a pair's memory, not in the box-box test.
 //
 // What: a collision algorithm for BOX x BOX pairs with the same geometry as Bullet's (its

@@ -56,7 +56,7 @@ void RestingPile(bool patch_friction) {
   PhysicsConfig on_cfg = Config(0.001f);
   off_cfg.patch_friction = patch_friction;
   on_cfg.patch_friction = patch_friction;
-  off_cfg.patch_block_solve = patch_friction;  // the block solve (session 14) stops the creep
+  off_cfg.patch_block_solve = patch_friction;  // the block solve stops the creep
   on_cfg.patch_block_solve = patch_friction;
   PhysicsWorld off(off_cfg);
   PhysicsWorld on(on_cfg);
@@ -92,8 +92,7 @@ TEST(ManifoldReuseTest, RestingPileReusesItsManifoldsAndStaysWhereItWouldBe) {
 }
 
 // The same with patch friction and its block solve (contact_solver.h); with the rows solved one
-// at a time the pile crept ~4 mm in both runs and this failed (docs/benchmarks.md, "Full stir,
-// sessions 13 and 14").
+// at a time the pile crept ~4 mm in both runs and this failed.
 TEST(ManifoldReuseTest, RestingPileWithPatchFrictionStaysWhereItWouldBe) {
   RestingPile(true);
 }

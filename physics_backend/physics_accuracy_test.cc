@@ -268,8 +268,8 @@ double RawBulletStackDrift(int substeps, int iterations, bool sleeping, double s
 // extents), speculative restitution, split impulse and two friction directions made no
 // systematic difference. Fix: 4 substeps of 1/240 s per 1/60 s Step() and Bullet's default sleep
 // thresholds; the settled stack then sleeps. Both are PhysicsConfig settings, not the defaults
-// (cost, and slow oscillations sleeping early: see docs/benchmarks.md, "PhyS: accuracy and
-// stability").
+// (cost, and slow oscillations sleeping early: see docs/benchmarks.md, "PhyS:
+// accuracy").
 TEST(PhysicsAccuracyTest, TenBoxStackStandsSixtySeconds) {
   PhysicsConfig cfg;  // defaults (dt 1/60, sleeping on) plus 4 substeps and
   cfg.substeps = 4;   // Bullet's default sleep thresholds
@@ -280,7 +280,7 @@ TEST(PhysicsAccuracyTest, TenBoxStackStandsSixtySeconds) {
   // it shows that the scene stands in Bullet as Bullet ships, which is what PhyS is held
   // against. Tying it to cfg.solver_iterations made a PhyS setting fail through the reference
   // (at 4 iterations Bullet's one-row friction drifts 1.04 cm while PhyS's stack, with two
-  // friction rows or patch friction, passes; docs/benchmarks.md, "Full stir, session 12").
+  // friction rows or patch friction, passes).
   const int bullet_iterations = btContactSolverInfo().m_numIterations;
   const double raw = RawBulletStackDrift(cfg.substeps, bullet_iterations, true, 60.0);
   const double raw_one_step = RawBulletStackDrift(1, bullet_iterations, true, 60.0);

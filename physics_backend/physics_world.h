@@ -97,13 +97,13 @@ struct PhysicsConfig {
   float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
   // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
   // across them). Cost: every substep is a full Bullet step, so Step() grows with substeps.
-  // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy and stability").
+  // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy").
   int substeps = 1;
   // Sequential impulse iterations (per substep). With one friction row per contact (Bullet's
   // default) 7 keep the accuracy suite passing and 6 or 5 do not (the never-sleeping stack
   // creeps 0.29 / 0.27 m in 60 s, bound 0.25); with two cached friction rows (see
   // two_friction_directions) 4 hold it to 0.09 m. Each iteration is ~1.5-3 % of a 2,000-box
-  // MultiObject step (docs/benchmarks.md, "Full stir, session 11").
+  // MultiObject step (full stir).
   int solver_iterations = 7;
   int max_substeps = 4;               // Advance(): most fixed steps per call (backlog dropped)
   Vec3f gravity{0.0f, -9.81f, 0.0f};  // m/s^2
@@ -113,8 +113,7 @@ struct PhysicsConfig {
   // (smallest half extent) whenever they move more than ccd_motion_fraction * (smallest half
   // extent) in one step, i.e. only small fast bodies pay for it. On the full stir the sweeps
   // (8.2 % of the step) are what keeps boxes from being thrown out over the walls: their
-  // predictive contacts between fast boxes, not those against walls (session 14, see
-  // containment).
+  // predictive contacts between fast boxes, not those against walls (see containment).
   bool ccd = true;
   // Measured at 1.0 (sweep only bodies that move more than their smallest half extent per
   // step): no step time saved within the noise at 2,000 boxes, and 1-4 of 2,000 stirred boxes
@@ -128,8 +127,8 @@ struct PhysicsConfig {
   float sleep_angular_threshold = 0.1f;  // rad/s
   float world_half_extent = 1000.0f;  // world bounds: axis-aligned cube, metres from the origin
   // --- What a scene does not need, PhyS does not compute. Each setting below was measured as
-  // step time (2,000-box MultiObject) against the accuracy suite (docs/benchmarks.md, "PhyS:
-  // model no more than the scene needs"); the defaults are the picks from that chart.
+  // step time (2,000-box MultiObject) against the accuracy suite (bench/physics_cost_report); the
+  // defaults are the picks.
   // Seconds an island stays below both sleep thresholds before it sleeps (Bullet: 2 s, a
   // process-wide global; PhyS emulates other values per body, O(active bodies) per step).
   // Shorter: settled piles stop costing sooner; slow damped motion freezes sooner.
@@ -158,8 +157,8 @@ struct PhysicsConfig {
   // The solver stops iterating when the squared residual falls below this (0: always
   // solver_iterations). Cost saved only when islands converge early.
   float solver_residual_threshold = 0.0f;
-  // --- Solver and CCD settings measured on the full stir in session 11 (docs/benchmarks.md,
-  // "Full stir, session 11"; --only names in bench/physics_cost_candidates.cc).
+  // --- Solver and CCD settings, measured on the full stir (--only names in
+  // bench/physics_cost_candidates.cc).
   // Constraint solver. kSequentialImpulse: Bullet's default (projected Gauss-Seidel).
   // kNNCG: btNNCGConstraintSolver (nonlinear conjugate gradient on top of the same rows;
   // meant to converge in fewer iterations, at extra work per iteration). Measured: at 7
@@ -170,11 +169,10 @@ struct PhysicsConfig {
   // Bullet's island manager sorts every contact manifold by island and calls the solver once
   // per island (batched up to 128 rows). false: one solver call with every body and manifold,
   // no sorting; sleeping islands still sleep (islands are still built for that).
-  // Measured (full stir): false saves about 3 % of the step; the default since session 12
-  // (docs/benchmarks.md, "Full stir, session 12"). Bullet then hands the solver every
+  // Measured (full stir): false saves about 3 % of the step; the default. Bullet then hands the solver every
   // manifold, trigger pairs included (it filters them only per island), so PhyS's ContactSolver
-  // (contact_solver.h) skips pairs that need no response; before session 12 a trigger stopped a
-  // body like a wall with this off (the two trigger tests that failed in "Full stir, session 11").
+  // (contact_solver.h) skips pairs that need no response (otherwise a trigger would stop a body
+  // like a wall with this off).
   bool split_islands = false;
   // Friction rows per contact point: Bullet's default is one, along the sliding direction.
   // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
@@ -187,7 +185,7 @@ struct PhysicsConfig {
   // the cached directions only until btPersistentManifold::replaceContactPoint rewrites a point,
   // i.e. box-box points get fresh ones every step.) With manifold reuse on, a resting pile ends
   // 7.7 mm off the run without reuse (ManifoldReuseTest's bound: 2 mm; clearing the cache of
-  // reused points did not help), see "Full stir, session 12".
+  // reused points did not help).
   bool two_friction_directions = false;
   bool friction_direction_caching = false;
   // true (Bullet's default): the first friction direction follows the relative sliding
@@ -202,36 +200,32 @@ struct PhysicsConfig {
   // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
   // pressure torque), instead of friction rows per contact point; tangent impulses are warm
   // started. Each iteration solves a patch's normal, tangent and twist rows as one block (up to
-  // 6 x 6; session 14, patch_block_solve below), falling back to one row at a time while it
+  // 6 x 6; patch_block_solve below), falling back to one row at a time while it
   // slides or lifts off. Replaces
   // the per-point friction settings above for manifolds it handles (all but those with
   // rolling/spinning friction or friction anchors); interleave_friction is ignored. Rows per
-  // 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full stir,
-  // docs/benchmarks.md "Full stir, session 12"): 0.844x raw Bullet at 7 iterations against
+  // 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full stir):
+  // 0.844x raw Bullet at 7 iterations against
   // 0.885x without, 0.740x with 4 iterations, one batch and a 5 mm margin.
-  // History: with the rows solved one at a time a never-sleeping pile crept (the boxes rocked
+  // With the rows solved one at a time a never-sleeping pile crept (the boxes rocked
   // with a growing amplitude: a 4 x 4 layer of touching boxes moved 2.1 mm in 5 s and 9.7 mm in
-  // 20 s, the pile of ManifoldReuseTest 4 mm; session 13). The block solve holds the layer below
+  // 20 s, the pile of ManifoldReuseTest 4 mm). The block solve holds the layer below
   // 0.001 mm for 20 s (Bullet's friction: 0.04 mm), the pile within ManifoldReuseTest's 2 mm, and
-  // the never-sleeping ten-box stack to 3 mm at 4 iterations (docs/benchmarks.md, "Full stir,
-  // session 14: a block solve for patch friction"). Still off by default: with it and 4
+  // the never-sleeping ten-box stack to 3 mm at 4 iterations. Still off by default: with it and 4
   // iterations as defaults the SDK's stack-and-grab examples failed (the stacked boxes reported
-  // a collision exit and enter while settling; not traced); see that section.
+  // a collision exit and enter while settling; not traced).
   bool patch_friction = false;
-  // With patch_friction: solve each patch's rows as one block (contact_solver.h, session 14).
-  // Stops the resting creep above. In session 14 it threw 248 of 2,000 boxes out of the full
-  // stir; since session 16 a block is kept only if every contact point ends at its own target
-  // (a face's 4 points had met only a least-squares fit), and 0 of 2,000 escape in 60 s
-  // (docs/benchmarks.md, "Full stir, session 16"). Off until the lead changes the defaults.
-  // Without it, patch friction is exactly sessions 12-13's.
+  // With patch_friction: solve each patch's rows as one block (contact_solver.h).
+  // Stops the resting creep above. A block is kept only if every contact point ends at its own
+  // target (a least-squares fit alone threw boxes out of the full stir); 0 of 2,000 escape in
+  // 60 s. Off by default. Without it, patch friction solves one row at a time.
   bool patch_block_solve = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
   // box-box part of the sweeps. Accuracy: a fast small body can pass through a thin *dynamic*
   // body in one step. Measured on the full stir: no saving within the noise, and 5 of 2,000
-  // boxes escaped the container; off. Traced in session 14 (docs/benchmarks.md, "Full stir,
-  // session 14: containment without sweeps"): 19 of 22 escapes in 30 s were boxes thrown out
+  // boxes escaped the container; off. Traced: 19 of 22 escapes in 30 s were boxes thrown out
   // over the walls (box-box impacts without predictive contacts), 3 were pushed through a wall.
   bool ccd_static_only = false;
   // Containment (physics/containment.h): after every Bullet step, a dynamic body that reached
@@ -242,8 +236,7 @@ struct PhysicsConfig {
   // O(active dynamic bodies x static boxes) bounds tests per step. Counted in
   // PhysicsCounters::contained. Covers static boxes only: static meshes, spheres and compounds,
   // kinematic and dynamic obstacles still need the CCD sweeps (ccd) where bodies are fast.
-  // Measured on the full stir (docs/benchmarks.md, "Full stir, session 14: containment without
-  // sweeps"): no box centre passed a wall's inner face with it (44-61 mm without), but with
+  // Measured on the full stir: no box centre passed a wall's inner face with it (44-61 mm without), but with
   // ccd off 27 boxes in 60 s were thrown out over the open-topped walls, which only the sweeps'
   // box-box predictive contacts prevent (the step: 0.733x raw Bullet against 0.817x with the
   // sweeps); with ccd on it cannot save anything (the sweeps still run) and threw 4 out where
@@ -257,14 +250,14 @@ struct PhysicsConfig {
   // is found a step late. aabb_hysteresis (m, 0: off): the broadphase gets the AABB grown by
   // this much more, and is only updated when the body's AABB leaves it, so small motions cost
   // no sort; the price is more (looser) pairs for the narrowphase to reject. Measured (full
-  // stir): 5 mm saves ~2 % of the step (the default since session 12); 10 mm and hysteresis of
+  // stir): 5 mm saves ~2 % of the step (the default); 10 mm and hysteresis of
   // 1-2 cm save nothing measurable.
   float aabb_margin = 0.005f;
   float aabb_hysteresis = 0.0f;
   // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
   // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
   // allocates per new contact pair (malloc/free per pair that starts or stops touching), so a
-  // busy pile pays a little per step: measured in docs/benchmarks.md ("Memory per user"),
+  // busy pile pays a little per step: measured by
   // `physics_cost_report --only new-defaults,pools-4096`. Values below 64 count as 64.
   int contact_pool_size = 256;
   // Contact points farther apart than this (m) get no solver constraint (Bullet's default:
@@ -276,7 +269,7 @@ struct PhysicsConfig {
   // since its last narrowphase keeps its manifold: the points are refreshed from their body-fixed
   // anchors instead of running btBoxBoxDetector. Accuracy: a new contact inside a reused pair is
   // found up to this distance late. Cost saved: the box-box narrowphase of the qualifying pairs
-  // (docs/benchmarks.md, "Full stir: candidates after freezing"; it did not pay there).
+  // (bench/physics_cost_report on the full stir; it did not pay there).
   float manifold_reuse_distance = 0.0f;
   // Box-box manifolds only for touching pairs (physics/lazy_manifolds.h): a box-box pair gets
   // its contact manifold when btBoxBoxDetector first finds a point, and gives it back after
@@ -288,7 +281,7 @@ struct PhysicsConfig {
   // AABBs overlap. Ignored when manifold_reuse_distance > 0 (not combined). Cost: the narrowphase
   // of non-touching pairs no longer refreshes or lists a manifold; one pool (or malloc) manifold
   // per pair that starts touching after being apart for the keep time. keep_steps < 0 counts
-  // as 0. Measured on the full stir (docs/benchmarks.md, "Full stir, session 16"): half the
+  // as 0. Measured on the full stir: half the
   // manifolds are empty at the defaults; keep 10 saved 0.7-3.2 % of the step, keep 0 4.3-5.6 %
   // (2.2 % in a fourth sitting), the quarter-plus scene got 3-5 % dearer, and 1 box in 60 s
   // left the container (0 at the defaults). Off.
@@ -311,7 +304,7 @@ struct PhysicsConfig {
   // rest_linear_threshold * rest_time of drift is cut off, and its velocity is zeroed); a body
   // hit faster than the look-ahead margin covers (> ~(rest_wake_margin + 2 cm) per step) acts as
   // a static wall for that one step before the impulse rule wakes it. Measured against the
-  // setting off in docs/benchmarks.md ("Rest resting regions") and physics/rest_manager_test.cc.
+  // setting off by bench/physics_cost_report and physics/rest_manager_test.cc.
   // Cost when on: O(broadphase pairs) per step while many are frozen, O(frozen * log n) while
   // few are (a scene where almost nothing rests, e.g. the full stir), O(collision objects)
   // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the

@@ -112,7 +112,7 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
       {"restitution > 1", [](EntitySpec* s) { s->rigid_body->restitution = 2; },
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
       // Denormal components square to 0 in float; such a quaternion is not the all-zero
-      // "identity" and normalises to NaN (the fuzzer's soft-body SDF crash, session 18).
+      // "identity" and normalises to NaN (a crash in Bullet's soft-body SDF the fuzzer found).
       {"denormal collider rotation",
        [](EntitySpec* s) { s->colliders[0].local_rotation = {0, 0, 0, -5.8e-39f}; },
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
@@ -220,8 +220,8 @@ TEST(PhysicsWorldTest, BuildsEveryColliderKindAndCompound) {
 }
 
 // Quaternions are normalised in double: components near FLT_MAX square to inf in float and
-// used to normalise to zeros, a NaN rotation matrix that crashed Bullet's soft-body SDF (the
-// fuzzer's second finding, session 18). They are a usable direction, so they are accepted.
+// used to normalise to zeros, a NaN rotation matrix that crashed Bullet's soft-body SDF (a
+// fuzzer finding). They are a usable direction, so they are accepted.
 TEST(PhysicsWorldTest, HugeQuaternionComponentsBecomeAUnitRotation) {
   PhysicsWorld world;
   ASSERT_TRUE(Add(world, Ground(1)).ok());

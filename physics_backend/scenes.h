@@ -1,9 +1,10 @@
-// Headless scenes for benchmarks (bench/, loadgen) and tests: the paper's "MultiObject" scene
-// (N boxes dropped into a walled container, a kinematic paddle stirring them so that a good
+// Headless scenes for benchmarks (bench/, loadgen) and tests: Decoupled Edge Physics'
+// "MultiObject" scene (N boxes dropped into a walled container, a kinematic paddle stirring
+// them so that a good
 // share keeps moving) built twice from the same parameters: once through PhysicsWorld from
 // containers (what PhyS runs), once directly in raw Bullet (the baseline), so that a benchmark
 // can step both side by side and quote the PhysicsWorld overhead as a ratio. Plus a "bunny-like"
-// soft body generator (the paper's Softbody scenario uses ~500 particles per bunny).
+// soft body generator (Decoupled Edge Physics' Softbody scenario uses ~500 particles per bunny).
 //
 // Thread-safety: each scene object is used by one thread. Cost: construction O(N); Step() is
 // one physics step (PhyS variant: plus CollectStates/DrainEvents as the relay would call them).

@@ -79,8 +79,7 @@ inline constexpr uint8_t kVelocityDeltaStateFormat =
 // s >= 2 the distance d_prev + unzigzag(s - 2). The encoder uses it when the reference is the
 // newest version of the entity it put in any payload, so every version the decoder may hold
 // between the two is the reference itself. Key-sample rooms send it: their entities' reference
-// distances are irregular, and format 2 spends ~11 bits a record on them (docs/benchmarks.md,
-// "Key samples, coded").
+// distances are irregular, and format 2 spends ~11 bits a record on them.
 inline constexpr uint8_t kPreviousDeltaStateFormat =
     static_cast<uint8_t>(StateFormat::kQuantizedDeltaPrevious);
 
@@ -88,7 +87,7 @@ inline constexpr uint8_t kPreviousDeltaStateFormat =
 // record ends with its own time: 1 bit, 0 = the payload's time; 1 = an offset back from it, in
 // ms, Exp-Golomb (k = 4) of offset - 1, at most kMaxRecordAgeMs. A record's prediction runs to
 // its own time. Key samples at the kink send PhyS's state at the kink, with the time it holds,
-// rather than the present one (docs/benchmarks.md, "Display error, session 11").
+// rather than the present one.
 inline constexpr uint8_t kTimedDeltaStateFormat =
     static_cast<uint8_t>(StateFormat::kQuantizedDeltaTimed);
 // Largest offset of a format-14 record's time before its payload's (ms); larger is malformed.
@@ -130,7 +129,7 @@ struct DeltaEncoderStats {
   uint64_t residual_bits_exp_golomb = 0;
   uint64_t residual_bits_fixed_width = 0;
   // Bits of the committed records by part (kRecordPart*), for the record: where a state costs
-  // what it costs (docs/benchmarks.md, "Key samples, coded"). Payload headers are not included.
+  // what it costs. Payload headers are not included.
   std::array<uint64_t, kRecordPartCount> record_part_bits{};
 };
 

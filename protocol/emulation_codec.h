@@ -1,6 +1,6 @@
 // Emulation formats: the same relay speaking like the baselines it is compared with, so that a
-// benchmark measures all of them side by side in one run (docs/benchmarks.md, "How the
-// baselines are modelled"). Not for production rooms.
+// benchmark measures all of them side by side in one run (docs/benchmarks.md,
+// "Relay bandwidth"). Not for production rooms.
 //
 // Format 3, "photon": one message per entity per send, full float transform, each message
 // carrying the overhead of Photon's binary UDP protocol (a 12-byte command header per message,
@@ -10,8 +10,8 @@
 //   u32 sent time (ms), u32 challenge} | count x { 12-byte command header {u8 type (7 =
 //   send unreliable), u8 channel, u8 flags, u8 reserved, u32 length, u32 sequence} | u8 event
 //   code | u16 view id | 7 x f32 }                                        = 43 bytes per entity
-// Format 4, "paper": the paper's relay: grouped updates, a significance threshold (applied by
-// the scheduler), a per-entity change bitmask and unquantised floats.
+// Format 4, "paper": Decoupled Edge Physics' relay: grouped updates, a significance threshold
+// (applied by the scheduler), a per-entity change bitmask and unquantised floats.
 //   u8 format (4) | u32 time (ms) | u16 count | count x { u32 entity id | u8 mask (bit 0
 //   position, bit 1 rotation) | [3 x f32 position] | [4 x f32 rotation] }   = 33 bytes per entity
 //

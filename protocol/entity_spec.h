@@ -1,5 +1,6 @@
-// Dissection output (the paper's algorithms 1-3) as plain structs: one entity's transform,
-// parent, owner, flags and physics components (rigid body, colliders, joints, soft body).
+// Dissection output (Decoupled Edge Physics' algorithms 1-3) as plain structs: one entity's
+// transform, parent, owner, flags and physics components (rigid body, colliders, joints, soft
+// body).
 // The client SDK spawns entities from it (client/client.h: SpawnDesc is EntitySpec); PhyS tests
 // and scenes build worlds from it; protocol/container_builder.h serialises it to the
 // schema::Container flatbuffer (schema/container.fbs).

@@ -1,9 +1,9 @@
 // Format 9, relay side: the per-(receiver, entity) record is one 64-byte cache line
-// (SharedDeltaStream::Track, session 11). What it must not change: the payloads the stream
+// (SharedDeltaStream::Track). What it must not change: the payloads the stream
 // writes. A scenario with receivers joining and leaving mid-stream, entities despawned and
 // respawned into reused slots (under the same id or a new one), 20 % payload loss, duplication,
 // reordering and lost acknowledgements must decode within 1 mm / 0.1 deg at every receiver,
-// resolve every reference, and produce the very bytes the session-10 stream (100-byte records,
+// resolve every reference, and produce the very bytes the earlier stream (100-byte records,
 // a send's tick kept per record, Resolve in Need and again in Add) produced: a hash of them.
 // And an acknowledgement that arrives between Need and Add is still taken in by Add.
 #include <gtest/gtest.h>
@@ -32,7 +32,7 @@ using testing_util::TestMotion;
 EntityState At(float x) { return {0, {x, 1, 2}, {0, 0, 0, 1}}; }
 
 // FNV-1a of the payloads JoinsLeavesRespawnsAndLossDecodeAndKeepTheBytes sends, as the
-// session-10 stream (60652a3, before the 64-byte records) wrote them.
+// stream of 60652a3 (before the 64-byte records) wrote them.
 constexpr uint64_t kSession10Hash = 0x1c64c51b47697b8eull;
 
 // Need takes in the acknowledgements known when it looks (Resolve); Add skips that work when no
@@ -239,7 +239,7 @@ TEST(SharedDeltaTrack, JoinsLeavesRespawnsAndLossDecodeAndKeepTheBytes) {
     unresolved += ds.unresolved_references;
     EXPECT_LE(rx[k]->stream.tracked_entities(), kSlots);
   }
-  // The session-10 stream (60652a3) wrote these bytes for this scenario; format 9's wire and
+  // The stream of 60652a3 wrote these bytes for this scenario; format 9's wire and
   // every choice of reference and key are unchanged by the record's layout.
   std::printf("payloads %llu records %llu hash %016llx\n",
               static_cast<unsigned long long>(payloads), static_cast<unsigned long long>(records),

@@ -194,15 +194,15 @@ class AsyncPhysicsRoom {
 // `nice` > 0 (Linux): each physics thread lowers its own scheduling priority by that much
 // (setpriority on the thread, capped at 19) when it starts, so that when the machine's cores
 // are all busy the relay's I/O thread (and anything else at normal priority) runs first and a
-// heavy room simulates slower instead of delaying other rooms' packets (docs/benchmarks.md,
-// "Isolation"). Lowering priority needs no privilege; if it fails the thread runs at normal
+// heavy room simulates slower instead of delaying other rooms' packets (`edgephys-loadgen
+// isolation`). Lowering priority needs no privilege; if it fails the thread runs at normal
 // priority and a warning is logged. 0: the threads keep the process's priority.
 //
 // `idle` (Linux): each physics thread puts itself in SCHED_IDLE instead (`nice` is then
 // ignored): it runs only on a core that has no normal-priority thread to run, where niceness
 // 19 still takes a ~1.5 % weighted share and waits out wake-up granularity. On 2 shared cores it
-// brought a neighbouring room's socket p99 ratio from 1.28x to 1.09x (docs/benchmarks.md,
-// "Isolation, session 11"). Cost: on a machine whose cores are always busy with other work,
+// brought a neighbouring room's socket p99 ratio from 1.28x to 1.09x (`edgephys-loadgen
+// isolation`). Cost: on a machine whose cores are always busy with other work,
 // PhyS rooms make no progress at all (their real-time factor falls towards 0); the relay loop
 // itself is unaffected.
 class AsyncPhysicsPool {

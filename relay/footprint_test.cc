@@ -1,6 +1,6 @@
 // What an idle room member and an idle room cost in heap, as bounds that fail when a fixed-size
-// ring or pool creeps back into every connection or every room (docs/benchmarks.md, "Memory per
-// user"). Heap bytes are glibc's own count (mallinfo2: in-use bytes of the main arena plus
+// ring or pool creeps back into every connection or every room (memory per user).
+// Heap bytes are glibc's own count (mallinfo2: in-use bytes of the main arena plus
 // mmapped blocks); the test allocates on the main thread only, so nothing else is counted.
 #include <gtest/gtest.h>
 #include <malloc.h>

@@ -90,7 +90,7 @@ void Relay::Update(double now, uint64_t unix_now_s) {
   // events of this step (Grabbed, Enter/Exit) leave in this update: in the state datagrams of
   // the rooms that tick now (Connection::SendUnreliable carries the due reliable units and
   // the acks that fit), the rest in the connections' own packets right after: 28 % fewer
-  // sealed datagrams at 100 users in a room (docs/benchmarks.md, issue 11 session 8).
+  // sealed datagrams at 100 users in a room.
   StepAllPhysics(now);
   const bool once_a_second = now - last_rtt_sample_ >= 1.0;
   if (once_a_second) last_rtt_sample_ = now;

@@ -86,7 +86,7 @@ struct RelayCounters {
   // Format 2/13 entity records sent, and their bits by part (DeltaRecordPart: id, reference,
   // keyframe, mask, position, rotation), by why they went: [0] their class's schedule, [1] a key
   // sample whose line strayed, [2] one at the max interval. Where a state's bytes go
-  // (docs/benchmarks.md, "Key samples, coded"); read by multiobject, not exported.
+  // read by multiobject, not exported.
   std::array<Counter, 3> state_records{};
   std::array<std::array<Counter, 6>, 3> state_record_bits{};
   Counter reliable_resends{0};

@@ -232,7 +232,7 @@ ClientReplicator::KeyDue ClientReplicator::KeySampleDue(uint32_t id, const Entit
   // (sent_state_time), to the present state at the time it holds; PhyS's states in between are
   // checked at the times they hold too. (Stamping them with their arrival instead, a step's
   // uneven computation later, with several steps sometimes arriving at once, made straight
-  // paths look kinked: docs/benchmarks.md, "Key samples".)
+  // paths look kinked.)
   const double h = e.state_time - sent_state_time;
   if (h <= 0) return KeyDue::kNo;
   const double thr = config_.key_sample_threshold_m;

@@ -1,5 +1,5 @@
 // Replication: what the relay sends one client each tick, and how (docs/protocol.md, state
-// formats; docs/benchmarks.md, what it costs and saves).
+// formats; docs/benchmarks.md, what it costs).
 //
 // Per client, per tick, ClientReplicator
 //  1. picks candidates: entities the client does not own that are due by their priority
@@ -69,9 +69,9 @@ struct ReplicationConfig {
   double critical_hz = 48;            // avatars, hands, grabbed objects
   double normal_hz = 12;              // everything else that moves
   // PhyS-simulated entities no user interacts with. A receiver interpolates them over a longer
-  // interval: the accuracy this costs (display error against the truth) is charted in
-  // docs/benchmarks.md ("PhyS: multiobject", ambient rate). Equal to normal_hz: no ambient
-  // class. Default 6 Hz: about the per-object rate the paper's PhyS table implies (its
+  // interval: the accuracy this costs (display error against the truth) is measured by
+  // `edgephys-loadgen multiobject`. Equal to normal_hz: no ambient
+  // class. Default 6 Hz: about the per-object rate Decoupled Edge Physics' PhyS table implies (its
   // throughput / 33 bytes per update: 4-5.5 updates per object per second).
   double ambient_hz = 6;
   // An entity counts as interacted with while a trigger overlap or a reported contact naming
@@ -83,7 +83,7 @@ struct ReplicationConfig {
   // Selective sync thresholds: an entity whose client copy is within these of the truth is
   // not resent. The defaults equal the quantisation's accuracy (position_step_m,
   // rotation_bound_deg): finer thresholds cannot bring a client closer than the lattice, and
-  // resend slowly creeping entities for nothing (docs/benchmarks.md, "Ambient rate").
+  // resend slowly creeping entities for nothing.
   float position_threshold_m = 0.001f;
   float rotation_threshold_deg = 0.1f;
   double bandwidth_budget_bytes_per_s = 0;  // per client; 0 = unlimited
@@ -94,10 +94,8 @@ struct ReplicationConfig {
   // edgephys mode: send state format 9 ("shared delta", protocol/shared_delta_codec.h); false
   // sends format 2. The room quantises, predicts and codes each (entity, baseline) delta once per
   // tick for every receiver on that baseline; each receiver only appends bits. Clients learn the
-  // format from Joined. The default since issue 11 session 13: at 100 users in one room 4.9x less
-  // relay CPU per delivered update than format 2, -4 % bytes per update, a fifth of the relay's
-  // peak RSS (docs/benchmarks.md, "Session 12: lockstep receivers" and "Session 13: format 9 by
-  // default"). Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68
+  // format from Joined. The default: at 100 users in one room 4.9x less relay CPU per delivered
+  // update than format 2, -4 % bytes per update, a fifth of the relay's peak RSS. Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68
   // bytes per (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
   // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
   // sent) when a policy of that family is asked for: velocities, key samples, stamp_state_time.
@@ -106,8 +104,7 @@ struct ReplicationConfig {
   // runs one canonical replicator per tick; receivers that acknowledge its payloads within
   // `lockstep_ack_ticks` ticks are sent copies of them instead of being walked entity by entity
   // (their own entities' records included); acknowledgements count as baselines only that many
-  // ticks after the send in every stream of such a room. Off by default until measured
-  // (docs/benchmarks.md, "Session 12: lockstep receivers").
+  // ticks after the send in every stream of such a room. Off by default.
   bool shared_lockstep = false;
   uint32_t lockstep_ack_ticks = 3;
   // edgephys mode without shared_encoding: send state format 12 (format 2 plus velocities,
@@ -138,7 +135,7 @@ struct ReplicationConfig {
   // line is the one checked. Cost: per receiver per tick, a check of up to
   // Entity::kRecentStates states of each ambient body, and a second datagram in ticks that
   // send both PhyS bodies and other entities. Off by default: it meets the display target on
-  // one of the two scenes only (docs/benchmarks.md, "Key samples").
+  // one of the two scenes only.
   float key_sample_threshold_m = 0;
   float key_sample_rotation_deg = 5.0f;
   double key_sample_max_interval_s = 0.25;
@@ -150,8 +147,7 @@ struct ReplicationConfig {
   // Key samples: when a line strays, send the recent PhyS state furthest beyond the thresholds
   // (the kink), with the time it holds, instead of the present state, so that the receiver's
   // line passes through the kink (state format 14: records with times of their own). The next
-  // check draws the line from the kink. Off by default (docs/benchmarks.md, "Display error,
-  // session 11").
+  // check draws the line from the kink. Off by default.
   bool key_sample_at_kink = false;
   // Key samples: stamp PhyS bodies with the time their states hold plus the room's running mean
   // of how long PhyS's states take to reach the relay (ReplicationFrame::physics_lag_s):
@@ -169,7 +165,7 @@ struct ReplicationConfig {
   // reports no contact events for soft bodies), else at normal_hz; other modes send
   // format 5 (absolute particles) at normal_hz. 24 Hz, not critical_hz: a poked bunny costs
   // ~4 bits a particle per version, and the display error during pokes it adds against 48 Hz
-  // is measured in docs/benchmarks.md ("Touched rate: 24 Hz").
+  // is measured by `edgephys-loadgen softbody --soft-touched-hz`.
   float soft_touch_margin_m = 0.1f;
   double soft_touched_hz = 24;
 };

@@ -383,7 +383,7 @@ TEST(RoomHostSharedEncoding, JoinedCarriesTheFormatAndBeginTickPreparesSharedVer
   }
 }
 
-// The format a room tells its members: format 9 by default (issue 11 session 13), format 2
+// The format a room tells its members: format 9 by default, format 2
 // with shared_encoding off; a policy of the format-2 family takes precedence over format 9
 // whatever shared_encoding says: velocities format 12, key samples without velocities format
 // 13, state-time stamps format 2.

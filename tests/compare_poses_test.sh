@@ -24,7 +24,7 @@ expect() {
 }
 a="pose 1 0.000047 0.100047 0.000047 0.000000 0.000000 0.000503 1.000000"
 b="pose 2 -0.000953 0.300048 0.000047 0.000000 0.000000 0.000000 1.000000"
-# |q|^2 = 1 - 3.86e-7 as printed (the box of the session-9 failures; 0.1006 degree against
+# |q|^2 = 1 - 3.86e-7 as printed (a box that failed the comparison; 0.1006 degree against
 # itself with the unnormalised formula).
 c="pose 3 1.363048 0.100047 -0.001953 0.000503 -0.003018 0.000503 0.999995"
 # |q|^2 = 1 + 8.96e-7 as printed.

@@ -117,7 +117,7 @@ typedef struct edgephys_transform {
 #define EDGEPHYS_FLAG_REPORT_CONTACTS 64u /* collision Enter/Exit events for it */
 #define EDGEPHYS_FLAG_ALL 127u
 
-/* ---- dissection containers (the paper's algorithms 1-3) -------------------------------- */
+/* ---- dissection containers (Decoupled Edge Physics' algorithms 1-3) -------------------- */
 
 typedef enum edgephys_collider_shape {
   EDGEPHYS_SHAPE_BOX = 0,        /* half_extents */
@@ -278,8 +278,8 @@ EDGEPHYS_API edgephys_status edgephys_client_spawn(edgephys_client* client,
                                                    uint32_t* out_id);
 /* EDGEPHYS_E_NOT_FOUND if this client does not own the entity. */
 EDGEPHYS_API edgephys_status edgephys_client_despawn(edgephys_client* client, uint32_t entity_id);
-/* Records the latest transform of an owned entity; it is sent at the publish rate (the paper's
- * MoveToTransform for mirrored kinematic bodies and hands). */
+/* Records the latest transform of an owned entity; it is sent at the publish rate
+ * (Decoupled Edge Physics' MoveToTransform for mirrored kinematic bodies and hands). */
 EDGEPHYS_API edgephys_status edgephys_client_publish_transform(edgephys_client* client,
                                                                uint32_t entity_id,
                                                                const edgephys_transform* transform);
@@ -441,7 +441,8 @@ EDGEPHYS_API edgephys_status edgephys_client_get_soft_body(edgephys_client* clie
 typedef enum edgephys_interpolator {
   EDGEPHYS_INTERP_LERP_SLERP = 0,
   EDGEPHYS_INTERP_DQ_DLB = 1,
-  EDGEPHYS_INTERP_DQ_SCLERP = 2, /* dual-quaternion screw interpolation (the paper's) */
+  EDGEPHYS_INTERP_DQ_SCLERP = 2, /* dual-quaternion screw interpolation (Decoupled Edge
+                                    Physics') */
   EDGEPHYS_INTERP_HERMITE = 3,
   EDGEPHYS_INTERP_NONE = 4,      /* hold the latest snapshot */
   /* What the joined room's state format calls for (edgephys_client_get_state_format): LERP_SLERP
@@ -465,8 +466,8 @@ EDGEPHYS_API edgephys_status edgephys_client_get_state_format(edgephys_client* c
  * (client/interpolation.h explains each). Call once per rendered frame per entity with
  * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived.
  * Rooms whose relay sends key samples (`--key-samples`) check the straight line between them:
- * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99,
- * docs/benchmarks.md, "Display error, session 15"); EDGEPHYS_INTERP_AUTO picks it for them. */
+ * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99
+ * on the stirred boxes); EDGEPHYS_INTERP_AUTO picks it for them. */
 EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client,
                                                          uint32_t entity_id, double now_s,
                                                          uint32_t method,
@@ -479,8 +480,8 @@ EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client
  * out at its max send interval plus 20 ms (0.27 s at the relay's default 0.25 s) because the
  * relay only vouches for the line between samples; held below that, the render time runs ahead
  * of the longer segments and the SDK extrapolates the last line for up to 0.1 s. Measured on the
- * stirred boxes (display p99 against the room's playout, docs/benchmarks.md, "Display error,
- * session 17: an application's playout limit"): at the default 0.25 s interval a 0.2 s limit
+ * stirred boxes (display p99 against the room's playout, `edgephys-loadgen multiobject
+ * --display-playout-limit`): at the default 0.25 s interval a 0.2 s limit
  * costs 1.0-1.1x, a 0.1 s limit 2.8-3.6x; a 0.3 s limit costs 1.2-1.6x at a 0.5 s interval and
  * 1.9-2.5x at 1 s. Keep the limit near the room's interval or ask the operator for a shorter
  * one. Fixed-rate rooms play out adaptively (1.5 send intervals plus jitter, at most 0.3 s), so

@@ -181,7 +181,7 @@ float MaxDistance(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
 // "after" is the first version from the new world, which the relay sends at once. The squashed
 // body jitters under the plate on its own (its contact particles move 5-9 mm per 1/60 s step,
 // and 4-13 mm between two 12 Hz updates in normal running), so the bound for every particle is
-// that of the body's own motion over one or two steps; see docs/benchmarks.md.
+// that of the body's own motion over one or two steps.
 // Both soft-body wires: format 11 (edgephys mode: residuals against acknowledged versions) and
 // format 5 (the baseline modes: absolute particles in chunks).
 class SoftFailover : public ::testing::TestWithParam<ReplicationMode> {};

@@ -2,7 +2,6 @@
 // by tests/with_relay.sh, which provides a real relay in EDGEPHYS_RELAY and two tokens).
 //   ClientTests.exe            the tests (bad arguments; zero allocation per received state)
 //   ClientTests.exe --bench N  the per-state cost of Client.Update with N moving entities
-//                              (docs/benchmarks.md, "SDK (issue 13)")
 using System;
 using System.Diagnostics;
 using System.Runtime.InteropServices;
