@@ -5,7 +5,7 @@
 #    API listens off-loopback only with a key in the environment;
 #  * the k8s StatefulSet probes /healthz (liveness) and /readyz (readiness) on the admin port;
 #  * every edgephys_ metric the Grafana dashboard queries is one the relay exports
-#    (metrics/metrics_exporter.cc), and promtool parses every query (as recording rules) and
+#    (relay/relay_metrics.cc, metrics/), and promtool parses every query (as recording rules) and
 #    the Prometheus config;
 #  * podman-compose (Debian 12's 1.0.3 has no `config`): `--dry-run up` with podman replaced by
 #    `true`, so nothing is built, created or started; the podman commands it would run must
@@ -71,7 +71,9 @@ if yaml:
     pm = docs["deploy/k8s/podmonitor.yaml"][0]
     if pm["kind"] != "PodMonitor": fail("k8s: podmonitor.yaml is not a PodMonitor")
 
-exported = set(re.findall(r'"(edgephys_[a-z_]+)"', pathlib.Path("metrics/metrics_exporter.cc").read_text()))
+exported = set(re.findall(r'"(edgephys_[a-z_]+)"', pathlib.Path("relay/relay_metrics.cc").read_text()))
+exported |= set(re.findall(r'"(edgephys_[a-z_]+)"', pathlib.Path("metrics/metrics_exporter.cc").read_text()))
+exported_process = set(re.findall(r'"(process_[a-z_]+)"', pathlib.Path("metrics/process_metrics.cc").read_text()))
 dash = docs["deploy/grafana/edgephys.json"][0]
 exprs = [t["expr"] for p in dash["panels"] for t in p.get("targets", [])]
 used = set()
@@ -80,6 +82,8 @@ for e in exprs:
         base = re.sub(r"_(bucket|sum|count)$", "", m)
         if base not in exported: fail(f"dashboard queries {m}, which the relay does not export")
         used.add(base)
+    for m in re.findall(r"\bprocess_[a-z_]+", e):
+        if m not in exported_process: fail(f"dashboard queries {m}, which the exporter does not export")
 print(f"dashboard: {len(exprs)} queries over {len(used)} of the relay's {len(exported)} metrics")
 rules = ["groups:", "  - name: dashboard", "    rules:"]
 for i, e in enumerate(exprs):
