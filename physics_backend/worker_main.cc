@@ -38,8 +38,9 @@ edgephys::Result<edgephys::Endpoint> ResolveRelay(const std::string& text) {
   asio::error_code ec;
   auto results = resolver.resolve(text.substr(0, colon), std::to_string(port->port()), ec);
   if (ec || results.empty()) {
-    return Status::InvalidArgument("cannot resolve host '" + text.substr(0, colon) +
-                                   "': " + (ec ? ec.message() : std::string("no address")));
+    return Status::InvalidArgument("cannot resolve the relay's host name",
+                                   text.substr(0, colon) + ": " +
+                                       (ec ? ec.message() : std::string("no address")));
   }
   return results.begin()->endpoint();
 }
@@ -77,7 +78,7 @@ int main(int argc, char** argv) {
   while (!g_stop.load()) {
     auto endpoint = ResolveRelay(relay);
     if (!endpoint.ok()) {
-      spdlog::warn("--relay {}: {}; retrying in 1 s", relay, endpoint.status().message());
+      spdlog::warn("--relay {}: {}; retrying in 1 s", relay, endpoint.status().ToString());
       std::this_thread::sleep_for(std::chrono::seconds(1));
       continue;
     }

@@ -49,6 +49,7 @@ async function until(what, fn, timeoutMs = 10000) {
 
 let browser;
 let relay;
+let page;
 try {
   relay = start(relayBin, ["--bind", "127.0.0.1:0", "--metrics", "off", "--secret", SECRET,
                            "--admin-addr", "127.0.0.1:0", "--admin-key", KEY,
@@ -81,7 +82,7 @@ try {
     throw null;  // to the cleanup below
   }
   step("chromium started");
-  const page = await browser.newPage();
+  page = await browser.newPage();
   await page.setViewport({ width: 1366, height: 768 });  // a laptop screen
   const pageErrors = [];
   page.on("pageerror", (e) => pageErrors.push(String(e)));
@@ -124,6 +125,7 @@ try {
   await page.waitForFunction(() => [...document.querySelectorAll('[data-room="arena"] tr[data-player] td:nth-child(3)')]
       .every((td) => parseFloat(td.textContent) > 0) &&
       document.querySelectorAll('tr[data-player]').length === 4, { timeout: 15000 });
+  step("RTT measured");
   // History: the relay-wide charts and each room's sparklines have several polls' points.
   await page.waitForFunction(() => {
     const n = (sel) => Number(document.querySelector(sel)?.getAttribute("data-points") || 0);
@@ -181,6 +183,8 @@ try {
 } catch (e) {
   if (e !== null) {
     console.error("FAIL:", e && e.message ? e.message : e);
+    if (page) console.error("--- page: " + await page.evaluate(() =>
+      document.getElementById("state").textContent + " | " + document.getElementById("error").textContent + " | " + document.getElementById("charts").outerHTML.slice(0, 300)).catch((x) => String(x)));
     if (relay) console.error("--- relay log\n" + readLog(relay).split("\n").slice(-30).join("\n"));
     process.exitCode = 1;
   }
