@@ -7,7 +7,7 @@ ENV DEBIAN_FRONTEND=noninteractive
 WORKDIR /src
 # Copied alone first so the dependency layer is cached across source changes.
 COPY scripts/setup.sh scripts/setup.sh
-RUN bash scripts/setup.sh && rm -rf /var/lib/apt/lists/*
+RUN EDGEPHYS_SETUP_NO_CONTAINERS=1 bash scripts/setup.sh && rm -rf /var/lib/apt/lists/*
 COPY . .
 RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TESTS=OFF \
  && cmake --build build -j2 --target edgephys-relay edgephys-phys
@@ -19,6 +19,7 @@ RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DEDGEPHYS_BUILD_TES
 #   libbullet3.24                                PhyS (embedded in the relay, and edgephys-phys)
 #   libcpp-httplib0.11                           the admin API (docs/admin-api.md)
 #   libhiredis0.14                               --redis (clusters of relays)
+#   curl                                         the Kubernetes preStop hook's POST /v1/drain
 # libstdc++6, libgcc-s1, libc6 and zlib1g are already in bookworm-slim. FlatBuffers, Asio,
 # CLI11 and Eigen are header-only here.
 FROM debian:bookworm-slim
@@ -34,9 +35,12 @@ RUN apt-get update \
       libbullet3.24 \
       libcpp-httplib0.11 \
       libhiredis0.14 \
+      curl \
  && rm -rf /var/lib/apt/lists/*
-RUN groupadd --system edgephys \
- && useradd --system --gid edgephys --no-create-home --home-dir /nonexistent \
+# A numeric USER: Kubernetes' runAsNonRoot can only verify a numeric one (deploy/k8s uses the
+# same 10001:10001).
+RUN groupadd --system --gid 10001 edgephys \
+ && useradd --system --uid 10001 --gid 10001 --no-create-home --home-dir /nonexistent \
       --shell /usr/sbin/nologin edgephys
 COPY --from=build /src/build/relay/edgephys-relay /usr/local/bin/edgephys-relay
 # The remote PhyS worker ships in the same image: `--entrypoint edgephys-phys`.
@@ -48,6 +52,6 @@ RUN for b in edgephys-relay edgephys-phys; do \
 # 9465: the admin API, served only with --admin-addr 0.0.0.0:9465 and a key
 # (EDGEPHYS_ADMIN_KEY); by default it listens on the container's own loopback.
 EXPOSE 7777/udp 9464/tcp 9465/tcp
-USER edgephys
+USER 10001:10001
 ENTRYPOINT ["/usr/local/bin/edgephys-relay"]
 CMD ["--bind", "0.0.0.0:7777", "--metrics", "0.0.0.0:9464"]

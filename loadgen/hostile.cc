@@ -16,6 +16,7 @@
 #include "loadgen/hostile_attacks.h"
 #include "loadgen/stats.h"
 #include "metrics/metrics_exporter.h"
+#include "relay/relay_metrics.h"
 
 namespace edgephys::loadgen {
 namespace {
@@ -499,7 +500,7 @@ HostileResult RunHostile(const HostileOptions& o) {
     config.room_defaults.tick_rate_hz = o.tick_rate_hz;
     if (o.physics_threads > 0) config.physics_threads = o.physics_threads;
     relay = std::make_unique<RelayTarget>(config, t0);
-    auto started = MetricsExporter::Start("127.0.0.1:0", &relay->thread()->counters);
+    auto started = MetricsExporter::Start("127.0.0.1:0", RelayMetrics(&relay->thread()->counters));
     if (!started.ok()) {
       result.metrics_error = "in-process exporter: " + started.status().ToString();
     } else {

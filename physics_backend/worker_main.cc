@@ -1,6 +1,8 @@
 // edgephys-phys: a remote PhyS worker. Attaches to a relay and simulates the rooms it assigns.
 //
 //   edgephys-phys --relay 127.0.0.1:7777 --worker-key $EDGEPHYS_SECRET
+//   edgephys-phys --relay edgephys-relay-0.edgephys-relay:7777   # a DNS name: resolved again
+//                                                                # before every attach
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -19,6 +21,29 @@
 namespace {
 std::atomic<bool> g_stop{false};
 void OnSignal(int) { g_stop.store(true); }
+
+// "address:port" as ParseEndpoint takes it, or "host:port" resolved now (the first IPv4 or IPv6
+// address the resolver gives). Called before every attach, so a relay that comes back at a new
+// address under the same name (a replaced Kubernetes pod) is found again.
+edgephys::Result<edgephys::Endpoint> ResolveRelay(const std::string& text) {
+  using namespace edgephys;
+  auto numeric = ParseEndpoint(text);
+  if (numeric.ok()) return numeric;
+  const size_t colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || text.front() == '[') return numeric;
+  auto port = ParseEndpoint(text.substr(colon));
+  if (!port.ok()) return port;
+  asio::io_context io;
+  asio::ip::udp::resolver resolver(io);
+  asio::error_code ec;
+  auto results = resolver.resolve(text.substr(0, colon), std::to_string(port->port()), ec);
+  if (ec || results.empty()) {
+    return Status::InvalidArgument("cannot resolve the relay's host name",
+                                   text.substr(0, colon) + ": " +
+                                       (ec ? ec.message() : std::string("no address")));
+  }
+  return results.begin()->endpoint();
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -27,7 +52,8 @@ int main(int argc, char** argv) {
   std::string relay = "127.0.0.1:7777", key, log_level = "info";
   double run_for_s = 0;
   bool require_packet_auth = true;
-  app.add_option("--relay", relay, "Relay UDP address:port")->capture_default_str();
+  app.add_option("--relay", relay, "Relay UDP address:port or host:port (resolved before every attach)")
+      ->capture_default_str();
   app.add_option("--worker-key", key, "The relay's token secret (default: $EDGEPHYS_SECRET)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
   app.add_option("--run-for", run_for_s, "Exit after this many seconds (0: until a signal)");
@@ -41,9 +67,8 @@ int main(int argc, char** argv) {
     const char* env = std::getenv("EDGEPHYS_SECRET");
     key = env != nullptr ? env : "edgephys-dev-secret";
   }
-  auto endpoint = ParseEndpoint(relay);
-  if (!endpoint.ok()) {
-    spdlog::error("--relay {}: {}", relay, endpoint.status().ToString());
+  if (relay.rfind(':') == std::string::npos || !ParseEndpoint(relay.substr(relay.rfind(':'))).ok()) {
+    spdlog::error("--relay {}: expected address:port or host:port", relay);
     return 2;
   }
   std::signal(SIGINT, OnSignal);
@@ -51,6 +76,12 @@ int main(int argc, char** argv) {
   const auto start = std::chrono::steady_clock::now();
   auto now = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   while (!g_stop.load()) {
+    auto endpoint = ResolveRelay(relay);
+    if (!endpoint.ok()) {
+      spdlog::warn("--relay {}: {}; retrying in 1 s", relay, endpoint.status().ToString());
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+      continue;
+    }
     auto address = endpoint->address().is_v6() ? asio::ip::make_address("::") : asio::ip::make_address("0.0.0.0");
     auto socket = UdpSocket::Open(Endpoint(address, 0));
     if (!socket.ok()) {

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "metrics/metrics_exporter.h"
+#include "relay/relay_metrics.h"
 #include "relay/admin/admin_http.h"
 #include "relay/admin/relay_admin.h"
 #include "protocol/endpoint.h"
@@ -112,7 +113,7 @@ int main(int argc, char** argv) {
   RelayCounters counters;
   std::unique_ptr<MetricsExporter> exporter;
   if (metrics != "off") {
-    auto started = MetricsExporter::Start(metrics, &counters);
+    auto started = MetricsExporter::Start(metrics, RelayMetrics(&counters));
     if (!started.ok()) {
       spdlog::error("cannot serve metrics on {}: {}", metrics, started.status().ToString());
       return 1;

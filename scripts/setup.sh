@@ -15,6 +15,12 @@ PACKAGES=(
   python3 python3-venv python3-setuptools python3-wheel mono-mcs mono-runtime dpkg-dev debootstrap
   ccache  # optional: developers build with -DCMAKE_CXX_COMPILER_LAUNCHER=ccache
 )
+# deploy/: the compose stack (podman-compose 1.0.3; netavark + aardvark-dns so services find
+# each other by name; runc as the OCI runtime) and its base image (debootstrap, above).
+# EDGEPHYS_SETUP_NO_CONTAINERS=1 leaves them out (the Dockerfile's build stage does).
+if [ "${EDGEPHYS_SETUP_NO_CONTAINERS:-0}" != 1 ]; then
+  PACKAGES+=(podman podman-compose runc netavark aardvark-dns uidmap)
+fi
 
 # The monitor page's browser test (tests/browser) runs on node with npm; a machine that has
 # its own node (not from Debian) keeps it, one without gets Debian's.

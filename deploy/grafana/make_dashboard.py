@@ -52,6 +52,15 @@ line(("Now: rooms", [(f"sum(edgephys_rooms{{{SEL}}})", "rooms")], "short", 6, "R
 line(("Rooms and clients", [(f"edgephys_rooms{{{SEL}}}", "rooms {{instance}}"),
                             (f"edgephys_clients{{{SEL}}}", "clients {{instance}}")], "short", 12, ""),
      ("Entities", [(f"edgephys_entities{{{SEL}}}", "{{instance}}")], "short", 12, ""))
+row("Process")
+line(("Relay CPU (cores)", [(f"rate(process_cpu_seconds_total{{{SEL}}}[1m])", "{{instance}}")], "short", 8,
+      "User + system CPU seconds per second of the relay process (all its threads)"),
+     ("Resident memory", [(f"process_resident_memory_bytes{{{SEL}}}", "{{instance}}")], "bytes", 8, ""),
+     ("Open descriptors", [(f"process_open_fds{{{SEL}}}", "open {{instance}}"),
+                           (f"process_max_fds{{{SEL}}}", "limit {{instance}}")], "short", 8,
+      "Sockets and files; the limit is the nofile soft limit"))
+line(("Relay loop time per room (top 10)", [(f"topk(10, rate(edgephys_room_update_seconds_total{{{SEL}}}[1m]))", "{{room}} {{instance}}")], "short", 24,
+      "Seconds per second the relay worked for each room (its datagrams, PhyS results, ticks): which room takes the loop"))
 row("Traffic")
 line(("Bytes/s", [(f"rate(edgephys_bytes_received_total{{{SEL}}}[1m])", "in {{instance}}"),
                   (f"rate(edgephys_bytes_sent_total{{{SEL}}}[1m])", "out {{instance}}")], "Bps", 8, "UDP payload"),
@@ -77,6 +86,17 @@ line(("Packets rejected/s by reason", [(f"sum by (reason) (rate(edgephys_packets
      ("Disconnects/s by reason", [(f"sum by (reason) (rate(edgephys_disconnects_total{{{SEL}}}[1m]))", "{{reason}}")], "short", 8, ""))
 line(("Entity updates rejected/s by reason", [(f"sum by (reason) (rate(edgephys_entity_updates_rejected_total{{{SEL}}}[1m]))", "{{reason}}")], "short", 12, ""),
      ("Handshakes completed/s", [(f"rate(edgephys_connections_accepted_total{{{SEL}}}[1m])", "{{instance}}")], "short", 12, ""))
+line(("Spawns refused/s by budget", [(f"sum by (reason) (rate(edgephys_budget_refusals_total{{{SEL}}}[1m]))", "{{reason}}")], "short", 24,
+      "Error{OverBudget}: the room or player budget used up (docs/operations.md, Room budgets)"),)
+row("Cluster (--redis)")
+line(("Redirects/s", [(f"rate(edgephys_cluster_redirects_total{{{SEL}}}[1m])", "{{instance}}")], "short", 6,
+      "Connects sent to the relay holding the room"),
+     ("Rooms restored (5 min)", [(f"increase(edgephys_cluster_rooms_restored_total{{{SEL}}}[5m])", "{{instance}}")], "short", 6,
+      "Rooms of dead relays claimed here"),
+     ("Redis errors/s", [(f"rate(edgephys_cluster_redis_errors_total{{{SEL}}}[1m])", "{{instance}}")], "short", 6,
+      "Failed Redis round trips: down, timeout, protocol"),
+     ("Bad keys/s", [(f"rate(edgephys_cluster_bad_keys_total{{{SEL}}}[1m])", "{{instance}}")], "short", 6,
+      "Garbage met in the cluster's Redis keys"))
 row("PhyS")
 line(("Real-time factor (slowest room)", [(f"edgephys_physics_realtime_factor{{{SEL}}}", "{{instance}}")], "short", 8,
       "Below 1: that room simulates slower than real time"),

@@ -49,6 +49,7 @@ async function until(what, fn, timeoutMs = 10000) {
 
 let browser;
 let relay;
+let page;
 try {
   relay = start(relayBin, ["--bind", "127.0.0.1:0", "--metrics", "off", "--secret", SECRET,
                            "--admin-addr", "127.0.0.1:0", "--admin-key", KEY,
@@ -81,7 +82,7 @@ try {
     throw null;  // to the cleanup below
   }
   step("chromium started");
-  const page = await browser.newPage();
+  page = await browser.newPage();
   await page.setViewport({ width: 1366, height: 768 });  // a laptop screen
   const pageErrors = [];
   page.on("pageerror", (e) => pageErrors.push(String(e)));
@@ -96,7 +97,7 @@ try {
   await page.goto(base + "/monitor#key=" + encodeURIComponent(KEY), { waitUntil: "load", timeout: 15000 });
   const stored = await page.evaluate(() => [sessionStorage.getItem("edgephys-admin-key"), location.hash]);
   if (stored[0] !== KEY || stored[1] !== "") throw new Error("key handling: " + JSON.stringify(stored));
-  await page.evaluate(() => { window.__noReload = true; });
+  await page.evaluate(() => { window.__noReload = true; window.__noConfirm = true; });
   await page.waitForFunction(() => document.getElementById("state").textContent === "ready", { timeout: 10000 });
 
   const roomShown = (id) => page.waitForSelector(`[data-room="${id}"]`, { timeout: 10000 });
@@ -124,8 +125,29 @@ try {
   await page.waitForFunction(() => [...document.querySelectorAll('[data-room="arena"] tr[data-player] td:nth-child(3)')]
       .every((td) => parseFloat(td.textContent) > 0) &&
       document.querySelectorAll('tr[data-player]').length === 4, { timeout: 15000 });
+  step("RTT measured");
+  // History: the relay-wide charts and each room's sparklines have several polls' points.
+  await page.waitForFunction(() => {
+    const n = (sel) => Number(document.querySelector(sel)?.getAttribute("data-points") || 0);
+    return n('#charts [data-chart="players"]') >= 3 && n('#charts [data-chart="out"]') >= 3 &&
+           n('[data-room="arena"] [data-chart="room:arena:players"]') >= 3;
+  }, { timeout: 15000 });
+  const playersNow = await page.$eval('#charts [data-chart="players"] b', (e) => e.textContent);
+  if (playersNow !== "4") throw new Error("players chart shows " + playersNow + ", not 4");
+  const line = await page.$eval('#charts [data-chart="players"] polyline', (e) => e.getAttribute("points"));
+  if (line.split(" ").length < 3) throw new Error("players chart has no line: " + line);
+  step("charts drawn from the page's history");
+  // Search and sort.
+  await page.type("#search", "lob");
+  await page.waitForFunction(() => !document.querySelector('[data-room="arena"]') &&
+                             document.querySelector('[data-room="lobby"]'), { timeout: 5000 });
+  await page.$eval("#search", (e) => { e.value = ""; e.dispatchEvent(new Event("input")); });
+  await page.select("#sort", "id");
+  await page.waitForFunction(() => [...document.querySelectorAll("[data-room]")].map((e) => e.dataset.room).join() === "arena,lobby",
+                             { timeout: 5000 });
+  step("search and sort");
   await sleep(1500);
-  if (screenshot) await page.screenshot({ path: screenshot });
+  if (screenshot) await page.screenshot({ path: screenshot, fullPage: true });
   const text = await page.$eval('[data-room="arena"]', (e) => e.textContent);
   if (!/2 \/ 8 players/.test(text) || !/physics off/.test(text) || !/30 Hz/.test(text)) {
     throw new Error("arena card: " + text);
@@ -133,16 +155,24 @@ try {
   step("screenshot taken");
   // Leaves: player 32 by himself, player 12 kicked.
   await playerGone("lobby", 32);
-  await api("POST", "/v1/rooms/arena/members/12/kick", { reason: "monitor test" });
+  // The kick button of player 12's row.
+  await page.click('[data-room="arena"] tr[data-player="12"] button.kick');
   await playerGone("arena", 12);
+  await until("player 12 disconnected kicked", async () => /disconnected 4 /.test(readLog(children.find((c) => c.log.endsWith("client-12.log")))));
   await playerShown("arena", 11);
   step("players 32 (left) and 12 (kicked) gone");
-  // A room closed over the API disappears.
-  await api("DELETE", "/v1/rooms/lobby", { reason: "closing" });
+  // The close button of room lobby.
+  await page.click('[data-room="lobby"] button.close');
   await roomGone("lobby");
   await roomShown("arena");
-
-  step("room lobby gone after DELETE");
+  const rooms = await api("GET", "/v1/rooms");
+  if (rooms.rooms.some((r) => r.id === "lobby")) throw new Error("lobby still open after close");
+  step("room lobby closed by its button");
+  // The drain button: the relay drains.
+  await page.click("#drain");
+  await page.waitForFunction(() => document.getElementById("state").textContent === "draining", { timeout: 10000 });
+  if ((await api("GET", "/v1/rooms")).draining !== true) throw new Error("drain button: relay not draining");
+  step("relay draining after the drain button");
   const stillSamePage = await page.evaluate(() => window.__noReload === true);
   if (!stillSamePage) throw new Error("the page reloaded");
   if (pageErrors.length) throw new Error("page errors: " + pageErrors.join("; "));
@@ -153,6 +183,8 @@ try {
 } catch (e) {
   if (e !== null) {
     console.error("FAIL:", e && e.message ? e.message : e);
+    if (page) console.error("--- page: " + await page.evaluate(() =>
+      document.getElementById("state").textContent + " | " + document.getElementById("error").textContent + " | " + document.getElementById("charts").outerHTML.slice(0, 300)).catch((x) => String(x)));
     if (relay) console.error("--- relay log\n" + readLog(relay).split("\n").slice(-30).join("\n"));
     process.exitCode = 1;
   }

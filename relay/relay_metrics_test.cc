@@ -1,5 +1,6 @@
 // Starts a real MetricsExporter on an ephemeral port and scrapes it over HTTP with libcurl.
 #include "metrics/metrics_exporter.h"
+#include "relay/relay_metrics.h"
 
 #include <curl/curl.h>
 #include <gmock/gmock.h>
@@ -7,7 +8,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdio>
+#include <ctime>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -93,7 +96,7 @@ class MetricsExporterTest : public ::testing::Test {
   static void TearDownTestSuite() { curl_global_cleanup(); }
 
   void SetUp() override {
-    auto started = MetricsExporter::Start("127.0.0.1:0", &counters_);
+    auto started = MetricsExporter::Start("127.0.0.1:0", RelayMetrics(&counters_));
     ASSERT_TRUE(started.ok()) << started.status().message();
     exporter_ = std::move(started.value());
     ASSERT_NE(exporter_->port(), 0);
@@ -337,6 +340,33 @@ TEST_F(MetricsExporterTest, RoomWorkSecondsPerRoomAndClosedRoomsGo) {
   EXPECT_EQ(samples.at("edgephys_room_update_seconds_total{room=\"arena\"}"), 1.5);
 }
 
+// process_* read from /proc/self: values that follow what this process does between scrapes.
+TEST_F(MetricsExporterTest, ProcessFamiliesFollowTheProcess) {
+  auto before = ParseSamples(Scrape(*exporter_));
+  for (const char* name : {"process_cpu_seconds_total", "process_resident_memory_bytes",
+                           "process_virtual_memory_bytes", "process_open_fds", "process_max_fds",
+                           "process_start_time_seconds", "process_threads"}) {
+    ASSERT_TRUE(before.count(name)) << name << " missing";
+  }
+  // Ten more descriptors and 64 MiB touched: both must show in the next scrape.
+  std::vector<FILE*> files;
+  for (int i = 0; i < 10; ++i) files.push_back(std::fopen("/dev/null", "r"));
+  std::vector<char> block(64u << 20, 1);
+  volatile uint64_t spin = 0;
+  for (uint64_t i = 0; i < 200000000u; ++i) spin += i;  // CPU time
+  auto after = ParseSamples(Scrape(*exporter_));
+  EXPECT_GE(after["process_open_fds"], before["process_open_fds"] + 10);
+  EXPECT_GE(after["process_resident_memory_bytes"],
+            before["process_resident_memory_bytes"] + 60.0 * (1 << 20));
+  EXPECT_GT(after["process_cpu_seconds_total"], before["process_cpu_seconds_total"]);
+  const double now = static_cast<double>(time(nullptr));
+  EXPECT_LE(after["process_start_time_seconds"], now + 1);
+  EXPECT_GT(after["process_start_time_seconds"], now - 3600);
+  EXPECT_GE(after["process_threads"], 2);  // this thread and the HTTP server's
+  for (FILE* f : files) std::fclose(f);
+  EXPECT_EQ(block[12345], 1);
+}
+
 TEST_F(MetricsExporterTest, PassesPromtoolCheckMetrics) {
   const char* kPromtool = "/usr/bin/promtool";
   if (access(kPromtool, X_OK) != 0) {
@@ -389,25 +419,25 @@ TEST(MetricsExporterStartTest, RejectsBadArguments) {
   ASSERT_FALSE(no_counters.ok());
   EXPECT_EQ(no_counters.status().code(), StatusCode::kInvalidArgument);
 
-  auto empty = MetricsExporter::Start("", &counters);
+  auto empty = MetricsExporter::Start("", RelayMetrics(&counters));
   ASSERT_FALSE(empty.ok());
   EXPECT_EQ(empty.status().code(), StatusCode::kInvalidArgument);
 
-  auto several = MetricsExporter::Start("127.0.0.1:0,127.0.0.1:0", &counters);
+  auto several = MetricsExporter::Start("127.0.0.1:0,127.0.0.1:0", RelayMetrics(&counters));
   ASSERT_FALSE(several.ok());
   EXPECT_EQ(several.status().code(), StatusCode::kInvalidArgument);
 
-  auto garbage = MetricsExporter::Start("not-an-address:xyz", &counters);
+  auto garbage = MetricsExporter::Start("not-an-address:xyz", RelayMetrics(&counters));
   ASSERT_FALSE(garbage.ok());
   EXPECT_EQ(garbage.status().code(), StatusCode::kIoError);
 }
 
 TEST(MetricsExporterStartTest, PortInUseIsAnIoError) {
   RelayCounters counters;
-  auto first = MetricsExporter::Start("127.0.0.1:0", &counters);
+  auto first = MetricsExporter::Start("127.0.0.1:0", RelayMetrics(&counters));
   ASSERT_TRUE(first.ok()) << first.status().message();
   const std::string taken = "127.0.0.1:" + std::to_string((*first)->port());
-  auto second = MetricsExporter::Start(taken, &counters);
+  auto second = MetricsExporter::Start(taken, RelayMetrics(&counters));
   ASSERT_FALSE(second.ok());
   EXPECT_EQ(second.status().code(), StatusCode::kIoError);
 }
@@ -415,7 +445,7 @@ TEST(MetricsExporterStartTest, PortInUseIsAnIoError) {
 TEST(MetricsExporterStartTest, DestructorStopsServer) {
   curl_global_init(CURL_GLOBAL_DEFAULT);
   RelayCounters counters;
-  auto started = MetricsExporter::Start("127.0.0.1:0", &counters);
+  auto started = MetricsExporter::Start("127.0.0.1:0", RelayMetrics(&counters));
   ASSERT_TRUE(started.ok()) << started.status().message();
   std::unique_ptr<MetricsExporter> exporter = std::move(started.value());
   const std::string url = MetricsUrl(*exporter);
