@@ -1,5 +1,4 @@
-// escape_trace: where do boxes leave the full-stir container, and how? (docs/benchmarks.md,
-// "Full stir, session 14: containment without sweeps"). Steps the 2,000-box MultiObject scene
+// escape_trace: where do boxes leave the full-stir container, and how? Steps the 2,000-box MultiObject scene
 // (PhysSMultiObjectScene) with a candidate config for --seconds of simulated stirring and, for
 // every box whose centre leaves the container (the report's rule: more than 5 cm past a wall's
 // inner face, or 5 cm below the floor's top), prints one row: when, which box, through which wall,
@@ -10,14 +9,13 @@
 //   pushed  the centre went through the wall slowly, over more steps (squeezed through by what
 //           presses on it: the stirrer, directly or through other boxes);
 //   over    the centre was above the wall's top (1.5 m) when it left: thrown out over the wall.
-// Also prints the deepest wall penetration of any box centre over the run and the containment
-// counter (PhysicsCounters::contained, when the candidate turns the pass on).
+// Also prints the deepest wall penetration of any box centre over the run.
 //
 //   escape_trace [--objects 2000] [--seconds 60] [--only CANDIDATE] [--history 12]
 //
-// The last line is a contact census at the end of the run (issue 15, session 16): broadphase
-// pairs, those with a collision algorithm, those of two boxes, contact manifolds, and manifolds
-// with at least one point (the opportunity for PhysicsConfig::lazy_box_manifolds).
+// The last line is a contact census at the end of the run: broadphase pairs, those with a
+// collision algorithm, those of two boxes, contact manifolds, and manifolds with at least one
+// point.
 //
 // Not a timing: run it under the build lock like a test. Output CSV on stdout; per-escape step
 // histories (depth past the wall's inner face, normal speed, stirrer tip distance) with
@@ -202,13 +200,12 @@ int Main(int argc, char** argv) {
       std::fflush(stdout);
     }
   }
-  const PhysicsCounters c = world.counters();
   std::printf("# %s: %zu escaped in %.0f s (%d steps); deepest centre past a wall's inner face "
               "while inside: %.3f m (box %u, step %d); box half extent %.2f m, wall half "
-              "thickness 0.10 m; contained %llu; %zu boxes were thrown above the walls' top after "
+              "thickness 0.10 m; %zu boxes were thrown above the walls' top after "
               "5 s (highest centre %.2f m)\n",
               only.c_str(), escapes, seconds, steps, deepest, deepest_id, deepest_step, he,
-              static_cast<unsigned long long>(c.contained), launched, highest);
+              launched, highest);
   PrintCensus(only, world);
   return 0;
 }

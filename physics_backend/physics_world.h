@@ -87,9 +87,6 @@ namespace internal {
 struct BodyShapes;  // physics_world_internal.h
 }  // namespace internal
 class RestManager;  // rest_manager.h
-class Containment;  // containment.h
-class ManifoldReuseCreateFunc;  // manifold_reuse.h
-class LazyBoxBoxCreateFunc;     // lazy_manifolds.h
 
 inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
 
@@ -201,9 +198,7 @@ struct PhysicsConfig {
   // contact manifold two tangent rows at the patch centre clamped together to the friction disk
   // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
   // pressure torque), instead of friction rows per contact point; tangent impulses are warm
-  // started. Each iteration solves a patch's normal, tangent and twist rows as one block (up to
-  // 6 x 6; session 14, patch_block_solve below), falling back to one row at a time while it
-  // slides or lifts off. Replaces
+  // started. Replaces
   // the per-point friction settings above for manifolds it handles (all but those with
   // rolling/spinning friction or friction anchors); interleave_friction is ignored. Rows per
   // 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full stir,
@@ -218,13 +213,6 @@ struct PhysicsConfig {
   // iterations as defaults the SDK's stack-and-grab examples failed (the stacked boxes reported
   // a collision exit and enter while settling; not traced); see that section.
   bool patch_friction = false;
-  // With patch_friction: solve each patch's rows as one block (contact_solver.h, session 14).
-  // Stops the resting creep above. In session 14 it threw 248 of 2,000 boxes out of the full
-  // stir; since session 16 a block is kept only if every contact point ends at its own target
-  // (a face's 4 points had met only a least-squares fit), and 0 of 2,000 escape in 60 s
-  // (docs/benchmarks.md, "Full stir, session 16"). Off until the lead changes the defaults.
-  // Without it, patch friction is exactly sessions 12-13's.
-  bool patch_block_solve = false;
   // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
   // against static and kinematic bodies only (the walls a body could pass through), not against
   // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
@@ -234,22 +222,6 @@ struct PhysicsConfig {
   // session 14: containment without sweeps"): 19 of 22 escapes in 30 s were boxes thrown out
   // over the walls (box-box impacts without predictive contacts), 3 were pushed through a wall.
   bool ccd_static_only = false;
-  // Containment (physics/containment.h): after every Bullet step, a dynamic body that reached
-  // deeper into a static box (wall, floor, ceiling; any orientation) than
-  // containment_depth_fraction of its extent along the face normal, or passed through it, is
-  // moved back out along the normal and its velocity into the face removed (reflected with the
-  // restitution if it came from clear of the box). Analytic, no broadphase queries:
-  // O(active dynamic bodies x static boxes) bounds tests per step. Counted in
-  // PhysicsCounters::contained. Covers static boxes only: static meshes, spheres and compounds,
-  // kinematic and dynamic obstacles still need the CCD sweeps (ccd) where bodies are fast.
-  // Measured on the full stir (docs/benchmarks.md, "Full stir, session 14: containment without
-  // sweeps"): no box centre passed a wall's inner face with it (44-61 mm without), but with
-  // ccd off 27 boxes in 60 s were thrown out over the open-topped walls, which only the sweeps'
-  // box-box predictive contacts prevent (the step: 0.733x raw Bullet against 0.817x with the
-  // sweeps); with ccd on it cannot save anything (the sweeps still run) and threw 4 out where
-  // the sweeps alone threw none. Off.
-  bool containment = false;
-  float containment_depth_fraction = 0.5f;
   // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
   // aabb_margin (m; Bullet: gContactBreakingThreshold, 0.02). Box-box contacts exist only when
   // boxes overlap and other pairs produce points within ~2-4 mm (the shapes' breaking
@@ -271,29 +243,6 @@ struct PhysicsConfig {
   // unlimited, i.e. every manifold point within the breaking threshold is solved).
   float contact_processing_threshold = 1e18f;
   float contact_distance = 0.005f;    // a manifold point closer than this counts as touching (m)
-  // Contact manifold reuse (physics/manifold_reuse.h), box-box pairs only; 0: off. A pair whose
-  // relative pose moved at most this far (m; translation plus angle times the bounding radius)
-  // since its last narrowphase keeps its manifold: the points are refreshed from their body-fixed
-  // anchors instead of running btBoxBoxDetector. Accuracy: a new contact inside a reused pair is
-  // found up to this distance late. Cost saved: the box-box narrowphase of the qualifying pairs
-  // (docs/benchmarks.md, "Full stir: candidates after freezing"; it did not pay there).
-  float manifold_reuse_distance = 0.0f;
-  // Box-box manifolds only for touching pairs (physics/lazy_manifolds.h): a box-box pair gets
-  // its contact manifold when btBoxBoxDetector first finds a point, and gives it back after
-  // lazy_manifold_keep_steps + 1 processed steps without one, so pairs whose AABBs overlap
-  // but which do not touch never touch manifold memory (Bullet's algorithm keeps a manifold for
-  // every broadphase pair). Accuracy: the same contact points as Bullet's algorithm for the
-  // same poses; the solver sees manifolds in another order (results differ as any reordering
-  // does); a sleeping box is woken by an active kinematic box when they touch, not when their
-  // AABBs overlap. Ignored when manifold_reuse_distance > 0 (not combined). Cost: the narrowphase
-  // of non-touching pairs no longer refreshes or lists a manifold; one pool (or malloc) manifold
-  // per pair that starts touching after being apart for the keep time. keep_steps < 0 counts
-  // as 0. Measured on the full stir (docs/benchmarks.md, "Full stir, session 16"): half the
-  // manifolds are empty at the defaults; keep 10 saved 0.7-3.2 % of the step, keep 0 4.3-5.6 %
-  // (2.2 % in a fourth sitting), the quarter-plus scene got 3-5 % dearer, and 1 box in 60 s
-  // left the container (0 at the defaults). Off.
-  bool lazy_box_manifolds = false;
-  int lazy_manifold_keep_steps = 10;
   // Resting regions (physics/rest_manager.h): a dynamic body below both rest thresholds for
   // rest_time seconds is FROZEN, i.e. made temporarily static to Bullet (zero inverse mass,
   // CF_STATIC_OBJECT, ISLAND_SLEEPING, AABB no longer updated), so it splits from the moving
@@ -410,15 +359,12 @@ struct PhysicsCounters {
   size_t sleeping_bodies = 0; // dynamic bodies not simulated in the last step (incl. frozen)
   size_t frozen_bodies = 0;   // of those, frozen by PhysicsConfig::rest_freeze
   uint64_t rest_wakes = 0;    // frozen bodies woken again (all causes)
-  uint64_t narrowphase_full = 0;    // box-box pairs run through the narrowphase (reuse on)
-  uint64_t narrowphase_reused = 0;  // box-box pairs whose manifold was reused (reuse on)
   size_t soft_bodies = 0;
   size_t joints = 0;
   uint64_t guard_resets = 0;
   uint64_t soft_softened = 0;       // soft bodies whose kLST the guard clamped
   uint64_t rejected_containers = 0;
   uint64_t events_dropped = 0;
-  uint64_t contained = 0;           // bodies moved back out of a static box (containment)
 };
 
 class PhysicsWorld {
@@ -543,14 +489,11 @@ class PhysicsWorld {
 
   PhysicsConfig config_;
   std::unique_ptr<btCollisionConfiguration> collision_config_;
-  std::unique_ptr<ManifoldReuseCreateFunc> manifold_reuse_;  // manifold_reuse_distance > 0
-  std::unique_ptr<LazyBoxBoxCreateFunc> lazy_manifolds_;    // lazy_box_manifolds (no reuse)
   std::unique_ptr<btCollisionDispatcher> dispatcher_;
   std::unique_ptr<btBroadphaseInterface> broadphase_;
   std::unique_ptr<btConstraintSolver> solver_;
   std::unique_ptr<btDiscreteDynamicsWorld> world_;
   btSoftBodyWorldInfo* soft_info_ = nullptr;  // owned by world_ (null without soft bodies)
-  const Containment* containment_ = nullptr;  // owned by world_ (null unless config.containment)
   std::unique_ptr<btRigidBody> fixed_body_;   // joint partner for "anchored to the world"
   std::unique_ptr<RestManager> rest_;         // freezing of resting bodies (rest_freeze)
 
