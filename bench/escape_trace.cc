@@ -9,14 +9,13 @@
 //   pushed  the centre went through the wall slowly, over more steps (squeezed through by what
 //           presses on it: the stirrer, directly or through other boxes);
 //   over    the centre was above the wall's top (1.5 m) when it left: thrown out over the wall.
-// Also prints the deepest wall penetration of any box centre over the run and the containment
-// counter (PhysicsCounters::contained, when the candidate turns the pass on).
+// Also prints the deepest wall penetration of any box centre over the run.
 //
 //   escape_trace [--objects 2000] [--seconds 60] [--only CANDIDATE] [--history 12]
 //
-// The last line is a contact census at the end of the run: broadphase
-// pairs, those with a collision algorithm, those of two boxes, contact manifolds, and manifolds
-// with at least one point (the opportunity for PhysicsConfig::lazy_box_manifolds).
+// The last line is a contact census at the end of the run: broadphase pairs, those with a
+// collision algorithm, those of two boxes, contact manifolds, and manifolds with at least one
+// point.
 //
 // Not a timing: run it under the build lock like a test. Output CSV on stdout; per-escape step
 // histories (depth past the wall's inner face, normal speed, stirrer tip distance) with
@@ -201,13 +200,12 @@ int Main(int argc, char** argv) {
       std::fflush(stdout);
     }
   }
-  const PhysicsCounters c = world.counters();
   std::printf("# %s: %zu escaped in %.0f s (%d steps); deepest centre past a wall's inner face "
               "while inside: %.3f m (box %u, step %d); box half extent %.2f m, wall half "
-              "thickness 0.10 m; contained %llu; %zu boxes were thrown above the walls' top after "
+              "thickness 0.10 m; %zu boxes were thrown above the walls' top after "
               "5 s (highest centre %.2f m)\n",
               only.c_str(), escapes, seconds, steps, deepest, deepest_id, deepest_step, he,
-              static_cast<unsigned long long>(c.contained), launched, highest);
+              launched, highest);
   PrintCensus(only, world);
   return 0;
 }

@@ -32,11 +32,10 @@ void OldDefaults(PhysicsConfig& c) {
   c.contact_processing_threshold = 1e18f;
   c.ccd = true;
   c.ccd_motion_fraction = 0.5f;
-  c.containment = false;
 }
 
-// An earlier set of defaults (named s8; before the solver candidates below), to change one
-// setting from in the solver rows whatever the current defaults are.
+// The defaults of session 8 (before session 11's candidates), to change one setting from in the
+// session-11 rows whatever the current defaults are.
 PhysicsConfig& S8Defaults(PhysicsConfig& c) {
   c = PhysicsConfig{};
   c.solver_iterations = 7;
@@ -56,7 +55,6 @@ PhysicsConfig& S8Defaults(PhysicsConfig& c) {
   c.aabb_margin = kBulletAabbMargin;
   c.aabb_hysteresis = 0;
   c.patch_friction = false;
-  c.containment = false;
   return c;
 }
 
@@ -156,10 +154,6 @@ std::vector<Candidate> Candidates() {
          c.rest_wake_margin = 0.02f;
        }},
       // The full stir (issue 15, item 1): candidates on top of the defaults.
-      {"reuse-0.5mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.0005f; }},
-      {"reuse-1mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.001f; }},
-      {"reuse-2mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.002f; }},
-      {"reuse-5mm", [](PhysicsConfig& c) { NewWith(c).manifold_reuse_distance = 0.005f; }},
       {"new-ccd-by-size", [](PhysicsConfig& c) { NewWith(c).ccd_motion_fraction = 1.0f; }},
       {"new-ccd-off", [](PhysicsConfig& c) { NewWith(c).ccd = false; }},
       {"new-ccd-radius-0.5", [](PhysicsConfig& c) { NewWith(c).ccd_swept_radius_fraction = 0.5f; }},
@@ -168,7 +162,7 @@ std::vector<Candidate> Candidates() {
       // (the sim_s_ratio column), never by the per-step ratio.
       {"rate-40hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 40.0f; }},
       {"rate-30hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 30.0f; }},
-      // The full stir: solver settings Bullet offers, and CCD against walls only.
+      // Session 11, the full stir: solver settings Bullet offers, and CCD against walls only.
       {"s8-defaults", [](PhysicsConfig& c) { S8Defaults(c); }},
       {"iter-6", [](PhysicsConfig& c) { S8Defaults(c).solver_iterations = 6; }},
       {"islands-off", [](PhysicsConfig& c) { S8Defaults(c).split_islands = false; }},
@@ -215,13 +209,13 @@ std::vector<Candidate> Candidates() {
          S8Defaults(c).split_islands = false;
          c.aabb_margin = 0.005f;
        }},
-      // The pick: every setting above that passed and saved something, together.
+      // The session-11 pick: every setting above that passed and saved something, together.
       {"s11-combo", [](PhysicsConfig& c) {
          TwoCachedFrictionDirs(S8Defaults(c)).solver_iterations = 4;
          c.split_islands = false;
          c.aabb_margin = 0.005f;
        }},
-      // Patch friction (physics/contact_solver.h), two tangent rows and a twist row
+      // Session 12: patch friction (physics/contact_solver.h), two tangent rows and a twist row
       // per manifold instead of friction rows per contact point.
       {"patch", [](PhysicsConfig& c) { S8Defaults(c).patch_friction = true; }},
       {"patch-iter5", [](PhysicsConfig& c) {
@@ -236,7 +230,7 @@ std::vector<Candidate> Candidates() {
          S8Defaults(c).patch_friction = true;
          c.solver_iterations = 3;
        }},
-      // Patch friction with one solver batch and a 5 mm AABB margin.
+      // Patch friction with session 11's one solver batch and 5 mm AABB margin.
       {"s12-combo", [](PhysicsConfig& c) {
          S8Defaults(c).patch_friction = true;
          c.solver_iterations = 4;
@@ -269,90 +263,6 @@ std::vector<Candidate> Candidates() {
        }},
       {"s8-rate-30hz", [](PhysicsConfig& c) { S8Defaults(c).fixed_dt = 1.0f / 30.0f; }},
       {"s8-rate-40hz", [](PhysicsConfig& c) { S8Defaults(c).fixed_dt = 1.0f / 40.0f; }},
-      // Today's defaults with patch friction and its block solve (contact_solver.h) at 4 and 3
-      // iterations (s12-combo: patch friction without the block, at 4 from the s8 settings).
-      {"s14-patch-iter4", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.patch_friction = true;
-         c.patch_block_solve = true;
-         c.solver_iterations = 4;
-       }},
-      // s12-combo with the block solve.
-      {"s16-combo-block", [](PhysicsConfig& c) {
-         S8Defaults(c).patch_friction = true;
-         c.patch_block_solve = true;
-         c.solver_iterations = 4;
-         c.split_islands = false;
-         c.aabb_margin = 0.005f;
-       }},
-      {"s14-patch-iter3", [](PhysicsConfig& c) {
-         c = PhysicsConfig{};
-         c.patch_friction = true;
-         c.patch_block_solve = true;
-         c.solver_iterations = 3;
-       }},
-      // Containment without sweeps (physics/containment.h). `s13-defaults` is the
-      // defaults before it (CCD sweeps on, no containment), spelled out.
-      {"s13-defaults", [](PhysicsConfig& c) {
-         NewWith(c).ccd = true;
-         c.ccd_static_only = false;
-         c.containment = false;
-       }},
-      {"s13-ccd-off", [](PhysicsConfig& c) {
-         NewWith(c).ccd = false;
-         c.containment = false;
-       }},
-      {"s13-ccd-static", [](PhysicsConfig& c) {
-         NewWith(c).ccd = true;
-         c.ccd_static_only = true;
-         c.containment = false;
-       }},
-      {"contain", [](PhysicsConfig& c) {
-         NewWith(c).ccd = false;
-         c.containment = true;
-       }},
-      {"contain-ccd", [](PhysicsConfig& c) {
-         NewWith(c).ccd = true;
-         c.containment = true;
-       }},
-      {"contain-split", [](PhysicsConfig& c) {
-         NewWith(c).ccd = false;
-         c.containment = true;
-         c.split_impulse = true;
-       }},
-      {"contain-ccd-1.0", [](PhysicsConfig& c) {
-         NewWith(c).ccd = true;
-         c.ccd_motion_fraction = 1.0f;
-         c.containment = true;
-       }},
-      {"contain-ccd-2.0", [](PhysicsConfig& c) {
-         NewWith(c).ccd = true;
-         c.ccd_motion_fraction = 2.0f;
-         c.containment = true;
-       }},
-      // A body is moved back only once its centre reaches the face (support one full extent
-      // deep), i.e. only where Bullet's own contact is about to lose it.
-      {"contain-f1", [](PhysicsConfig& c) {
-         NewWith(c).ccd = false;
-         c.containment = true;
-         c.containment_depth_fraction = 1.0f;
-       }},
-      {"contain-ccd-f1", [](PhysicsConfig& c) {
-         NewWith(c).ccd = true;
-         c.containment = true;
-         c.containment_depth_fraction = 1.0f;
-       }},
-      // Box-box manifolds only for touching pairs
-      // (physics/lazy_manifolds.h), kept 10 (the default), 0 and 60 empty steps.
-      {"lazy", [](PhysicsConfig& c) { NewWith(c).lazy_box_manifolds = true; }},
-      {"lazy-keep0", [](PhysicsConfig& c) {
-         NewWith(c).lazy_box_manifolds = true;
-         c.lazy_manifold_keep_steps = 0;
-       }},
-      {"lazy-keep60", [](PhysicsConfig& c) {
-         NewWith(c).lazy_box_manifolds = true;
-         c.lazy_manifold_keep_steps = 60;
-       }},
   };
 }
 

@@ -275,7 +275,6 @@ struct SceneFigures {
   double phys_cpu_ms = 0, raw_cpu_ms = 0;  // thread CPU, median
   double moving = 0, raw_moving = 0;   // mean share faster than 1 cm/s
   double frozen = 0;                   // mean share of boxes frozen (rest_freeze)
-  double reused = 0;                   // share of box-box pairs whose manifold was reused
   double deepest_mm = 0;               // p99 over samples of the deepest contact penetration
   size_t escaped = 0;                  // boxes outside the container at the end
 };
@@ -311,7 +310,6 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
     phys.Step();
     if (raw) raw->Step();
   }
-  const PhysicsCounters before = phys.world().counters();
   std::vector<double> pm, rm, pc, rc, deep, mv, rmv, fr;
   for (int i = 0; i < steps; ++i) {
     if (!raw) {
@@ -343,10 +341,6 @@ SceneFigures MeasureScene(const MultiObjectParams& p, int warmup, int steps, boo
   f.moving = mean(mv);
   f.raw_moving = mean(rmv);
   f.frozen = mean(fr);
-  const PhysicsCounters after = phys.world().counters();
-  const double full = static_cast<double>(after.narrowphase_full - before.narrowphase_full);
-  const double reused = static_cast<double>(after.narrowphase_reused - before.narrowphase_reused);
-  f.reused = full + reused > 0 ? reused / (full + reused) : 0;
   std::sort(deep.begin(), deep.end());
   f.deepest_mm = deep.empty() ? 0 : deep[std::min(deep.size() - 1, deep.size() * 99 / 100)];
   f.escaped = Escaped(phys.world(), p);
@@ -418,10 +412,10 @@ int Main(int argc, char** argv) {
   std::ofstream dat(out + "/physics_cost.dat");
   dat << "# index candidate ratio_cpu phys_cpu_ms raw_cpu_ms stack_drift_m pass bounce_worst "
          "friction_worst ccd_max_x awake_m deepest_mm escaped moving raw_moving phys_wall_ms "
-         "raw_wall_ms ratio_wall reused sim_s_ratio\n";
+         "raw_wall_ms ratio_wall sim_s_ratio\n";
   std::printf("candidate,phys_cpu_ms,raw_cpu_ms,ratio_cpu,phys_wall_ms,raw_wall_ms,ratio_wall,"
               "moving,raw_moving,frozen,deepest_mm,escaped,freefall_err_m,bounce_worst,"
-              "friction_worst,stack_drift_m,stack_awake_m,ccd_max_x,suite,reused,sim_s_ratio\n");
+              "friction_worst,stack_drift_m,stack_awake_m,ccd_max_x,suite,sim_s_ratio\n");
   const std::vector<std::string> wanted = Split(only);
   int index = 0;
   for (const Candidate& c : Candidates()) {
@@ -435,17 +429,17 @@ int Main(int argc, char** argv) {
     // CPU per simulated second: PhyS steps of its fixed_dt against raw Bullet's 1/60 s steps.
     const double sim_s_ratio = ratio * (1.0 / 60.0) / q.config.fixed_dt;
     std::printf("%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f,%zu,%.2e,%.3f,%.3f,%.4f,"
-                "%.4f,%.4f,%s,%.3f,%.3f\n",
+                "%.4f,%.4f,%s,%.3f\n",
                 c.name.c_str(), f.phys_cpu_ms, f.raw_cpu_ms, ratio, f.phys_ms, f.raw_ms,
                 ratio_wall, f.moving, f.raw_moving, f.frozen, f.deepest_mm, f.escaped, a.freefall_err,
                 a.bounce_worst, a.friction_worst, a.stack_drift, a.stack_awake, a.ccd_max_x,
-                !accuracy ? "n/a" : a.ok() ? "pass" : "FAIL", f.reused, sim_s_ratio);
+                !accuracy ? "n/a" : a.ok() ? "pass" : "FAIL", sim_s_ratio);
     std::fflush(stdout);
     dat << index++ << " " << c.name << " " << ratio << " " << f.phys_cpu_ms << " "
         << f.raw_cpu_ms << " " << a.stack_drift << " " << (a.ok() ? 1 : 0) << " "
         << a.bounce_worst << " " << a.friction_worst << " " << a.ccd_max_x << " " << a.stack_awake
         << " " << f.deepest_mm << " " << f.escaped << " " << f.moving << " " << f.raw_moving
-        << " " << f.phys_ms << " " << f.raw_ms << " " << ratio_wall << " " << f.reused << " "
+        << " " << f.phys_ms << " " << f.raw_ms << " " << ratio_wall << " "
         << sim_s_ratio << "\n";
   }
   dat.close();

@@ -1,14 +1,12 @@
 #include "physics_backend/bullet_world.h"
 
 #include "physics_backend/contact_solver.h"
-#include "physics_backend/containment.h"
 
 #include <BulletCollision/CollisionDispatch/btSimulationIslandManager.h>
 #include <BulletDynamics/ConstraintSolver/btNNCGConstraintSolver.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
 #include <btBulletDynamicsCommon.h>
 
-#include <optional>
 #include <utility>
 #include <vector>
 
@@ -30,25 +28,7 @@ class TunedWorld final : public Base {
       : Base(std::forward<Args>(args)...),
         static_ccd_(config.ccd_static_only),
         margin_(config.aabb_margin),
-        hysteresis_(config.aabb_hysteresis) {
-    if (config.containment) containment_.emplace(config.containment_depth_fraction);
-  }
-
-  Containment* containment() { return containment_ ? &*containment_ : nullptr; }
-
-  // Every rigid body passes through here, so the containment pass knows the static boxes.
-  void addRigidBody(btRigidBody* body) override {
-    Base::addRigidBody(body);
-    if (containment_) containment_->OnAdd(body);
-  }
-  void addRigidBody(btRigidBody* body, int group, int mask) override {
-    Base::addRigidBody(body, group, mask);
-    if (containment_) containment_->OnAdd(body);
-  }
-  void removeRigidBody(btRigidBody* body) override {
-    if (containment_) containment_->OnRemove(body);
-    Base::removeRigidBody(body);
-  }
+        hysteresis_(config.aabb_hysteresis) {}
 
  protected:
   // createPredictiveContacts and integrateTransforms are the two passes that sweep; both copy
@@ -58,18 +38,10 @@ class TunedWorld final : public Base {
     Base::createPredictiveContacts(dt);
     Restore();
   }
-  // The containment pass (containment.h) compares each body's centre at the start of the step
-  // (before the solver, whose split-impulse write-back already moves bodies) with its centre
-  // after the integration.
-  void internalSingleStepSimulation(btScalar dt) override {
-    if (containment_) containment_->Before(this->m_nonStaticRigidBodies);
-    Base::internalSingleStepSimulation(dt);
-  }
   void integrateTransforms(btScalar dt) override {
     Narrow();
     Base::integrateTransforms(dt);
     Restore();
-    if (containment_) containment_->After(this->m_nonStaticRigidBodies);
   }
   // Dynamic rigid bodies: the AABB over the current and the predicted pose (as Bullet), grown by
   // margin_ instead of gContactBreakingThreshold, and with hysteresis_ > 0 handed to the
@@ -131,7 +103,6 @@ class TunedWorld final : public Base {
     saved_.clear();
   }
   bool static_ccd_;
-  std::optional<Containment> containment_;
   btScalar margin_;
   btScalar hysteresis_;
   std::vector<Saved> saved_;
@@ -139,7 +110,7 @@ class TunedWorld final : public Base {
 
 // Whether the config needs TunedWorld (otherwise Bullet's own world, bit for bit).
 bool Tuned(const PhysicsConfig& c) {
-  return c.ccd_static_only || c.containment || c.aabb_hysteresis > 0 ||
+  return c.ccd_static_only || c.aabb_hysteresis > 0 ||
          c.aabb_margin != kBulletAabbMargin;
 }
 
@@ -155,7 +126,7 @@ std::unique_ptr<btConstraintSolver> NewSolver(const PhysicsConfig& config) {
   }
   if (own) {
     return std::make_unique<ContactSolver<btSequentialImpulseConstraintSolver>>(
-        config.patch_friction, config.patch_block_solve);
+        config.patch_friction);
   }
   return std::make_unique<btSequentialImpulseConstraintSolver>();
 }
@@ -165,17 +136,13 @@ std::unique_ptr<btDiscreteDynamicsWorld> NewBulletWorld(const PhysicsConfig& con
                                                         btBroadphaseInterface* broadphase,
                                                         btConstraintSolver* solver,
                                                         btCollisionConfiguration* collision_config,
-                                                        btSoftBodyWorldInfo** soft_info,
-                                                        const Containment** containment) {
+                                                        btSoftBodyWorldInfo** soft_info) {
   *soft_info = nullptr;
-  *containment = nullptr;
   if (config.soft_body_world) {
     std::unique_ptr<btSoftRigidDynamicsWorld> w;
     if (Tuned(config)) {
-      auto tuned = std::make_unique<TunedWorld<btSoftRigidDynamicsWorld>>(
+      w = std::make_unique<TunedWorld<btSoftRigidDynamicsWorld>>(
           config, dispatcher, broadphase, solver, collision_config);
-      *containment = tuned->containment();
-      w = std::move(tuned);
     } else {
       w = std::make_unique<btSoftRigidDynamicsWorld>(dispatcher, broadphase, solver,
                                                      collision_config);
@@ -184,10 +151,8 @@ std::unique_ptr<btDiscreteDynamicsWorld> NewBulletWorld(const PhysicsConfig& con
     return w;
   }
   if (Tuned(config)) {
-    auto tuned = std::make_unique<TunedWorld<btDiscreteDynamicsWorld>>(
+    return std::make_unique<TunedWorld<btDiscreteDynamicsWorld>>(
         config, dispatcher, broadphase, solver, collision_config);
-    *containment = tuned->containment();
-    return tuned;
   }
   return std::make_unique<btDiscreteDynamicsWorld>(dispatcher, broadphase, solver,
                                                    collision_config);

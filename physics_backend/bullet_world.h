@@ -18,10 +18,6 @@ class btConstraintSolver;
 class btDiscreteDynamicsWorld;
 class btSoftBodyWorldInfo;
 
-namespace edgephys::physics {
-class Containment;  // containment.h
-}  // namespace edgephys::physics
-
 namespace edgephys::physics::internal {
 
 // config.solver: btSequentialImpulseConstraintSolver or btNNCGConstraintSolver.
@@ -33,16 +29,12 @@ std::unique_ptr<btConstraintSolver> NewSolver(const PhysicsConfig& config);
 // bodies: around those two passes of every step, each dynamic CCD body's broadphase mask is
 // narrowed to btBroadphaseProxy::StaticFilter and restored afterwards (O(dynamic bodies) per
 // step; the broadphase never sees the narrowed masks, which only the sweeps read).
-// With config.containment the world runs the containment pass (containment.h) after each
-// integration and *containment points at it (owned by the world; read its counter there),
-// otherwise *containment is set to nullptr.
 std::unique_ptr<btDiscreteDynamicsWorld> NewBulletWorld(const PhysicsConfig& config,
                                                         btCollisionDispatcher* dispatcher,
                                                         btBroadphaseInterface* broadphase,
                                                         btConstraintSolver* solver,
                                                         btCollisionConfiguration* collision_config,
-                                                        btSoftBodyWorldInfo** soft_info,
-                                                        const Containment** containment);
+                                                        btSoftBodyWorldInfo** soft_info);
 
 // Gravity, solver iterations and modes, islands, AABB and CCD restitution settings from config.
 void ApplyWorldSettings(const PhysicsConfig& config, btDiscreteDynamicsWorld* world);

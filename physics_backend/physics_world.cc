@@ -10,9 +10,6 @@
 #include <cmath>
 
 #include "physics_backend/bullet_world.h"
-#include "physics_backend/containment.h"
-#include "physics_backend/lazy_manifolds.h"
-#include "physics_backend/manifold_reuse.h"
 #include "physics_backend/physics_world_internal.h"
 
 namespace edgephys::physics {
@@ -43,23 +40,10 @@ PhysicsWorld::PhysicsWorld(const PhysicsConfig& config) : config_(config) {
     collision_config_ = std::make_unique<btDefaultCollisionConfiguration>(pools);
   }
   dispatcher_ = std::make_unique<btCollisionDispatcher>(collision_config_.get());
-  // Non-finite or non-positive: off (an infinite distance would freeze every contact set).
-  if (std::isfinite(config_.manifold_reuse_distance) && config_.manifold_reuse_distance > 0) {
-    manifold_reuse_ = std::make_unique<ManifoldReuseCreateFunc>(config_.manifold_reuse_distance);
-    dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
-                                             manifold_reuse_.get());
-  } else if (config_.lazy_box_manifolds) {
-    lazy_manifolds_ = std::make_unique<LazyBoxBoxCreateFunc>(
-        config_.lazy_manifold_keep_steps,
-        (dispatcher_->getDispatcherFlags() &
-         btCollisionDispatcher::CD_USE_RELATIVE_CONTACT_BREAKING_THRESHOLD) != 0);
-    dispatcher_->registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE,
-                                             lazy_manifolds_.get());
-  }
   broadphase_ = NewBroadphase(kInitialSweepHandles);
   solver_ = internal::NewSolver(config_);
   world_ = internal::NewBulletWorld(config_, dispatcher_.get(), broadphase_.get(), solver_.get(),
-                                    collision_config_.get(), &soft_info_, &containment_);
+                                    collision_config_.get(), &soft_info_);
   internal::ApplyWorldSettings(config_, world_.get());
   if (soft_info_ != nullptr) {
     soft_info_->m_gravity = ToBt(config_.gravity);
@@ -568,13 +552,8 @@ PhysicsCounters PhysicsWorld::counters() const {
       stats_.steps == 0 || last_active_ >= dynamic_bodies_ ? 0 : dynamic_bodies_ - last_active_;
   c.frozen_bodies = rest_->frozen();
   c.rest_wakes = rest_->wakes();
-  if (manifold_reuse_) {
-    c.narrowphase_full = manifold_reuse_->stats().full;
-    c.narrowphase_reused = manifold_reuse_->stats().reused;
-  }
   c.soft_bodies = soft_entities_.size();
   c.joints = joints_.size();
-  if (containment_ != nullptr) c.contained = containment_->projections();
   return c;
 }
 

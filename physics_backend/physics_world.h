@@ -62,6 +62,7 @@
 #include <span>
 #include <vector>
 
+#include "physics_backend/physics_settings.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
 
@@ -87,265 +88,6 @@ namespace internal {
 struct BodyShapes;  // physics_world_internal.h
 }  // namespace internal
 class RestManager;  // rest_manager.h
-class Containment;  // containment.h
-class ManifoldReuseCreateFunc;  // manifold_reuse.h
-class LazyBoxBoxCreateFunc;     // lazy_manifolds.h
-
-inline constexpr float kBulletAabbMargin = 0.02f;  // Bullet's gContactBreakingThreshold
-
-struct PhysicsConfig {
-  float fixed_dt = 1.0f / 60.0f;      // seconds per Step()
-  // Bullet steps per Step(), each of fixed_dt / substeps (kinematic targets are interpolated
-  // across them). Cost: every substep is a full Bullet step, so Step() grows with substeps.
-  // Tall stacks need more than 1 to stand (docs/benchmarks.md, "PhyS: accuracy").
-  int substeps = 1;
-  // Sequential impulse iterations (per substep). With one friction row per contact (Bullet's
-  // default) 7 keep the accuracy suite passing and 6 or 5 do not (the never-sleeping stack
-  // creeps 0.29 / 0.27 m in 60 s, bound 0.25); with two cached friction rows (see
-  // two_friction_directions) 4 hold it to 0.09 m. Each iteration is ~1.5-3 % of a 2,000-box
-  // MultiObject step (full stir).
-  int solver_iterations = 7;
-  int max_substeps = 4;               // Advance(): most fixed steps per call (backlog dropped)
-  Vec3f gravity{0.0f, -9.81f, 0.0f};  // m/s^2
-  bool soft_body_world = true;        // btSoftRigidDynamicsWorld; false: btDiscreteDynamicsWorld
-                                      // and soft-body containers are rejected
-  // Continuous collision detection: dynamic bodies sweep a sphere of ccd_swept_radius_fraction *
-  // (smallest half extent) whenever they move more than ccd_motion_fraction * (smallest half
-  // extent) in one step, i.e. only small fast bodies pay for it. On the full stir the sweeps
-  // (8.2 % of the step) are what keeps boxes from being thrown out over the walls: their
-  // predictive contacts between fast boxes, not those against walls (see containment).
-  bool ccd = true;
-  // Measured at 1.0 (sweep only bodies that move more than their smallest half extent per
-  // step): no step time saved within the noise at 2,000 boxes, and 1-4 of 2,000 stirred boxes
-  // were squeezed out of the full-stir container where 0.5 kept all in, so 0.5 stays.
-  float ccd_motion_fraction = 0.5f;
-  float ccd_swept_radius_fraction = 0.9f;
-  bool sleeping = true;               // false: bodies never deactivate
-  // Below both for Bullet's 2 s deactivation time, the body (its island) sleeps. Higher values
-  // let settled stacks sleep sooner but freeze slow damped motion before it settles.
-  float sleep_linear_threshold = 0.1f;   // m/s
-  float sleep_angular_threshold = 0.1f;  // rad/s
-  float world_half_extent = 1000.0f;  // world bounds: axis-aligned cube, metres from the origin
-  // --- What a scene does not need, PhyS does not compute. Each setting below was measured as
-  // step time (2,000-box MultiObject) against the accuracy suite (bench/physics_cost_report); the
-  // defaults are the picks.
-  // Seconds an island stays below both sleep thresholds before it sleeps (Bullet: 2 s, a
-  // process-wide global; PhyS emulates other values per body, O(active bodies) per step).
-  // Shorter: settled piles stop costing sooner; slow damped motion freezes sooner.
-  float deactivation_time = 2.0f;
-  // Broadphase. kDbvt (Bullet's default): dynamic AABB trees; every step re-finds the
-  // overlaps of every moving body in a tree fattened by 5 cm and hashes them again.
-  // kAxisSweep: bt32BitAxisSweep3 over the world bounds (the cube of world_half_extent):
-  // sweep and prune, pairs change only when AABB ends pass each other, so coherent motion in a
-  // bounded room is cheap; a teleport across the room costs O(objects). Its capacity starts at
-  // 1,024 collision objects and doubles when AddEntity needs more (O(objects) once per
-  // doubling; contacts are found again by the next step). ~150 bytes per capacity slot.
-  enum class Broadphase : uint8_t { kDbvt, kAxisSweep };
-  Broadphase broadphase = Broadphase::kAxisSweep;
-  // Split impulse (Bullet's default: on): penetration is resolved by a separate position-only
-  // pass, so it adds no energy; off folds it into the velocity (Baumgarte), one solver pass
-  // fewer per iteration.
-  // Off by default: the accuracy suite passes unchanged without it and the step is cheaper.
-  bool split_impulse = false;
-  // SOLVER_RANDMIZE_ORDER: shuffles the rows every iteration, so no contact is always solved
-  // last. Holds a never-sleeping stack to 1.5 cm at 5 iterations, but the shuffle costs more
-  // than the 5 iterations it saves (+10 % step time at 2,000 boxes), so it is off.
-  bool randomize_solver_order = false;
-  // Warm starting scales last step's impulses into the first iteration (Bullet's default
-  // 0.85; 0 turns warm starting off).
-  float warmstarting_factor = 0.85f;
-  // The solver stops iterating when the squared residual falls below this (0: always
-  // solver_iterations). Cost saved only when islands converge early.
-  float solver_residual_threshold = 0.0f;
-  // --- Solver and CCD settings, measured on the full stir (--only names in
-  // bench/physics_cost_candidates.cc).
-  // Constraint solver. kSequentialImpulse: Bullet's default (projected Gauss-Seidel).
-  // kNNCG: btNNCGConstraintSolver (nonlinear conjugate gradient on top of the same rows;
-  // meant to converge in fewer iterations, at extra work per iteration). Measured: at 7
-  // iterations the never-sleeping stack holds to 0.03 m but a restitution or stick-slip bound
-  // fails; at 5 the stack collapses. Not the default.
-  enum class Solver : uint8_t { kSequentialImpulse, kNNCG };
-  Solver solver = Solver::kSequentialImpulse;
-  // Bullet's island manager sorts every contact manifold by island and calls the solver once
-  // per island (batched up to 128 rows). false: one solver call with every body and manifold,
-  // no sorting; sleeping islands still sleep (islands are still built for that).
-  // Measured (full stir): false saves about 3 % of the step; the default. Bullet then hands the solver every
-  // manifold, trigger pairs included (it filters them only per island), so PhyS's ContactSolver
-  // (contact_solver.h) skips pairs that need no response (otherwise a trigger would stop a body
-  // like a wall with this off).
-  bool split_islands = false;
-  // Friction rows per contact point: Bullet's default is one, along the sliding direction.
-  // two_friction_directions adds the orthogonal one (SOLVER_USE_2_FRICTION_DIRECTIONS);
-  // friction_direction_caching keeps a contact's directions from the step that created it
-  // (SOLVER_ENABLE_FRICTION_DIRECTION_CACHING; Bullet reuses them only together with
-  // two_friction_directions and velocity_dependent_friction = false).
-  // Measured: two cached rows in a fixed tangent basis cost more rows per iteration but converge
-  // much better (never-sleeping stack 0.04 m against 0.16 m at 7 iterations), so 4 iterations
-  // pass the report's suite experiments where one row needs 7: ~6 % less per step. (Bullet keeps
-  // the cached directions only until btPersistentManifold::replaceContactPoint rewrites a point,
-  // i.e. box-box points get fresh ones every step.) With manifold reuse on, a resting pile ends
-  // 7.7 mm off the run without reuse (ManifoldReuseTest's bound: 2 mm; clearing the cache of
-  // reused points did not help).
-  bool two_friction_directions = false;
-  bool friction_direction_caching = false;
-  // true (Bullet's default): the first friction direction follows the relative sliding
-  // velocity; false: a fixed tangent basis (SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION).
-  bool velocity_dependent_friction = true;
-  // SOLVER_INTERLEAVE_CONTACT_AND_FRICTION_CONSTRAINTS: each contact's friction rows are solved
-  // right after its normal row instead of after all normal rows. Measured: converges worse
-  // (never-sleeping stack 0.37 m at 7 iterations, bound 0.25); off.
-  bool interleave_friction = false;
-  // Patch friction (physics/contact_solver.h; sequential impulse only, ignored with kNNCG): per
-  // contact manifold two tangent rows at the patch centre clamped together to the friction disk
-  // mu * (sum of the manifold's normal impulses), plus one twist row about the normal (uniform-
-  // pressure torque), instead of friction rows per contact point; tangent impulses are warm
-  // started. Each iteration solves a patch's normal, tangent and twist rows as one block (up to
-  // 6 x 6; patch_block_solve below), falling back to one row at a time while it
-  // slides or lifts off. Replaces
-  // the per-point friction settings above for manifolds it handles (all but those with
-  // rolling/spinning friction or friction anchors); interleave_friction is ignored. Rows per
-  // 4-point box pair: 7 instead of 8 (one row per point) or 12 (two). Measured (full stir):
-  // 0.844x raw Bullet at 7 iterations against
-  // 0.885x without, 0.740x with 4 iterations, one batch and a 5 mm margin.
-  // With the rows solved one at a time a never-sleeping pile crept (the boxes rocked
-  // with a growing amplitude: a 4 x 4 layer of touching boxes moved 2.1 mm in 5 s and 9.7 mm in
-  // 20 s, the pile of ManifoldReuseTest 4 mm). The block solve holds the layer below
-  // 0.001 mm for 20 s (Bullet's friction: 0.04 mm), the pile within ManifoldReuseTest's 2 mm, and
-  // the never-sleeping ten-box stack to 3 mm at 4 iterations. Still off by default: with it and 4
-  // iterations as defaults the SDK's stack-and-grab examples failed (the stacked boxes reported
-  // a collision exit and enter while settling; not traced).
-  bool patch_friction = false;
-  // With patch_friction: solve each patch's rows as one block (contact_solver.h).
-  // Stops the resting creep above. A block is kept only if every contact point ends at its own
-  // target (a least-squares fit alone threw boxes out of the full stir); 0 of 2,000 escape in
-  // 60 s. Off by default. Without it, patch friction solves one row at a time.
-  bool patch_block_solve = false;
-  // CCD sweeps (Bullet's predictive contacts and motion clamping) test fast dynamic bodies
-  // against static and kinematic bodies only (the walls a body could pass through), not against
-  // other dynamic bodies (those collide through their discrete contacts). Cost saved: the
-  // box-box part of the sweeps. Accuracy: a fast small body can pass through a thin *dynamic*
-  // body in one step. Measured on the full stir: no saving within the noise, and 5 of 2,000
-  // boxes escaped the container; off. Traced: 19 of 22 escapes in 30 s were boxes thrown out
-  // over the walls (box-box impacts without predictive contacts), 3 were pushed through a wall.
-  bool ccd_static_only = false;
-  // Containment (physics/containment.h): after every Bullet step, a dynamic body that reached
-  // deeper into a static box (wall, floor, ceiling; any orientation) than
-  // containment_depth_fraction of its extent along the face normal, or passed through it, is
-  // moved back out along the normal and its velocity into the face removed (reflected with the
-  // restitution if it came from clear of the box). Analytic, no broadphase queries:
-  // O(active dynamic bodies x static boxes) bounds tests per step. Counted in
-  // PhysicsCounters::contained. Covers static boxes only: static meshes, spheres and compounds,
-  // kinematic and dynamic obstacles still need the CCD sweeps (ccd) where bodies are fast.
-  // Measured on the full stir: no box centre passed a wall's inner face with it (44-61 mm without), but with
-  // ccd off 27 boxes in 60 s were thrown out over the open-topped walls, which only the sweeps'
-  // box-box predictive contacts prevent (the step: 0.733x raw Bullet against 0.817x with the
-  // sweeps); with ccd on it cannot save anything (the sweeps still run) and threw 4 out where
-  // the sweeps alone threw none. Off.
-  bool containment = false;
-  float containment_depth_fraction = 0.5f;
-  // A dynamic body's broadphase AABB (over its current and predicted pose) is grown by
-  // aabb_margin (m; Bullet: gContactBreakingThreshold, 0.02). Box-box contacts exist only when
-  // boxes overlap and other pairs produce points within ~2-4 mm (the shapes' breaking
-  // thresholds), so a smaller margin means fewer broadphase pairs to test; too small and a pair
-  // is found a step late. aabb_hysteresis (m, 0: off): the broadphase gets the AABB grown by
-  // this much more, and is only updated when the body's AABB leaves it, so small motions cost
-  // no sort; the price is more (looser) pairs for the narrowphase to reject. Measured (full
-  // stir): 5 mm saves ~2 % of the step (the default); 10 mm and hysteresis of
-  // 1-2 cm save nothing measurable.
-  float aabb_margin = 0.005f;
-  float aabb_hysteresis = 0.0f;
-  // Manifolds and collision algorithms preallocated per world (Bullet's default: 4,096 each,
-  // about 3.6 MB per world whether used or not; 256 is about 0.23 MB). Beyond the pool Bullet
-  // allocates per new contact pair (malloc/free per pair that starts or stops touching), so a
-  // busy pile pays a little per step: measured by
-  // `physics_cost_report --only new-defaults,pools-4096`. Values below 64 count as 64.
-  int contact_pool_size = 256;
-  // Contact points farther apart than this (m) get no solver constraint (Bullet's default:
-  // unlimited, i.e. every manifold point within the breaking threshold is solved).
-  float contact_processing_threshold = 1e18f;
-  float contact_distance = 0.005f;    // a manifold point closer than this counts as touching (m)
-  // Contact manifold reuse (physics/manifold_reuse.h), box-box pairs only; 0: off. A pair whose
-  // relative pose moved at most this far (m; translation plus angle times the bounding radius)
-  // since its last narrowphase keeps its manifold: the points are refreshed from their body-fixed
-  // anchors instead of running btBoxBoxDetector. Accuracy: a new contact inside a reused pair is
-  // found up to this distance late. Cost saved: the box-box narrowphase of the qualifying pairs
-  // (bench/physics_cost_report on the full stir; it did not pay there).
-  float manifold_reuse_distance = 0.0f;
-  // Box-box manifolds only for touching pairs (physics/lazy_manifolds.h): a box-box pair gets
-  // its contact manifold when btBoxBoxDetector first finds a point, and gives it back after
-  // lazy_manifold_keep_steps + 1 processed steps without one, so pairs whose AABBs overlap
-  // but which do not touch never touch manifold memory (Bullet's algorithm keeps a manifold for
-  // every broadphase pair). Accuracy: the same contact points as Bullet's algorithm for the
-  // same poses; the solver sees manifolds in another order (results differ as any reordering
-  // does); a sleeping box is woken by an active kinematic box when they touch, not when their
-  // AABBs overlap. Ignored when manifold_reuse_distance > 0 (not combined). Cost: the narrowphase
-  // of non-touching pairs no longer refreshes or lists a manifold; one pool (or malloc) manifold
-  // per pair that starts touching after being apart for the keep time. keep_steps < 0 counts
-  // as 0. Measured on the full stir: half the
-  // manifolds are empty at the defaults; keep 10 saved 0.7-3.2 % of the step, keep 0 4.3-5.6 %
-  // (2.2 % in a fourth sitting), the quarter-plus scene got 3-5 % dearer, and 1 box in 60 s
-  // left the container (0 at the defaults). Off.
-  bool lazy_box_manifolds = false;
-  int lazy_manifold_keep_steps = 10;
-  // Resting regions (physics/rest_manager.h): a dynamic body below both rest thresholds for
-  // rest_time seconds is FROZEN, i.e. made temporarily static to Bullet (zero inverse mass,
-  // CF_STATIC_OBJECT, ISLAND_SLEEPING, AABB no longer updated), so it splits from the moving
-  // part's island and costs no solver rows, no narrowphase against other resting bodies and no
-  // integration. Bullet's own island sleeping cannot do this for a pile stirred anywhere (one
-  // island). It is UNFROZEN (mass and inertia restored bit-exactly, velocity zero) before a
-  // step when a non-frozen dynamic body above the rest thresholds or a soft body overlaps its
-  // AABB grown by rest_wake_margin, when a kinematic body's path this step comes that close,
-  // after a step when a contact pushes it by more than rest_wake_delta_v (impulse / its mass),
-  // and on any API call that touches it or its surroundings (SetTransform, SetVelocity, Grab,
-  // a joint to it, adding/removing/teleporting an entity overlapping it). Never frozen:
-  // grabbed bodies, bodies with joints, bodies touching soft bodies; nothing when `sleeping`
-  // is false.
-  // Accuracy: a frozen body ignores gravity and creep below the thresholds (at most
-  // rest_linear_threshold * rest_time of drift is cut off, and its velocity is zeroed); a body
-  // hit faster than the look-ahead margin covers (> ~(rest_wake_margin + 2 cm) per step) acts as
-  // a static wall for that one step before the impulse rule wakes it. Measured against the
-  // setting off by bench/physics_cost_report and physics/rest_manager_test.cc.
-  // Cost when on: O(broadphase pairs) per step while many are frozen, O(frozen * log n) while
-  // few are (a scene where almost nothing rests, e.g. the full stir), O(collision objects)
-  // per moving kinematic body, O(manifolds) after the step; it pays wherever a share of the
-  // bodies rests while others move.
-  bool rest_freeze = true;
-  float rest_linear_threshold = 0.1f;    // m/s (0.05 froze 47 % instead of 59 %)
-  float rest_angular_threshold = 0.2f;   // rad/s (0.1 likewise)
-  float rest_time = 0.5f;                // s below both thresholds before freezing
-  float rest_wake_margin = 0.05f;        // m: look-ahead around a frozen body's AABB
-  float rest_wake_delta_v = 0.33f;       // m/s: ~2 * g * dt, twice what resting weight pushes
-  // Stability guard thresholds.
-  float max_linear_speed = 200.0f;      // m/s
-  float max_angular_speed = 1000.0f;    // rad/s
-  float soft_max_node_speed = 100.0f;   // m/s
-  float soft_max_extent_ratio = 4.0f;   // AABB diagonal vs. the diagonal when added
-  int soft_soften_after_resets = 3;     // consecutive resets before kLST is clamped to 1
-  // Soft bodies.
-  int soft_iterations = 4;                // position solver iterations (Bullet piterations)
-  float soft_max_link_stiffness = 1.0f;   // clamp for the derived kLST (see header comment)
-  float soft_margin = 0.02f;              // collision margin of soft bodies (m)
-  // Grab drive (velocity control towards the MoveToTransform target).
-  float grab_gain = 1.0f;               // fraction of the pose error removed per step
-  float grab_max_speed = 10.0f;         // m/s
-  float grab_max_angular_speed = 20.0f; // rad/s
-  // A released object leaves at its hand's velocity (and the angular velocity the hand turns
-  // at), estimated from the hand's poses of the last `release_velocity_window_s` seconds with
-  // the times they hold (RoomPhysics::Drive, physics/pose_history.h), not at the drive's last
-  // step, which asks for 0 to ~2x the hand's speed depending on how poses fell between steps.
-  // Longer windows average out more timing jitter but lag a hand that speeds up (they give the
-  // mean velocity over the window). 0: keep the drive's last step (the old behaviour). Cost:
-  // O(8) per release, ~300 bytes per driven entity.
-  float release_velocity_window_s = 0.1f;
-  // Validation limits.
-  size_t max_colliders = 64;
-  size_t max_mesh_vertices = 65536;
-  size_t max_mesh_triangles = 131072;
-  size_t max_soft_nodes = 4096;
-  size_t max_soft_springs = 65536;
-  size_t max_joints = 16;
-  size_t max_pending_events = 65536;  // events beyond this (undrained) are dropped and counted
-};
 
 // Why a container was rejected.
 enum class InvalidReason : uint8_t {
@@ -403,15 +145,12 @@ struct PhysicsCounters {
   size_t sleeping_bodies = 0; // dynamic bodies not simulated in the last step (incl. frozen)
   size_t frozen_bodies = 0;   // of those, frozen by PhysicsConfig::rest_freeze
   uint64_t rest_wakes = 0;    // frozen bodies woken again (all causes)
-  uint64_t narrowphase_full = 0;    // box-box pairs run through the narrowphase (reuse on)
-  uint64_t narrowphase_reused = 0;  // box-box pairs whose manifold was reused (reuse on)
   size_t soft_bodies = 0;
   size_t joints = 0;
   uint64_t guard_resets = 0;
   uint64_t soft_softened = 0;       // soft bodies whose kLST the guard clamped
   uint64_t rejected_containers = 0;
   uint64_t events_dropped = 0;
-  uint64_t contained = 0;           // bodies moved back out of a static box (containment)
 };
 
 class PhysicsWorld {
@@ -536,14 +275,11 @@ class PhysicsWorld {
 
   PhysicsConfig config_;
   std::unique_ptr<btCollisionConfiguration> collision_config_;
-  std::unique_ptr<ManifoldReuseCreateFunc> manifold_reuse_;  // manifold_reuse_distance > 0
-  std::unique_ptr<LazyBoxBoxCreateFunc> lazy_manifolds_;    // lazy_box_manifolds (no reuse)
   std::unique_ptr<btCollisionDispatcher> dispatcher_;
   std::unique_ptr<btBroadphaseInterface> broadphase_;
   std::unique_ptr<btConstraintSolver> solver_;
   std::unique_ptr<btDiscreteDynamicsWorld> world_;
   btSoftBodyWorldInfo* soft_info_ = nullptr;  // owned by world_ (null without soft bodies)
-  const Containment* containment_ = nullptr;  // owned by world_ (null unless config.containment)
   std::unique_ptr<btRigidBody> fixed_body_;   // joint partner for "anchored to the world"
   std::unique_ptr<RestManager> rest_;         // freezing of resting bodies (rest_freeze)
 
