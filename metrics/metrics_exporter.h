@@ -1,5 +1,7 @@
 // MetricsExporter: serves the relay's RelayCounters as Prometheus text exposition over HTTP
-// (GET /metrics), using prometheus-cpp's Exposer (civetweb) for the server.
+// (GET /metrics): prometheus-cpp's text format, served by metrics/http_gate.h (a whole-request
+// deadline, connections capped per address and in total, so slow clients cannot starve
+// scrapes).
 //
 // The relay never calls into prometheus-cpp. Its threads only bump the plain atomics in
 // RelayCounters; the exporter reads them (relaxed loads) when a scrape arrives, on one of the
@@ -41,8 +43,11 @@
 
 namespace prometheus {
 class Collectable;
-class Exposer;
 }  // namespace prometheus
+
+namespace edgephys::http {
+class HttpGate;
+}  // namespace edgephys::http
 
 namespace edgephys {
 
@@ -72,11 +77,11 @@ class MetricsExporter {
 
  private:
   MetricsExporter(std::shared_ptr<prometheus::Collectable> collectable,
-                  std::unique_ptr<prometheus::Exposer> exposer, uint16_t port);
+                  std::unique_ptr<http::HttpGate> gate, uint16_t port);
 
-  // Exposer holds only a weak_ptr to the collectable; we own it.
+  // The route holds only a weak_ptr to the collectable; we own it.
   std::shared_ptr<prometheus::Collectable> collectable_;
-  std::unique_ptr<prometheus::Exposer> exposer_;
+  std::unique_ptr<http::HttpGate> gate_;
   uint16_t port_;
 };
 
