@@ -34,7 +34,7 @@ void OldDefaults(PhysicsConfig& c) {
   c.ccd_motion_fraction = 0.5f;
 }
 
-// The defaults of session 8 (before session 11's candidates), to change one setting from in the
+// The earlier defaults (before the solver candidates), to change one setting from in the
 // session-11 rows whatever the current defaults are.
 PhysicsConfig& S8Defaults(PhysicsConfig& c) {
   c = PhysicsConfig{};
@@ -162,7 +162,7 @@ std::vector<Candidate> Candidates() {
       // (the sim_s_ratio column), never by the per-step ratio.
       {"rate-40hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 40.0f; }},
       {"rate-30hz", [](PhysicsConfig& c) { NewWith(c).fixed_dt = 1.0f / 30.0f; }},
-      // Session 11, the full stir: solver settings Bullet offers, and CCD against walls only.
+      // The full stir: solver settings Bullet offers, and CCD against walls only.
       {"s8-defaults", [](PhysicsConfig& c) { S8Defaults(c); }},
       {"iter-6", [](PhysicsConfig& c) { S8Defaults(c).solver_iterations = 6; }},
       {"islands-off", [](PhysicsConfig& c) { S8Defaults(c).split_islands = false; }},
@@ -215,7 +215,7 @@ std::vector<Candidate> Candidates() {
          c.split_islands = false;
          c.aabb_margin = 0.005f;
        }},
-      // Session 12: patch friction (physics/contact_solver.h), two tangent rows and a twist row
+      // Patch friction (physics/contact_solver.h), two tangent rows and a twist row
       // per manifold instead of friction rows per contact point.
       {"patch", [](PhysicsConfig& c) { S8Defaults(c).patch_friction = true; }},
       {"patch-iter5", [](PhysicsConfig& c) {
@@ -230,7 +230,7 @@ std::vector<Candidate> Candidates() {
          S8Defaults(c).patch_friction = true;
          c.solver_iterations = 3;
        }},
-      // Patch friction with session 11's one solver batch and 5 mm AABB margin.
+      // Patch friction with one solver batch and 5 mm AABB margin.
       {"s12-combo", [](PhysicsConfig& c) {
          S8Defaults(c).patch_friction = true;
          c.solver_iterations = 4;

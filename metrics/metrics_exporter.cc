@@ -2,9 +2,10 @@
 
 #include <prometheus/client_metric.h>
 #include <prometheus/collectable.h>
-#include <prometheus/exposer.h>
+#include <httplib.h>
 #include <prometheus/metric_family.h>
 #include <prometheus/metric_type.h>
+#include <prometheus/text_serializer.h>
 
 #include <algorithm>
 #include <cstddef>
@@ -14,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "metrics/http_gate.h"
 #include "metrics/process_metrics.h"
 
 #ifndef EDGEPHYS_VERSION
@@ -102,31 +104,40 @@ Result<std::unique_ptr<MetricsExporter>> MetricsExporter::Start(const std::strin
   }
 
   auto collectable = std::make_shared<SourceCollectable>(std::move(source));
-  std::unique_ptr<prometheus::Exposer> exposer;
-  try {
-    exposer = std::make_unique<prometheus::Exposer>(bind_address);
-  } catch (const std::exception&) {
-    // civetweb reports bind failures (port in use, bad host, privileged port) by throwing.
-    return Status(StatusCode::kIoError, "metrics exporter: cannot listen on bind address");
+  http::GateOptions options;
+  // A bare "port" listens on every IPv4 address.
+  options.address = bind_address.find(':') == std::string::npos ? "0.0.0.0:" + bind_address
+                                                                 : bind_address;
+  options.workers = 2;
+  options.max_body_bytes = 0;
+  auto gate = std::make_unique<http::HttpGate>(std::move(options));
+  std::weak_ptr<prometheus::Collectable> weak = collectable;
+  gate->routes().Get("/metrics", [weak](const httplib::Request&, httplib::Response& res) {
+    auto source = weak.lock();
+    if (!source) {
+      res.status = 503;
+      return;
+    }
+    res.set_content(prometheus::TextSerializer().Serialize(source->Collect()),
+                    "text/plain; version=0.0.4; charset=utf-8");
+  });
+  if (Status st = gate->Start(); !st.ok()) {
+    return Status(StatusCode::kIoError, "metrics exporter: cannot listen on bind address",
+                  std::string(st.reason()));
   }
-  const std::vector<int> ports = exposer->GetListeningPorts();
-  if (ports.empty() || ports.front() <= 0 || ports.front() > 65535) {
-    return Status(StatusCode::kIoError, "metrics exporter: server reports no listening port");
-  }
-  exposer->RegisterCollectable(collectable);
-
-  return std::unique_ptr<MetricsExporter>(new MetricsExporter(
-      std::move(collectable), std::move(exposer), static_cast<uint16_t>(ports.front())));
+  const uint16_t port = gate->port();
+  return std::unique_ptr<MetricsExporter>(
+      new MetricsExporter(std::move(collectable), std::move(gate), port));
 }
 
 MetricsExporter::MetricsExporter(std::shared_ptr<prometheus::Collectable> collectable,
-                                 std::unique_ptr<prometheus::Exposer> exposer, uint16_t port)
-    : collectable_(std::move(collectable)), exposer_(std::move(exposer)), port_(port) {}
+                                 std::unique_ptr<http::HttpGate> gate, uint16_t port)
+    : collectable_(std::move(collectable)), gate_(std::move(gate)), port_(port) {}
 
 MetricsExporter::~MetricsExporter() {
-  // Stop the server (civetweb joins its worker threads) before the collectable goes away, so
-  // no scrape can read the source after we return.
-  exposer_.reset();
+  // Stop the server (its workers joined) before the collectable goes away, so no scrape can
+  // read the source after we return.
+  gate_.reset();
   collectable_.reset();
 }
 

@@ -1,6 +1,7 @@
 // MetricsExporter: serves a MetricSource (metrics/metric_source.h; the relay's is
-// relay/relay_metrics.h) as Prometheus text exposition over HTTP (GET /metrics), using
-// prometheus-cpp's Exposer (civetweb) for the server.
+// relay/relay_metrics.h) as Prometheus text exposition over HTTP (GET /metrics), served by
+// metrics/http_gate.h (a whole-request deadline, connections capped per address and in total,
+// so slow clients cannot starve scrapes).
 //
 // The source's owner never calls into prometheus-cpp: the exporter asks the source for its
 // families when a scrape arrives, on one of the HTTP server's own threads, and converts them.
@@ -18,8 +19,11 @@
 
 namespace prometheus {
 class Collectable;
-class Exposer;
 }  // namespace prometheus
+
+namespace edgephys::http {
+class HttpGate;
+}  // namespace edgephys::http
 
 namespace edgephys {
 
@@ -49,11 +53,11 @@ class MetricsExporter {
 
  private:
   MetricsExporter(std::shared_ptr<prometheus::Collectable> collectable,
-                  std::unique_ptr<prometheus::Exposer> exposer, uint16_t port);
+                  std::unique_ptr<http::HttpGate> gate, uint16_t port);
 
-  // Exposer holds only a weak_ptr to the collectable; we own it.
+  // The route holds only a weak_ptr to the collectable; we own it.
   std::shared_ptr<prometheus::Collectable> collectable_;
-  std::unique_ptr<prometheus::Exposer> exposer_;
+  std::unique_ptr<http::HttpGate> gate_;
   uint16_t port_;
 };
 

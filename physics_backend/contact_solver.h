@@ -7,7 +7,7 @@
 //    not both static/kinematic) when it splits islands, but with setSplitIslands(false) it hands it
 //    EVERY manifold of the dispatcher, and btSequentialImpulseConstraintSolver::convertContact does
 //    not check: a trigger (a non-responding object) then stops a body like a wall
-//    (PhysicsConfig::split_islands = false, docs/benchmarks.md "Full stir, session 12"). The filter
+//    (PhysicsConfig::split_islands = false, docs/benchmarks.md, "PhyS: cost"). The filter
 //    skips those manifolds in both paths (in the split path it never finds one). O(manifolds).
 //
 // 2. Patch friction (PhysicsConfig::patch_friction; sequential impulse only, ignored with NNCG).

@@ -1,6 +1,6 @@
 // PhyS's contact solver (physics/contact_solver.h): the response filter of the one-batch solve,
 // and patch friction against analytic results. Speed is measured in bench/physics_cost_report.cc
-// (docs/benchmarks.md, "Full stir, session 12"), not here.
+// (docs/benchmarks.md), not here.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -192,7 +192,7 @@ TEST(ContactSolverTest, PatchFrictionSpinningBoxSlowsWithinTheRigidFaceEnvelope)
 // A stack of ten cubes that never sleeps, as the accuracy suite's (60 s; the suite's bound is a
 // quarter of a box, 0.25 m; measured 0.16 m with Bullet's friction at 7 iterations): patch
 // friction holds it at 4 iterations (0.103 m with its rows solved one at a time, 0.003 m with
-// the block solve, session 14). Also: the stack's weight reaches the ground (no box sinks).
+// the block solve). Also: the stack's weight reaches the ground (no box sinks).
 TEST(ContactSolverTest, PatchFrictionNeverSleepingStackStandsAtFourIterations) {
   PhysicsConfig cfg = Patch(true);
   cfg.sleeping = false;

@@ -7,7 +7,11 @@
 
 #include <chrono>
 #include <exception>
+#include <regex>
+#include <utility>
+#include <vector>
 
+#include "metrics/http_gate.h"
 #include "protocol/endpoint.h"
 #include "relay/admin/admin_routes.h"
 
@@ -63,25 +67,47 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
         "the admin API needs a key (--admin-key or EDGEPHYS_ADMIN_KEY) on a non-loopback address");
   }
   std::unique_ptr<AdminHttpServer> self(new AdminHttpServer());
-  self->server_ = std::make_unique<httplib::Server>();
-  httplib::Server& svr = *self->server_;
-  const size_t threads = std::max<size_t>(1, options.threads);
-  svr.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
-  // httplib's default sets SO_REUSEPORT, which lets a second relay bind the same admin port
-  // and take a share of its requests. SO_REUSEADDR only: a restart still binds at once.
-  svr.set_socket_options([](socket_t sock) {
-    int yes = 1;
-    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-  });
+  http::GateOptions gate;
+  gate.address = options.address;
+  gate.workers = std::max<size_t>(1, options.threads);
+  gate.max_body_bytes = options.max_body_bytes;
+  gate.request_deadline = options.request_deadline;
+  gate.max_connections = options.max_connections;
+  gate.max_per_address = options.max_per_address;
+  // Liveness on the gate thread: Health() reads one atomic and never waits for the relay.
+  gate.health_path = "/healthz";
+  gate.health = [backend] {
+    AdminReply r = backend->Health();
+    return http::HealthAnswer{r.status, r.body.dump()};
+  };
+  self->gate_ = std::make_unique<http::HttpGate>(std::move(gate));
+  httplib::Server& svr = self->gate_->routes();
   svr.set_payload_max_length(options.max_body_bytes);
-  svr.set_read_timeout(5, 0);
-  svr.set_write_timeout(5, 0);
-  // One request per connection: httplib serves a connection on one pool thread until it
-  // closes, so browsers' idle keep-alive connections would otherwise hold every thread and
-  // queue the next client behind the read timeout.
-  svr.set_keep_alive_max_count(1);
+  // A method the path does not take: 405 with the methods it does (Allow), else 404.
+  std::vector<std::pair<std::regex, std::string>> allowed;
+  for (const AdminRoute& route : AdminRoutes(*backend)) {
+    const char* m = route.method == AdminRoute::Method::kGet    ? "GET"
+                    : route.method == AdminRoute::Method::kPost ? "POST"
+                                                                : "DELETE";
+    allowed.emplace_back(std::regex(route.pattern), m);
+  }
   svr.set_error_handler(httplib::Server::HandlerWithResponse(
-      [](const httplib::Request&, httplib::Response& res) {
+      [allowed](const httplib::Request& req, httplib::Response& res) {
+        if (res.status == 404) {
+          std::string allow;
+          for (const auto& [pattern, method] : allowed) {
+            if (!std::regex_match(req.path, pattern) || allow.find(method) != std::string::npos) {
+              continue;
+            }
+            allow += (allow.empty() ? "" : ", ") + method;
+          }
+          if (!allow.empty()) {
+            res.set_header("Allow", allow);
+            WriteJson(res, AdminError(405, "method_not_allowed",
+                                      req.method + " is not allowed here (allowed: " + allow + ")"));
+            return httplib::Server::HandlerResponse::Handled;
+          }
+        }
         if (res.body.empty()) WriteJson(res, ErrorFor(res.status));
         return httplib::Server::HandlerResponse::Handled;
       }));
@@ -129,34 +155,20 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
     }
   }
 
-  const std::string host = endpoint->address().to_string();
-  int port = endpoint->port();
-  if (port == 0) {
-    port = svr.bind_to_any_port(host);
-    if (port <= 0) return Status::IoError("cannot bind the admin address", options.address);
-  } else if (!svr.bind_to_port(host, port)) {
-    return Status::IoError("cannot bind the admin address", options.address);
+  if (Status st = self->gate_->Start(); !st.ok()) {
+    if (st.code() == StatusCode::kIoError) {
+      return Status::IoError("cannot bind the admin address", std::string(st.reason()));
+    }
+    return st;
   }
-  self->address_ = (endpoint->address().is_v6() ? "[" + host + "]" : host) + ":" +
-                   std::to_string(port);
-  self->thread_ = std::thread([&svr] { svr.listen_after_bind(); });
-  // Stop() must not race the thread's start (httplib's stop() is a no-op before it runs).
-  for (int i = 0; i < 200 && !svr.is_running(); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
+  self->address_ = self->gate_->address();
   return self;
 }
 
 AdminHttpServer::~AdminHttpServer() { Stop(); }
 
 void AdminHttpServer::Stop() {
-  if (!server_) return;
-  for (int i = 0; i < 200 && thread_.joinable() && !server_->is_running(); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  server_->stop();
-  if (thread_.joinable()) thread_.join();
-  server_.reset();
+  if (gate_) gate_->Stop();
 }
 
 }  // namespace edgephys::admin

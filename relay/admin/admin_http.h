@@ -10,21 +10,26 @@
 // The key travels in "Authorization: Bearer <key>"; serve the port through TLS termination
 // if it leaves the host.
 //
+// Sockets: metrics/http_gate.h owns them. A request reaches a worker only once it has fully
+// arrived within `request_deadline` of the accept; connections are capped per address and in
+// total (a newcomer closes the oldest slow sender); more than 100 header lines get 431, a
+// control byte or whitespace after the Authorization value 400. GET /healthz is answered on
+// the gate thread from AdminBackend::Health() (which must not block), so liveness never waits
+// behind the workers. A method a path does not take gets 405 with Allow.
+//
 // Thread-safety: Start() and Stop() from one thread; requests are served on `threads` worker
-// threads of the server's own, which call the AdminBackend concurrently. A connection carries
-// one request (no keep-alive), so idle clients cannot hold the threads; a slow one holds its
-// thread for at most the 5 s read timeout.
+// threads, which call the AdminBackend concurrently. A connection carries one request.
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "protocol/status.h"
 #include "relay/admin/admin_api.h"
 
-namespace httplib {
-class Server;
+namespace edgephys::http {
+class HttpGate;
 }
 
 namespace edgephys::admin {
@@ -34,6 +39,9 @@ struct AdminHttpOptions {
   std::string key;                          // bearer key; empty: no key (loopback only)
   size_t max_body_bytes = 64 * 1024;
   size_t threads = 4;        // requests served at once (one connection per request)
+  std::chrono::milliseconds request_deadline{2000};  // accept -> last request byte
+  size_t max_connections = 256;  // open at once, all addresses
+  size_t max_per_address = 16;   // open at once from one address
 };
 
 class AdminHttpServer {
@@ -46,15 +54,14 @@ class AdminHttpServer {
   AdminHttpServer(const AdminHttpServer&) = delete;
   AdminHttpServer& operator=(const AdminHttpServer&) = delete;
 
-  // Stops accepting, finishes the requests in flight, joins the thread. Idempotent.
+  // Stops accepting, closes the connections, finishes the handlers running. Idempotent.
   void Stop();
   // "host:port" actually bound (the chosen port when 0 was asked).
   const std::string& address() const { return address_; }
 
  private:
   AdminHttpServer() = default;
-  std::unique_ptr<httplib::Server> server_;
-  std::thread thread_;
+  std::unique_ptr<http::HttpGate> gate_;
   std::string address_;
 };
 

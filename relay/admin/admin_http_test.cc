@@ -5,6 +5,11 @@
 #include <gtest/gtest.h>
 #include <httplib.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <mutex>
 
 namespace edgephys::admin {
@@ -158,6 +163,61 @@ TEST_F(AdminHttpTest, RoutesAndParameters) {
   EXPECT_EQ(client_->Post("/v1/drain", Auth(), R"({"deadline_s": 30})", "application/json")->status,
             200);
   EXPECT_EQ(backend_.last(), "drain 30");
+}
+
+// What `curl -X POST` sends: no body and no Content-Length; the key check and the handler
+// must see it (the body is optional), not "malformed HTTP request".
+TEST_F(AdminHttpTest, PostWithoutBodyReachesTheKeyCheck) {
+  const std::string port = server_->address().substr(server_->address().rfind(':') + 1);
+  auto raw = [&](const std::string& request) {
+    int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(std::stoi(port)));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof(to)), 0);
+    (void)::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+    std::string out;
+    char buf[4096];
+    timeval tv{3, 0};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
+    for (ssize_t n; (n = ::recv(fd, buf, sizeof(buf), 0)) > 0;) out.append(buf, n);
+    ::close(fd);
+    return out;
+  };
+  std::string no_key = raw("POST /v1/rooms/x/members/7/kick HTTP/1.1\r\nHost: a\r\n\r\n");
+  EXPECT_EQ(no_key.rfind("HTTP/1.1 401", 0), 0u) << no_key;
+  std::string kick = raw("POST /v1/rooms/x/members/7/kick HTTP/1.1\r\nHost: a\r\n"
+                         "Authorization: Bearer s3cret\r\n\r\n");
+  EXPECT_EQ(kick.rfind("HTTP/1.1 200", 0), 0u) << kick;
+  EXPECT_EQ(backend_.last(), "kick x 7 kicked by the operator");
+  std::string drain = raw("POST /v1/drain HTTP/1.1\r\nAuthorization: Bearer s3cret\r\n\r\n");
+  EXPECT_EQ(drain.rfind("HTTP/1.1 200", 0), 0u) << drain;
+  EXPECT_EQ(backend_.last(), "drain 300");
+  // A key with trailing whitespace or a NUL is not the key.
+  std::string space = raw("GET /v1/rooms HTTP/1.1\r\nAuthorization: Bearer s3cret \r\n\r\n");
+  EXPECT_EQ(space.rfind("HTTP/1.1 400", 0), 0u) << space;
+  std::string nul = "GET /v1/rooms HTTP/1.1\r\nAuthorization: Bearer s3cret";
+  nul.push_back('\0');
+  std::string with_nul = raw(nul + "\r\n\r\n");
+  EXPECT_EQ(with_nul.rfind("HTTP/1.1 400", 0), 0u) << with_nul;
+  std::string many = "GET /v1/rooms HTTP/1.1\r\nAuthorization: Bearer s3cret\r\n";
+  for (int i = 0; i < 150; ++i) many += "X-" + std::to_string(i) + ": 1\r\n";
+  std::string too_many = raw(many + "\r\n");
+  EXPECT_EQ(too_many.rfind("HTTP/1.1 431", 0), 0u) << too_many;
+  EXPECT_NE(backend_.last(), "list");
+}
+
+TEST_F(AdminHttpTest, WrongMethodGets405WithAllow) {
+  auto put = client_->Put("/v1/rooms/x", Auth(), "{}", "application/json");
+  ASSERT_TRUE(put);
+  EXPECT_EQ(put->status, 405);
+  EXPECT_EQ(Code(put), "method_not_allowed");
+  EXPECT_EQ(put->get_header_value("Allow"), "GET, DELETE");
+  auto post_health = client_->Post("/healthz", "", "application/json");
+  EXPECT_EQ(post_health->status, 405);
+  EXPECT_EQ(post_health->get_header_value("Allow"), "GET");
+  EXPECT_EQ(client_->Put("/v1/none", Auth(), "{}", "application/json")->status, 404);
 }
 
 TEST(AdminHttpStartTest, RefusesAnOpenAddressWithoutAKey) {
