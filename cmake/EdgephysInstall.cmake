@@ -50,6 +50,7 @@ if(TARGET edgephys_csharp)
 endif()
 # Where the installed library is, written into the installed bindings by cmake --install (so
 # --prefix X and DESTDIR staging both name the final place): cmake/edgephys_install_paths.cmake.in.
+set(CPACK_PACKAGING_INSTALL_PREFIX /usr)  # the .deb's prefix (CPack, below)
 configure_file(${PROJECT_SOURCE_DIR}/cmake/edgephys_install_paths.cmake.in
                ${PROJECT_BINARY_DIR}/edgephys_install_paths.cmake @ONLY)
 install(SCRIPT ${PROJECT_BINARY_DIR}/edgephys_install_paths.cmake COMPONENT sdk)

@@ -152,7 +152,10 @@ def _library_path():
     try:
         from . import _libdir  # written by cmake --install
         here = os.path.dirname(os.path.abspath(__file__))
-        for d in (os.path.join(here, _libdir.LIBDIR_FROM_PACKAGE), _libdir.LIBDIR):
+        dirs = [_libdir.LIBDIR]
+        if here.replace(os.sep, "/").endswith(_libdir.PACKAGE_IN_PREFIX):  # used in place
+            dirs.insert(0, os.path.join(here, _libdir.LIBDIR_FROM_PACKAGE))
+        for d in dirs:
             if os.path.exists(os.path.join(d, "libedgephys.so.1")):
                 return os.path.join(d, "libedgephys.so.1")
     except ImportError:
