@@ -63,7 +63,7 @@ run_example() {
 
 echo "== C: cc + pkg-config, no LD_LIBRARY_PATH, relay by host name"
 # shellcheck disable=SC2016
-"${clean[@]}" sh -c 'cc -std=c11 -o "$1" "$2" $(PKG_CONFIG_PATH="$3" pkg-config --cflags --libs edgephys) -lm' \
+"${clean[@]}" sh -c 'cc -o "$1" "$2" $(PKG_CONFIG_PATH="$3" pkg-config --cflags --libs edgephys) -lm' \
   _ "$work/stack_and_grab" "$share/examples/c/stack_and_grab.c" "$pc_dir" || fail "cc with pkg-config"
 "${clean[@]}" ldd "$work/stack_and_grab" | grep "libedgephys.so.1 => $prefix/" >/dev/null ||
   fail "the C program does not load libedgephys from the prefix: $("${clean[@]}" ldd "$work/stack_and_grab" | grep edgephys)"
