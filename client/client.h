@@ -66,9 +66,8 @@ struct RelayAddress {
   bool operator==(const RelayAddress&) const = default;
 };
 
-// Parses "a.b.c.d:port", "[v6]:port" or "host.name:port" (resolved here: a blocking lookup,
-// IPv4 first) into a canonical numeric RelayAddress; kInvalidArgument naming the cause on
-// anything else (a name that does not resolve, a missing or out-of-range port).
+// Parses "a.b.c.d:port" or "[v6]:port" into a canonical RelayAddress; kInvalidArgument on
+// anything else (names, missing or out-of-range port).
 Result<RelayAddress> ParseRelayAddress(std::string_view text);
 // "a.b.c.d:port" or "[v6]:port".
 std::string FormatRelayAddress(const RelayAddress& address);

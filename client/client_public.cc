@@ -17,14 +17,14 @@ Result<Endpoint> ToEndpoint(const RelayAddress& address) {
   asio::error_code error;
   const asio::ip::address ip = asio::ip::make_address(address.host, error);
   if (error) {
-    return Status::InvalidArgument("relay address: not a numeric IPv4/IPv6 address",
-                                   "'" + address.host + "'");
+    return Status::InvalidArgument("relay address: not a numeric IPv4/IPv6 address: '" +
+                                   address.host + "'");
   }
   return Endpoint(ip, address.port);
 }
 
 Result<RelayAddress> ParseRelayAddress(std::string_view text) {
-  Result<Endpoint> endpoint = ResolveEndpoint(text);
+  Result<Endpoint> endpoint = ParseEndpoint(text);
   if (!endpoint.ok()) return endpoint.status();
   return ToRelayAddress(*endpoint);
 }

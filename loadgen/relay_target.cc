@@ -31,7 +31,7 @@ double ThreadCpuSeconds() {
 // "host:port" -> the metrics address: "" gives the relay's host with port 9464.
 std::string MetricsAddress(const ExternalRelayOptions& o) {
   if (!o.metrics.empty()) return o.metrics;
-  auto ep = ResolveEndpoint(o.relay);
+  auto ep = ParseEndpoint(o.relay);
   if (!ep.ok()) return "";
   const asio::ip::address a = ep->address();
   return (a.is_v6() ? "[" + a.to_string() + "]" : a.to_string()) + ":9464";
@@ -57,9 +57,7 @@ std::string ValidateExternalRelay(const ExternalRelayOptions& o) {
     }
     return "";
   }
-  if (Result<Endpoint> relay = ResolveEndpoint(o.relay); !relay.ok()) {
-    return "--relay " + o.relay + ": " + relay.status().ToString();
-  }
+  if (!ParseEndpoint(o.relay).ok()) return "--relay: not a numeric HOST:PORT: " + o.relay;
   if (o.secret.empty()) return "--relay needs --secret (the relay's join token secret)";
   if (o.metrics != "off" && !ParseEndpoint(MetricsAddress(o)).ok()) {
     return "--metrics: not a numeric HOST:PORT: " + o.metrics;
@@ -206,7 +204,7 @@ RelayTarget::RelayTarget(const RelayConfig& config, std::chrono::steady_clock::t
 RelayTarget::RelayTarget(const ExternalRelayOptions& options,
                          std::chrono::steady_clock::time_point t0)
     : external_(options), secret_(options.secret), t0_(t0) {
-  endpoint_ = *ResolveEndpoint(options.relay);
+  endpoint_ = *ParseEndpoint(options.relay);
   external_.metrics = options.metrics == "off" ? "off" : MetricsAddress(options);
 }
 

@@ -1,7 +1,5 @@
 #include "protocol/endpoint.h"
 
-#include <asio/io_context.hpp>
-#include <asio/ip/udp.hpp>
 #include <charconv>
 
 namespace edgephys {
@@ -21,29 +19,6 @@ Result<Endpoint> ParseEndpoint(std::string_view text) {
   auto address = asio::ip::make_address(std::string(host), error);
   if (error) return bad;
   return Endpoint(address, static_cast<uint16_t>(port));
-}
-
-Result<Endpoint> ResolveEndpoint(std::string_view text) {
-  Result<Endpoint> numeric = ParseEndpoint(text);
-  if (numeric.ok()) return numeric;
-  const size_t colon = text.rfind(':');
-  if (colon == std::string_view::npos || colon == 0 || text.front() == '[') return numeric;
-  Result<Endpoint> port_only = ParseEndpoint(text.substr(colon));  // ":port" checks the port
-  if (!port_only.ok()) return port_only;
-  const std::string host(text.substr(0, colon));
-  asio::io_context io;
-  asio::ip::udp::resolver resolver(io);
-  asio::error_code error;
-  auto results = resolver.resolve(host, std::to_string(port_only->port()),
-                                  asio::ip::resolver_base::numeric_service, error);
-  if (error || results.empty()) {
-    return Status::InvalidArgument("cannot resolve host name",
-                                   host + ": " + (error ? error.message() : "no address"));
-  }
-  for (const auto& entry : results) {
-    if (entry.endpoint().address().is_v4()) return Endpoint(entry.endpoint());
-  }
-  return Endpoint(results.begin()->endpoint());
 }
 
 std::string FormatEndpoint(const Endpoint& endpoint) {

@@ -12,10 +12,6 @@ namespace edgephys {
 // Accepts a numeric IPv4 or bracketed IPv6 address, or no host (any IPv4 address), then a
 // port. kInvalidArgument otherwise (host names are not resolved).
 Result<Endpoint> ParseEndpoint(std::string_view text);
-// As ParseEndpoint, and a host name is resolved (getaddrinfo: blocks for the lookup; the first
-// IPv4 address, else the first IPv6 one). kInvalidArgument naming the host and the resolver's
-// reason when the name does not resolve.
-Result<Endpoint> ResolveEndpoint(std::string_view text);
 std::string FormatEndpoint(const Endpoint& endpoint);
 
 }  // namespace edgephys

@@ -4,8 +4,6 @@
 
 #include "protocol/udp_socket.h"
 
-#include "protocol/endpoint.h"
-
 #include <poll.h>
 #include <sys/socket.h>
 
@@ -58,7 +56,7 @@ Result<std::unique_ptr<UdpSocket>> UdpSocket::Open(const Endpoint& bind) {
   asio::ip::udp::socket& s = socket->socket_;
   asio::error_code ec;
   s.open(bind.protocol(), ec);
-  if (ec) return Status::IoError("cannot open UDP socket", ec.message());
+  if (ec) return Status::IoError("cannot open UDP socket");
   if (bind.address().is_v6() && bind.address().is_unspecified()) {
     s.set_option(asio::ip::v6_only(false), ec);  // dual-stack where the OS allows it
   }
@@ -66,9 +64,7 @@ Result<std::unique_ptr<UdpSocket>> UdpSocket::Open(const Endpoint& bind) {
   s.set_option(asio::socket_base::send_buffer_size(kSocketBufferBytes), ec);
   ec.clear();
   s.bind(bind, ec);
-  if (ec) {
-    return Status::IoError("cannot bind UDP socket", FormatEndpoint(bind) + ": " + ec.message());
-  }
+  if (ec) return Status::IoError("cannot bind UDP socket");
   s.non_blocking(true, ec);
   if (ec) return Status::IoError("cannot make UDP socket non-blocking");
   socket->local_ = s.local_endpoint(ec);

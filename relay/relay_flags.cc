@@ -197,8 +197,6 @@ void AddToken(CLI::App& app, RelayFlags* f) {
   f->token_cmd->add_option("--permissions", f->token.permissions, "Permission bits (1: spawn)")
       ->capture_default_str();
   f->token_cmd->add_option("--secret", f->secret, "Secret (default: $EDGEPHYS_SECRET)");
-  f->token_cmd->add_flag("--dev-secret", f->token_dev_secret,
-                         "Sign with the built-in development secret (a relay started without one)");
 }
 
 }  // namespace

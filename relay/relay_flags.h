@@ -41,7 +41,6 @@ struct RelayFlags {
   CLI::App* token_cmd = nullptr;
   JoinToken token;
   double token_ttl_s = 3600;
-  bool token_dev_secret = false;            // --dev-secret: sign with kDevelopmentSecret
 
   CLI::Option* admin_addr_opt = nullptr;
 };

@@ -12,7 +12,7 @@ PACKAGES=(
   libcpp-httplib-dev chromium
   libhiredis-dev redis-server
   linux-perf
-  python3 python3-venv python3-pip mono-mcs mono-runtime dpkg-dev debootstrap
+  python3 mono-mcs mono-runtime dpkg-dev debootstrap
   ccache  # optional: developers build with -DCMAKE_CXX_COMPILER_LAUNCHER=ccache
 )
 

@@ -77,7 +77,7 @@ for f in /usr/bin/edgephys-relay /usr/bin/edgephys-phys /usr/lib/libedgephys.so.
 done
 
 step "edgephys-relay from the package, inside the chroot"
-token=$(chroot "$target" /usr/bin/edgephys-relay token --dev-secret --player 7 --room lobby --ttl 60)
+token=$(chroot "$target" /usr/bin/edgephys-relay token --player 7 --room lobby --ttl 60)
 [[ "$token" =~ ^[A-Za-z0-9_-]{80,}$ ]] || { echo "FAIL: token looks wrong: $token"; exit 1; }
 ok=""
 for attempt in 1 2 3 4 5; do

@@ -3,7 +3,7 @@
 # gets: headers, the shared libedgephys exporting only the C API, the relay and worker binaries,
 # the CMake package and the pkg-config file. Then builds tests/consumer out of tree twice (CMake
 # find_package, and plain cc with pkg-config) and runs both against the *installed*
-# edgephys-relay on a free loopback port, with no LD_LIBRARY_PATH (the rpaths find the library).
+# edgephys-relay on a free loopback port.
 # Usage: install_consumer_test.sh <build dir> <source dir>
 set -euo pipefail
 build="$1"; src="$2"
@@ -47,7 +47,7 @@ for _ in $(seq 1 50); do
 done
 [ -n "$address" ] || { echo "FAIL: the installed relay did not start"; cat "$work/relay.log"; exit 1; }
 
-"$work/cmake-build/consumer" "$address" "$("$prefix/bin/edgephys-relay" token --dev-secret --player 1 --room c)" c | tee "$work/a.log"
-"$work/consumer-pc" "$address" "$("$prefix/bin/edgephys-relay" token --dev-secret --player 2 --room c)" c | tee "$work/b.log"
+"$work/cmake-build/consumer" "$address" "$("$prefix/bin/edgephys-relay" token --player 1 --room c)" c | tee "$work/a.log"
+LD_LIBRARY_PATH="$libdir" "$work/consumer-pc" "$address" "$("$prefix/bin/edgephys-relay" token --player 2 --room c)" c | tee "$work/b.log"
 grep -q "consumer ok" "$work/a.log" && grep -q "consumer ok" "$work/b.log" || { echo "FAIL: a consumer failed"; exit 1; }
 echo "install consumer test passed"

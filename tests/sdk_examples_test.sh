@@ -23,8 +23,8 @@ trap cleanup EXIT
 start_relay "$relay" "$work/relay.log" 120 || exit 1
 address="$relay_address"
 room="sdk$RANDOM"
-token1=$("$relay" token --dev-secret --player 1 --room "$room" --ttl 300)
-token2=$("$relay" token --dev-secret --player 2 --room "$room" --ttl 300)
+token1=$("$relay" token --player 1 --room "$room" --ttl 300)
+token2=$("$relay" token --player 2 --room "$room" --ttl 300)
 
 "$watcher" "$address" "$token2" "$room" --watch >"$work/watch.log" 2>&1 &
 watch_pid=$!

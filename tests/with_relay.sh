@@ -19,8 +19,8 @@ start_relay "$relay" "$work/relay.log" 300 || exit 1
 EDGEPHYS_RELAY="$relay_address"
 export EDGEPHYS_RELAY
 export EDGEPHYS_ROOM="r$RANDOM"
-EDGEPHYS_TOKEN_1=$("$relay" token --dev-secret --player 1 --room "$EDGEPHYS_ROOM" --ttl 600)
-EDGEPHYS_TOKEN_2=$("$relay" token --dev-secret --player 2 --room "$EDGEPHYS_ROOM" --ttl 600)
+EDGEPHYS_TOKEN_1=$("$relay" token --player 1 --room "$EDGEPHYS_ROOM" --ttl 600)
+EDGEPHYS_TOKEN_2=$("$relay" token --player 2 --room "$EDGEPHYS_ROOM" --ttl 600)
 export EDGEPHYS_TOKEN_1 EDGEPHYS_TOKEN_2
 status=0
 "$@" || status=$?

@@ -11,10 +11,8 @@
 //     while (running) c.Update();              // every frame
 //   }
 //
-// Build: mcs -unsafe -target:library Edgephys.cs. cmake --install ships this file, the built
-// Edgephys.dll and an Edgephys.dll.config (Mono dllmap naming the installed libedgephys.so.1)
-// in <prefix>/share/edgephys/bindings/csharp: copy the .dll and .dll.config beside the
-// application. Unity: libedgephys.so in the project's Plugins folder instead.
+// Build: mcs -unsafe -target:library Edgephys.cs. At run time the loader must find
+// libedgephys.so (installed, LD_LIBRARY_PATH, or a Mono dllmap / Unity Plugins folder).
 // Thread-safety: a Client is used from one thread at a time (Unity: the main thread); its
 // events are raised inside Update() on that thread.
 using System;

@@ -4,7 +4,7 @@ examples/c/stack_and_grab.c. Join, spawn a local-physics head and two hands, off
 three boxes, wait until they fall and settle, grab the top box, carry it aside, release it,
 print every physics event, and end with the settled poses of the boxes.
 
-    python3 examples/python/stack_and_grab.py <relay> <token> <room>   (edgephys installed with pip)
+    PYTHONPATH=bindings/python python3 examples/python/stack_and_grab.py <relay> <token> <room>
 """
 import math
 import sys

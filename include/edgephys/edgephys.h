@@ -248,10 +248,9 @@ EDGEPHYS_API edgephys_status edgephys_client_destroy(edgephys_client* client);
  * except edgephys_client_destroy returns EDGEPHYS_E_CLOSED. Closing twice is an error too. */
 EDGEPHYS_API edgephys_status edgephys_client_close(edgephys_client* client);
 
-/* Starts the handshake with the relay at `relay_address` ("127.0.0.1:7777", "[::1]:7777", or
- * "relay.example.com:7777": a name is resolved here, blocking for the lookup, IPv4 first) using
- * the join token `token` (base64url text, as `edgephys-relay token` prints it).
- * EDGEPHYS_E_MALFORMED on an unparsable address, a name that does not resolve or a bad token, EDGEPHYS_E_ALREADY_EXISTS if already started. The result
+/* Starts the handshake with the relay at `relay_address` ("127.0.0.1:7777") using the join
+ * token `token` (base64url text, as `edgephys-relay token` prints it). EDGEPHYS_E_MALFORMED on
+ * an unparsable address or token, EDGEPHYS_E_ALREADY_EXISTS if already started. The result
  * comes later as EDGEPHYS_EVENT_CONNECTED, _REJECTED or _DISCONNECTED (handshake timeout). */
 EDGEPHYS_API edgephys_status edgephys_client_connect(edgephys_client* client,
                                                      const char* relay_address,

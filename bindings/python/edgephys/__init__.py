@@ -12,10 +12,8 @@ C status and edgephys_last_error()'s message.
         for ev in c.events():
             if ev.type == ep.EVENT_CONNECTED: c.join("lobby")
 
-The library is found through $EDGEPHYS_LIBRARY (a path) if set, then where `cmake --install`
-put it (edgephys/_libdir.py, written by the install: the package installed with pip from
-<prefix>/share/edgephys/bindings/python, or used in place there), then the system loader (the
-.deb's /usr/lib). A Client is not thread-safe (one thread at a time).
+The library is found through $EDGEPHYS_LIBRARY (a path), then the system loader (libedgephys.so
+installed with cmake --install or the .deb). A Client is not thread-safe (one thread at a time).
 """
 import ctypes
 import ctypes.util
@@ -146,25 +144,9 @@ class EdgephysError(RuntimeError):
 
 
 # ---- the library --------------------------------------------------------------------------
-def _library_path():
-    if os.environ.get("EDGEPHYS_LIBRARY"):
-        return os.environ["EDGEPHYS_LIBRARY"]
-    try:
-        from . import _libdir  # written by cmake --install
-        here = os.path.dirname(os.path.abspath(__file__))
-        dirs = [_libdir.LIBDIR]
-        if here.replace(os.sep, "/").endswith(_libdir.PACKAGE_IN_PREFIX):  # used in place
-            dirs.insert(0, os.path.join(here, _libdir.LIBDIR_FROM_PACKAGE))
-        for d in dirs:
-            if os.path.exists(os.path.join(d, "libedgephys.so.1")):
-                return os.path.join(d, "libedgephys.so.1")
-    except ImportError:
-        pass
-    return ctypes.util.find_library("edgephys") or "libedgephys.so.1"
-
-
 def _load():
-    lib = ctypes.CDLL(_library_path())
+    path = os.environ.get("EDGEPHYS_LIBRARY") or ctypes.util.find_library("edgephys") or "libedgephys.so.1"
+    lib = ctypes.CDLL(path)
     P = ctypes.POINTER
     c = ctypes.c_void_p
     u32, f64, sz = ctypes.c_uint32, ctypes.c_double, ctypes.c_size_t
