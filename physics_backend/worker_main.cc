@@ -115,7 +115,9 @@ int main(int argc, char** argv) {
       if (run_for_s > 0 && t >= run_for_s) g_stop.store(true);
       ClientState st = client.state();
       if (st == ClientState::kRejected) {
-        spdlog::error("the relay refused the worker (reason {}); check --worker-key", client.reject_reason());
+        spdlog::error("the relay refused the worker ({}); check --worker-key",
+                      schema::EnumNameRejectReason(
+                          static_cast<schema::RejectReason>(client.reject_reason())));
         return 1;
       }
       if (st == ClientState::kFailed || st == ClientState::kDisconnected) break;

@@ -18,6 +18,13 @@ namespace {
 
 using schema::RejectReason;
 
+// The schema's name of a connection's DisconnectReason (same values), e.g. "Timeout".
+const char* DisconnectReasonName(DisconnectReason reason) {
+  const char* name =
+      schema::EnumNameDisconnectReason(static_cast<schema::DisconnectReason>(reason));
+  return name[0] != '\0' ? name : "unknown reason";
+}
+
 // Silence after which a PhyS worker counts as dead (its rooms fail over).
 constexpr double kWorkerTimeoutS = 0.5;
 
@@ -435,7 +442,7 @@ void Relay::RemoveSession(uint32_t connection_id, double now) {
   if (s.is_worker()) {
     counters_->physics_workers.fetch_sub(1, std::memory_order_relaxed);
     spdlog::warn("PhyS worker {:08x} lost ({})", connection_id,
-                 static_cast<int>(s.connection().disconnect_reason()));
+                 DisconnectReasonName(s.connection().disconnect_reason()));
     workers_.Detach(connection_id);
     for (auto& [name, room] : rooms_) {
       if (room->physics_worker() == connection_id) room->FailOver(now);
@@ -443,7 +450,7 @@ void Relay::RemoveSession(uint32_t connection_id, double now) {
   }
   DisconnectReason reason = s.connection().disconnect_reason();
   counters_->CountDisconnect(reason);
-  spdlog::info("player {} disconnected (reason {})", s.player_id(), static_cast<int>(reason));
+  spdlog::info("player {} disconnected ({})", s.player_id(), DisconnectReasonName(reason));
   auto eit = session_by_endpoint_.find(s.endpoint());
   if (eit != session_by_endpoint_.end() && eit->second == connection_id) {
     session_by_endpoint_.erase(eit);

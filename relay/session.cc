@@ -104,8 +104,10 @@ bool Session::SendReliable(std::span<const uint8_t> message) {
 
 void Session::SendError(schema::RejectReason reason, uint32_t entity_id, std::string_view detail) {
   counters_->RejectRequest(static_cast<uint16_t>(reason));
-  DropLogOfThisThread().Note("request rejected", schema::EnumNameRejectReason(reason), endpoint_,
-                             now_);
+  // OverBudget names the budget (its detail, "over budget: <budget>"): one log line per budget.
+  std::string name = schema::EnumNameRejectReason(reason);
+  if (reason == schema::RejectReason::OverBudget) name += " (" + std::string(detail) + ")";
+  DropLogOfThisThread().Note("request rejected", name, endpoint_, now_);
   flatbuffers::FlatBufferBuilder fbb(128);
   FinishControl(fbb, schema::CreateError(fbb, reason, entity_id,
                                          fbb.CreateString(detail.data(), detail.size())));
