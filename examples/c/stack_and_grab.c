@@ -143,6 +143,9 @@ int main(int argc, char** argv) {
   for (double end = edgephys_now_s() + 5; !connected; Pump()) if (edgephys_now_s() > end) Fail("no connection");
   Check(edgephys_client_join(client, argv[3]), "join");
   for (double end = edgephys_now_s() + 5; !joined; Pump()) if (edgephys_now_s() > end) Fail("no join");
+  /* A chat line to everyone else in the room (reliable; they get it with our player id). */
+  static const char chat[] = "hello from the C example";
+  Check(edgephys_client_send_message(client, EDGEPHYS_TO_OTHERS, 0, chat, sizeof chat - 1), "chat");
 
   /* The scene, dissected: a static ground handed to PhyS... */
   edgephys_collider ground_box;
