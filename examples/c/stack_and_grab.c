@@ -1,5 +1,6 @@
 /* The edgephys SDK example, in C (the same program exists in C++, C# and Python):
- * join a room, spawn a local-physics head and two hands, offload a stack of three boxes to
+ * join a room, say hello to the others with a chat line (an application message), spawn a
+ * local-physics head and two hands, offload a stack of three boxes to
  * PhyS, wait until they fall and settle, grab the top one with the right hand, carry it aside,
  * release it, and print every physics event. Ends with the settled poses of the boxes.
  *

@@ -6,7 +6,8 @@
 //
 // --watch joins the same room, keeps the latest received transform of every entity, and when
 // another player leaves prints "pose <id> x y z qx qy qz qw" for each (as the example does for
-// its boxes), so tests/sdk_examples_test.sh can check both saw the same poses.
+// its boxes), so tests/sdk_examples_test.sh can check both saw the same poses; it prints each
+// chat line (application message) it receives as "chat from <player>: <text>".
 #include <edgephys/edgephys.hpp>
 
 #include <chrono>
