@@ -588,6 +588,13 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
                          e->detail() ? e->detail()->string_view() : std::string_view());
       break;
     }
+    case schema::Body::AppMessage: {
+      const auto* m = msg->body_as_AppMessage();
+      std::span<const uint8_t> payload;
+      if (m->payload() != nullptr) payload = {m->payload()->data(), m->payload()->size()};
+      listener_->OnMessage(m->sender(), payload);
+      break;
+    }
     case schema::Body::Disconnecting: {
       const auto* d = msg->body_as_Disconnecting();
       disconnect_detail_ = d->detail() ? d->detail()->str() : std::string();

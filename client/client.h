@@ -178,7 +178,21 @@ class ClientListener {
   virtual void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
     (void)reason, (void)entity_id, (void)detail;
   }
+  // An application message (SendMessage) from player `sender` of the room, once, in the order
+  // that player sent it. `payload` is valid during the call only.
+  virtual void OnMessage(uint32_t sender, std::span<const uint8_t> payload) {
+    (void)sender, (void)payload;
+  }
 };
+
+// Whom an application message is for (schema MessageTarget).
+enum class MessageTarget : uint8_t {
+  kRoom = 0,    // every member, the sender included
+  kOthers = 1,  // every member but the sender
+  kPlayer = 2,  // one member
+};
+// Largest application message payload (bytes); the room's budget may allow less.
+inline constexpr size_t kMaxMessagePayload = 64 * 1024;
 
 // What Spawn() sends: an EntitySpec (protocol/entity_spec.h) — the entity's transform,
 // hierarchy (parent_id) and flags (entity_flags::kPersistent, kOffloaded, kHand, ...) and,
@@ -230,6 +244,13 @@ class Client final {
   // transforms, spinning as the hand turned (throwing), then falls. kNotConnected before
   // OnJoined; OnError(NotOwner) follows if none of this client's hands holds it.
   Status Release(uint32_t entity_id);
+  // Sends an application message on the reliable channel (ordered; fragmented as needed) to
+  // `target` (`to_player` for kPlayer, else ignored); the relay forwards it with this player's
+  // id (ClientListener::OnMessage) or refuses it with OnError (NotPermitted, OverBudget,
+  // RateLimited, UnknownPlayer). kNotConnected before OnJoined, kInvalidArgument for a payload
+  // over kMaxMessagePayload, an unknown target or a kPlayer target of 0, kResourceExhausted when
+  // the reliable queue is full. The payload is copied.
+  Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
   // Records the latest transform of an owned entity; it goes out at the publish rate.
   // kNotFound if not owned, kInvalidArgument if not finite / not unit.
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);

@@ -41,6 +41,7 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status Despawn(uint32_t entity_id);
   Status Grab(uint32_t entity_id, uint32_t hand_id);
   Status Release(uint32_t entity_id);
+  Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
   void Disconnect();
   const ConnectionStats* stats() const;

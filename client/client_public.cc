@@ -50,6 +50,10 @@ Result<uint32_t> Client::Spawn(const SpawnDesc& desc) { return impl_->Spawn(desc
 Status Client::Despawn(uint32_t entity_id) { return impl_->Despawn(entity_id); }
 Status Client::Grab(uint32_t entity_id, uint32_t hand_id) { return impl_->Grab(entity_id, hand_id); }
 Status Client::Release(uint32_t entity_id) { return impl_->Release(entity_id); }
+Status Client::SendMessage(MessageTarget target, uint32_t to_player,
+                           std::span<const uint8_t> payload) {
+  return impl_->SendMessage(target, to_player, payload);
+}
 Status Client::PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation) {
   return impl_->PublishTransform(entity_id, position, rotation);
 }

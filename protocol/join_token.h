@@ -29,7 +29,8 @@ inline constexpr size_t kMaxJoinTokenSize = 1 + 4 + 4 + 8 + 8 + 1 + kMaxRoomName
 inline constexpr uint32_t kPermissionSpawn = 1u << 0;     // may spawn and publish entities
 inline constexpr uint32_t kPermissionOperator = 1u << 1;  // may create rooms with custom settings
 inline constexpr uint32_t kPermissionWorker = 1u << 2;    // a remote PhyS worker (edgephys-phys)
-inline constexpr uint32_t kDefaultPermissions = kPermissionSpawn;
+inline constexpr uint32_t kPermissionMessage = 1u << 3;   // may send application messages
+inline constexpr uint32_t kDefaultPermissions = kPermissionSpawn | kPermissionMessage;
 
 struct JoinToken {
   std::string room;          // 1..kMaxRoomNameSize bytes

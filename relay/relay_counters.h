@@ -18,8 +18,8 @@
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. AuthRequired).
-inline constexpr size_t kRejectReasonCount = 19;
+// Number of RejectReason values in schema/control.fbs (None .. NotPermitted).
+inline constexpr size_t kRejectReasonCount = 21;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.

@@ -29,6 +29,13 @@ struct RoomBudgets {
   size_t max_bytes_per_player = 16u << 20;          // stored spawn messages (late-join state)
   size_t max_bytes = 64u << 20;
   size_t max_name_bytes = 1024;                     // Container.name, per entity
+  // Application messages (RoomHost::Message): one payload's size, and rates (sustained; bursts
+  // of 2 s allowed) per player and for the room's senders together.
+  size_t max_message_bytes = 64u << 10;
+  double messages_per_s_per_player = 120;
+  double message_bytes_per_s_per_player = 256u << 10;
+  double messages_per_s = 2000;
+  double message_bytes_per_s = 4u << 20;
 
   // Every limit off (benchmarks that build large scenes on purpose).
   static RoomBudgets Unlimited() {
@@ -36,6 +43,8 @@ struct RoomBudgets {
     b.max_entities = b.max_bodies_per_player = b.max_bodies = 0;
     b.max_particles_per_player = b.max_particles = b.max_joints_per_player = b.max_joints = 0;
     b.max_bytes_per_player = b.max_bytes = b.max_name_bytes = 0;
+    b.messages_per_s_per_player = b.message_bytes_per_s_per_player = 0;
+    b.messages_per_s = b.message_bytes_per_s = 0;
     return b;
   }
 };

@@ -516,17 +516,21 @@ void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
 
 void RoomHost::BroadcastReliable(std::span<const uint8_t> message, uint32_t except_player) {
   for (const auto& [pid, m] : room_.members()) {
-    if (pid == except_player) continue;
-    if (auto stream = join_streams_.find(pid); stream != join_streams_.end()) {
-      // After the room's existing state; a joiner that falls a whole queue behind is dropped
-      // as its queue would have overflowed.
-      if (!stream->second.Hold(message, m.link->ReliableCapacity())) {
-        join_streams_.erase(stream);
-        m.link->Overflow();
-      }
-    } else {
-      (void)m.link->SendReliable(message);
+    if (pid != except_player) SendToMember(pid, m, message);
+  }
+}
+
+void RoomHost::SendToMember(uint32_t player_id, const Member& member,
+                            std::span<const uint8_t> message) {
+  if (auto stream = join_streams_.find(player_id); stream != join_streams_.end()) {
+    // After the room's existing state; a joiner that falls a whole queue behind is dropped
+    // as its queue would have overflowed.
+    if (!stream->second.Hold(message, member.link->ReliableCapacity())) {
+      join_streams_.erase(stream);
+      member.link->Overflow();
     }
+  } else {
+    (void)member.link->SendReliable(message);
   }
 }
 

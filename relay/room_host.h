@@ -20,10 +20,12 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "relay/join_stream.h"
 #include "relay/member_link.h"
+#include "relay/rate_limit.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
 #include "relay/room.h"
@@ -86,6 +88,21 @@ class RoomHost {
   void Grab(MemberLink& link, uint32_t entity_id, uint32_t hand_id);
   // Releases what the member's hand holds; Released to all.
   void Release(MemberLink& link, uint32_t entity_id, double now);
+  // An application message from the member (docs/protocol.md, "Application messages"),
+  // forwarded on the reliable channel, with the sender's player id, to the members `message`
+  // addresses (each once, in the order this member sent them). Refused (Error on `link`,
+  // counted in requests_rejected and in message_stats().refused) without the join token's
+  // kPermissionMessage (NotPermitted), over RoomBudgets::max_message_bytes (OverBudget), over
+  // the per-player or the room's message or byte rate (RateLimited), for a Player target not
+  // in the room (UnknownPlayer) or an unknown target (InvalidMessage). O(members).
+  void Message(MemberLink& link, const schema::AppMessage& message, double now);
+  struct MessageStats {
+    uint64_t forwarded = 0;  // messages accepted
+    uint64_t delivered = 0;  // copies queued to members
+    uint64_t refused = 0;    // messages refused (any reason)
+  };
+  const MessageStats& message_stats() const { return message_stats_; }
+
   // An unreliable state payload from the member: each state is applied if the member owns the
   // entity and it is valid (early states of its own unspawned entities are held, bounded).
   // O(states).
@@ -122,6 +139,8 @@ class RoomHost {
   void BroadcastReliable(std::span<const uint8_t> message, uint32_t except_player);
 
  private:
+  // Queues `message` for one member (after its join stream's state if it is still joining).
+  void SendToMember(uint32_t player_id, const Member& member, std::span<const uint8_t> message);
   void BroadcastPhysicsEvent(schema::PhysicsEventKind kind, uint32_t a, uint32_t b, double now);
   void BroadcastDespawn(uint32_t entity_id, uint32_t except_player);
   void SendJoinState(MemberLink& link, uint32_t slot);
@@ -132,6 +151,15 @@ class RoomHost {
   RoomHostEnv env_;
   std::map<uint32_t, JoinStream> join_streams_;  // by player id, while a join streams
   StateBatch batch_;  // ApplyStates' decode buffer, reused
+  // Message rates: per player identity (kept after a leave, so a rejoin does not refill them;
+  // one entry per player that ever sent) and for the room.
+  struct MessageRates {
+    TokenBucket count, bytes;
+  };
+  std::unordered_map<uint32_t, MessageRates> message_rates_;
+  MessageRates room_message_rates_;
+  bool message_rates_ready_ = false;
+  MessageStats message_stats_;
 };
 
 }  // namespace edgephys

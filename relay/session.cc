@@ -44,7 +44,8 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case Body::Spawn:
     case Body::Despawn:
     case Body::Grab:
-    case Body::Release: break;
+    case Body::Release:
+    case Body::AppMessage: break;
     default: return SendError(RejectReason::InvalidMessage, 0, "unexpected message type");
   }
   // Requests about the joined room's entities.
@@ -58,6 +59,7 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case Body::Despawn: return room_->Despawn(*this, entity);
     case Body::Grab: return room_->Grab(*this, entity, msg->body_as_Grab()->hand_id());
     case Body::Release: return room_->Release(*this, entity, now_);
+    case Body::AppMessage: return room_->Message(*this, *msg->body_as_AppMessage(), now_);
     default: return;
   }
 }

@@ -351,6 +351,26 @@ edgephys_status edgephys_client_spawn(edgephys_client* client, const edgephys_sp
   });
 }
 
+edgephys_status edgephys_client_spawn_static(edgephys_client* client,
+                                             const edgephys_transform* transform,
+                                             const edgephys_collider* colliders,
+                                             uint32_t collider_count, const char* name,
+                                             uint32_t* out_id) {
+  EDGEPHYS_CHECK(client);
+  if (transform == nullptr || colliders == nullptr) {
+    return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "transform or colliders is NULL");
+  }
+  if (collider_count == 0) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "scenery needs a collider");
+  edgephys_spawn_desc desc;
+  edgephys_spawn_desc_init(&desc);
+  desc.transform = *transform;
+  desc.flags = EDGEPHYS_FLAG_OFFLOADED | EDGEPHYS_FLAG_PERSISTENT;
+  desc.name = name;
+  desc.colliders = colliders;
+  desc.collider_count = collider_count;
+  return edgephys_client_spawn(client, &desc, out_id);
+}
+
 edgephys_status edgephys_client_despawn(edgephys_client* client, uint32_t entity_id) {
   EDGEPHYS_CHECK(client);
   return Guarded([&]() -> edgephys_status {
@@ -397,6 +417,7 @@ edgephys_status edgephys_client_release(edgephys_client* client, uint32_t entity
 edgephys_status edgephys_client_poll_event(edgephys_client* client, edgephys_event* out) {
   EDGEPHYS_CHECK(client);
   if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");
+  client->has_polled_message = false;
   if (client->count == 0) {
     std::memset(out, 0, sizeof(*out));
     out->type = EDGEPHYS_EVENT_NONE;
@@ -405,7 +426,46 @@ edgephys_status edgephys_client_poll_event(edgephys_client* client, edgephys_eve
   *out = client->ring[client->head];
   client->head = (client->head + 1) % client->ring.size();
   --client->count;
+  client->has_polled_message = out->type == EDGEPHYS_EVENT_MESSAGE;
+  if (client->has_polled_message) {
+    client->polled_message = std::move(client->message_payloads.front());
+    client->message_payloads.pop_front();
+    client->message_bytes -= client->polled_message.size();
+  }
   return Ok();
+}
+
+edgephys_status edgephys_client_get_message(edgephys_client* client, void* buffer,
+                                            size_t capacity, size_t* out_size) {
+  EDGEPHYS_CHECK(client);
+  if (out_size == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out_size is NULL");
+  if (!client->has_polled_message) {
+    return Fail(EDGEPHYS_E_NOT_FOUND, "the event polled last is not a MESSAGE");
+  }
+  const std::vector<uint8_t>& m = client->polled_message;
+  *out_size = m.size();
+  if (capacity < m.size()) return Fail(EDGEPHYS_E_BUFFER_TOO_SMALL, "buffer smaller than the message");
+  if (!m.empty()) {
+    if (buffer == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "buffer is NULL");
+    std::memcpy(buffer, m.data(), m.size());
+  }
+  return Ok();
+}
+
+edgephys_status edgephys_client_send_message(edgephys_client* client, uint32_t target,
+                                             uint32_t to_player, const void* data, size_t size) {
+  EDGEPHYS_CHECK(client);
+  return Guarded([&]() -> edgephys_status {
+    if (data == nullptr && size > 0) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "data is NULL");
+    if (target > EDGEPHYS_TO_PLAYER) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "unknown target");
+    if (size > EDGEPHYS_MAX_MESSAGE_BYTES) {
+      return Fail(EDGEPHYS_E_TOO_LARGE, "message payload over EDGEPHYS_MAX_MESSAGE_BYTES");
+    }
+    const auto* bytes = static_cast<const uint8_t*>(data);
+    const Status st = client->client->SendMessage(static_cast<edgephys::MessageTarget>(target),
+                                                  to_player, {bytes, size});
+    return st.ok() ? Ok() : FailStatus(st);
+  });
 }
 
 edgephys_status edgephys_client_get_state_format(edgephys_client* client, uint32_t* out) {

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <deque>
+#include <span>
 #include <memory>
 #include <string_view>
 #include <unordered_map>
@@ -18,6 +20,7 @@
 #include "edgephys/edgephys.h"
 #include "edgephys/schema/control_generated.h"
 #include "protocol/udp_socket.h"
+#include "sdk/c_api_reasons.h"
 
 namespace edgephys::capi {
 
@@ -50,6 +53,13 @@ struct edgephys_client final : edgephys::ClientListener {
   std::vector<edgephys_event> ring;  // fixed capacity
   size_t head = 0, count = 0;
   uint64_t dropped = 0;
+  // Payloads of the queued MESSAGE events, oldest first (one per such event in the ring), at
+  // most kMaxQueuedMessageBytes in all; the payload of the MESSAGE event polled last.
+  static constexpr size_t kMaxQueuedMessageBytes = 16u << 20;
+  std::deque<std::vector<uint8_t>> message_payloads;
+  size_t message_bytes = 0;
+  std::vector<uint8_t> polled_message;
+  bool has_polled_message = false;
   uint64_t states_received = 0;
 
   struct Track {
@@ -97,10 +107,21 @@ struct edgephys_client final : edgephys::ClientListener {
     if (reason == static_cast<uint16_t>(edgephys::schema::RejectReason::AuthRequired)) {
       edgephys::capi::CopyDetail("no packet authentication: the relay's handshake carried no key "
                  "(require_packet_auth)", ev);
+    } else {
+      edgephys::capi::CopyDetail(edgephys::capi::ReasonText(EDGEPHYS_EVENT_REJECTED, reason), ev);
     }
   }
+  // Detail: the relay's text for the end (an operator's kick, room close or drain reason), else
+  // the reason's meaning.
   void OnDisconnected(edgephys::DisconnectReason reason) override {
-    if (auto* ev = Push(EDGEPHYS_EVENT_DISCONNECTED)) ev->code = static_cast<uint32_t>(reason);
+    auto* ev = Push(EDGEPHYS_EVENT_DISCONNECTED);
+    if (ev == nullptr) return;
+    ev->code = static_cast<uint32_t>(reason);
+    const std::string& said = client->disconnect_detail();
+    edgephys::capi::CopyDetail(
+        said.empty() ? edgephys::capi::ReasonText(EDGEPHYS_EVENT_DISCONNECTED, ev->code)
+                     : std::string_view(said),
+        ev);
   }
   void OnJoined(std::string_view room, uint32_t entity_id_base) override {
     tracks.clear();
@@ -185,11 +206,24 @@ struct edgephys_client final : edgephys::ClientListener {
       ev->code = static_cast<uint32_t>(e.nodes.size());
     }
   }
+  void OnMessage(uint32_t sender, std::span<const uint8_t> payload) override {
+    if (message_bytes + payload.size() > kMaxQueuedMessageBytes) {
+      ++dropped;
+      return;
+    }
+    if (auto* ev = Push(EDGEPHYS_EVENT_MESSAGE)) {
+      ev->player_id = sender;
+      ev->code = static_cast<uint32_t>(payload.size());
+      message_payloads.emplace_back(payload.begin(), payload.end());
+      message_bytes += payload.size();
+    }
+  }
   void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) override {
     if (auto* ev = Push(EDGEPHYS_EVENT_ERROR)) {
       ev->code = reason;
       ev->entity_id = entity_id;
-      edgephys::capi::CopyDetail(detail, ev);
+      edgephys::capi::CopyDetail(
+          detail.empty() ? edgephys::capi::ReasonText(EDGEPHYS_EVENT_ERROR, reason) : detail, ev);
     }
   }
 };

@@ -91,6 +91,34 @@ TEST(CApi, VersionAndNames) {
   EXPECT_LE(a, b);
 }
 
+TEST(CApi, ReasonNamesCoverTheTableAndSeparateTheFamilies) {
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_BAD_TOKEN), "BadToken");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_ERROR, EDGEPHYS_REJECT_GRAB_REFUSED),
+               "GrabRefused");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_AUTH_REQUIRED),
+               "AuthRequired");
+  // Code 4 is RoomFull for a rejection and Kicked for a disconnect.
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, 4), "RoomFull");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED, 4), "Kicked");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED,
+                                    EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW),
+               "ReliableOverflow");
+  // Every code of both families has a name; the first past each family's end has none.
+  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_NOT_PERMITTED; ++code) {
+    EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, code), "unknown") << code;
+  }
+  for (uint32_t code = 0; code <= EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW; ++code) {
+    EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED, code), "unknown") << code;
+  }
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_NOT_PERMITTED + 1),
+               "unknown");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED,
+                                    EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW + 1),
+               "unknown");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_JOINED, 1), "unknown");
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, 0xFFFFFFFFu), "unknown");
+}
+
 TEST(CApi, InitFunctionsRejectNull) {
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_config_init(nullptr));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_spawn_desc_init(nullptr));

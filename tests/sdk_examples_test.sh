@@ -2,9 +2,9 @@
 # Runs one SDK example (examples/: C, C++, Python or C#) against a real edgephys-relay process
 # on a free loopback port, with a second client (the C++ example in --watch mode) in the same
 # room. Passes when the example passes its own checks (the offloaded boxes fall and settle, the
-# grab gives Grabbed, collision exit, Released, collision enter, in that order; it prints "ok")
-# and the watcher saw every box the example reports at the same pose within the codec's bounds
-# (1 mm, 0.1 degree).
+# grab gives Grabbed, collision exit, Released, collision enter, in that order; it prints "ok"),
+# the watcher received the example's chat line (an application message from player 1) and saw
+# every box the example reports at the same pose within the codec's bounds (1 mm, 0.1 degree).
 # Usage: sdk_examples_test.sh <edgephys-relay> <stack_and_grab_cpp> <example command...>
 #   (the example is called with three more arguments: relay address, join token, room)
 # Prints SKIPPED (exit 0) when the example's runtime is missing (mono, python3).
@@ -39,6 +39,9 @@ for _ in $(seq 1 100); do kill -0 "$watch_pid" 2>/dev/null || break; sleep 0.1; 
 wait "$watch_pid" || { echo "FAIL: the watcher failed"; cat "$work/watch.log"; exit 1; }
 watch_pid=""
 
+# The example's chat line reached the watcher, from player 1.
+grep -q "^chat from 1: hello from the .* example$" "$work/watch.log" ||
+  { echo "FAIL: the watcher got no chat line from the example"; cat "$work/watch.log"; exit 1; }
 # Every pose the example printed, seen by the watcher within 1 mm and 0.1 degree.
 awk -f "$(dirname "$0")/compare_poses.awk" "$work/watch.log" "$work/example.log"
 echo "sdk example passed: $*"

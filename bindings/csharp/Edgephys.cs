@@ -30,7 +30,21 @@ public enum Status : int {
 public enum EventType : uint {
   None = 0, Connected, Rejected, Disconnected, Joined, PlayerJoined, PlayerLeft, Spawned,
   Despawned, State, SoftBody, CollisionEnter, CollisionExit, TriggerEnter, TriggerExit,
-  GuardReset, Grabbed, Released, Error,
+  GuardReset, Grabbed, Released, Error, Message,
+}
+
+// Whom an application message is for (edgephys_client_send_message).
+public enum MessageTarget : uint { Room = 0, Others = 1, Player = 2 }
+
+// Reason codes (edgephys.h, "reasons"): Rejected and Error events carry a RejectReason,
+// Disconnected events a DisconnectReason. Native.ReasonName names either.
+public enum RejectReason : uint {
+  None = 0, BadToken, ExpiredToken, ReplayedToken, RoomFull, ServerFull, WrongRoom, NotOwner,
+  UnknownEntity, DuplicateEntity, InvalidMessage, NotJoined, EntityLimit, BadCookie,
+  InvalidContainer, GrabRefused, RateLimited, OverBudget, AuthRequired, UnknownPlayer, NotPermitted,
+}
+public enum DisconnectReason : uint {
+  None = 0, Timeout, ClientLeft, ServerShutdown, Kicked, ProtocolError, ReliableOverflow,
 }
 
 [Flags]
@@ -182,6 +196,7 @@ public static class Native {
   [DllImport(Lib)] public static extern uint edgephys_abi_version();
   [DllImport(Lib)] public static extern IntPtr edgephys_version_string();
   [DllImport(Lib)] public static extern IntPtr edgephys_last_error();
+  [DllImport(Lib)] public static extern IntPtr edgephys_reason_name(uint eventType, uint code);
   [DllImport(Lib)] public static extern double edgephys_now_s();
   [DllImport(Lib)] public static extern Status edgephys_spawn_desc_init(out NativeSpawnDesc d);
   [DllImport(Lib)] public static extern Status edgephys_collider_init(out Collider c);
@@ -198,6 +213,10 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_disconnect(IntPtr client);
   [DllImport(Lib)] public static extern Status edgephys_client_spawn(IntPtr client, ref NativeSpawnDesc d, out uint id);
   [DllImport(Lib)] public static extern Status edgephys_client_despawn(IntPtr client, uint id);
+  [DllImport(Lib)] public static extern Status edgephys_client_spawn_static(IntPtr client, ref Transform t, Collider[] colliders, uint count, byte[] name, out uint id);
+  [DllImport(Lib)] public static extern Status edgephys_client_send_message(IntPtr client, uint target, uint toPlayer, byte[] data, UIntPtr size);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_message(IntPtr client, byte[] buffer, UIntPtr capacity, out UIntPtr size);
+  public const int MaxMessageBytes = 65536;
   [DllImport(Lib)] public static extern Status edgephys_client_publish_transform(IntPtr client, uint id, ref Transform t);
   [DllImport(Lib)] public static extern Status edgephys_client_grab(IntPtr client, uint entity, uint hand);
   [DllImport(Lib)] public static extern Status edgephys_client_release(IntPtr client, uint entity);
@@ -212,6 +231,10 @@ public static class Native {
 
   public static string LastError() { return Marshal.PtrToStringAnsi(edgephys_last_error()); }
   public static string Version() { return Marshal.PtrToStringAnsi(edgephys_version_string()); }
+  // "Kicked", "BadToken", ...: the name of a Rejected, Error or Disconnected event's code.
+  public static string ReasonName(EventType type, uint code) {
+    return Marshal.PtrToStringAnsi(edgephys_reason_name((uint)type, code));
+  }
   public static double Now() { return edgephys_now_s(); }
   public static void Check(Status s, string what) {
     if (s != Status.Ok) throw new EdgephysException(s, what + ": " + LastError());
@@ -230,15 +253,17 @@ public sealed class Client : IDisposable {
   public delegate void PhysicsHandler(EventType type, uint entityA, uint entityB);
 
   public event Action<uint> Connected;                // player id
-  public event Action<uint> Rejected;                 // RejectReason
-  public event Action<uint> Disconnected;             // DisconnectReason
+  public event Action<RejectReason, string> Rejected;          // reason, detail (why, for a person)
+  public event Action<DisconnectReason, string> Disconnected;  // reason, detail (a kick's or room
+                                                               // close's text, else the meaning)
   public event Action<string, uint> Joined;           // room, entity id base
   public event Action<uint> PlayerJoined, PlayerLeft;
   public event Action<Event> Spawned;                 // entity id, owner, parent, flags, transform
   public event Action<uint> Despawned;
   public event StateHandler StateReceived;            // per state: no allocation
   public event PhysicsHandler Physics;                // collision / trigger / grab / guard events
-  public event Action<uint, uint, string> Error;      // reason, entity, detail
+  public event Action<RejectReason, uint, string> Error;  // reason, entity, detail
+  public event Action<uint, byte[]> MessageReceived;     // sender, payload (allocates per message)
 
   IntPtr handle_;
   Event event_;  // reused for every poll
@@ -277,6 +302,20 @@ public sealed class Client : IDisposable {
   public void Join(string room) { Native.Check(Native.edgephys_client_join(handle_, Native.Utf8Z(room)), "join"); }
   public void Leave() { Native.Check(Native.edgephys_client_leave(handle_), "leave"); }
   public void Disconnect() { Native.Check(Native.edgephys_client_disconnect(handle_), "disconnect"); }
+  // Static scenery (ground, walls, a mesh) for PhyS in one call (edgephys_client_spawn_static).
+  public uint SpawnStatic(Transform transform, Collider[] colliders, string name = null) {
+    if (colliders == null) throw new EdgephysException(Status.InvalidArgument, "colliders is null");
+    uint id;
+    Native.Check(Native.edgephys_client_spawn_static(handle_, ref transform, colliders, (uint)colliders.Length,
+                                                     name == null ? null : Native.Utf8Z(name), out id), "spawn_static");
+    return id;
+  }
+  // Sends `data` reliably to the room, the others or one player (edgephys_client_send_message);
+  // MessageReceived raises it at each addressed member with this player's id.
+  public void SendMessage(byte[] data, MessageTarget target = MessageTarget.Room, uint toPlayer = 0) {
+    if (data == null) throw new EdgephysException(Status.InvalidArgument, "data is null");
+    Native.Check(Native.edgephys_client_send_message(handle_, (uint)target, toPlayer, data, (UIntPtr)data.Length), "send_message");
+  }
 
   // Receives, then raises the events of everything that arrived. Call every frame.
   public void Update() { Update(Native.Now()); }
@@ -295,14 +334,24 @@ public sealed class Client : IDisposable {
         if (StateReceived != null) StateReceived(event_.EntityId, ref event_.Transform);
         break;
       case EventType.Connected: if (Connected != null) Connected(event_.PlayerId); break;
-      case EventType.Rejected: if (Rejected != null) Rejected(event_.Code); break;
-      case EventType.Disconnected: if (Disconnected != null) Disconnected(event_.Code); break;
+      case EventType.Rejected: if (Rejected != null) Rejected((RejectReason)event_.Code, event_.DetailString()); break;
+      case EventType.Disconnected:
+        if (Disconnected != null) Disconnected((DisconnectReason)event_.Code, event_.DetailString());
+        break;
       case EventType.Joined: if (Joined != null) Joined(event_.DetailString(), event_.EntityId); break;
       case EventType.PlayerJoined: if (PlayerJoined != null) PlayerJoined(event_.PlayerId); break;
       case EventType.PlayerLeft: if (PlayerLeft != null) PlayerLeft(event_.PlayerId); break;
       case EventType.Spawned: if (Spawned != null) Spawned(event_); break;
       case EventType.Despawned: if (Despawned != null) Despawned(event_.EntityId); break;
-      case EventType.Error: if (Error != null) Error(event_.Code, event_.EntityId, event_.DetailString()); break;
+      case EventType.Message:
+        if (MessageReceived != null) {
+          byte[] payload = new byte[event_.Code];
+          UIntPtr n;
+          Native.Check(Native.edgephys_client_get_message(handle_, payload, (UIntPtr)payload.Length, out n), "get_message");
+          MessageReceived(event_.PlayerId, payload);
+        }
+        break;
+      case EventType.Error: if (Error != null) Error((RejectReason)event_.Code, event_.EntityId, event_.DetailString()); break;
       case EventType.CollisionEnter: case EventType.CollisionExit: case EventType.TriggerEnter:
       case EventType.TriggerExit: case EventType.GuardReset: case EventType.Grabbed: case EventType.Released:
         if (Physics != null) Physics((EventType)event_.Type, event_.EntityId, event_.OtherId);

@@ -1,7 +1,11 @@
 """Unit test of the Python binding: bad arguments raise EdgephysError with the C status, never
-crash the interpreter. Run: EDGEPHYS_LIBRARY=.../libedgephys.so python3 -m unittest test_edgephys"""
+crash the interpreter; reasons reach the game named and explained. Run:
+EDGEPHYS_LIBRARY=.../libedgephys.so python3 -m unittest test_edgephys; the relay tests need a
+relay (tests/with_relay.sh sets EDGEPHYS_RELAY and tokens for players 1-4) and are skipped without."""
 import ctypes
 import math
+import os
+import time
 import unittest
 
 import edgephys as ep
@@ -30,6 +34,12 @@ class BindingTest(unittest.TestCase):
             with self.assertRaises(ep.EdgephysError) as e:
                 c.spawn(colliders=[ep.collider(ep.SHAPE_BOX, half_extents=(math.nan, 1, 1))])
             self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            with self.assertRaises(ep.EdgephysError) as e:
+                c.spawn_static([])  # scenery needs a collider
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            with self.assertRaises(ep.EdgephysError) as e:
+                c.spawn_static([ep.collider(ep.SHAPE_BOX, half_extents=(5, 0.5, 5))], name="ground")
+            self.assertEqual(e.exception.status, ep.E_NOT_CONNECTED)
             self.assertIsNone(c.entity(1))
             self.assertEqual(list(c.events()), [])
             self.assertEqual(c.info().state, 0)
@@ -54,6 +64,78 @@ class BindingTest(unittest.TestCase):
         with self.assertRaises(ep.EdgephysError) as e:
             ep.Client(bind_address="garbage")
         self.assertEqual(e.exception.status, ep.E_MALFORMED)
+
+
+    def test_reason_names(self):
+        self.assertEqual(ep.reason_name(ep.EVENT_REJECTED, ep.REJECT_BAD_TOKEN), "BadToken")
+        self.assertEqual(ep.reason_name(ep.EVENT_REJECTED, 4), "RoomFull")
+        self.assertEqual(ep.reason_name(ep.EVENT_DISCONNECTED, 4), "Kicked")
+        self.assertEqual(ep.reason_name(ep.EVENT_DISCONNECTED, ep.DISCONNECT_RELIABLE_OVERFLOW),
+                         "ReliableOverflow")
+        self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_AUTH_REQUIRED), "AuthRequired")
+        self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_NOT_PERMITTED + 1), "unknown")
+        self.assertEqual(ep.reason_name(ep.EVENT_JOINED, 1), "unknown")
+        ev = ep.Event()
+        ev.type, ev.code = ep.EVENT_DISCONNECTED, ep.DISCONNECT_TIMEOUT
+        self.assertEqual(ep.reason_name(ev), "Timeout")
+
+    @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
+    def test_a_tampered_token_is_rejected_with_reason_and_detail(self):
+        token = os.environ["EDGEPHYS_TOKEN_1"]
+        mid = len(token) // 2
+        bad = token[:mid] + ("B" if token[mid] == "A" else "A") + token[mid + 1:]
+        with ep.Client(bind_address="127.0.0.1:0") as c:
+            c.connect(os.environ["EDGEPHYS_RELAY"], bad)
+            rejected = None
+            deadline = time.monotonic() + 5
+            while rejected is None and time.monotonic() < deadline:
+                c.update()
+                rejected = next((e for e in c.events() if e.type == ep.EVENT_REJECTED), None)
+                time.sleep(0.005)
+            self.assertIsNotNone(rejected, "no REJECTED within 5 s")
+            self.assertEqual(rejected.code, ep.REJECT_BAD_TOKEN)
+            self.assertEqual(ep.reason_name(rejected), "BadToken")
+            self.assertIn("token", ep.detail(rejected))
+            self.assertEqual(c.info().reject_reason, ep.REJECT_BAD_TOKEN)
+
+
+    @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
+    def test_messages_reach_the_addressed_players_with_the_senders_id(self):
+        relay, room = os.environ["EDGEPHYS_RELAY"], os.environ["EDGEPHYS_ROOM"]
+        with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
+            a.connect(relay, os.environ["EDGEPHYS_TOKEN_3"])
+            b.connect(relay, os.environ["EDGEPHYS_TOKEN_4"])
+            got = {a: [], b: []}
+            joined = set()
+            deadline = time.monotonic() + 10
+
+            def pump():
+                for c in (a, b):
+                    c.update()
+                    for ev in c.events():
+                        if ev.type == ep.EVENT_CONNECTED:
+                            c.join(room)
+                        elif ev.type == ep.EVENT_JOINED:
+                            joined.add(c)
+                        elif ev.type == ep.EVENT_MESSAGE:
+                            got[c].append((ev.player_id, ev.payload))
+                time.sleep(0.005)
+
+            while len(joined) < 2 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(len(joined), 2, "both clients joined")
+            big = bytes(range(256)) * 200  # 51,200 bytes: fragmented
+            a.send_message(b"hello, room", ep.TO_ROOM)
+            a.send_message(big, ep.TO_OTHERS)
+            b.send_message(b"just for 3", ep.TO_PLAYER, to_player=3)
+            b.send_message(b"")
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.send_message(bytes(ep.MAX_MESSAGE_BYTES + 1))
+            self.assertEqual(e.exception.status, ep.E_TOO_LARGE)
+            while (len(got[a]) < 3 or len(got[b]) < 3) and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(got[a], [(3, b"hello, room"), (4, b"just for 3"), (4, b"")])
+            self.assertEqual(got[b], [(3, b"hello, room"), (3, big), (4, b"")])
 
 
 if __name__ == "__main__":

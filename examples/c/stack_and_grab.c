@@ -1,5 +1,6 @@
 /* The edgephys SDK example, in C (the same program exists in C++, C# and Python):
- * join a room, spawn a local-physics head and two hands, offload a stack of three boxes to
+ * join a room, say hello to the others with a chat line (an application message), spawn a
+ * local-physics head and two hands, offload a stack of three boxes to
  * PhyS, wait until they fall and settle, grab the top one with the right hand, carry it aside,
  * release it, and print every physics event. Ends with the settled poses of the boxes.
  *
@@ -143,6 +144,9 @@ int main(int argc, char** argv) {
   for (double end = edgephys_now_s() + 5; !connected; Pump()) if (edgephys_now_s() > end) Fail("no connection");
   Check(edgephys_client_join(client, argv[3]), "join");
   for (double end = edgephys_now_s() + 5; !joined; Pump()) if (edgephys_now_s() > end) Fail("no join");
+  /* A chat line to everyone else in the room (reliable; they get it with our player id). */
+  static const char chat[] = "hello from the C example";
+  Check(edgephys_client_send_message(client, EDGEPHYS_TO_OTHERS, 0, chat, sizeof chat - 1), "chat");
 
   /* The scene, dissected: a static ground handed to PhyS... */
   edgephys_collider ground_box;

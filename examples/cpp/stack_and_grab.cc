@@ -6,7 +6,8 @@
 //
 // --watch joins the same room, keeps the latest received transform of every entity, and when
 // another player leaves prints "pose <id> x y z qx qy qz qw" for each (as the example does for
-// its boxes), so tests/sdk_examples_test.sh can check both saw the same poses.
+// its boxes), so tests/sdk_examples_test.sh can check both saw the same poses; it prints each
+// chat line (application message) it receives as "chat from <player>: <text>".
 #include <edgephys/edgephys.hpp>
 
 #include <chrono>
@@ -140,6 +141,10 @@ int Watch(Client& client, const char* relay, const char* token, const char* room
     ex.Pump([&](const edgephys_event& ev) {
       if (ev.type == EDGEPHYS_EVENT_SPAWNED || ev.type == EDGEPHYS_EVENT_STATE) latest[ev.entity_id] = ev.transform;
       if (ev.type == EDGEPHYS_EVENT_PLAYER_LEFT) someone_left = true;
+      std::string text;
+      if (ev.type == EDGEPHYS_EVENT_MESSAGE && client.Message(&text)) {
+        std::printf("chat from %u: %s\n", ev.player_id, text.c_str());
+      }
     });
   }
   if (!someone_left) Fail("nobody left the room within 60 s");
@@ -151,6 +156,8 @@ int Watch(Client& client, const char* relay, const char* token, const char* room
 int Run(Client& client, const char* relay, const char* token, const char* room) {
   Example ex(&client);
   ex.ConnectAndJoin(relay, token, room);
+  // A chat line to everyone else in the room (reliable; they get it with our player id).
+  Check(client.SendMessage(EDGEPHYS_TO_OTHERS, "hello from the C++ example"), "chat");
 
   edgephys_collider ground_box, head_sphere, trigger, box;
   edgephys_collider_init(&ground_box);

@@ -56,8 +56,8 @@ static class StackAndGrab {
     c = new Client(false);
     c.Connected += id => connected = true;
     c.Joined += (room, b) => joined = true;
-    c.Rejected += r => Fail("rejected " + r);
-    c.Disconnected += r => Fail("disconnected " + r);
+    c.Rejected += (r, detail) => Fail("rejected " + r + ": " + detail);
+    c.Disconnected += (r, detail) => Fail("disconnected " + r + ": " + detail);
     c.Error += (reason, id, detail) => Console.WriteLine("error reason " + reason + " entity " + id + ": " + detail);
     c.Physics += (type, a, b) => {
       Console.WriteLine("event " + Name(type) + " " + a + " " + b);
@@ -67,6 +67,8 @@ static class StackAndGrab {
     WaitFor(() => connected, 5, "no connection");
     c.Join(args[2]);
     WaitFor(() => joined, 5, "no join");
+    // A chat line to everyone else in the room (reliable; they get it with our player id).
+    c.SendMessage(System.Text.Encoding.UTF8.GetBytes("hello from the C# example"), MessageTarget.Others);
 
     uint ground = c.Spawn(new Transform(0, -0.5f, 0), EntityFlags.Offloaded, null, new[] { Collider.Box(5, 0.5f, 5) }, name: "ground");
     RigidBody kinematic = RigidBody.KinematicBody();

@@ -76,6 +76,8 @@ def main(relay, token, room):
     wait_for(lambda: state["connected"], 5, "no connection")
     c.join(room)
     wait_for(lambda: state["joined"], 5, "no join")
+    # A chat line to everyone else in the room (reliable; they get it with our player id).
+    c.send_message(b"hello from the Python example", ep.TO_OTHERS)
 
     ground = c.spawn(position=(0, -0.5, 0), flags=ep.FLAG_OFFLOADED, name="ground",
                      colliders=[ep.collider(ep.SHAPE_BOX, half_extents=(5, 0.5, 5))])

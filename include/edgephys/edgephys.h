@@ -278,8 +278,21 @@ EDGEPHYS_API edgephys_status edgephys_client_spawn(edgephys_client* client,
                                                    uint32_t* out_id);
 /* EDGEPHYS_E_NOT_FOUND if this client does not own the entity. */
 EDGEPHYS_API edgephys_status edgephys_client_despawn(edgephys_client* client, uint32_t entity_id);
-/* Records the latest transform of an owned entity; it is sent at the publish rate
- * (Decoupled Edge Physics' MoveToTransform for mirrored kinematic bodies and hands). */
+/* Static scenery in one call: ground, walls, a mesh (EDGEPHYS_SHAPE_TRIANGLE_MESH is meant for
+ * this). Spawns an entity at `transform` (scale 1) with `collider_count` colliders (1 ..
+ * EDGEPHYS_MAX_COLLIDERS; copied, checked as edgephys_client_spawn checks them) and no rigid
+ * body, flagged EDGEPHYS_FLAG_OFFLOADED | EDGEPHYS_FLAG_PERSISTENT: PhyS holds it as an
+ * immovable collider that its simulated bodies rest on and bounce off, and it stays with the
+ * room when this player leaves (edgephys_client_despawn removes it). Without it a room's PhyS
+ * has no ground: an offloaded body falls until the stability guard resets it. `name`: NULL or
+ * UTF-8. Errors and out_id: as edgephys_client_spawn. */
+EDGEPHYS_API edgephys_status edgephys_client_spawn_static(edgephys_client* client,
+                                                         const edgephys_transform* transform,
+                                                         const edgephys_collider* colliders,
+                                                         uint32_t collider_count,
+                                                         const char* name, uint32_t* out_id);
+/* Records the latest transform of an owned entity; it is sent at the publish rate (the paper's
+ * MoveToTransform for mirrored kinematic bodies and hands). */
 EDGEPHYS_API edgephys_status edgephys_client_publish_transform(edgephys_client* client,
                                                                uint32_t entity_id,
                                                                const edgephys_transform* transform);
@@ -293,16 +306,140 @@ EDGEPHYS_API edgephys_status edgephys_client_grab(edgephys_client* client, uint3
  * spinning as the hand turned. EDGEPHYS_EVENT_RELEASED follows. */
 EDGEPHYS_API edgephys_status edgephys_client_release(edgephys_client* client, uint32_t entity_id);
 
+/* ---- reasons ----------------------------------------------------------------------------- */
+
+/* Every reason code an event's `code` carries, in one table. REJECTED and ERROR events carry a
+ * reject reason; DISCONNECTED events a disconnect reason. The two families share numbers, so
+ * edgephys_reason_name takes the event type with the code. Numbers are stable (the wire carries
+ * them, docs/protocol.md; operators see them in the relay's edgephys_rejected_total).
+ *
+ *  event               code  name              meaning
+ *  REJECTED, ERROR        0  None              (no reason given)
+ *                         1  BadToken          the join token's MAC does not match, or it does
+ *                                              not parse
+ *                         2  ExpiredToken      the join token's expiry has passed
+ *                         3  ReplayedToken     the join token was used already
+ *                         4  RoomFull          the room has its maximum of players
+ *                         5  ServerFull        the relay has its maximum of connections
+ *                         6  WrongRoom         the token does not grant the room asked for
+ *                         7  NotOwner          a command on an entity this player does not own
+ *                         8  UnknownEntity     a command on an entity id the room does not hold
+ *                         9  DuplicateEntity   a spawn with an id already in use
+ *                        10  InvalidMessage    a message failed verification or carried NaN /
+ *                                              out-of-range values
+ *                        11  NotJoined         a room command before joining a room
+ *                        12  EntityLimit       the player's entity id block is used up
+ *                        13  BadCookie         the handshake's cookie did not verify
+ *                        14  InvalidContainer  PhyS refused the physics components (detail:
+ *                                              why)
+ *                        15  GrabRefused       not interactable, not hovered by the hand, or
+ *                                              grabbed by another
+ *                        16  RateLimited       too many connections, spawns or bytes from this
+ *                                              peer
+ *                        17  OverBudget        a room or player budget is used up (detail:
+ *                                              which)
+ *                        18  AuthRequired      packet authentication required but not offered
+ *                        19  UnknownPlayer     a message addressed to a player not in the room
+ *                        20  NotPermitted      the join token lacks the permission needed (e.g.
+ *                                              to send messages)
+ *  DISCONNECTED           0  None              the handshake timed out (detail says so)
+ *                         1  Timeout           the relay stopped answering
+ *                         2  ClientLeft        this client disconnected
+ *                         3  ServerShutdown    the relay shut down or an operator drained it
+ *                                              (detail: the operator's text)
+ *                         4  Kicked            an operator kicked this player or closed its
+ *                                              room (detail: the operator's text), the same
+ *                                              player connected again, or no room was joined
+ *                                              in time
+ *                         5  ProtocolError     the relay received something it could not accept
+ *                         6  ReliableOverflow  too many reliable bytes were waiting for
+ *                                              acknowledgement
+ *
+ * Every REJECTED, ERROR and DISCONNECTED event's `detail` holds text for a person: the relay's
+ * or operator's text when it sent one (an ERROR's detail, a kick's or room close's reason),
+ * otherwise the meaning above. */
+typedef enum edgephys_reject_reason {
+  EDGEPHYS_REJECT_NONE = 0,
+  EDGEPHYS_REJECT_BAD_TOKEN = 1,
+  EDGEPHYS_REJECT_EXPIRED_TOKEN = 2,
+  EDGEPHYS_REJECT_REPLAYED_TOKEN = 3,
+  EDGEPHYS_REJECT_ROOM_FULL = 4,
+  EDGEPHYS_REJECT_SERVER_FULL = 5,
+  EDGEPHYS_REJECT_WRONG_ROOM = 6,
+  EDGEPHYS_REJECT_NOT_OWNER = 7,
+  EDGEPHYS_REJECT_UNKNOWN_ENTITY = 8,
+  EDGEPHYS_REJECT_DUPLICATE_ENTITY = 9,
+  EDGEPHYS_REJECT_INVALID_MESSAGE = 10,
+  EDGEPHYS_REJECT_NOT_JOINED = 11,
+  EDGEPHYS_REJECT_ENTITY_LIMIT = 12,
+  EDGEPHYS_REJECT_BAD_COOKIE = 13,
+  EDGEPHYS_REJECT_INVALID_CONTAINER = 14,
+  EDGEPHYS_REJECT_GRAB_REFUSED = 15,
+  EDGEPHYS_REJECT_RATE_LIMITED = 16,
+  EDGEPHYS_REJECT_OVER_BUDGET = 17,
+  EDGEPHYS_REJECT_AUTH_REQUIRED = 18,
+  EDGEPHYS_REJECT_UNKNOWN_PLAYER = 19,
+  EDGEPHYS_REJECT_NOT_PERMITTED = 20
+} edgephys_reject_reason;
+
+typedef enum edgephys_disconnect_reason {
+  EDGEPHYS_DISCONNECT_NONE = 0,
+  EDGEPHYS_DISCONNECT_TIMEOUT = 1,
+  EDGEPHYS_DISCONNECT_CLIENT_LEFT = 2,
+  EDGEPHYS_DISCONNECT_SERVER_SHUTDOWN = 3,
+  EDGEPHYS_DISCONNECT_KICKED = 4,
+  EDGEPHYS_DISCONNECT_PROTOCOL_ERROR = 5,
+  EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW = 6
+} edgephys_disconnect_reason;
+
+/* The name in the table above ("BadToken", "Kicked", ...) of `code` as carried by an event of
+ * type `event_type` (EDGEPHYS_EVENT_REJECTED or _ERROR: a reject reason; _DISCONNECTED: a
+ * disconnect reason). "unknown" for a code outside the table or another event type. Static
+ * storage; never NULL. */
+EDGEPHYS_API const char* edgephys_reason_name(uint32_t event_type, uint32_t code);
+
+/* ---- application messages ---------------------------------------------------------------- */
+
+/* Whom a message is for. */
+typedef enum edgephys_message_target {
+  EDGEPHYS_TO_ROOM = 0,    /* every member of the room, the sender included */
+  EDGEPHYS_TO_OTHERS = 1,  /* every member but the sender */
+  EDGEPHYS_TO_PLAYER = 2   /* the member `to_player` only */
+} edgephys_message_target;
+
+/* Largest message payload (bytes). A room's budget may allow less (then ERROR OverBudget). */
+#define EDGEPHYS_MAX_MESSAGE_BYTES 65536u
+
+/* Sends `size` bytes of `data` (copied; opaque to edgephys; size 0 allowed) to `target`
+ * (`to_player` with EDGEPHYS_TO_PLAYER, else ignored) on the reliable channel: the relay
+ * delivers it once to each addressed member, in the order this client sent its messages, as
+ * EDGEPHYS_EVENT_MESSAGE with this player's id; large payloads are fragmented and
+ * reassembled. Needs the join token's message permission (the default). The relay refuses a
+ * message with EDGEPHYS_EVENT_ERROR and counts it: NotPermitted (20), OverBudget (17, larger
+ * than the room allows), RateLimited (16, the player's or the room's message or byte rate,
+ * RoomBudgets in relay/room_budget.h), UnknownPlayer (19, `to_player` not in the room).
+ * EDGEPHYS_E_NOT_CONNECTED before EDGEPHYS_EVENT_JOINED; EDGEPHYS_E_TOO_LARGE over
+ * EDGEPHYS_MAX_MESSAGE_BYTES; EDGEPHYS_E_INVALID_ARGUMENT for an unknown target, a
+ * EDGEPHYS_TO_PLAYER target of 0, or NULL data with a size; EDGEPHYS_E_RESOURCE_EXHAUSTED
+ * when the reliable queue is full (send less). */
+EDGEPHYS_API edgephys_status edgephys_client_send_message(edgephys_client* client,
+                                                          uint32_t target, uint32_t to_player,
+                                                          const void* data, size_t size);
+/* Copies the payload of the EDGEPHYS_EVENT_MESSAGE that edgephys_client_poll_event returned
+ * last into `buffer` (`capacity` bytes) and sets *out_size to its size (also when the buffer is
+ * too small: EDGEPHYS_E_BUFFER_TOO_SMALL, nothing copied; the event's `code` holds the size as
+ * well). EDGEPHYS_E_NOT_FOUND when the last edgephys_client_poll_event call did not return a
+ * MESSAGE (an empty poll included): read the payload right after polling its event. */
+EDGEPHYS_API edgephys_status edgephys_client_get_message(edgephys_client* client, void* buffer,
+                                                         size_t capacity, size_t* out_size);
+
 /* ---- events ------------------------------------------------------------------------------ */
 
 typedef enum edgephys_event_type {
   EDGEPHYS_EVENT_NONE = 0,            /* the queue is empty */
   EDGEPHYS_EVENT_CONNECTED = 1,       /* player_id */
-  EDGEPHYS_EVENT_REJECTED = 2,        /* code: RejectReason (1 BadToken, 2 ExpiredToken, ...) */
-  EDGEPHYS_EVENT_DISCONNECTED = 3,    /* code: DisconnectReason (1 Timeout, 2 ClientLeft, 3
-                                         ServerShutdown, 4 Kicked, 5 ProtocolError, 6
-                                         ReliableOverflow; 0 with detail for a handshake
-                                         timeout) */
+  EDGEPHYS_EVENT_REJECTED = 2,        /* code: reject reason, detail (see "reasons") */
+  EDGEPHYS_EVENT_DISCONNECTED = 3,    /* code: disconnect reason, detail (see "reasons") */
   EDGEPHYS_EVENT_JOINED = 4,          /* detail: room; entity_id: this player's id block base */
   EDGEPHYS_EVENT_PLAYER_JOINED = 5,   /* player_id */
   EDGEPHYS_EVENT_PLAYER_LEFT = 6,     /* player_id */
@@ -321,7 +458,10 @@ typedef enum edgephys_event_type {
   EDGEPHYS_EVENT_GUARD_RESET = 15,    /* entity_id: restored by the stability guard */
   EDGEPHYS_EVENT_GRABBED = 16,        /* entity_id, other_id: the hand */
   EDGEPHYS_EVENT_RELEASED = 17,       /* entity_id, other_id: the hand */
-  EDGEPHYS_EVENT_ERROR = 18           /* code: RejectReason, entity_id (0: none), detail */
+  EDGEPHYS_EVENT_ERROR = 18,          /* code: reject reason, entity_id (0: none), detail (see
+                                         "reasons") */
+  EDGEPHYS_EVENT_MESSAGE = 19         /* player_id: the sender, code: payload size; read the
+                                         payload with edgephys_client_get_message */
 } edgephys_event_type;
 
 #define EDGEPHYS_EVENT_DETAIL_BYTES 128u

@@ -21,6 +21,10 @@
 
 namespace edgephys::sdk {
 
+// The name of an event's reason code ("Kicked", "BadToken", ...; edgephys_reason_name), for
+// REJECTED, ERROR and DISCONNECTED events; "unknown" for any other event or code.
+inline const char* ReasonName(const edgephys_event& ev) { return edgephys_reason_name(ev.type, ev.code); }
+
 class Client {
  public:
   // Creates the client with `config` (nullptr: edgephys_client_config_init defaults).
@@ -73,6 +77,25 @@ class Client {
   }
   edgephys_status Grab(uint32_t entity, uint32_t hand) { return edgephys_client_grab(handle_, entity, hand); }
   edgephys_status Release(uint32_t entity) { return edgephys_client_release(handle_, entity); }
+
+  // An application message to the room, the others or one player
+  // (edgephys_client_send_message).
+  edgephys_status SendMessage(edgephys_message_target target, uint32_t to_player,
+                              const void* data, size_t size) {
+    return edgephys_client_send_message(handle_, target, to_player, data, size);
+  }
+  edgephys_status SendMessage(edgephys_message_target target, const std::string& text,
+                              uint32_t to_player = 0) {
+    return SendMessage(target, to_player, text.data(), text.size());
+  }
+  // The payload of the MESSAGE event Poll returned last (edgephys_client_get_message); false
+  // if that event was not a MESSAGE.
+  bool Message(std::string* out) {
+    size_t size = 0;
+    if (edgephys_client_get_message(handle_, nullptr, 0, &size) == EDGEPHYS_E_NOT_FOUND) return false;
+    out->resize(size);
+    return edgephys_client_get_message(handle_, out->data(), out->size(), &size) == EDGEPHYS_OK;
+  }
 
   // The next event into *out; false when none is queued (or on error).
   bool Poll(edgephys_event* out) {

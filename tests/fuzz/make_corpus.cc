@@ -401,6 +401,20 @@ void MessageCorpus() {
             .Add(1, JoinRoom(kFuzzRoom)).Add(0, worker_hello).Add(0, WorkerResult(1))
             .Add(1, despawn).Add(2, FloatStates({St(65540, 5, 5, 5), St(131073, 1, 1, 1)})).bytes);
 
+  // Application messages (docs/protocol.md §4a): to the room, the others, player 2, a player
+  // not in the room, an unknown target, an empty and a 1 KiB payload; from A and from C.
+  auto app = [](schema::MessageTarget target, uint32_t to, size_t size) {
+    return Msg([&](auto& fbb) {
+      Bytes payload(size, 0x5a);
+      return schema::CreateAppMessage(fbb, target, to, 0, fbb.CreateVector(payload));
+    });
+  };
+  using T = schema::MessageTarget;
+  Write("message_fuzz", "relay_app_message",
+        Input(0).Add(0, app(T::Room, 0, 5)).Add(1, app(T::Others, 0, 1024))
+            .Add(0, app(T::Player, 2, 3)).Add(0, app(T::Player, 99, 1))
+            .Add(1, app(static_cast<T>(7), 0, 2)).Add(0, app(T::Room, 0, 0)).Add(3, {4}).bytes);
+
   // Relay, remote PhyS: room handle 1 is on worker W.
   Write("message_fuzz", "relay_worker",
         Input(1).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
@@ -441,6 +455,10 @@ void MessageCorpus() {
   for (uint8_t format = 1; format <= 4; ++format) {
     Write("message_fuzz", "client_format" + std::to_string(format), client_input(format));
   }
+  // Client side: application messages (one empty, one of 1 KiB), after a Joined.
+  Write("message_fuzz", "client_app_message",
+        Input(2 | 4).Add(0, app(T::Others, 0, 2)).Add(0, app(T::Player, 1, 0))
+            .Add(0, app(T::Room, 0, 1024)).bytes);
   // Client side as a PhyS worker: relay -> worker messages.
   EntitySpec cube = Cube(1, 0);
   Bytes assign = Msg([](auto& fbb) { return schema::CreateWorkerAssign(fbb, 1, 1.0f / 60); });

@@ -1,6 +1,6 @@
 // Tests of the C# binding, run by a console runner under Mono (ctest: sdk_csharp_test, started
 // by tests/with_relay.sh, which provides a real relay in EDGEPHYS_RELAY and two tokens).
-//   ClientTests.exe            the tests (bad arguments; zero allocation per received state)
+//   ClientTests.exe            the tests (bad arguments; reasons; zero allocation per state)
 //   ClientTests.exe --bench N  the per-state cost of Client.Update with N moving entities
 using System;
 using System.Diagnostics;
@@ -38,6 +38,9 @@ static class ClientTests {
                    () => c.Spawn(new Transform(new Vec3(0, 0, 0), new Quat(0, 0, 0, 0)), EntityFlags.None), "zero quaternion");
       ExpectStatus(Status.NotConnected, () => c.Spawn(new Transform(0, 1, 0), EntityFlags.None), "valid spawn, not joined");
       ExpectStatus(Status.InvalidArgument, () => c.Grab(0, 1), "grab entity 0");
+      ExpectStatus(Status.InvalidArgument, () => c.SpawnStatic(new Transform(0, 0, 0), new Collider[0]), "scenery without colliders");
+      ExpectStatus(Status.NotConnected, () => c.SpawnStatic(new Transform(0, -0.5f, 0), new[] { Collider.Box(5, 0.5f, 5) }, "ground"),
+                   "valid scenery, not joined");
       Entity e;
       Expect(!c.TryGetEntity(1, out e), "unknown entity");
       Expect(c.StateFormat == 0, "state format before a join");
@@ -137,6 +140,61 @@ static class ClientTests {
     Expect(bytes == 0, "Update() allocated " + bytes + " bytes over " + states + " states");
   }
 
+  // A token with one character changed: the relay's REJECTED reaches the Rejected event with
+  // its reason and a detail for a person; ReasonName names the codes of both families.
+  static void RejectionCarriesReasonAndDetail() {
+    Expect(Native.ReasonName(EventType.Rejected, 4) == "RoomFull", "reject code 4 is RoomFull");
+    Expect(Native.ReasonName(EventType.Disconnected, 4) == "Kicked", "disconnect code 4 is Kicked");
+    Expect(Native.ReasonName(EventType.Error, (uint)RejectReason.GrabRefused) == "GrabRefused", "GrabRefused");
+    Expect(Native.ReasonName(EventType.Joined, 1) == "unknown", "a JOINED event has no reason");
+    string token = Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_1");
+    char[] bad = token.ToCharArray();
+    bad[bad.Length / 2] = bad[bad.Length / 2] == 'A' ? 'B' : 'A';
+    using (var c = new Client(false)) {
+      bool rejected = false;
+      RejectReason reason = RejectReason.None;
+      string detail = null;
+      c.Rejected += (r, d) => { rejected = true; reason = r; detail = d; };
+      c.Connect(Environment.GetEnvironmentVariable("EDGEPHYS_RELAY"), new string(bad));
+      double end = Native.Now() + 5;
+      while (!rejected && Native.Now() < end) { c.Update(); System.Threading.Thread.Sleep(5); }
+      Expect(rejected, "a tampered token is rejected");
+      Expect(reason == RejectReason.BadToken, "reason BadToken, got " + reason);
+      Expect(detail != null && detail.Contains("token"), "the detail explains: '" + detail + "'");
+    }
+  }
+
+  // A (player 3) sends to the room and to the others, B (player 4) to player 3: each arrives where addressed, with
+  // the sender's id, in order.
+  static void MessagesReachTheAddressedPlayers() {
+    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
+    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
+    using (var a = new Client(false))
+    using (var b = new Client(false)) {
+      int joined = 0;
+      var gotA = new System.Collections.Generic.List<string>();
+      var gotB = new System.Collections.Generic.List<string>();
+      a.Connected += id => a.Join(room);
+      b.Connected += id => b.Join(room);
+      a.Joined += (r, x) => ++joined;
+      b.Joined += (r, x) => ++joined;
+      a.MessageReceived += (from, p) => gotA.Add(from + ":" + System.Text.Encoding.UTF8.GetString(p));
+      b.MessageReceived += (from, p) => gotB.Add(from + ":" + (p.Length > 1000 ? "big" + p.Length : System.Text.Encoding.UTF8.GetString(p)));
+      a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_3"));
+      b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_4"));
+      double end = Native.Now() + 10;
+      while (joined < 2 && Native.Now() < end) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+      Expect(joined == 2, "both joined");
+      a.SendMessage(System.Text.Encoding.UTF8.GetBytes("hello, room"));
+      a.SendMessage(new byte[40000], MessageTarget.Others);
+      b.SendMessage(System.Text.Encoding.UTF8.GetBytes("just for 3"), MessageTarget.Player, 3);
+      ExpectStatus(Status.TooLarge, () => a.SendMessage(new byte[Native.MaxMessageBytes + 1]), "oversized message");
+      while ((gotA.Count < 2 || gotB.Count < 2) && Native.Now() < end) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+      Expect(string.Join("|", gotA) == "3:hello, room|4:just for 3", "A got: " + string.Join("|", gotA));
+      Expect(string.Join("|", gotB) == "3:hello, room|3:big40000", "B got: " + string.Join("|", gotB));
+    }
+  }
+
   static int Main(string[] args) {
     Console.WriteLine("edgephys " + Native.Version() + " (C# binding, Mono)");
     if (args.Length == 2 && args[0] == "--bench") {
@@ -147,7 +205,8 @@ static class ClientTests {
                         args[1], states, ns, states > 0 ? (double)bytes / states : 0);
       return 0;
     }
-    var tests = new Action[] { BadArgumentsThrowWithTheirStatus, NoAllocationPerReceivedState };
+    var tests = new Action[] { BadArgumentsThrowWithTheirStatus, RejectionCarriesReasonAndDetail,
+                               MessagesReachTheAddressedPlayers, NoAllocationPerReceivedState };
     foreach (var t in tests) {
       Console.WriteLine("[ RUN  ] " + t.Method.Name);
       int before = failures;

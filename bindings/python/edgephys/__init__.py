@@ -39,7 +39,21 @@ INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE,
 (EVENT_NONE, EVENT_CONNECTED, EVENT_REJECTED, EVENT_DISCONNECTED, EVENT_JOINED, EVENT_PLAYER_JOINED,
  EVENT_PLAYER_LEFT, EVENT_SPAWNED, EVENT_DESPAWNED, EVENT_STATE, EVENT_SOFT_BODY,
  EVENT_COLLISION_ENTER, EVENT_COLLISION_EXIT, EVENT_TRIGGER_ENTER, EVENT_TRIGGER_EXIT,
- EVENT_GUARD_RESET, EVENT_GRABBED, EVENT_RELEASED, EVENT_ERROR) = range(19)
+ EVENT_GUARD_RESET, EVENT_GRABBED, EVENT_RELEASED, EVENT_ERROR, EVENT_MESSAGE) = range(20)
+
+# Application messages (edgephys_client_send_message): whom a message is for.
+TO_ROOM, TO_OTHERS, TO_PLAYER = 0, 1, 2
+MAX_MESSAGE_BYTES = 65536
+
+# Reason codes (edgephys.h, "reasons"): REJECTED and ERROR events carry a reject reason,
+# DISCONNECTED events a disconnect reason; reason_name(event) names either.
+(REJECT_NONE, REJECT_BAD_TOKEN, REJECT_EXPIRED_TOKEN, REJECT_REPLAYED_TOKEN, REJECT_ROOM_FULL,
+ REJECT_SERVER_FULL, REJECT_WRONG_ROOM, REJECT_NOT_OWNER, REJECT_UNKNOWN_ENTITY, REJECT_DUPLICATE_ENTITY,
+ REJECT_INVALID_MESSAGE, REJECT_NOT_JOINED, REJECT_ENTITY_LIMIT, REJECT_BAD_COOKIE, REJECT_INVALID_CONTAINER,
+ REJECT_GRAB_REFUSED, REJECT_RATE_LIMITED, REJECT_OVER_BUDGET, REJECT_AUTH_REQUIRED, REJECT_UNKNOWN_PLAYER,
+ REJECT_NOT_PERMITTED) = range(21)
+(DISCONNECT_NONE, DISCONNECT_TIMEOUT, DISCONNECT_CLIENT_LEFT, DISCONNECT_SERVER_SHUTDOWN, DISCONNECT_KICKED,
+ DISCONNECT_PROTOCOL_ERROR, DISCONNECT_RELIABLE_OVERFLOW) = range(7)
 
 EVENT_NAMES = {
     EVENT_COLLISION_ENTER: "collision_enter", EVENT_COLLISION_EXIT: "collision_exit",
@@ -171,6 +185,7 @@ def _load():
         "edgephys_abi_version": ([], u32),
         "edgephys_version_string": ([], ctypes.c_char_p),
         "edgephys_status_name": ([ctypes.c_int32], ctypes.c_char_p),
+        "edgephys_reason_name": ([u32, u32], ctypes.c_char_p),
         "edgephys_last_error": ([], ctypes.c_char_p),
         "edgephys_now_s": ([], f64),
         "edgephys_spawn_desc_init": ([P(SpawnDesc)], ctypes.c_int),
@@ -188,10 +203,14 @@ def _load():
         "edgephys_client_disconnect": ([c], ctypes.c_int),
         "edgephys_client_spawn": ([c, P(SpawnDesc), P(u32)], ctypes.c_int),
         "edgephys_client_despawn": ([c, u32], ctypes.c_int),
+        "edgephys_client_spawn_static": ([c, P(Transform), P(Collider), u32, ctypes.c_char_p, P(u32)],
+                                         ctypes.c_int),
         "edgephys_client_publish_transform": ([c, u32, P(Transform)], ctypes.c_int),
         "edgephys_client_grab": ([c, u32, u32], ctypes.c_int),
         "edgephys_client_release": ([c, u32], ctypes.c_int),
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
+        "edgephys_client_send_message": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
+        "edgephys_client_get_message": ([c, ctypes.c_char_p, sz, P(sz)], ctypes.c_int),
         "edgephys_client_get_info": ([c, P(ClientInfo)], ctypes.c_int),
         "edgephys_client_get_connection_status": ([c, P(ConnectionStatus)], ctypes.c_int),
         "edgephys_client_get_entity": ([c, u32, P(Entity)], ctypes.c_int),
@@ -221,6 +240,20 @@ def now_s():
 
 def version():
     return lib.edgephys_version_string().decode()
+
+
+def reason_name(event_or_type, code=None):
+    """The name ("Kicked", "BadToken", ...) of a REJECTED, ERROR or DISCONNECTED event's code:
+    reason_name(event) or reason_name(event_type, code); "unknown" otherwise."""
+    if code is None:
+        event_or_type, code = event_or_type.type, event_or_type.code
+    return lib.edgephys_reason_name(event_or_type, code).decode()
+
+
+def detail(event):
+    """An event's detail text (str): for REJECTED, ERROR and DISCONNECTED, why (the operator's
+    kick or close text when there was one)."""
+    return event.detail.decode("utf-8", "replace")
 
 
 def _check(status, what=""):
@@ -319,6 +352,17 @@ class Client:
         _check(lib.edgephys_client_spawn(self._h, ctypes.byref(d), ctypes.byref(out)), "spawn")
         return out.value
 
+    def spawn_static(self, colliders, position=(0, 0, 0), rotation=(0, 0, 0, 1), name=None):
+        """Static scenery (ground, walls, a mesh) for PhyS in one call; returns its id
+        (edgephys_client_spawn_static: Offloaded | Persistent, no rigid body)."""
+        t = transform(*position, rotation=rotation)
+        cols = (Collider * len(colliders))(*colliders) if colliders else None
+        out = ctypes.c_uint32()
+        _check(lib.edgephys_client_spawn_static(self._h, ctypes.byref(t), cols, len(colliders),
+                                                name.encode() if name is not None else None,
+                                                ctypes.byref(out)), "spawn_static")
+        return out.value
+
     def despawn(self, entity_id):
         _check(lib.edgephys_client_despawn(self._h, entity_id), "despawn")
 
@@ -333,14 +377,26 @@ class Client:
         _check(lib.edgephys_client_release(self._h, entity_id), "release")
 
     def events(self):
-        """Yields queued events (copies) until the queue is empty."""
+        """Yields queued events (copies) until the queue is empty. A MESSAGE event carries its
+        payload as ev.payload (bytes) and its sender as ev.player_id."""
         while True:
             _check(lib.edgephys_client_poll_event(self._h, ctypes.byref(self._event)), "poll")
             if self._event.type == EVENT_NONE:
                 return
             ev = Event()
             ctypes.pointer(ev)[0] = self._event
+            if ev.type == EVENT_MESSAGE:
+                buf = ctypes.create_string_buffer(max(1, ev.code))
+                n = ctypes.c_size_t(0)
+                _check(lib.edgephys_client_get_message(self._h, buf, len(buf), ctypes.byref(n)), "get_message")
+                ev.payload = buf.raw[:n.value]
             yield ev
+
+    def send_message(self, data, target=TO_ROOM, to_player=0):
+        """Sends `data` (bytes, up to MAX_MESSAGE_BYTES) reliably to the room (TO_ROOM), the others
+        (TO_OTHERS) or one player (TO_PLAYER, to_player); edgephys_client_send_message."""
+        data = bytes(data)
+        _check(lib.edgephys_client_send_message(self._h, target, to_player, data, len(data)), "send_message")
 
     def entity(self, entity_id):
         """The latest Entity, or None if unknown."""

@@ -1,0 +1,203 @@
+// Application messages through a real relay: to the room, to the others, to one player; each
+// arrives once, in the order its sender sent it, with the sender's id, at exactly the addressed
+// players, also under 20 % loss, reordering and duplication (simulated network, fake clock).
+// Oversized, over-rate, unpermitted, misaddressed and malformed messages are refused with
+// their reason and counted, and reach nobody.
+#include <gtest/gtest.h>
+
+#include <flatbuffers/flatbuffers.h>
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <vector>
+
+#include "client/client_testing.h"
+#include "protocol/handshake.h"
+#include "relay/room_host.h"
+#include "tests/integration/sim_world.h"
+
+namespace edgephys::testing {
+namespace {
+
+NetworkConditions Bad() {
+  NetworkConditions c;
+  c.loss = 0.20;
+  c.duplicate = 0.05;
+  c.reorder = 0.10;
+  c.latency_s = 0.030;
+  c.jitter_s = 0.020;
+  return c;
+}
+
+// Payload: u8 tag (which stream), u32 sequence, then filler up to the wanted size.
+std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
+  std::vector<uint8_t> p(std::max<size_t>(size, 5));
+  p[0] = tag;
+  std::memcpy(&p[1], &seq, 4);
+  for (size_t i = 5; i < p.size(); ++i) p[i] = static_cast<uint8_t>(i * 31 + seq);
+  return p;
+}
+
+struct Inbox : ClientListener {
+  struct Got {
+    uint32_t sender;
+    std::vector<uint8_t> payload;
+  };
+  std::vector<Got> got;
+  std::vector<uint16_t> errors;
+  void OnMessage(uint32_t sender, std::span<const uint8_t> payload) override {
+    got.push_back({sender, {payload.begin(), payload.end()}});
+  }
+  void OnError(uint16_t reason, uint32_t, std::string_view) override { errors.push_back(reason); }
+  // The sequences received from `sender` with `tag`, in arrival order; checks each payload's
+  // filler.
+  std::vector<uint32_t> Stream(uint32_t sender, uint8_t tag) const {
+    std::vector<uint32_t> seqs;
+    for (const Got& g : got) {
+      if (g.sender != sender || g.payload.empty() || g.payload[0] != tag) continue;
+      uint32_t seq = 0;
+      std::memcpy(&seq, &g.payload[1], 4);
+      EXPECT_EQ(g.payload, Payload(tag, seq, g.payload.size()));
+      seqs.push_back(seq);
+    }
+    return seqs;
+  }
+  size_t Count(uint16_t reason) const { return std::count(errors.begin(), errors.end(), reason); }
+};
+
+std::vector<uint32_t> Iota(uint32_t n) {
+  std::vector<uint32_t> v(n);
+  for (uint32_t i = 0; i < n; ++i) v[i] = i;
+  return v;
+}
+
+template <typename World>
+void JoinAll(World& world, std::vector<Client*> clients, const char* room) {
+  ASSERT_TRUE(world.RunUntil([&] {
+    for (Client* c : clients) {
+      if (c->state() != ClientState::kConnected) return false;
+    }
+    return true;
+  }, 10.0));
+  for (Client* c : clients) ASSERT_TRUE(c->JoinRoom(room).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    for (Client* c : clients) {
+      if (!c->joined()) return false;
+    }
+    return true;
+  }, 10.0));
+}
+
+constexpr uint8_t kToRoom = 1, kToOthers = 2, kToPlayer = 3, kBig = 4;
+
+TEST(Messages, ArriveOnceInOrderAtExactlyTheAddressedPlayersUnderLossReorderingDuplication) {
+  SimWorld world(Bad());
+  Inbox ia, ib, ic;
+  Client& a = world.AddClient(MintToken("chat", 1), &ia);
+  Client& b = world.AddClient(MintToken("chat", 2), &ib);
+  Client& c = world.AddClient(MintToken("chat", 3), &ic);
+  JoinAll(world, {&a, &b, &c}, "chat");
+  world.RunFor(0.5);  // the join streams have drained
+  constexpr uint32_t kN = 60;
+  for (uint32_t i = 0; i < kN; ++i) {
+    ASSERT_TRUE(a.SendMessage(MessageTarget::kRoom, 0, Payload(kToRoom, i)).ok());
+    ASSERT_TRUE(b.SendMessage(MessageTarget::kOthers, 0, Payload(kToOthers, i)).ok());
+    ASSERT_TRUE(c.SendMessage(MessageTarget::kPlayer, 1, Payload(kToPlayer, i)).ok());
+    if (i % 20 == 0) {  // 40 KiB: fragmented by the reliable channel
+      ASSERT_TRUE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kBig, i, 40000)).ok());
+    }
+    world.RunFor(0.02);
+  }
+  const size_t want_a = 3 * kN, want_b = kN + 3, want_c = 2 * kN + 3;
+  ASSERT_TRUE(world.RunUntil([&] {
+    return ia.got.size() >= want_a && ib.got.size() >= want_b && ic.got.size() >= want_c;
+  }, 30.0)) << ia.got.size() << " " << ib.got.size() << " " << ic.got.size();
+  world.RunFor(1.0);  // nothing more (no duplicates) arrives
+  // A: its own room messages and B's; C's messages to player 1. Not its own big ones.
+  EXPECT_EQ(ia.Stream(1, kToRoom), Iota(kN));
+  EXPECT_EQ(ia.Stream(2, kToOthers), Iota(kN));
+  EXPECT_EQ(ia.Stream(3, kToPlayer), Iota(kN));
+  EXPECT_TRUE(ia.Stream(1, kBig).empty());
+  EXPECT_EQ(ia.got.size(), want_a);
+  // B: A's room and big messages; not its own, not C's to player 1.
+  EXPECT_EQ(ib.Stream(1, kToRoom), Iota(kN));
+  EXPECT_EQ(ib.Stream(1, kBig), (std::vector<uint32_t>{0, 20, 40}));
+  EXPECT_TRUE(ib.Stream(2, kToOthers).empty());
+  EXPECT_TRUE(ib.Stream(3, kToPlayer).empty());
+  EXPECT_EQ(ib.got.size(), want_b);
+  // C: A's room and big messages and B's; not its own to player 1.
+  EXPECT_EQ(ic.Stream(1, kToRoom), Iota(kN));
+  EXPECT_EQ(ic.Stream(1, kBig), (std::vector<uint32_t>{0, 20, 40}));
+  EXPECT_EQ(ic.Stream(2, kToOthers), Iota(kN));
+  EXPECT_TRUE(ic.Stream(3, kToPlayer).empty());
+  EXPECT_EQ(ic.got.size(), want_c);
+  EXPECT_TRUE(ia.errors.empty() && ib.errors.empty() && ic.errors.empty());
+  const RoomHost::MessageStats& stats = world.relay().rooms().at("chat")->message_stats();
+  EXPECT_EQ(stats.forwarded, 3 * kN + 3);
+  EXPECT_EQ(stats.refused, 0u);
+}
+
+TEST(Messages, UnpermittedMisaddressedAndMalformedAreRefusedCountedAndReachNobody) {
+  SimWorld world;
+  Inbox ia, ib;
+  Client& a = world.AddClient(MintToken("r", 1, 3600, kPermissionSpawn), &ia);  // no messages
+  Client& b = world.AddClient(MintToken("r", 2), &ib);
+  JoinAll(world, {&a, &b}, "r");
+  ASSERT_TRUE(a.SendMessage(MessageTarget::kRoom, 0, Payload(kToRoom, 0)).ok());
+  ASSERT_TRUE(b.SendMessage(MessageTarget::kPlayer, 99, Payload(kToPlayer, 0)).ok());
+  // Malformed: an unknown target, and a buffer that fails verification.
+  flatbuffers::FlatBufferBuilder fbb(64);
+  const auto body = fbb.CreateVector(Payload(kToRoom, 1));
+  FinishControl(fbb, schema::CreateAppMessage(fbb, static_cast<schema::MessageTarget>(7), 0, 0, body));
+  std::vector<uint8_t> bad(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, bad).ok());
+  bad.resize(bad.size() - 6);
+  ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, bad).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return ia.errors.size() + ib.errors.size() >= 4; }, 5.0));
+  world.RunFor(0.5);
+  EXPECT_EQ(ia.Count(static_cast<uint16_t>(schema::RejectReason::NotPermitted)), 1u);
+  EXPECT_EQ(ib.Count(static_cast<uint16_t>(schema::RejectReason::UnknownPlayer)), 1u);
+  EXPECT_EQ(ib.Count(static_cast<uint16_t>(schema::RejectReason::InvalidMessage)), 2u);
+  EXPECT_TRUE(ia.got.empty());
+  EXPECT_TRUE(ib.got.empty());
+  EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::NotPermitted), 1u);
+  EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::UnknownPlayer), 1u);
+  // The unverifiable one is refused by the session, before any room.
+  EXPECT_EQ(world.relay().rooms().at("r")->message_stats().refused, 3u);
+  EXPECT_EQ(world.relay().rooms().at("r")->message_stats().forwarded, 0u);
+}
+
+TEST(Messages, OversizedAndOverRateAreRefusedAndCountedTheRestDelivered) {
+  RelayConfig config = LoopbackWorld::DefaultConfig();
+  config.room_defaults.budgets.max_message_bytes = 1000;
+  config.room_defaults.budgets.messages_per_s_per_player = 50;  // burst 100
+  SimWorld world({}, config);
+  Inbox ia, ib;
+  Client& a = world.AddClient(MintToken("r", 1), &ia);
+  Client& b = world.AddClient(MintToken("r", 2), &ib);
+  JoinAll(world, {&a, &b}, "r");
+  ASSERT_TRUE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kBig, 0, 1001)).ok());
+  EXPECT_FALSE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kBig, 1, 65537)).ok());
+  constexpr uint32_t kFlood = 400;  // at once: over the 100-message burst
+  for (uint32_t i = 0; i < kFlood; ++i) {
+    ASSERT_TRUE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kToOthers, i)).ok());
+  }
+  world.RunFor(2.0);
+  const size_t limited = ia.Count(static_cast<uint16_t>(schema::RejectReason::RateLimited));
+  EXPECT_EQ(ia.Count(static_cast<uint16_t>(schema::RejectReason::OverBudget)), 1u);
+  EXPECT_GT(limited, 150u);  // the burst is 100; the rest of 400 over ~1 s of refill at 50/s
+  EXPECT_LT(limited, kFlood);
+  // What was not refused arrived, once each, in order.
+  const std::vector<uint32_t> got = ib.Stream(1, kToOthers);
+  EXPECT_EQ(got.size() + limited, kFlood);
+  EXPECT_TRUE(std::is_sorted(got.begin(), got.end()));
+  EXPECT_TRUE(ib.Stream(1, kBig).empty());
+  const RoomHost::MessageStats& stats = world.relay().rooms().at("r")->message_stats();
+  EXPECT_EQ(stats.refused, limited + 1);
+  EXPECT_EQ(stats.forwarded, got.size());
+  EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::RateLimited), limited);
+}
+
+}  // namespace
+}  // namespace edgephys::testing
