@@ -190,6 +190,7 @@ static class ClientTests {
       b.SendMessage(System.Text.Encoding.UTF8.GetBytes("just for 3"), MessageTarget.Player, 3);
       ExpectStatus(Status.TooLarge, () => a.SendMessage(new byte[Native.MaxMessageBytes + 1]), "oversized message");
       while ((gotA.Count < 2 || gotB.Count < 2) && Native.Now() < end) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+      gotA.Sort();  // in order per sender; different senders' messages may interleave
       Expect(string.Join("|", gotA) == "3:hello, room|4:just for 3", "A got: " + string.Join("|", gotA));
       Expect(string.Join("|", gotB) == "3:hello, room|3:big40000", "B got: " + string.Join("|", gotB));
     }
