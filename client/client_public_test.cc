@@ -41,7 +41,7 @@ TEST(RelayAddressTest, ParsesNumericAddressesCanonically) {
 
 TEST(RelayAddressTest, RefusesNamesAndMalformedText) {
   for (const char* bad : {"", "garbage", "127.0.0.1", "127.0.0.1:", "127.0.0.1:65536",
-                          "127.0.0.1:-1", "127.0.0.1:80x", "relay.example.com:7777",
+                          "127.0.0.1:-1", "127.0.0.1:80x", "relay.no-such-host.invalid:7777",
                           "[::1:7777", "1.2.3.4.5:1", "\xff\xfe:1"}) {
     Result<RelayAddress> r = ParseRelayAddress(bad);
     EXPECT_FALSE(r.ok()) << bad;

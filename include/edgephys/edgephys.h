@@ -291,7 +291,7 @@ EDGEPHYS_API edgephys_status edgephys_client_spawn_static(edgephys_client* clien
                                                          const edgephys_collider* colliders,
                                                          uint32_t collider_count,
                                                          const char* name, uint32_t* out_id);
-/* Records the latest transform of an owned entity; it is sent at the publish rate (the paper's
+/* Records the latest transform of an owned entity; it is sent at the publish rate (Decoupled Edge Physics'
  * MoveToTransform for mirrored kinematic bodies and hands). */
 EDGEPHYS_API edgephys_status edgephys_client_publish_transform(edgephys_client* client,
                                                                uint32_t entity_id,
