@@ -317,6 +317,7 @@ class Client final {
   // Raw senders and the control-message hook for tests, fuzzers and the PhyS worker:
   // client/client_testing.h.
   friend class ClientTesting;
+  friend class ProtocolPeer;
   class Impl;  // client.cc
   std::unique_ptr<Impl> impl_;
 };

@@ -74,7 +74,7 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   DatagramSocket* socket_;
   ClientListener* listener_;
   ClientListener null_listener_;
-  ControlMessageListener* control_listener_ = nullptr;  // ClientTesting
+  ControlMessageListener* control_listener_ = nullptr;  // ProtocolPeer
   ClientState state_ = ClientState::kIdle;
   Endpoint server_;
   std::vector<uint8_t> token_;

@@ -91,14 +91,14 @@ uint64_t Client::packets_refused() const { return impl_->packets_refused_; }
 Status ClientTesting::SendStateUnchecked(Client& client, const EntityState& state, double now) {
   return client.impl_->SendStateUnchecked(state, now);
 }
-Status ClientTesting::SendReliableUnchecked(Client& client, std::span<const uint8_t> message) {
+Status ProtocolPeer::SendReliable(Client& client, std::span<const uint8_t> message) {
   return client.impl_->SendReliableUnchecked(message);
 }
-Status ClientTesting::SendUnreliableRaw(Client& client, std::span<const uint8_t> payload,
-                                        double now) {
+Status ProtocolPeer::SendUnreliable(Client& client, std::span<const uint8_t> payload,
+                                    double now) {
   return client.impl_->SendUnreliableRaw(payload, now);
 }
-void ClientTesting::SetControlMessageListener(Client& client, ControlMessageListener* listener) {
+void ProtocolPeer::SetControlMessageListener(Client& client, ControlMessageListener* listener) {
   client.impl_->control_listener_ = listener;
 }
 

@@ -4,7 +4,7 @@
 
 #include "physics_backend/worker_protocol.h"
 #include "protocol/handshake.h"
-#include "client/client_testing.h"
+#include "client/protocol_peer.h"
 
 namespace edgephys {
 namespace {
@@ -25,7 +25,7 @@ schema::PhysicsEventKind KindOf(physics::PhysicsEventType t) {
 void PhysicsWorker::OnConnected(uint32_t /*player_id*/) {
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateWorkerHello(fbb, 64));
-  (void)ClientTesting::SendReliableUnchecked(*client_, {fbb.GetBufferPointer(), fbb.GetSize()});
+  (void)ProtocolPeer::SendReliable(*client_, {fbb.GetBufferPointer(), fbb.GetSize()});
   spdlog::info("attached to the relay as a PhyS worker");
 }
 
@@ -104,7 +104,7 @@ void PhysicsWorker::SendStates(uint32_t handle, const std::vector<RoomPhysics::M
     size_t n = 0;
     size_t size = EncodeWorkerStates(handle, bodies, first, payload_, &n);
     if (size == 0) break;
-    (void)ClientTesting::SendUnreliableRaw(*client_, {payload_.data(), size}, now);
+    (void)ProtocolPeer::SendUnreliable(*client_, {payload_.data(), size}, now);
     first += n;
   }
 }
@@ -122,7 +122,7 @@ void PhysicsWorker::Update(double now) {
         uint32_t n = 0;
         size_t size = EncodeWorkerSoftChunk(handle, soft.id, soft.nodes, first, payload_, &n);
         if (size == 0) break;
-        (void)ClientTesting::SendUnreliableRaw(*client_, {payload_.data(), size}, now);
+        (void)ProtocolPeer::SendUnreliable(*client_, {payload_.data(), size}, now);
         first += n;
       }
     }
@@ -144,7 +144,7 @@ void PhysicsWorker::Update(double now) {
       }
       FinishControl(fbb, schema::CreateWorkerResult(fbb, handle, fbb.CreateVector(events),
                                                     fbb.CreateVector(grabs)));
-      (void)ClientTesting::SendReliableUnchecked(*client_, {fbb.GetBufferPointer(), fbb.GetSize()});
+      (void)ProtocolPeer::SendReliable(*client_, {fbb.GetBufferPointer(), fbb.GetSize()});
     }
   }
 }

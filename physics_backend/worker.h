@@ -14,7 +14,7 @@
 #include <memory>
 #include <vector>
 
-#include "client/client_testing.h"
+#include "client/protocol_peer.h"
 #include "physics_backend/room_physics.h"
 #include "protocol/connection.h"
 
@@ -23,11 +23,11 @@ namespace edgephys {
 class PhysicsWorker final : public ClientListener, public ControlMessageListener {
  public:
   // `client` is not owned; this worker must be its listener (pass it to the Client). Attach
-  // also routes the client's Worker* messages here (ClientTesting::SetControlMessageListener).
+  // also routes the client's Worker* messages here (ProtocolPeer::SetControlMessageListener).
   explicit PhysicsWorker(const physics::PhysicsConfig& config) : config_(config) {}
   void Attach(Client* client) {
     client_ = client;
-    ClientTesting::SetControlMessageListener(*client, this);
+    ProtocolPeer::SetControlMessageListener(*client, this);
   }
 
   void OnConnected(uint32_t player_id) override;
