@@ -64,7 +64,4 @@ set(CPACK_DEBIAN_PACKAGE_SECTION net)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)  # Depends: from dpkg-shlibdeps (spdlog, bullet, ...)
 set(CPACK_STRIP_FILES ON)
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
-# Install with DESTDIR under the real prefix, so the paths written at install time (the Python
-# package's _install.py, the C# dllmap) name /usr, not the staging directory.
-set(CPACK_SET_DESTDIR ON)
 include(CPack)
