@@ -93,7 +93,9 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
   }
   svr.set_error_handler(httplib::Server::HandlerWithResponse(
       [allowed](const httplib::Request& req, httplib::Response& res) {
-        if (res.status == 404) {
+        // A route's own 404 (e.g. no such room) carries its body: only an unrouted request
+        // can be a method the path does not take.
+        if (res.status == 404 && res.body.empty()) {
           std::string allow;
           for (const auto& [pattern, method] : allowed) {
             if (!std::regex_match(req.path, pattern) || allow.find(method) != std::string::npos) {
@@ -101,7 +103,9 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
             }
             allow += (allow.empty() ? "" : ", ") + method;
           }
-          if (!allow.empty()) {
+          const bool method_allowed =
+              (", " + allow + ",").find(", " + req.method + ",") != std::string::npos;
+          if (!allow.empty() && !method_allowed) {
             res.set_header("Allow", allow);
             WriteJson(res, AdminError(405, "method_not_allowed",
                                       req.method + " is not allowed here (allowed: " + allow + ")"));
