@@ -22,27 +22,11 @@ namespace {
 std::atomic<bool> g_stop{false};
 void OnSignal(int) { g_stop.store(true); }
 
-// "address:port" as ParseEndpoint takes it, or "host:port" resolved now (the first IPv4 or IPv6
-// address the resolver gives). Called before every attach, so a relay that comes back at a new
-// address under the same name (a replaced Kubernetes pod) is found again.
+// The relay's address, resolved now (ParseEndpoint resolves host names). Called before every
+// attach, so a relay that comes back at a new address under the same name (a replaced
+// Kubernetes pod) is found again.
 edgephys::Result<edgephys::Endpoint> ResolveRelay(const std::string& text) {
-  using namespace edgephys;
-  auto numeric = ParseEndpoint(text);
-  if (numeric.ok()) return numeric;
-  const size_t colon = text.rfind(':');
-  if (colon == std::string::npos || colon == 0 || text.front() == '[') return numeric;
-  auto port = ParseEndpoint(text.substr(colon));
-  if (!port.ok()) return port;
-  asio::io_context io;
-  asio::ip::udp::resolver resolver(io);
-  asio::error_code ec;
-  auto results = resolver.resolve(text.substr(0, colon), std::to_string(port->port()), ec);
-  if (ec || results.empty()) {
-    return Status::InvalidArgument("cannot resolve the relay's host name",
-                                   text.substr(0, colon) + ": " +
-                                       (ec ? ec.message() : std::string("no address")));
-  }
-  return results.begin()->endpoint();
+  return edgephys::ParseEndpoint(text);
 }
 }  // namespace
 
