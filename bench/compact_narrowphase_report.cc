@@ -29,7 +29,7 @@
 #include <BulletCollision/CollisionDispatch/btBoxBoxDetector.h>
 #include <btBulletDynamicsCommon.h>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
 namespace {

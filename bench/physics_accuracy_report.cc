@@ -36,7 +36,7 @@
 #include "loadgen/chart.h"
 #include "physics_backend/container_builder.h"
 #include "physics_backend/physics_world.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
 namespace {

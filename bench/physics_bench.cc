@@ -15,7 +15,7 @@
 
 #include <memory>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
 namespace {

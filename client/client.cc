@@ -29,12 +29,6 @@ double RealtimeNow() {
 
 uint64_t UnixNowS() { return static_cast<uint64_t>(RealtimeNow()); }
 
-// Joined.max_send_interval_s from the network: NaN, negative or absurd values read as 0 (play
-// out at the adaptive delay) rather than as a playout delay of minutes.
-double ValidMaxSendInterval(float s) {
-  return std::isfinite(s) && s > 0 && s <= kMaxSendIntervalLimitS ? static_cast<double>(s) : 0.0;
-}
-
 }  // namespace
 
 Client::Impl::Impl(const ClientConfig& config, DatagramSocket* socket, ClientListener* listener)
@@ -492,17 +486,13 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       room_ = j->room() ? j->room()->str() : std::string();
       entity_id_base_ = j->entity_id_base();
       state_format_ = j->state_format();
-      max_send_interval_s_ = ValidMaxSendInterval(j->max_send_interval_s());
       if (!resumed) next_local_id_ = 1;
       delta_decoder_.reset();
       shared_decoder_.reset();
       soft_decoder_.reset();
       position_step_m_ =
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
-      if (j->state_format() == kDeltaStateFormat || j->state_format() == kVelocityDeltaStateFormat ||
-          j->state_format() == kPreviousDeltaStateFormat ||
-          j->state_format() == kTimedDeltaStateFormat ||
-          j->state_format() == kSharedDeltaStateFormat) {
+      if (j->state_format() == kDeltaStateFormat || j->state_format() == kSharedDeltaStateFormat) {
         QuantizationConfig q;
         q.position_step_m = j->position_step_m();
         q.rotation_error_deg = j->rotation_bound_deg();
@@ -618,12 +608,7 @@ Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
         return true;
       });
     case kDeltaStateFormat:
-    case kVelocityDeltaStateFormat:
-    case kPreviousDeltaStateFormat:
-    case kTimedDeltaStateFormat:
       batch_.states.clear();
-      batch_.velocities.clear();
-      batch_.times_ms.clear();
       if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");
       return delta_decoder_->Decode(payload, &batch_);
     case kSharedDeltaStateFormat:
@@ -681,11 +666,6 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
   // have ids in this player's block, and an id in entities_ is never a tombstone (Spawn erases
   // the tombstone, Despawn erases the entity), so owned_ and despawned_ are consulted only for
   // ids in our block and for ids not seen yet.
-  const bool with_velocity = batch_.velocities.size() == batch_.states.size() &&
-                             !payload.empty() && payload[0] == kVelocityDeltaStateFormat;
-  // Format 14: each state holds at its own time.
-  const bool with_times = batch_.times_ms.size() == batch_.states.size() && !payload.empty() &&
-                          payload[0] == kTimedDeltaStateFormat;
   for (size_t i = 0; i < batch_.states.size(); ++i) {
     const EntityState& st = batch_.states[i];
     const uint32_t id = st.entity_id;
@@ -700,9 +680,7 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     RemoteEntity& e = it->second;
     e.state = st;
     e.has_state = true;
-    e.has_velocity = with_velocity;
-    e.velocity = with_velocity ? batch_.velocities[i] : EntityVelocity{};
-    e.state_time_ms = with_times ? batch_.times_ms[i] : batch_.time_ms;
+    e.state_time_ms = batch_.time_ms;
     e.arrival_unix_s = packet_arrival_unix_s_;
     if (e.spawned) listener_->OnEntityUpdated(e);
   }

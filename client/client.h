@@ -146,10 +146,6 @@ struct RemoteEntity {
   // ClientConfig::record_arrival_times (see there for the fallback when the OS gives none).
   double arrival_unix_s = 0;
   std::vector<Vec3f> nodes;    // soft body particles (PhyS-simulated soft bodies)
-  // State format 12 rooms: the velocity sent with `state` (extrapolate with it: see
-  // protocol/delta_codec.h ExtrapolateState); false and zero otherwise.
-  bool has_velocity = false;
-  EntityVelocity velocity;
 };
 
 // Callbacks, all optional. Called from Update() (or the call that caused them).
@@ -205,9 +201,6 @@ inline constexpr size_t kMaxMessagePayload = 64 * 1024;
 // pushes PhyS-owned objects.
 using SpawnDesc = EntitySpec;
 
-// Largest Joined.max_send_interval_s a client accepts (seconds); larger ones read as 0.
-inline constexpr double kMaxSendIntervalLimitS = 4.0;
-
 class Client final {
  public:
   // `socket` (and `listener`, if given) are not owned and must outlive the client; the socket
@@ -262,16 +255,10 @@ class Client final {
   bool joined() const;
   uint32_t player_id() const;
   uint32_t entity_id_base() const;
-  // The state format the joined room sends (its Joined message; docs/protocol.md §5): 2, 9, 12
-  // (velocities), 13 or 14 (key samples: draw them with Interpolator::kLerpSlerp, the line the
-  // relay checks); 0 before the first Joined. Kept after a leave until the next Joined.
+  // The state format the joined room sends (its Joined message; docs/protocol.md §5): 9 (the
+  // default), 2, or an emulation's (3, 4); 0 before the first Joined. Kept after a leave until
+  // the next Joined.
   uint8_t state_format() const;
-  // Seconds: the longest the joined room's relay may leave a moving entity unsent (its
-  // Joined.max_send_interval_s: key samples' or the Hermite checks' max interval), 0 when it
-  // sends at fixed rates; pass it to PlayoutConfigForRoom (client/snapshot_buffer.h) to play out
-  // far enough behind. A value that is not finite or outside (0, kMaxSendIntervalLimitS] reads
-  // as 0. Kept after a leave until the next Joined.
-  double max_send_interval_s() const;
   const std::string& room() const;
   uint16_t reject_reason() const;
   DisconnectReason disconnect_reason() const;

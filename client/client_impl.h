@@ -98,7 +98,6 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   std::string room_;
   uint32_t entity_id_base_ = 0;
   uint8_t state_format_ = 0;  // the joined room's (Joined.state_format); 0 before a Joined
-  double max_send_interval_s_ = 0;  // Joined.max_send_interval_s, validated; 0 before a Joined
   uint32_t next_local_id_ = 1;
   std::vector<uint32_t> players_;
   std::unordered_map<uint32_t, RemoteEntity> entities_;

@@ -64,7 +64,6 @@ bool Client::joined() const { return impl_->joined_; }
 uint32_t Client::player_id() const { return impl_->player_id_; }
 uint32_t Client::entity_id_base() const { return impl_->entity_id_base_; }
 uint8_t Client::state_format() const { return impl_->state_format_; }
-double Client::max_send_interval_s() const { return impl_->max_send_interval_s_; }
 const std::string& Client::room() const { return impl_->room_; }
 uint16_t Client::reject_reason() const { return impl_->reject_reason_; }
 DisconnectReason Client::disconnect_reason() const { return impl_->disconnect_reason_; }

@@ -299,31 +299,6 @@ TEST_F(ClientNoDecodeTest, StatesAreAcknowledgedButNeitherDecodedNorReported) {
   EXPECT_EQ(client_.FindEntity(id), nullptr);
 }
 
-// Joined.max_send_interval_s is untrusted: only a finite value in (0, kMaxSendIntervalLimitS]
-// is taken; anything else reads as 0 (the adaptive playout), never as a huge or NaN delay.
-TEST_F(ClientReceiveTest, TheRoomsMaxSendIntervalIsTakenOnlyWhenSane) {
-  EXPECT_EQ(client_.max_send_interval_s(), 0.0);  // SetUp's Joined has none
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  const float inf = std::numeric_limits<float>::infinity();
-  const std::vector<std::pair<float, double>> cases = {
-      {0.25f, 0.25}, {nan, 0}, {-1.f, 0}, {inf, 0}, {100.f, 0},
-      {static_cast<float>(kMaxSendIntervalLimitS), kMaxSendIntervalLimitS}, {0.f, 0}};
-  for (const auto& [sent, want] : cases) {
-    flatbuffers::FlatBufferBuilder fbb(64);
-    auto room = fbb.CreateString("r");
-    schema::JoinedBuilder jb(fbb);
-    jb.add_room(room);
-    jb.add_player_id(kPlayerId);
-    jb.add_entity_id_base(kOwnBase);
-    jb.add_max_send_interval_s(sent);
-    FinishControl(fbb, jb.Finish());
-    SendReliable(fbb);
-    Pump();
-    ASSERT_TRUE(client_.joined());
-    EXPECT_NEAR(client_.max_send_interval_s(), want, 1e-6) << sent;
-  }
-}
-
 TEST_F(ClientReceiveTest, StateBeforeSpawnIsKeptSilentlyAndSurvivesTheSpawn) {
   const uint32_t id = kOtherBase + 6;
   SendStates({At(id, 3.0f)}, 50);

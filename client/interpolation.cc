@@ -4,7 +4,6 @@
 #include <cmath>
 #include <numbers>
 
-#include "protocol/velocity.h"
 
 namespace edgephys {
 namespace {
@@ -185,37 +184,6 @@ Pose Extrapolate(const SnapshotBuffer& b, double ahead_s, Interpolator method,
 }
 
 }  // namespace
-
-Interpolator InterpolatorForStateFormat(uint8_t state_format) {
-  switch (static_cast<StateFormat>(state_format)) {
-    case StateFormat::kQuantizedDeltaPrevious:
-    case StateFormat::kQuantizedDeltaTimed:
-      return Interpolator::kLerpSlerp;
-    default:
-      return Interpolator::kHermite;
-  }
-}
-
-SampleOptions SampleOptionsForStateFormat(uint8_t state_format) {
-  SampleOptions options;
-  if (static_cast<StateFormat>(state_format) == StateFormat::kQuantizedDeltaVelocity) {
-    options.max_extrapolation_s = kVelocityExtrapolationLimitS;
-    options.max_gap_s = kVelocityExtrapolationLimitS + 1.0;
-  }
-  return options;
-}
-
-SnapshotBufferConfig PlayoutConfigForRoom(uint8_t state_format, double max_send_interval_s,
-                                          const SnapshotBufferConfig& base) {
-  SnapshotBufferConfig config = base;
-  const bool interval = max_send_interval_s > 0 && std::isfinite(max_send_interval_s);
-  const bool velocities = static_cast<StateFormat>(state_format) == StateFormat::kQuantizedDeltaVelocity;
-  if (!interval && !velocities) return config;
-  config.interval_multiplier = 0;
-  config.min_delay_s = (interval ? max_send_interval_s : 0.0) + kPlayoutMarginS;
-  config.max_delay_s = std::max(config.max_delay_s, config.min_delay_s);
-  return config;
-}
 
 SnapshotBufferConfig CapPlayoutDelay(const SnapshotBufferConfig& config, double max_delay_s) {
   SnapshotBufferConfig capped = config;

@@ -59,38 +59,12 @@ enum class Interpolator {
 // Name for logs and benchmark labels ("lerp_slerp", "dq_dlb", "dq_sclerp", "hermite", "none").
 const char* InterpolatorName(Interpolator method);
 
-// The interpolator a room's state format (Client::state_format()) calls for: kLerpSlerp for
-// key-sample rooms (formats 13 and 14), whose relay sends a body when the straight line between
-// its samples strays, so the line is what it vouches for (Hermite over key samples showed
-// 1.4-4.1x the display error's p99 on the stirred boxes); kHermite
-// for every other format (sent velocities as tangents in format 12; finite differences
-// otherwise, the most accurate at send rates up to 30 Hz: docs/benchmarks.md, "Interpolation").
-// Unknown formats and 0 (not joined) get kHermite. O(1).
-Interpolator InterpolatorForStateFormat(uint8_t state_format);
-
-// The jitter buffer's configuration for a room with this state format whose relay may leave a
-// moving entity unsent for up to `max_send_interval_s` (Client::max_send_interval_s(), from
-// Joined; 0: fixed rates or dead reckoning). Other fields (capacity, ...) come from `base`. O(1).
-//  * An interval (key samples, formats 13 and 14; Hermite checks in format 12): the playout delay
-//    is that interval plus kPlayoutMarginS (plus any jitter above it), so that the state ending
-//    each segment has arrived when the render time enters it. The adaptive rule (1.5 median
-//    intervals) would play out ahead of the long segments and extrapolate a line the relay never
-//    checked.
-//  * Format 12 without one (dead reckoning: a body may go unsent for seconds): kPlayoutMarginS
-//    plus jitter; the receiver extrapolates with the sent velocities (SampleOptionsForStateFormat).
-//  * Otherwise `base` unchanged: the adaptive delay follows the fixed rates.
-inline constexpr double kPlayoutMarginS = 0.020;
-SnapshotBufferConfig PlayoutConfigForRoom(uint8_t state_format, double max_send_interval_s,
-                                          const SnapshotBufferConfig& base = {});
-
 // `config` with its playout delay held to at most `max_delay_s` (seconds; an application's
 // latency limit: edgephys_client_set_max_playout_delay). Both delay bounds are lowered to it,
-// so the adaptive delay and a room's playout (above) never exceed it. 0, negative or non-finite:
-// `config` unchanged. The price in a key-sample room is accuracy: the render time runs ahead of
-// the longer segments, and the sampler extrapolates the last line for up to
-// SampleOptions::max_extrapolation_s, a line the relay never checked (display p99 on the
-// stirred boxes: 1.0-1.1x the p99 at 80 % of a
-// 0.25 s interval, 2.8-3.6x at 40 %). O(1).
+// so the adaptive delay never exceeds it. 0, negative or non-finite: `config` unchanged. The
+// price is accuracy when the delay falls below the interval between an entity's states: the
+// render time runs ahead of the newest state and the sampler extrapolates for up to
+// SampleOptions::max_extrapolation_s. O(1).
 SnapshotBufferConfig CapPlayoutDelay(const SnapshotBufferConfig& config, double max_delay_s);
 
 struct Pose {
@@ -103,11 +77,6 @@ struct SampleOptions {
   double max_gap_s = 1.0;              // longer segments: no velocity estimate across them
   double min_velocity_gap_s = 1e-3;    // shorter segments: too noisy to estimate velocity from
 };
-
-// The sampling options for a room with this state format: format 12 (velocities) extrapolates
-// with the sent velocities up to kVelocityExtrapolationLimitS past the newest state (its relay
-// dead-reckons, protocol/velocity.h); every other format the defaults. O(1).
-SampleOptions SampleOptionsForStateFormat(uint8_t state_format);
 
 // The pose of the buffered entity at sender time `render_time_s` (see the file comment).
 Pose Sample(const SnapshotBuffer& buffer, double render_time_s, Interpolator method,

@@ -12,7 +12,7 @@
 #include "client/client_endpoint.h"
 #include "client/client_testing.h"
 #include "loadgen/loopback_room.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "protocol/connection.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"

@@ -26,7 +26,7 @@
 #include "loadgen/physics_burn.h"
 #include "loadgen/pose_history.h"
 #include "loadgen/stats.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "protocol/handshake.h"
 
 namespace edgephys::loadgen {

@@ -10,7 +10,7 @@
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/stats.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 
@@ -112,11 +112,6 @@ struct BoxTable {
 // compared with the relay's state at that same relay time (linear between the relay's
 // recorded states, which change at PhyS's 60 Hz). This is the accuracy a lower send rate
 // costs; the quantisation error alone is the "vs sent" error.
-//
-// With velocities (format 12) the receivers dead-reckon: the playout delay no longer follows
-// the send interval (a box may not be sent for a second), only the arrival jitter above
-// `min_delay_s`, and the displayed pose is Hermite with the sent tangents, extrapolated past
-// the newest state as far as the format allows.
 struct DisplayProbe {
   static constexpr size_t kMaxBoxes = 128;
   struct Truth {
@@ -132,43 +127,27 @@ struct DisplayProbe {
   std::vector<std::vector<Truth>> truth_state;
   std::vector<double> state_errors;
   std::vector<double> lerp_errors, hermite_errors, rot_errors_deg, delays_ms, playout_ms;
-  // The same arrivals in jitter buffers at the adaptive playout alone (SnapshotBufferConfig{}:
-  // 1.5 median intervals plus jitter, and SampleOptions{}: what the SDK did in every room before
-  // Joined.max_send_interval_s, and still does at fixed rates), drawn with the same method: the
-  // third yardstick (display_err_adaptive_*). At fixed rates it is the first.
-  // With a playout limit (MultiObjectOptions::playout_limit_s) the third yardstick is instead the
-  // room's playout held to it (CapPlayoutDelay: edgephys_client_set_max_playout_delay), sampled
-  // with the room's options.
+  // The same arrivals in jitter buffers at the room's playout held to a limit
+  // (MultiObjectOptions::playout_limit_s; CapPlayoutDelay: edgephys_client_set_max_playout_delay),
+  // drawn with the same method: the third yardstick (display_err_adaptive_*). Without a limit
+  // it is the first.
   std::vector<SnapshotBuffer> adaptive_buffers;
   SnapshotBufferConfig adaptive_config;
   SampleOptions adaptive_options;
   std::vector<double> adaptive_errors, adaptive_playout_ms;
   double local_now = 0;
-  bool velocities = false;
   SampleOptions sample_options;
 
-  // `max_interval_s` > 0: the relay sends at irregular intervals up to this (Hermite or key
-  // samples); the playout delay is then that interval + 20 ms (or `min_delay_s`), as the SDK's
-  // (PlayoutConfigForRoom).
-  void Init(size_t boxes, bool with_velocities, double min_delay_s, double max_interval_s,
-            double playout_limit_s) {
+  // `min_delay_s` >= 0: a fixed playout delay instead of the SDK's adaptive one.
+  void Init(size_t boxes, double min_delay_s, double playout_limit_s) {
     const size_t n = std::min(boxes, kMaxBoxes);
-    velocities = with_velocities;
     SnapshotBufferConfig config;
-    if (velocities || max_interval_s > 0) {
+    if (min_delay_s >= 0) {
       config.interval_multiplier = 0;
-      const double interval = std::max(max_interval_s, 0.0);
-      config.min_delay_s = min_delay_s >= 0 ? min_delay_s : interval + kPlayoutMarginS;
+      config.min_delay_s = min_delay_s;
       config.max_delay_s = std::max(config.max_delay_s, config.min_delay_s);
     }
-    if (velocities) {
-      sample_options.max_extrapolation_s = kVelocityExtrapolationLimitS;
-      sample_options.max_gap_s = kVelocityExtrapolationLimitS + 1.0;
-    }
-    if (playout_limit_s > 0) {
-      adaptive_config = CapPlayoutDelay(config, playout_limit_s);
-      adaptive_options = sample_options;
-    }
+    adaptive_config = CapPlayoutDelay(config, playout_limit_s);
     buffers.assign(n, SnapshotBuffer(config));
     adaptive_buffers.assign(n, SnapshotBuffer(adaptive_config));
     truth.assign(n, {});
@@ -188,11 +167,6 @@ struct DisplayProbe {
     Snapshot s{.sender_time_s = e.state_time_ms / 1000.0,
                .position = e.state.position,
                .rotation = e.state.rotation};
-    if (e.has_velocity) {
-      s.has_linear_velocity = s.has_angular_velocity = true;
-      s.linear_velocity = e.velocity.linear;
-      s.angular_velocity = e.velocity.angular;
-    }
     (void)buffers[it->second].Insert(s, local_now);
     (void)adaptive_buffers[it->second].Insert(s, local_now);
   }
@@ -261,7 +235,7 @@ struct DisplayProbe {
       if (!TruthAt(i, render, &want)) continue;
       const Pose lerp = edgephys::Sample(b, render, Interpolator::kLerpSlerp, sample_options);
       const Pose hermite = edgephys::Sample(b, render, Interpolator::kHermite, sample_options);
-      const Pose& shown = velocities ? hermite : lerp;
+      const Pose& shown = lerp;
       lerp_errors.push_back(Dist(shown.position, want.position));
       Pose want_state;
       if (TruthIn(truth_state[i], render, &want_state)) {
@@ -275,9 +249,8 @@ struct DisplayProbe {
       const double adaptive_render = adaptive.size() >= 2 ? adaptive.RenderTime(now) : adaptive_shared;
       Pose adaptive_want;
       if (!adaptive.empty() && TruthAt(i, adaptive_render, &adaptive_want)) {
-        const Pose adaptive_shown = edgephys::Sample(
-            adaptive, adaptive_render, velocities ? Interpolator::kHermite : Interpolator::kLerpSlerp,
-            adaptive_options);
+        const Pose adaptive_shown =
+            edgephys::Sample(adaptive, adaptive_render, Interpolator::kLerpSlerp, adaptive_options);
         adaptive_errors.push_back(Dist(adaptive_shown.position, adaptive_want.position));
         adaptive_playout_ms.push_back((now - adaptive_offset - adaptive_render) * 1000.0);
       }
@@ -329,18 +302,6 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   if (o.ambient_hz > 0) config.room_defaults.replication.ambient_hz = o.ambient_hz;
   ReplicationConfig& rep = config.room_defaults.replication;
   rep.shared_encoding = o.shared_encoding;
-  rep.velocities = o.velocities;
-  if (o.extrapolation_threshold_m > 0) rep.extrapolation_position_threshold_m = o.extrapolation_threshold_m;
-  if (o.extrapolation_rotation_deg > 0) rep.extrapolation_rotation_threshold_deg = o.extrapolation_rotation_deg;
-  if (o.extrapolation_max_hz > 0) rep.extrapolation_max_hz = o.extrapolation_max_hz;
-  if (o.hermite_max_interval_s > 0) rep.hermite_max_interval_s = o.hermite_max_interval_s;
-  if (o.key_sample_threshold_m > 0) rep.key_sample_threshold_m = o.key_sample_threshold_m;
-  if (o.key_sample_rotation_deg > 0) rep.key_sample_rotation_deg = o.key_sample_rotation_deg;
-  if (o.key_sample_max_interval_s > 0) rep.key_sample_max_interval_s = o.key_sample_max_interval_s;
-  if (o.key_sample_check_hz >= 0) rep.key_sample_check_hz = o.key_sample_check_hz;
-  rep.key_sample_at_kink = o.key_sample_at_kink;
-  rep.key_sample_arrival_stamp = o.key_sample_arrival_stamp;
-  rep.stamp_state_time = o.stamp_state_time;
   config.physics.max_substeps = o.relay_max_substeps;
   config.physics.sleep_linear_threshold = o.sleep_threshold;
   config.physics.sleep_angular_threshold = o.sleep_threshold;
@@ -386,9 +347,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   boxes.ring.resize(box_ids.size());
   boxes.count.assign(box_ids.size(), 0);
   DisplayProbe probe;
-  probe.Init(box_ids.size(), o.velocities, o.playout_min_delay_s,
-             rep.key_sample_threshold_m > 0 ? rep.key_sample_max_interval_s : o.hermite_max_interval_s,
-             o.playout_limit_s);
+  probe.Init(box_ids.size(), o.playout_min_delay_s, o.playout_limit_s);
 
   auto drive_stirrer = [&] {
     Vec3f pos;
@@ -457,14 +416,6 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   }
   WindowMeter meter;
   meter.Start(world, R);
-  const uint64_t key_strayed0 = RelayCounters::Get(counters.key_samples_strayed);
-  const uint64_t key_interval0 = RelayCounters::Get(counters.key_samples_max_interval);
-  std::array<uint64_t, 3> records0{};
-  std::array<std::array<uint64_t, 6>, 3> record_bits0{};
-  for (size_t c = 0; c < 3; ++c) {
-    records0[c] = RelayCounters::Get(counters.state_records[c]);
-    for (size_t i = 0; i < 6; ++i) record_bits0[c][i] = RelayCounters::Get(counters.state_record_bits[c][i]);
-  }
   const double t0 = world.Now();
   const double t_end = t0 + o.duration_s;
   double next_error = t0, next_moving = t0, last_progress = 0;
@@ -567,27 +518,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
   r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
   r->updates_per_s_per_client = updates / per;
-  // Every client receives the boxes (the host too: PhyS owns them).
-  const double per_box = static_cast<double>(R + 1) * elapsed * static_cast<double>(box_ids.size());
-  r->key_strayed_per_box_s =
-      static_cast<double>(RelayCounters::Get(counters.key_samples_strayed) - key_strayed0) / per_box;
-  r->key_interval_per_box_s =
-      static_cast<double>(RelayCounters::Get(counters.key_samples_max_interval) - key_interval0) /
-      per_box;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
-  {
-    double all = 0;
-    for (size_t c = 0; c < 3; ++c) all += static_cast<double>(RelayCounters::Get(counters.state_records[c]) - records0[c]);
-    for (size_t c = 0; c < 3; ++c) {
-      const double cnt = static_cast<double>(RelayCounters::Get(counters.state_records[c]) - records0[c]);
-      r->record_share[c] = all > 0 ? cnt / all : 0;
-      for (size_t i = 0; i < 6; ++i) {
-        const double bits = static_cast<double>(RelayCounters::Get(counters.state_record_bits[c][i]) -
-                                                record_bits0[c][i]);
-        r->record_bits[c][i] = cnt > 0 ? bits / cnt : 0;
-      }
-    }
-  }
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;
   r->relay_step_ms_mean = window.step_ms_mean;

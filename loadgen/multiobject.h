@@ -36,7 +36,7 @@
 
 #include "loadgen/loopback_room.h"
 #include "loadgen/relay_target.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::loadgen {
 
@@ -63,7 +63,7 @@ struct MultiObjectOptions {
   // --relay/--secret/--metrics/--relay-pid: run the relay part against an external
   // edgephys-relay (multiobject_external.cc) instead of an in-process one. The scene, the host
   // and the receivers are the same; the relay's own options (ambient rate, thresholds,
-  // velocities, substeps, sleeping) are its command line's, not these; server-side figures come
+  // substeps, sleeping) are its command line's, not these; server-side figures come
   // from its /metrics, and what needs its entity table (errors against its truth, the display
   // probe) is unknown (JSON null).
   ExternalRelayOptions external;
@@ -81,29 +81,7 @@ struct MultiObjectOptions {
   double ambient_hz = 0;
   // ReplicationConfig::shared_encoding: state format 9 (the relay's default); false: format 2.
   bool shared_encoding = true;
-  // Dead reckoning (ReplicationConfig::velocities, state format 12): the relay sends
-  // velocities and a box only when a receiver's extrapolation strays beyond the thresholds;
-  // the display probe's receivers extrapolate with them (Hermite with the sent tangents
-  // between states) at a playout delay of `playout_min_delay_s` plus the arrival jitter.
-  // Negative / 0: the relay's defaults.
-  bool velocities = false;
-  float extrapolation_threshold_m = -1.f;
-  float extrapolation_rotation_deg = -1.f;
-  double extrapolation_max_hz = 0;
-  // > 0: ReplicationConfig::hermite_max_interval_s (receivers interpolate instead).
-  double hermite_max_interval_s = 0;
-  // > 0: ReplicationConfig::key_sample_threshold_m (format 2, ambient boxes sent when the
-  // straight line strays, at most every key_sample_max_interval_s apart while moving); the
-  // display probe then plays out at that interval + 20 ms.
-  float key_sample_threshold_m = 0;
-  float key_sample_rotation_deg = -1.f;
-  double key_sample_max_interval_s = 0;
-  double key_sample_check_hz = -1;  // >= 0: ReplicationConfig::key_sample_check_hz
-  bool key_sample_at_kink = false;        // ReplicationConfig::key_sample_at_kink (format 14)
-  bool key_sample_arrival_stamp = false;  // ReplicationConfig::key_sample_arrival_stamp
-  bool stamp_state_time = false;          // ReplicationConfig::stamp_state_time
-  // The probe's smallest playout delay; < 0: 20 ms dead-reckoning, the longest interval + 20 ms
-  // interpolating.
+  // >= 0: the probe plays out at this fixed delay (s); < 0: the SDK's adaptive delay.
   double playout_min_delay_s = -1;
   // > 0: the probe's third yardstick (display_err_adaptive_*) plays the room out held to this
   // delay (s), as an SDK application under edgephys_client_set_max_playout_delay; else the
@@ -127,15 +105,6 @@ struct MultiObjectResult {
   double socket_mbit_per_s_per_client = 0;  // receiving sockets
   double paper_mbit_per_s = 0;              // Decoupled Edge Physics' Obj_N (0: none)
   double updates_per_s_per_client = 0;
-  // Key samples (--key-samples): ambient boxes found due per box per second per receiver, by
-  // reason (RelayCounters::key_samples_*): the line strayed, or the max interval passed.
-  double key_strayed_per_box_s = 0, key_interval_per_box_s = 0;
-  // Format 2/13 records by why they went (RelayCounters::state_records: schedule, strayed, max
-  // interval): their share of all records, and their mean bits by part (DeltaRecordPart: id,
-  // reference, keyframe, mask, position, rotation). Payload and datagram overhead is the rest
-  // of bytes_per_update.
-  std::array<double, 3> record_share{};
-  std::array<std::array<double, 6>, 3> record_bits{};
   double bytes_per_update = 0;              // all egress bytes / entity updates
   double state_mbit_per_s_per_client = 0;   // state payload bytes only (Client::state_bytes_received)
   double events_per_s_per_client = 0;       // physics events received (reliable channel)
@@ -147,17 +116,14 @@ struct MultiObjectResult {
   uint64_t error_samples = 0;
   // What receiver 0 displays (jitter buffer + interpolation, up to 128 boxes sampled every
   // 50 ms) against the relay's state at the displayed relay time: lerp+slerp and Hermite.
-  // With velocities, the displayed pose is Hermite with the sent velocities (display_err_*
-  // and display_err_hermite_* are then the same figures) and extrapolates past the newest state.
   double display_err_p50_m = 0, display_err_p99_m = 0;
   double display_rot_err_p50_deg = 0, display_rot_err_p99_deg = 0;  // the displayed method's
   double display_err_hermite_p50_m = 0, display_err_hermite_p99_m = 0;
   // The displayed pose against the truth at the time PhyS computed it for (Entity::state_time)
   // rather than at the time the relay got it: includes the step's computation latency.
   double display_err_state_p50_m = 0, display_err_state_p99_m = 0;
-  // The same arrivals played out at the adaptive delay alone (SnapshotBufferConfig{}: what the
-  // SDK used before it learnt Joined.max_send_interval_s), same method; with playout_limit_s,
-  // the room's playout held to that limit.
+  // The same arrivals played out held to playout_limit_s (the same as display_err_* without
+  // one), same method.
   double display_err_adaptive_p50_m = 0, display_err_adaptive_p99_m = 0;
   double display_adaptive_playout_ms_median = 0;
   double display_delay_ms_median = 0;  // playout delay behind the newest received state

@@ -15,7 +15,7 @@
 #include "loadgen/multiobject.h"
 #include "loadgen/relay_target.h"
 #include "loadgen/stats.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::loadgen {
 namespace {

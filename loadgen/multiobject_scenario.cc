@@ -15,13 +15,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    rotation_threshold_deg, stirrer_half_height, sleep_threshold,
                                    moving_speed_mps, bench_warmup_steps, bench_steps, bench_max_s,
                                    receivers, duration_s, relay_settle_steps, relay_max_substeps,
-                                   position_step_m, rotation_bound_deg, ambient_hz, shared_encoding, velocities,
-                                   extrapolation_threshold_m, extrapolation_rotation_deg,
-                                   extrapolation_max_hz, hermite_max_interval_s,
-                                   playout_min_delay_s, playout_limit_s, key_sample_threshold_m,
-                                   key_sample_rotation_deg, key_sample_max_interval_s,
-                                   key_sample_check_hz, key_sample_at_kink,
-                                   key_sample_arrival_stamp, stamp_state_time)
+                                   position_step_m, rotation_bound_deg, ambient_hz, shared_encoding,
+                                   playout_min_delay_s, playout_limit_s)
 
 namespace {
 
@@ -65,11 +60,7 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
                 {"egress_ratio_to_paper",
                  RatioOr0(r.egress_mbit_per_s_per_client, r.paper_mbit_per_s)},
                 {"updates_per_s_per_client", r.updates_per_s_per_client},
-                {"key_strayed_per_box_s", r.key_strayed_per_box_s},
-                {"key_interval_per_box_s", r.key_interval_per_box_s},
                 {"bytes_per_update", r.bytes_per_update},
-                {"record_share", r.record_share},
-                {"record_bits", r.record_bits},
                 {"state_mbit_per_s_per_client", r.state_mbit_per_s_per_client},
                 {"events_per_s_per_client", r.events_per_s_per_client},
                 {"relay_step_ms_mean", r.relay_step_ms_mean},
@@ -215,37 +206,8 @@ class MultiObjectScenario final : public Scenario {
                    "Send when the client's copy is off by more than this (deg; <0: relay default 0.1)");
     cmd.add_flag("--shared-encoding,!--no-shared-encoding", o_.shared_encoding,
                  "Relay sends state format 9 (the default); --no-shared-encoding: format 2");
-    cmd.add_flag("--velocities", o_.velocities,
-                 "Relay sends state format 12 (velocities) and dead-reckons PhyS boxes; receivers "
-                 "extrapolate (ReplicationConfig::velocities)");
-    cmd.add_option("--extrapolation-threshold", o_.extrapolation_threshold_m,
-                   "Dead reckoning: position error (m) that makes the relay send a box (<0: default)");
-    cmd.add_option("--extrapolation-rotation-threshold", o_.extrapolation_rotation_deg,
-                   "Dead reckoning: rotation error (deg) that makes the relay send a box (<0: default)");
-    cmd.add_option("--extrapolation-max-hz", o_.extrapolation_max_hz,
-                   "Dead reckoning: how often the relay checks a box (0: default)");
-    cmd.add_option("--hermite-max-interval", o_.hermite_max_interval_s,
-                   "With --velocities: receivers interpolate (Hermite, sent tangents) and the relay "
-                   "sends a box when the curve strays or after this many seconds (0: dead reckoning)");
-    cmd.add_option("--key-samples", o_.key_sample_threshold_m,
-                   "Format 2: send an untouched box when the straight line from its newest sent "
-                   "state strays from PhyS's by more than this (m; ReplicationConfig::"
-                   "key_sample_threshold_m; 0: the fixed ambient rate)");
-    cmd.add_option("--key-samples-rotation", o_.key_sample_rotation_deg,
-                   "Key samples: rotation deviation that sends a box (deg; <0: default 5)");
-    cmd.add_option("--key-samples-max-interval", o_.key_sample_max_interval_s,
-                   "Key samples: longest interval between a moving box's samples (s; 0: default 0.25)");
-    cmd.add_option("--key-samples-check-hz", o_.key_sample_check_hz,
-                   "Key samples: how often boxes are checked (ReplicationConfig::"
-                   "key_sample_check_hz; <0: default 30; 0: every tick)");
-    cmd.add_flag("--key-samples-at-kink", o_.key_sample_at_kink,
-                 "Key samples: send the state at the kink with its own time (format 14)");
-    cmd.add_flag("--key-samples-arrival-stamp", o_.key_sample_arrival_stamp,
-                 "Key samples: stamp with the state's time plus the running mean lag to the tick");
-    cmd.add_flag("--stamp-state-time", o_.stamp_state_time,
-                 "Fixed rates: stamp PhyS bodies with the time their states hold");
     cmd.add_option("--playout-min-delay", o_.playout_min_delay_s,
-                   "With --velocities: the display probe's smallest playout delay (s; <0: auto)");
+                   "The display probe's fixed playout delay (s; <0: the SDK's adaptive delay)");
     cmd.add_option("--display-playout-limit", o_.playout_limit_s,
                    "The display probe's third yardstick: the room's playout held to this delay (s; "
                    "edgephys_client_set_max_playout_delay); 0: the adaptive delay alone")

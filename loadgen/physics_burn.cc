@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "loadgen/scenario.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 extern char** environ;
 

@@ -10,7 +10,7 @@
 #include "loadgen/loopback_room.h"
 #include "loadgen/softbody_scene.h"
 #include "loadgen/stats.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::loadgen {
 namespace {

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "loadgen/loopback_room.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "protocol/container_builder.h"
 
 namespace edgephys::loadgen {

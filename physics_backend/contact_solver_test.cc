@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "physics_backend/physics_test_util.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
 namespace {

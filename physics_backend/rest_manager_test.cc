@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "physics_backend/physics_test_util.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "physics_backend/state_hash.h"
 
 namespace edgephys::physics {

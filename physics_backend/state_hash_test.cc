@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "physics_backend/physics_test_util.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
 namespace {

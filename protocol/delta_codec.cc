@@ -16,256 +16,20 @@ namespace {
 constexpr size_t kCountReserve = 3;  // varint count reserved while encoding (< 2^21)
 constexpr size_t kStreamStart = kDeltaHeaderSize + kCountReserve;
 constexpr size_t kPacketRecords = 128;
-constexpr int64_t kMaxGapMs = 2048;
-constexpr int64_t kMaxStep = int64_t{1} << 24;
 constexpr int kMaxK = 7;
 // The adaptive parameters' statistics are gathered on one delta record in this many (they
 // only rank the candidate orders and k; sampling cuts most of the encoder's cost).
 constexpr uint64_t kStatsSampleEvery = 4;
-// Format 14: the Exp-Golomb parameter of a record time's offset - 1 (ms): 5 bits up to 16 ms.
-constexpr int kRecordTimeK = 4;
 
 }  // namespace
 
-namespace delta_internal {
-
-// ---- Prediction (identical at both ends; integer arithmetic only) ----
-
-namespace {
-int64_t DivRound(int64_t n, int64_t d) {  // d > 0; halves away from zero
-  return n >= 0 ? (n + d / 2) / d : -((-n + d / 2) / d);
-}
-}  // namespace
-
-Timing MakeTiming(const History& hist, int order, uint32_t time_ms) {
-  Timing t;
-  t.order = std::min(order, hist.depth - 1);
-  t.h = static_cast<int32_t>(time_ms - hist.s[0].time_ms);
-  if (t.order >= 1) t.h2 = static_cast<int32_t>(hist.s[0].time_ms - hist.s[1].time_ms);
-  if (t.order >= 2) t.h1 = static_cast<int32_t>(hist.s[1].time_ms - hist.s[2].time_ms);
-  if (t.h < 0 || t.h > kMaxGapMs) t.order = 0;
-  if (t.order >= 1 && (t.h2 < 1 || t.h2 > kMaxGapMs)) t.order = 0;
-  if (t.order >= 2 && (t.h1 < 1 || t.h1 > kMaxGapMs)) t.order = 1;
-  return t;
-}
-
-namespace {
-// Newton-form polynomial extrapolation through (t2,p2), (t1,p1), (t0,p0) to t0 + h.
-int64_t Extrapolate(int64_t p0, int64_t p1, int64_t p2, const Timing& t) {
-  if (t.order == 0) return p0;
-  const int64_t d2 = p0 - p1;
-  if (d2 > kMaxStep || d2 < -kMaxStep) return p0;
-  if (t.order == 1) return p0 + DivRound(t.h * d2, t.h2);
-  const int64_t d1 = p1 - p2;
-  if (d1 > kMaxStep || d1 < -kMaxStep) return p0 + DivRound(t.h * d2, t.h2);
-  const int64_t num =
-      t.h * d2 * t.h1 * (t.h1 + t.h2) + t.h * (t.h + t.h2) * (d2 * t.h1 - d1 * t.h2);
-  const int64_t den = t.h1 * t.h2 * (t.h1 + t.h2);
-  return p0 + DivRound(num, den);
-}
-}  // namespace
-
-void PredictPosition(const QuantizationParams& p, const History& hist, const Timing& t,
-                     Prediction* out) {
-  for (int a = 0; a < 3; ++a) {
-    int64_t v = Extrapolate(hist.s[0].pos[a], hist.s[1].pos[a], hist.s[2].pos[a], t);
-    v = std::clamp<int64_t>(v, 0, p.max_index[a]);
-    out->pos[a] = static_cast<uint32_t>(v);
-  }
-}
-
-void PredictRotation(const QuantizationParams& p, const History& hist, const Timing& t,
-                     Prediction* out) {
-  // Align the older samples' signs with the newest (q and -q are the same rotation).
-  std::array<int64_t, 4> r[3];
-  for (int i = 0; i < 3; ++i) {
-    for (int c = 0; c < 4; ++c) r[i][c] = hist.s[i].rot[c];
-  }
-  for (int i = 1; i < 3; ++i) {
-    int64_t dot = 0;
-    for (int c = 0; c < 4; ++c) dot += r[0][c] * r[i][c];
-    if (dot < 0) {
-      for (int c = 0; c < 4; ++c) r[i][c] = -r[i][c];
-    }
-  }
-  const int64_t lim = 4 * static_cast<int64_t>(p.rotation_max);
-  int largest = 0;
-  for (int c = 0; c < 4; ++c) {
-    out->rot[c] = std::clamp<int64_t>(Extrapolate(r[0][c], r[1][c], r[2][c], t), -lim, lim);
-    if (std::llabs(out->rot[c]) > std::llabs(out->rot[largest])) largest = c;
-  }
-  out->largest = largest;
-}
-
-// The predicted smallest-three components for dropped index `largest`.
-std::array<int32_t, 3> PredictedComponents(const QuantizationParams& p, const Prediction& pr,
-                                           int largest) {
-  const int64_t sign = pr.rot[largest] < 0 ? -1 : 1;
-  std::array<int32_t, 3> c{};
-  int k = 0;
-  for (int i = 0; i < 4; ++i) {
-    if (i == largest) continue;
-    c[k++] = static_cast<int32_t>(
-        std::clamp<int64_t>(sign * pr.rot[i], -p.rotation_max, p.rotation_max));
-  }
-  return c;
-}
-
-Sample MakeSample(const QuantizedState& q, const std::array<int32_t, 4>& rot4, uint32_t time_ms) {
-  Sample s;
-  for (int a = 0; a < 3; ++a) s.pos[a] = static_cast<int32_t>(q.position[a]);
-  s.rot = rot4;
-  s.time_ms = time_ms;
-  return s;
-}
-
-Sample MakeSample(const QuantizationParams& p, const QuantizedState& q, uint32_t time_ms) {
-  return MakeSample(q, RotationToInt4(p, q.rotation), time_ms);
-}
-
-bool SameLattice(const PreparedState& s, const QuantizationParams& p) {
-  return s.step == p.step && s.rotation_max == p.rotation_max && s.origin[0] == p.origin[0] &&
-         s.origin[1] == p.origin[1] && s.origin[2] == p.origin[2];
-}
-
-History ExtendHistory(const History* base, const Sample& s) {
-  History h;
-  h.s[0] = s;
-  if (base == nullptr) {
-    h.s[1] = h.s[2] = s;
-    h.depth = 1;
-  } else {
-    h.s[1] = base->s[0];
-    h.s[2] = base->s[1];
-    h.depth = static_cast<uint8_t>(std::min(base->depth + 1, 3));
-  }
-  return h;
-}
-
-uint16_t PackParams(const int k[2], const bool mask[2], const int order[2]) {
-  return static_cast<uint16_t>(k[0] | (k[1] << 3) | (mask[0] << 6) | (mask[1] << 7) |
-                               (order[0] << 8) | (order[1] << 10));
-}
-
-bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
-  k[0] = v & 7;
-  k[1] = (v >> 3) & 7;
-  mask[0] = (v >> 6) & 1;
-  mask[1] = (v >> 7) & 1;
-  order[0] = (v >> 8) & 3;
-  order[1] = (v >> 10) & 3;
-  return order[0] <= 2 && order[1] <= 2 && (v >> 12) == 0;
-}
-
-bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const bool mask[2],
-                uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f,
-                bool previous_symbol) {
-  uint32_t v;
-  if (!r.ReadExpGolomb(0, &v)) return false;
-  if (i == 0) {
-    f->id = v;
-  } else {
-    if (v >= UINT32_MAX - *prev_id) return false;
-    f->id = *prev_id + 1 + v;
-  }
-  *prev_id = f->id;
-  uint32_t sym;
-  if (!r.ReadExpGolomb(0, &sym)) return false;
-  const int32_t m = p.rotation_max;
-  if (sym == 1) {  // keyframe
-    f->keyframe = true;
-    for (int a = 0; a < 3; ++a) {
-      uint64_t x;
-      if (!r.ReadBits(p.position_bits[a], &x) || x > p.max_index[a]) return false;
-      f->q.position[a] = static_cast<uint32_t>(x);
-    }
-    uint64_t li;
-    if (!r.ReadBits(2, &li)) return false;
-    f->q.rotation.largest = static_cast<uint8_t>(li);
-    for (int c = 0; c < 3; ++c) {
-      uint64_t x;
-      if (!r.ReadBits(p.rotation_bits, &x) || x > 2 * static_cast<uint64_t>(m)) return false;
-      f->q.rotation.c[c] = static_cast<int32_t>(x) - m;
-    }
-    return true;
-  }
-  if (previous_symbol && sym == 0) {
-    f->previous = true;  // resolved by the decoder: the newest version held below this payload
-  } else {
-    const int64_t distance =
-        previous_symbol ? static_cast<int64_t>(*prev_distance) + UnZigZag(sym - 2)
-        : sym == 0      ? *prev_distance
-                        : static_cast<int64_t>(*prev_distance) + UnZigZag(sym - 1);
-    if (distance < 1 || distance > kMaxReferenceDistance) return false;
-    *prev_distance = static_cast<uint32_t>(distance);
-    f->distance = distance;
-  }
-  bool pos_coded = true, rot_coded = true;
-  if (mask[0] && !r.ReadBit(&pos_coded)) return false;
-  if (mask[1] && !r.ReadBit(&rot_coded)) return false;
-  if (pos_coded) {
-    for (int32_t& x : f->pos_res) {
-      if (!r.ReadSigned(k[0], &x)) return false;
-    }
-  }
-  if (rot_coded) {
-    if (!r.ReadBit(&f->same_index)) return false;
-    if (!f->same_index && !r.ReadBits(2, &f->index)) return false;
-    for (int32_t& x : f->rot_res) {
-      if (!r.ReadSigned(k[1], &x)) return false;
-    }
-  }
-  return true;
-}
-
-bool ReconstructDelta(const QuantizationParams& p, const History& h, const int order[2],
-                      uint32_t time_ms, const RecordFields& f, QuantizedState* q) {
-  Prediction pp, pr;
-  PredictPosition(p, h, MakeTiming(h, order[0], time_ms), &pp);
-  PredictRotation(p, h, MakeTiming(h, order[1], time_ms), &pr);
-  for (int a = 0; a < 3; ++a) {
-    const int64_t x = static_cast<int64_t>(pp.pos[a]) + f.pos_res[a];
-    if (x < 0 || x > p.max_index[a]) return false;
-    q->position[a] = static_cast<uint32_t>(x);
-  }
-  const int li = f.same_index ? pr.largest : static_cast<int>(f.index);
-  const std::array<int32_t, 3> pc = PredictedComponents(p, pr, li);
-  q->rotation.largest = static_cast<uint8_t>(li);
-  const int32_t m = p.rotation_max;
-  for (int c = 0; c < 3; ++c) {
-    const int64_t x = static_cast<int64_t>(pc[c]) + f.rot_res[c];
-    if (x < -m || x > m) return false;
-    q->rotation.c[c] = static_cast<int32_t>(x);
-  }
-  return true;
-}
-
-}  // namespace delta_internal
 
 using namespace delta_internal;  // NOLINT
-
-// ================================ Velocities (format 12) ================================
-
-namespace {
-// Bits of one velocity group (3 components) at k.
-int VelocityGroupBits(const std::array<int32_t, 3>& c, int k) {
-  int bits = 0;
-  for (int32_t x : c) bits += ExpGolombBits(ZigZag(x), k);
-  return bits;
-}
-constexpr int VelocityK(int index) { return 2 * index + 1; }
-constexpr uint16_t kVelocityParamsShift = 12;
-}  // namespace
 
 // ================================ Encoder ================================
 
 DeltaEncoder::DeltaEncoder(const QuantizationParams& params, const DeltaEncoderOptions& options)
     : params_(params), options_(options), records_(kPacketRecords) {
-  if (options_.velocities) {  // format 12 has no such symbol, nor record times
-    options_.previous_reference = false;
-    options_.record_times = false;
-  }
-  if (options_.record_times) options_.previous_reference = true;  // format 14 extends 13
   // A truth that quantises to a state lies within the quantisation error of that state's
   // dequantised value: half a cell's diagonal in position, the rotation bound in angle. The
   // 1 % slack only makes Need quantise a little more often than needed (the exact lattice
@@ -286,15 +50,6 @@ const DeltaEncoder::Entry* DeltaEncoder::NewestAcked(const Track& t) const {
 }
 
 void DeltaEncoder::ChooseParams() {
-  for (int g = 0; g < 2 && options_.velocities; ++g) {
-    double best = std::numeric_limits<double>::infinity();
-    for (int i = 0; i < 4; ++i) {
-      if (velocity_costs_[g][i] > 0 && velocity_costs_[g][i] < best) {
-        best = velocity_costs_[g][i];
-        velocity_k_[g] = i;
-      }
-    }
-  }
   for (int f = 0; f < 2; ++f) {
     double best = std::numeric_limits<double>::infinity();
     for (int o = 0; o < 3; ++o) {
@@ -333,7 +88,6 @@ void DeltaEncoder::Begin(std::span<uint8_t> out, uint32_t time_ms) {
   packet_costs_ = CostTable{};
   packet_max_zigzag_[0] = packet_max_zigzag_[1] = 0;
   packet_residuals_[0] = packet_residuals_[1] = 0;
-  for (auto& g : packet_velocity_costs_) std::fill(std::begin(g), std::end(g), 0.0);
   ChooseParams();
   writer_ = out.size() > kStreamStart ? BitWriter(out.subspan(kStreamStart)) : BitWriter();
 }
@@ -355,14 +109,8 @@ PreparedState PrepareState(const QuantizationParams& params, const EntityState& 
   return s;
 }
 
-bool DeltaEncoder::AddAt(const EntityState& truth, const PreparedState* prepared,
-                         uint32_t record_time_ms) {
-  if (!options_.record_times || time_ms_ - record_time_ms > kMaxRecordAgeMs) return false;
-  return AddRecord(truth, prepared, nullptr, record_time_ms);
-}
-
-bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prepared,
-                             const EntityVelocity* velocity, uint32_t record_time_ms) {
+bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) {
+  const uint32_t record_time_ms = time_ms_;  // the time the record holds
   if (phase_ != Phase::kOpen || out_.size() <= kStreamStart) return false;
   const uint32_t id = truth.entity_id;
   if (count_ > 0 && id <= last_id_) return false;
@@ -399,7 +147,6 @@ bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prep
   // Bit positions after each part (the breakdown of stats().record_part_bits).
   size_t at_id = w.bit_position(), at_ref = at_id, at_mask = at_id, at_pos = at_id;
   uint32_t distance = 0;
-  bool previous = false;  // format 13: coded as "the previous version"
   // Residual statistics of this record, committed only if it fits.
   bool sample = false;  // add_full / add_masked filled (one delta record in kStatsSampleEvery)
   double add_full[2][3][8];
@@ -419,19 +166,10 @@ bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prep
     }
   } else {
     distance = counter_ - base_entry->counter;
-    uint32_t sym;
-    if (options_.previous_reference) {
-      // Format 13: "the previous version" when no newer version of the entity was put in a
-      // payload since the reference (then the decoder's newest below this payload is it).
-      previous = &track.ring[(track.next + kDeltaBaselineWindow - 1) % kDeltaBaselineWindow] ==
-                 base_entry;
-      sym = previous ? 0
-                     : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 2;
-    } else {
-      sym = distance == prev_distance_
-                ? 0
-                : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
-    }
+    const uint32_t sym =
+        distance == prev_distance_
+            ? 0
+            : ZigZag(static_cast<int32_t>(distance) - static_cast<int32_t>(prev_distance_)) + 1;
     ok = ok && w.WriteExpGolomb(sym, 0);
     at_ref = w.bit_position();
 
@@ -508,41 +246,14 @@ bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prep
     }
   }
   const size_t at_rot = w.bit_position();
-  // Format 14: the record's time, back from the payload's.
-  if (options_.record_times) {
-    const uint32_t offset = time_ms_ - record_time_ms;  // <= kMaxRecordAgeMs (AddAt)
-    ok = ok && w.WriteBit(offset != 0);
-    if (offset != 0) ok = ok && w.WriteExpGolomb(offset - 1, kRecordTimeK);
-  }
-  const size_t at_time = w.bit_position();
-  // Format 12: the velocity, absolute.
-  QuantizedVelocity qv;
-  double add_velocity[2][4] = {};
-  if (options_.velocities) {
-    if (velocity != nullptr) qv = QuantizeVelocity(*velocity);
-    const bool moving = qv.moving();
-    ok = ok && w.WriteBit(moving);
-    if (moving) {
-      for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(qv.linear[a], VelocityK(velocity_k_[0]));
-      for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(qv.angular[a], VelocityK(velocity_k_[1]));
-      for (int i = 0; i < 4; ++i) {
-        add_velocity[0][i] = VelocityGroupBits(qv.linear, VelocityK(i));
-        add_velocity[1][i] = VelocityGroupBits(qv.angular, VelocityK(i));
-      }
-    }
-  }
   if (!ok) {
     writer_.Rewind(mark);
     return false;
   }
-  for (int g = 0; g < 2; ++g) {
-    for (int i = 0; i < 4; ++i) packet_velocity_costs_[g][i] += add_velocity[g][i];
-  }
 
   // Committed: record the state as sent-in-this-payload.
   last_bits_[kRecordPartId] = static_cast<uint32_t>(at_id - mark);
-  last_bits_[kRecordPartReference] =
-      static_cast<uint32_t>(at_ref - at_id) + static_cast<uint32_t>(at_time - at_rot);
+  last_bits_[kRecordPartReference] = static_cast<uint32_t>(at_ref - at_id);
   last_bits_[kRecordPartKeyframe] = keyframe ? static_cast<uint32_t>(at_rot - at_ref) : 0;
   last_bits_[kRecordPartMask] = keyframe ? 0 : static_cast<uint32_t>(at_mask - at_ref);
   last_bits_[kRecordPartPosition] = keyframe ? 0 : static_cast<uint32_t>(at_pos - at_mask);
@@ -556,7 +267,7 @@ bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prep
     if (refresh) ++stats_.refresh_keyframes;
     if (refresh || track.next > 0) track.sends_since_keyframe = 0;
   } else {
-    if (!previous) prev_distance_ = distance;
+    prev_distance_ = distance;
     ++track.sends_since_keyframe;
     for (int f = 0; f < 2; ++f) {
       for (int o = 0; sample && o < 3; ++o) {
@@ -586,7 +297,6 @@ bool DeltaEncoder::AddRecord(const EntityState& truth, const PreparedState* prep
     e.rotation = prepared->rotation;
   }
   e.hist = ExtendHistory(keyframe ? nullptr : &base_hist, MakeSample(q, prepared->rot4, record_time_ms));
-  e.velocity = qv;
   pending_ids_.emplace_back(id, slot);
   payload_used_ = true;
   last_id_ = id;
@@ -598,22 +308,10 @@ size_t DeltaEncoder::Finish() {
   if (phase_ != Phase::kOpen || count_ == 0) return 0;
   phase_ = Phase::kFinished;
   uint8_t* p = out_.data();
-  p[0] = options_.velocities            ? kVelocityDeltaStateFormat
-         : options_.record_times       ? kTimedDeltaStateFormat
-         : options_.previous_reference ? kPreviousDeltaStateFormat
-                                       : kDeltaStateFormat;
+  p[0] = kDeltaStateFormat;
   StoreU32LE(p + 1, time_ms_);
   StoreU16LE(p + 5, static_cast<uint16_t>(counter_));
-  uint16_t params = PackParams(k_, mask_, order_);
-  if (options_.velocities) {
-    params |= static_cast<uint16_t>((velocity_k_[0] | (velocity_k_[1] << 2)) << kVelocityParamsShift);
-    for (int g = 0; g < 2; ++g) {
-      for (int i = 0; i < 4; ++i) {
-        velocity_costs_[g][i] = 0.5 * velocity_costs_[g][i] + packet_velocity_costs_[g][i];
-      }
-    }
-  }
-  StoreU16LE(p + 7, params);
+  StoreU16LE(p + 7, PackParams(k_, mask_, order_));
   uint8_t cnt[5];
   const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
   std::memcpy(p + kDeltaHeaderSize, cnt, cnt_size);
@@ -687,8 +385,6 @@ void DeltaEncoder::OnPacketAcked(uint16_t packet_sequence) {
       t.acked.has_float = e.has_float;
       t.acked.position = e.position;
       t.acked.rotation = e.rotation;
-      t.acked.velocity = e.velocity;
-      t.acked.time_ms = e.hist.s[0].time_ms;
     }
   }
 }
@@ -720,87 +416,6 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   return UpdateNeed::kSend;
 }
 
-DeltaEncoder::UpdateNeed DeltaEncoder::NeedExtrapolated(uint32_t id, const EntityState& truth,
-                                                        float pos_threshold_m,
-                                                        float rot_threshold_deg, double now,
-                                                        double resend_after_s,
-                                                        uint32_t time_ms) const {
-  const Track* track = tracks_.Find(id);
-  if (track == nullptr) return UpdateNeed::kSend;
-  const Track& t = *track;
-  auto moving = [&](const auto& held) { return options_.velocities && held.velocity.moving(); };
-  const bool acked_moving = t.newest_acked != kNoSlot && moving(t.acked);
-  const Entry* in_flight = nullptr;
-  if (t.newest_sent != kNoSlot) {
-    const Entry& newest = t.ring[t.newest_sent];
-    if (!newest.acked && now - newest.sent_at < resend_after_s) in_flight = &newest;
-  }
-  const bool flight_moving = in_flight != nullptr && moving(*in_flight);
-  if (!acked_moving && !flight_moving) {
-    return Need(id, truth, pos_threshold_m, rot_threshold_deg, now, resend_after_s);
-  }
-  // A moving held state, extrapolated to `time_ms` the way a receiver shows it.
-  const double pos2 = static_cast<double>(pos_threshold_m) * pos_threshold_m;
-  const double min_dot = std::cos(static_cast<double>(rot_threshold_deg) * (std::numbers::pi / 360.0));
-  auto shown_within = [&](const auto& held, uint32_t held_time_ms) {
-    if (!held.has_float) {
-      held.position = DequantizePosition(params_, held.q.position);
-      held.rotation = DequantizeRotation(params_, held.q.rotation);
-      held.has_float = true;
-    }
-    EntityState base;
-    base.position = held.position;
-    base.rotation = held.rotation;
-    const double dt = static_cast<int32_t>(time_ms - held_time_ms) / 1000.0;
-    const EntityState shown = ExtrapolateState(base, DequantizeVelocity(held.velocity), dt);
-    const double dx = static_cast<double>(shown.position.x) - truth.position.x;
-    const double dy = static_cast<double>(shown.position.y) - truth.position.y;
-    const double dz = static_cast<double>(shown.position.z) - truth.position.z;
-    if (dx * dx + dy * dy + dz * dz > pos2) return false;
-    const Quatf& a = shown.rotation;
-    const Quatf& b = truth.rotation;
-    const double dot = static_cast<double>(a.x) * b.x + static_cast<double>(a.y) * b.y +
-                       static_cast<double>(a.z) * b.z + static_cast<double>(a.w) * b.w;
-    return std::fabs(dot) >= min_dot;
-  };
-  if (t.newest_acked != kNoSlot) {
-    if (acked_moving) {
-      if (shown_within(t.acked, t.acked.time_ms)) return UpdateNeed::kExtrapolatedWithin;
-    } else {
-      WithinThresholds within(params_, truth, pos2, min_dot, lattice_reach2_, lattice_min_dot_);
-      if (within(t.acked)) return UpdateNeed::kAckedWithin;
-    }
-  }
-  if (in_flight != nullptr) {
-    if (flight_moving) {
-      if (shown_within(*in_flight, in_flight->hist.s[0].time_ms)) return UpdateNeed::kInFlightWithin;
-    } else {
-      WithinThresholds within(params_, truth, pos2, min_dot, lattice_reach2_, lattice_min_dot_);
-      if (within(*in_flight)) return UpdateNeed::kInFlightWithin;
-    }
-  }
-  return UpdateNeed::kSend;
-}
-
-bool DeltaEncoder::NewestSent(uint32_t id, EntityState* state, EntityVelocity* velocity,
-                              uint32_t* time_ms) const {
-  const Track* track = tracks_.Find(id);
-  if (track == nullptr || track->newest_sent == kNoSlot) return false;
-  const Entry& e = track->ring[track->newest_sent];
-  if (!e.valid || !e.sent) return false;
-  if (!e.has_float) {
-    e.position = DequantizePosition(params_, e.q.position);
-    e.rotation = DequantizeRotation(params_, e.q.rotation);
-    e.has_float = true;
-  }
-  state->entity_id = id;
-  state->position = e.position;
-  state->rotation = e.rotation;
-  *velocity = DequantizeVelocity(e.velocity);
-  *time_ms = e.hist.s[0].time_ms;
-  return true;
-}
-
 // ================================ Decoder ================================
 
 DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities)
@@ -809,32 +424,18 @@ DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities
 void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
 
 Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed = Status::Malformed("malformed format-2/12/13/14 state payload");
+  const Status malformed = Status::Malformed("malformed format-2 state payload");
   auto fail = [&]() {
     ++stats_.malformed;
     return malformed;
   };
-  if (payload.size() < kDeltaHeaderSize + 1 ||
-      (payload[0] != kDeltaStateFormat && payload[0] != kVelocityDeltaStateFormat &&
-       payload[0] != kPreviousDeltaStateFormat && payload[0] != kTimedDeltaStateFormat)) {
-    return fail();
-  }
-  const bool velocities = payload[0] == kVelocityDeltaStateFormat;
-  const bool record_times = payload[0] == kTimedDeltaStateFormat;
-  const bool previous_symbol = payload[0] == kPreviousDeltaStateFormat || record_times;
+  if (payload.size() < kDeltaHeaderSize + 1 || payload[0] != kDeltaStateFormat) return fail();
   const uint32_t time_ms = LoadU32LE(payload.data() + 1);
   const uint16_t counter16 = LoadU16LE(payload.data() + 5);
   int k[2];
   bool mask[2];
   int order[2];
-  uint16_t params = LoadU16LE(payload.data() + 7);
-  int velocity_k[2] = {0, 0};
-  if (velocities) {
-    velocity_k[0] = VelocityK((params >> kVelocityParamsShift) & 3);
-    velocity_k[1] = VelocityK((params >> (kVelocityParamsShift + 2)) & 3);
-    params &= (uint16_t{1} << kVelocityParamsShift) - 1;
-  }
-  if (!UnpackParams(params, k, mask, order)) return fail();
+  if (!UnpackParams(LoadU16LE(payload.data() + 7), k, mask, order)) return fail();
   uint32_t count = 0;
   const size_t n = GetVarint32(payload.subspan(kDeltaHeaderSize), &count);
   if (n == 0 || count == 0) return fail();
@@ -853,57 +454,23 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
   for (uint32_t i = 0; i < count; ++i) {
     Staged s;
     RecordFields f;
-    if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f, previous_symbol)) {
-      return fail();
-    }
+    if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f)) return fail();
     s.id = f.id;
     s.time_ms = time_ms;
-    if (record_times) {  // format 14: the record's own time
-      bool own = false;
-      if (!r.ReadBit(&own)) return fail();
-      uint32_t back = 0;
-      if (own && !r.ReadExpGolomb(kRecordTimeK, &back)) return fail();
-      if (own && back >= kMaxRecordAgeMs) {
-        ++stats_.record_times_refused;
-        return fail();
-      }
-      s.time_ms = time_ms - (own ? back + 1 : 0);
-    }
-    if (velocities) {
-      bool moving = false;
-      if (!r.ReadBit(&moving)) return fail();
-      for (int a = 0; a < 6 && moving; ++a) {
-        int32_t x = 0;
-        if (!r.ReadSigned(velocity_k[a / 3], &x) || x < -kMaxVelocityIndex || x > kMaxVelocityIndex) {
-          return fail();
-        }
-        (a < 3 ? s.velocity.linear[a] : s.velocity.angular[a - 3]) = x;
-      }
-    }
     if (f.keyframe) {
       s.keyframe = true;
       s.q = f.q;
       s.resolved = true;
       s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, s.time_ms));
     } else {
-      s.reference = f.previous ? -1 : counter - f.distance;
-      // Resolve the reference: exact payload counter match (format 13's "previous": the highest
-      // counter held below this payload's, at most kMaxReferenceDistance below), or the record
-      // is skipped.
+      s.reference = counter - f.distance;
+      // Resolve the reference: exact payload counter match, or the record is skipped.
       const Entry* base = nullptr;
       auto it = tracks_.find(s.id);
       if (it != tracks_.end()) {
         s.track = &it->second;
         for (const Entry& e : it->second.ring) {
-          if (!e.valid) continue;
-          if (f.previous ? e.counter < counter && (base == nullptr || e.counter > base->counter)
-                         : e.counter == s.reference) {
-            base = &e;
-          }
-        }
-        if (f.previous && base != nullptr) {
-          if (counter - base->counter > kMaxReferenceDistance) base = nullptr;
-          else s.reference = base->counter;
+          if (e.valid && e.counter == s.reference) base = &e;
         }
       }
       if (base != nullptr) {
@@ -925,8 +492,6 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
   ++stats_.payloads;
   out->time_ms = time_ms;
   last_references_.clear();
-  if (velocities) out->velocities.resize(out->states.size());
-  if (record_times) out->times_ms.resize(out->states.size(), time_ms);
   for (const Staged& s : staged_) {
     if (!s.resolved) {
       ++stats_.unresolved_references;
@@ -951,8 +516,6 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     StoreVersion(t.ring, &Entry::counter, counter, s.hist);
     if (OutputIfNewer(params_, s.id, s.q, counter, &t.newest_output, out)) {
       ++stats_.entities;
-      if (velocities) out->velocities.push_back(DequantizeVelocity(s.velocity));
-      if (record_times) out->times_ms.push_back(s.time_ms);
     } else {
       ++stats_.stale_skipped;
     }

@@ -50,7 +50,6 @@
 #include "protocol/quantize.h"
 #include "protocol/state_codec.h"
 #include "protocol/status.h"
-#include "protocol/velocity.h"
 
 namespace edgephys {
 
@@ -62,49 +61,11 @@ inline constexpr uint32_t kMaxReferenceDistance = 4096;
 // Fixed part of the payload header: format, time, counter, params (then a varint count).
 inline constexpr size_t kDeltaHeaderSize = 1 + 4 + 2 + 2;
 
-// State format 12, "quantized delta with velocities" (docs/protocol.md §5g): format 2 whose
-// params field also names the velocity coding (bits 12-15) and whose every record is followed
-// by the entity's velocity: 1 bit "moving"; if set, 3 linear then 3 angular components, each
-// a signed Exp-Golomb index on a fixed lattice. Velocities are absolute (not predicted), so a
-// record's velocity depends on nothing else in the stream. Receivers extrapolate a state with
-// its velocity for at most kVelocityExtrapolationLimitS and hold the pose reached there; the
-// sender's dead-reckoning test (DeltaEncoder::NeedExtrapolated) models exactly that.
-inline constexpr uint8_t kVelocityDeltaStateFormat =
-    static_cast<uint8_t>(StateFormat::kQuantizedDeltaVelocity);
-// (The velocity lattice and the receiver model: protocol/velocity.h.)
-
-// State format 13, "quantized delta, previous reference" (docs/protocol.md §5h): format 2 whose
-// reference symbol 0 means "the previous version": the newest state of the entity the decoder
-// holds from a payload below this one (at most kMaxReferenceDistance below); 1 is a keyframe and
-// s >= 2 the distance d_prev + unzigzag(s - 2). The encoder uses it when the reference is the
-// newest version of the entity it put in any payload, so every version the decoder may hold
-// between the two is the reference itself. Key-sample rooms send it: their entities' reference
-// distances are irregular, and format 2 spends ~11 bits a record on them.
-inline constexpr uint8_t kPreviousDeltaStateFormat =
-    static_cast<uint8_t>(StateFormat::kQuantizedDeltaPrevious);
-
-// State format 14, "quantized delta, timed records" (docs/protocol.md §5i): format 13 whose every
-// record ends with its own time: 1 bit, 0 = the payload's time; 1 = an offset back from it, in
-// ms, Exp-Golomb (k = 4) of offset - 1, at most kMaxRecordAgeMs. A record's prediction runs to
-// its own time. Key samples at the kink send PhyS's state at the kink, with the time it holds,
-// rather than the present one.
-inline constexpr uint8_t kTimedDeltaStateFormat =
-    static_cast<uint8_t>(StateFormat::kQuantizedDeltaTimed);
-// Largest offset of a format-14 record's time before its payload's (ms); larger is malformed.
-inline constexpr uint32_t kMaxRecordAgeMs = 2000;
-
 struct DeltaEncoderOptions {
   // Force a keyframe after this many sends of an entity since its last keyframe (staggered by
   // entity id). Bounds how long a broken baseline chain can last (see the header comment);
   // 0 disables. Cost: each refresh is a keyframe instead of a delta record.
   uint32_t keyframe_refresh_sends = 120;
-  // Send format 12: every record carries the entity's velocity (Add's `velocity`).
-  bool velocities = false;
-  // Send format 13 (ignored with `velocities`): "the previous version" references.
-  bool previous_reference = false;
-  // Send format 14 (ignored with `velocities`; implies previous_reference): records may hold at
-  // times of their own (AddAt).
-  bool record_times = false;
 };
 
 // Parts of an entity record (DeltaEncoderStats::record_part_bits): the id gap, the reference
@@ -174,24 +135,12 @@ class DeltaEncoder final : public StateEncoder {
   // fit, or if its id is not greater than the previous id in this payload (ids must be added
   // in increasing order; start a new payload otherwise). Out-of-bounds positions are clamped
   // and counted in stats(). Cost O(1); allocates only for an entity never seen before.
-  bool Add(const EntityState& truth) override { return Add(truth, nullptr, nullptr); }
+  bool Add(const EntityState& truth) override { return Add(truth, nullptr); }
   // Add with the quantisation already done: `prepared` = PrepareState(params(), truth) (it
   // must describe `truth`; one made with other parameters, or nullptr, is ignored and the
   // encoder quantises `truth` itself). Saves the quantisation and rotation expansion, and
   // with has_float the dequantisation NeedsUpdate would otherwise do per receiver.
-  // With DeltaEncoderOptions::velocities, `velocity` is the entity's (nullptr: at rest); it is
-  // quantised (QuantizeVelocity) and ignored without that option.
-  bool Add(const EntityState& truth, const PreparedState* prepared,
-           const EntityVelocity* velocity = nullptr) {
-    return AddRecord(truth, prepared, velocity, time_ms_);
-  }
-  // Format 14 (DeltaEncoderOptions::record_times): Add a state that holds at `record_time_ms`
-  // (the sender's clock), not at the payload's time: at most kMaxRecordAgeMs before it and not
-  // after it, else false and nothing written (as without record_times). The record's time costs
-  // 1 bit at the payload's time, 7-13 bits at an offset of 16 ms-1 s; it is counted in the
-  // reference part of last_record_bits(). Entity `id`'s times must increase from one Add to the
-  // next for good prediction.
-  bool AddAt(const EntityState& truth, const PreparedState* prepared, uint32_t record_time_ms);
+  bool Add(const EntityState& truth, const PreparedState* prepared);
   size_t count() const override { return count_; }
   // Completes the payload; returns its size in bytes (0 if nothing was added).
   size_t Finish() override;
@@ -222,32 +171,14 @@ class DeltaEncoder final : public StateEncoder {
   // NeedsUpdate with the reason for "no". kAckedWithin is sticky: it stays the answer for the
   // same `truth` until the entity is sent or forgotten (acknowledgements only make newer states
   // the reference), so a caller may skip asking again while `truth` is unchanged.
-  // kExtrapolatedWithin (NeedExtrapolated only) is not sticky: the held state moves on.
-  enum class UpdateNeed { kSend, kAckedWithin, kInFlightWithin, kExtrapolatedWithin };
+  enum class UpdateNeed { kSend, kAckedWithin, kInFlightWithin };
   UpdateNeed Need(uint32_t id, const EntityState& truth, float pos_threshold_m,
                   float rot_threshold_deg, double now, double resend_after_s) const;
-  // Dead reckoning (format 12): Need, but a held state whose velocity is not zero is compared
-  // where the receiver shows it at `time_ms` (the time of the payload about to be built):
-  // ExtrapolateState from the state's own time. Such a state within the thresholds answers
-  // kExtrapolatedWithin. A held state at rest is compared as Need does (same answers). Without
-  // DeltaEncoderOptions::velocities it is Need. Cost O(1) plus one quaternion exponential per
-  // moving held state looked at; no allocation.
-  UpdateNeed NeedExtrapolated(uint32_t id, const EntityState& truth, float pos_threshold_m,
-                              float rot_threshold_deg, double now, double resend_after_s,
-                              uint32_t time_ms) const;
-
-  // The newest state of entity `id` put in a payload that went out (acknowledged or not): what
-  // the client holds dequantised, its velocity (format 12; else zero) and its time (ms). False
-  // if none.
-  bool NewestSent(uint32_t id, EntityState* state, EntityVelocity* velocity,
-                  uint32_t* time_ms) const;
 
   const DeltaEncoderStats& stats() const { return stats_; }
   // The bits by part of the record the last successful Add wrote (DeltaRecordPart).
   const std::array<uint32_t, kRecordPartCount>& last_record_bits() const { return last_bits_; }
   const QuantizationParams& params() const { return params_; }
-  // True when this encoder sends format 14 (AddAt takes record times).
-  bool record_times() const { return options_.record_times; }
 
   // Implementation types (public for the shared prediction code in delta_codec.cc).
   struct Sample {
@@ -273,7 +204,6 @@ class DeltaEncoder final : public StateEncoder {
     mutable Vec3f position;
     mutable Quatf rotation;
     History hist;
-    QuantizedVelocity velocity;  // format 12 only (else zero)
   };
   static constexpr int8_t kNoSlot = -1;
   struct Track {
@@ -289,8 +219,6 @@ class DeltaEncoder final : public StateEncoder {
       mutable bool has_float = false;
       mutable Vec3f position;
       mutable Quatf rotation;
-      QuantizedVelocity velocity;
-      uint32_t time_ms = 0;
     } acked;
     int8_t newest_sent = kNoSlot;   // ring slot of the sent entry with the highest counter
   };
@@ -308,8 +236,6 @@ class DeltaEncoder final : public StateEncoder {
 
   const Entry* NewestAcked(const Track& t) const;
   void ChooseParams();
-  bool AddRecord(const EntityState& truth, const PreparedState* prepared,
-                 const EntityVelocity* velocity, uint32_t record_time_ms);
 
   QuantizationParams params_;
   DeltaEncoderOptions options_;
@@ -330,11 +256,6 @@ class DeltaEncoder final : public StateEncoder {
   CostTable packet_costs_;
   uint32_t packet_max_zigzag_[2] = {0, 0};
   uint64_t packet_residuals_[2] = {0, 0};
-  // Format 12: velocity coding cost per group (0 linear, 1 angular) and k index (k = 2i + 1),
-  // decayed per payload like costs_, and this payload's additions; the k indices in use.
-  double velocity_costs_[2][4] = {};
-  double packet_velocity_costs_[2][4] = {};
-  int velocity_k_[2] = {1, 1};
 
   // Current payload.
   std::span<uint8_t> out_;
@@ -361,18 +282,14 @@ struct DeltaDecoderStats {
   uint64_t unresolved_references = 0;  // records skipped: reference not held (see header)
   uint64_t stale_skipped = 0;          // records decoded but older than the output state
   uint64_t capacity_dropped = 0;       // keyframes for new entities beyond max_entities
-  // Format 14: payloads refused for a record time offset beyond kMaxRecordAgeMs (also counted
-  // in `malformed`).
-  uint64_t record_times_refused = 0;
 };
 
-// Receiver side, one per format-2, format-12, format-13 or format-14 stream (the payload's first
-// byte says which; format 12 also fills StateBatch::velocities, format 14 StateBatch::times_ms).
+// Receiver side, one per format-2 stream.
 class DeltaDecoder {
  public:
   explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
 
-  // Decodes one format-2, -12, -13 or -14 payload (untrusted). On success sets out->time_ms and APPENDS the
+  // Decodes one format-2 payload (untrusted). On success sets out->time_ms and APPENDS the
   // decoded states that are newer than any state output before for their entity (in
   // increasing id order). Malformed input (truncation, trailing bits, bad header, values out
   // of range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder are
@@ -411,7 +328,6 @@ class DeltaDecoder {
     Track* track = nullptr;  // the entity's track if it existed when resolved (node-stable)
     QuantizedState q;
     DeltaEncoder::History hist;
-    QuantizedVelocity velocity;
     uint32_t time_ms = 0;  // the time the record holds
   };
 

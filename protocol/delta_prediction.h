@@ -55,7 +55,6 @@ struct RecordFields {
   bool keyframe = false;
   QuantizedState q;            // keyframe only
   int64_t distance = 0;        // delta only: payload counters (format 2) or ticks (format 9)
-  bool previous = false;       // format 13: the reference is the previous version (no distance)
   bool same_index = true;      // delta: the rotation's largest component is the predicted one
   uint64_t index = 0;          // delta: otherwise, this one
   int32_t pos_res[3] = {0, 0, 0};
@@ -64,11 +63,9 @@ struct RecordFields {
 // Reads record `i` of a payload with coding parameters k/mask (untrusted input): false when
 // malformed (truncated, ids not increasing, values out of range, distance outside
 // 1..kMaxReferenceDistance). `prev_id` and `prev_distance` carry the record-to-record context
-// (start at 0 and 1). `previous_symbol` (format 13): reference symbol 0 is "the previous
-// version" (f->previous) and s >= 2 a distance d_prev + unzigzag(s - 2).
+// (start at 0 and 1).
 bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const bool mask[2],
-                uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f,
-                bool previous_symbol = false);
+                uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f);
 // A delta record's state from its reference's history, predicted at `time_ms` with the given
 // orders; false when the result falls outside the lattice (malformed input).
 bool ReconstructDelta(const QuantizationParams& p, const History& h, const int order[2],

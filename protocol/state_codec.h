@@ -39,16 +39,6 @@ enum class StateFormat : uint8_t {
   kPhoton = 3,
   kPaper = 4,
   kSoftBody = 5,
-  // Format 2 with each entity's linear and angular velocity (protocol/delta_codec.h,
-  // DeltaEncoderOptions::velocities): receivers extrapolate with them (dead reckoning).
-  kQuantizedDeltaVelocity = 12,
-  // Format 2 whose records may name their reference as "the previous version" (protocol/
-  // delta_codec.h, DeltaEncoderOptions::previous_reference): key-sample rooms, whose entities'
-  // reference distances are irregular.
-  kQuantizedDeltaPrevious = 13,
-  // Format 13 whose records may each hold at a time of their own, up to 2 s before the payload's
-  // (protocol/delta_codec.h, DeltaEncoderOptions::record_times): key samples sent at the kink.
-  kQuantizedDeltaTimed = 14,
 };
 
 // Writes entity states into datagram payloads. Usage per payload:
@@ -99,14 +89,6 @@ class FloatStateEncoder final : public ByteStateEncoder {
 struct StateBatch {
   uint32_t time_ms = 0;
   std::vector<EntityState> states;  // reused by the caller between decodes
-  // Format 12 only: velocities[i] is states[i]'s. A format-12 decode first pads it with zeros
-  // to states.size(), then appends one per state it appends; other formats leave it alone
-  // (callers that reuse a batch clear both).
-  std::vector<EntityVelocity> velocities;
-  // Format 14 only: times_ms[i] is the time states[i] holds (ms, the sender's clock, at most
-  // kMaxRecordAgeMs before time_ms). Padded and appended like `velocities`; other formats leave
-  // it alone (their states hold at time_ms).
-  std::vector<uint32_t> times_ms;
 };
 
 // Decodes the stateless formats (format 1). Untrusted input: kMalformed on truncation,

@@ -29,7 +29,7 @@ struct EntityState {
   Quatf rotation;   // unit quaternion
 };
 
-// An entity's velocity as carried by format 12: m/s and rad/s, room (world) frame.
+// An entity's velocity: m/s and rad/s, room (world) frame.
 struct EntityVelocity {
   Vec3f linear;
   Vec3f angular;

@@ -21,7 +21,7 @@
 #include <set>
 #include <thread>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "protocol/container_builder.h"
 #include "relay/physics_link.h"
 

@@ -72,17 +72,6 @@ struct Entity {
   // Format 9 rooms (ReplicationConfig::shared_encoding): the entity's recent versions and this
   // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
   std::shared_ptr<SharedEntity> shared;
-  // Rooms with ReplicationConfig::hermite_max_interval_s or key_sample_threshold_m: PhyS's recent
-  // states of a simulated entity (the time each holds, pose), a ring of up to kRecentStates, for the
-  // interpolation checks.
-  static constexpr size_t kRecentStates = 32;
-  struct RecentState {
-    double t = 0;  // Entity::state_time of the state
-    Vec3f position;
-    Quatf rotation;
-  };
-  std::vector<RecentState> recent;
-  uint32_t recent_next = 0;  // slot of the next push
 };
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;
@@ -97,9 +86,6 @@ struct ReplicationFrame {
   std::vector<const Entity*> by_id;  // every entity, by increasing id
   std::vector<const Entity*> soft;   // soft bodies with particles, by increasing id
   std::vector<Vec3f> hands;          // positions of the Hand entities (soft-body touch test)
-  // A running mean of how long PhyS's states take to reach the relay (arrival - the time they
-  // hold, Room::ObservePhysicsLag), s; < 0 until an embedded world's first output.
-  double physics_lag_s = -1;
   // Lockstep rooms (relay/lockstep.h): the room's group, whose canonical payloads of this tick
   // its receivers in lockstep are sent; null otherwise.
   std::shared_ptr<LockstepGroup> lockstep;

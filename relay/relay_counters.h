@@ -78,17 +78,6 @@ struct RelayCounters {
   Counter lockstep_leaves{0};
   Counter lockstep_rejoins{0};
   Counter lockstep_forced_keyframes{0};  // entities a rejoin made the canonical stream keyframe
-  // Key samples (ReplicationConfig::key_sample_threshold_m), per receiver: ambient PhyS bodies
-  // found due because the straight line a receiver interpolates strayed from PhyS's states in
-  // between, or because key_sample_max_interval_s passed (or none was sent yet).
-  Counter key_samples_strayed{0};
-  Counter key_samples_max_interval{0};
-  // Format 2/13 entity records sent, and their bits by part (DeltaRecordPart: id, reference,
-  // keyframe, mask, position, rotation), by why they went: [0] their class's schedule, [1] a key
-  // sample whose line strayed, [2] one at the max interval. Where a state's bytes go
-  // read by multiobject, not exported.
-  std::array<Counter, 3> state_records{};
-  std::array<std::array<Counter, 6>, 3> state_record_bits{};
   Counter reliable_resends{0};
   Counter reliable_messages_received{0};
   Counter connections_accepted{0};

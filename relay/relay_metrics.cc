@@ -196,13 +196,6 @@ const FamilySpec kFamilies[] = {
      CounterSource{&C::lockstep_forced_keyframes}},
     {"edgephys_entity_updates_received_total", "Entity states accepted from their owners.",
      CounterSource{&C::entity_updates_received}},
-    {"edgephys_key_samples_strayed_total",
-     "Key samples (--key-samples) found due because a receiver's straight line strayed from "
-     "PhyS's states, per receiver.",
-     CounterSource{&C::key_samples_strayed}},
-    {"edgephys_key_samples_max_interval_total",
-     "Key samples found due because the max interval passed (or none was sent), per receiver.",
-     CounterSource{&C::key_samples_max_interval}},
     {"edgephys_reliable_resends_total", "Reliable units sent more than once.",
      CounterSource{&C::reliable_resends}},
     {"edgephys_reliable_messages_received_total",

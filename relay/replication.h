@@ -95,10 +95,10 @@ struct ReplicationConfig {
   // sends format 2. The room quantises, predicts and codes each (entity, baseline) delta once per
   // tick for every receiver on that baseline; each receiver only appends bits. Clients learn the
   // format from Joined. The default: at 100 users in one room 4.9x less relay CPU per delivered
-  // update than format 2, -4 % bytes per update, a fifth of the relay's peak RSS. Memory: ~7 KiB per entity per room at 60 Hz (the room's version window) plus 68
-  // bytes per (receiver, entity), against ~2.3 KiB per (receiver, entity) for format 2
-  // (protocol/shared_delta_codec.h, protocol/delta_codec.h). Ignored (the format-2 family is
-  // sent) when a policy of that family is asked for: velocities, key samples, stamp_state_time.
+  // update than format 2, -4 % bytes per update, a fifth of the relay's peak RSS. Memory: ~7 KiB
+  // per entity per room at 60 Hz (the room's version window) plus 68 bytes per (receiver,
+  // entity), against ~2.3 KiB per (receiver, entity) for format 2
+  // (protocol/shared_delta_codec.h, protocol/delta_codec.h).
   bool shared_encoding = true;
   // Format 9 rooms without a bandwidth budget: lockstep receivers (relay/lockstep.h). The room
   // runs one canonical replicator per tick; receivers that acknowledge its payloads within
@@ -107,58 +107,6 @@ struct ReplicationConfig {
   // ticks after the send in every stream of such a room. Off by default.
   bool shared_lockstep = false;
   uint32_t lockstep_ack_ticks = 3;
-  // edgephys mode without shared_encoding: send state format 12 (format 2 plus velocities,
-  // protocol/delta_codec.h) and dead-reckon: a receiver extrapolates each state with its
-  // velocity, and a PhyS-simulated entity outside the critical class is sent only when that
-  // extrapolation (from the newest state the client acknowledged) strays from the truth by
-  // more than the extrapolation thresholds, checked up to `extrapolation_max_hz`. Critical
-  // and non-PhyS entities keep the thresholds above (those with a velocity are compared
-  // extrapolated too). Off by default; clients learn the format from Joined.
-  bool velocities = false;
-  float extrapolation_position_threshold_m = 0.005f;
-  float extrapolation_rotation_threshold_deg = 2.0f;
-  double extrapolation_max_hz = 30;
-  // > 0: instead of dead reckoning, receivers interpolate (cubic Hermite with the sent
-  // velocities as tangents, at a playout delay above this) and a PhyS body outside the critical
-  // class is sent when the curve from the newest state sent to its present state strays from
-  // PhyS's states in between by more than extrapolation_position_threshold_m, or when this
-  // long has passed since the newest state sent while it moves (selective sync still applies).
-  double hermite_max_interval_s = 0;
-  // > 0, edgephys format 2 (no velocities): "key samples" instead of a fixed ambient rate. An
-  // ambient PhyS body is sent when the straight line a receiver interpolates, from the newest
-  // state sent to its present state, strays from PhyS's states in between by more than this
-  // (or by key_sample_rotation_deg), or when key_sample_max_interval_s has passed while it
-  // moves (selective sync still applies). Receivers then play out at that interval (plus
-  // jitter). Times are the times PhyS's states hold (Entity::state_time, the end of the step
-  // on the relay's clock), not when they reached the relay: the check uses them, and PhyS
-  // bodies go in payloads stamped with them (others with the tick's time), so a receiver's
-  // line is the one checked. Cost: per receiver per tick, a check of up to
-  // Entity::kRecentStates states of each ambient body, and a second datagram in ticks that
-  // send both PhyS bodies and other entities. Off by default: it meets the display target on
-  // one of the two scenes only.
-  float key_sample_threshold_m = 0;
-  float key_sample_rotation_deg = 5.0f;
-  double key_sample_max_interval_s = 0.25;
-  // > 0: ambient PhyS bodies are checked for key samples only in the ticks where this clock
-  // (per receiver, on the relay's time) starts a new period, so that their samples share
-  // datagrams (each costs ~55 bytes of headers and seal); the max interval is then checked one
-  // period early, so that no sample is sent later than without it. 0: every tick.
-  double key_sample_check_hz = 30;
-  // Key samples: when a line strays, send the recent PhyS state furthest beyond the thresholds
-  // (the kink), with the time it holds, instead of the present state, so that the receiver's
-  // line passes through the kink (state format 14: records with times of their own). The next
-  // check draws the line from the kink. Off by default.
-  bool key_sample_at_kink = false;
-  // Key samples: stamp PhyS bodies with the time their states hold plus the room's running mean
-  // of how long PhyS's states take to reach the relay (ReplicationFrame::physics_lag_s):
-  // receivers then show each state about when the relay got it, as the fixed rate's tick stamps
-  // do, instead of at the time PhyS computed it for, which the relay learns that much later.
-  // A slowly moving shift keeps every line straight; the check runs on the unshifted times.
-  // Off by default.
-  bool key_sample_arrival_stamp = false;
-  // Format 2 without key samples: stamp PhyS bodies with the time their states hold
-  // (Entity::state_time), in payloads of their own, instead of the tick's time. Off by default.
-  bool stamp_state_time = false;
   // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
   // versions, protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held,
   // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
@@ -170,51 +118,9 @@ struct ReplicationConfig {
   double soft_touched_hz = 24;
 };
 
-// True when `config` asks for a policy of the format-2 family (velocities and dead reckoning,
-// key samples, fixed-rate state-time stamps): those take precedence over `shared_encoding`,
-// since format 9 carries none of what they need.
-inline bool WantsFormat2Family(const ReplicationConfig& config) {
-  return config.velocities || config.key_sample_threshold_m > 0 || config.stamp_state_time;
-}
-
 // True when rooms with `config` send format 9 (the edgephys default).
 inline bool UsesSharedEncoding(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && config.shared_encoding &&
-         !WantsFormat2Family(config);
-}
-
-// True when rooms with `config` send format 12.
-inline bool UsesVelocities(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && config.velocities;
-}
-
-// True when rooms with `config` send format 13 (format 2 with "previous version" references):
-// key samples without velocities.
-inline bool UsesPreviousReference(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && !config.velocities &&
-         config.key_sample_threshold_m > 0;
-}
-// True when rooms with `config` send format 14 (format 13 with records at times of their own):
-// key samples at the kink.
-inline bool UsesRecordTimes(const ReplicationConfig& config) {
-  return UsesPreviousReference(config) && config.key_sample_at_kink;
-}
-
-// True when rooms with `config` keep PhyS's recent states per entity (Entity::recent): the
-// Hermite and key-sample policies check the receivers' curves against them.
-inline bool KeepsRecentStates(const ReplicationConfig& config) {
-  return config.hermite_max_interval_s > 0 || config.key_sample_threshold_m > 0;
-}
-
-// Seconds: the longest a moving PhyS body may go unsent to a receiver in rooms with `config`
-// when the policy sends at irregular intervals (key samples, Hermite checks), which receivers
-// learn in Joined.max_send_interval_s to set their playout delay; 0 for fixed rates and dead
-// reckoning.
-inline double MaxSendIntervalOf(const ReplicationConfig& config) {
-  if (config.mode != ReplicationMode::kEdgephys) return 0;
-  if (config.key_sample_threshold_m > 0) return config.key_sample_max_interval_s;
-  if (config.hermite_max_interval_s > 0) return config.hermite_max_interval_s;
-  return 0;
+  return config.mode == ReplicationMode::kEdgephys && config.shared_encoding;
 }
 
 // True when rooms with `config` run lockstep receivers (relay/lockstep.h).
@@ -271,56 +177,24 @@ class ClientReplicator {
     // thresholds (nothing to send until the version changes); 0 = none.
     uint32_t settled_version = 0;
   };
-  // Beside views_ (same slot), only in paper mode and key-sample rooms (UsesViewExtras).
+  // Beside views_ (same slot), only in paper mode (UsesViewExtras).
   struct ViewExtra {
     EntityState last_sent_state;  // paper mode's significance test
-    double sent_state_time = 0;   // the time the newest state sent was stamped with (s)
     bool ever_sent = false;
   };
-  bool UsesViewExtras() const { return paper_ != nullptr || StampsStateTime(); }
+  bool UsesViewExtras() const { return paper_ != nullptr; }
   void ResetView(uint32_t slot);
   struct Candidate {
     double priority;
     uint32_t id;
     const Entity* entity;
     uint8_t fields;
-    uint8_t cause;  // RelayCounters::state_records' index: schedule, strayed, max interval
-    int8_t kink;    // >= 0: send entity->recent[kink] at its time (format 14), not the state
   };
   // The view of `e` (a slot of views_), made afresh if the slot holds none or another
   // occupant's. May grow views_ (invalidating references to other views).
   View& ViewOf(const Entity& e);
   PriorityClass ClassOf(const Entity& e, double now) const;
   double IntervalOf(PriorityClass c) const;
-  // IntervalOf, but dead-reckoned entities (format 12) are checked at extrapolation_max_hz.
-  double IntervalFor(const Entity& e, PriorityClass c) const;
-  // Whether `e` is dead-reckoned (format 12, PhyS-simulated, not critical).
-  bool DeadReckoned(const Entity& e, PriorityClass c) const;
-  // The velocity format 12 carries for `e`: PhyS's while it moves, nullptr (at rest) for
-  // others and for a body whose state has not changed for a while.
-  const EntityVelocity* VelocityOf(const Entity& e, double now);
-  // The interpolation checks: true when `e` is to be sent. Hermite (hermite_max_interval_s > 0,
-  // format 12) or straight lines (key_sample_threshold_m > 0, format 2).
-  bool HermiteDue(uint32_t id, const Entity& e, double now);
-  // Key samples: whether `e` is due (and why), its newest sent state stamped `sent_state_time`.
-  enum class KeyDue : uint8_t { kNo = 0, kStrayed, kMaxInterval };
-  // With key_sample_at_kink, *kink is the slot of e.recent furthest beyond the thresholds when
-  // the line strayed, else -1.
-  KeyDue KeySampleDue(uint32_t id, const Entity& e, double sent_state_time, int* kink);
-  KeyDue last_due_ = KeyDue::kNo;  // VelocityNeed's last key-sample answer (the record's cause)
-  int last_kink_ = -1;             // and its kink (KeySampleDue)
-  // This tick's records and their bits by part, by cause (RelayCounters::state_records).
-  std::array<uint64_t, 3> records_tick_{};
-  std::array<std::array<uint64_t, 6>, 3> record_bits_tick_{};
-  bool key_check_tick_ = true;     // this tick checks key samples (key_sample_check_hz)
-  double key_check_period_ = -1;   // the key_sample_check_hz period the last check fell in
-  bool KeySampled(const Entity& e, PriorityClass c) const;
-  // Key-sample rooms send PhyS bodies stamped with Entity::state_time, not the tick's time.
-  bool StampsStateTime() const;
-  // The edgephys (format 2 / 12) send decision for `e` of class `cls`.
-  DeltaEncoder::UpdateNeed VelocityNeed(uint32_t id, const Entity& e, const View& v,
-                                        PriorityClass cls, double now, double resend_after,
-                                        RelayCounters& counters);
   // The entity walk, selection and encoding of Tick (connection and out null: the canonical
   // replicator of a lockstep group, whose payloads go to lockstep_capture_).
   void TickEntities(const ReplicationFrame& frame, uint32_t self, double now, double resend_after,
@@ -387,7 +261,6 @@ class ClientReplicator {
   double bytes_per_entity_ = 16;  // running estimate of one encoded entity
   double last_tick_ = -1;
   uint32_t time_ms_ = 0;
-  EntityVelocity velocity_;  // VelocityOf's result
   // Lockstep rooms (UsesLockstep): every replicator sends the receiver's own entities too, so
   // that its stream can match the canonical one's (the client ignores them).
   bool include_own_ = false;

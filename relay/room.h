@@ -85,12 +85,6 @@ class Room {
   // checks (LockstepGroup::BeginTick), after PrepareStates and BuildFrame, before the
   // receivers' ticks. A no-op in other rooms. Room thread.
   void TickLockstep(double now, RelayCounters& counters);
-  // A PhyS output holding at a time `lag_s` before it reached the relay: folded into
-  // frame().physics_lag_s (a running mean, weight 0.05 per output: ~0.3 s at 60 Hz). O(1).
-  void ObservePhysicsLag(double lag_s) {
-    frame_.physics_lag_s =
-        frame_.physics_lag_s < 0 ? lag_s : frame_.physics_lag_s + 0.05 * (lag_s - frame_.physics_lag_s);
-  }
   // Format 9 rooms: the tick clock and body cache; null otherwise (or before the first tick).
   const SharedDeltaRoom* shared_encoding() const { return shared_.get(); }
 

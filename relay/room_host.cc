@@ -37,10 +37,7 @@ constexpr size_t kMaxEarlyStates = 1024;
 uint8_t StateFormatOf(const ReplicationConfig& config) {
   switch (config.mode) {
     case ReplicationMode::kEdgephys:
-      if (UsesSharedEncoding(config)) return kSharedDeltaStateFormat;
-      if (UsesRecordTimes(config)) return kTimedDeltaStateFormat;
-      if (UsesPreviousReference(config)) return kPreviousDeltaStateFormat;
-      return config.velocities ? kVelocityDeltaStateFormat : kDeltaStateFormat;
+      return UsesSharedEncoding(config) ? kSharedDeltaStateFormat : kDeltaStateFormat;
     case ReplicationMode::kPhoton: return kFormatPhoton;
     case ReplicationMode::kPaper: return kFormatPaper;
     case ReplicationMode::kFloat: return 1;
@@ -123,7 +120,6 @@ void RoomHost::SendJoinState(MemberLink& link, uint32_t slot) {
     jb.add_rotation_bound_deg(q.rotation_error_deg);
     jb.add_bounds_min(&bmin);
     jb.add_bounds_max(&bmax);
-    jb.add_max_send_interval_s(static_cast<float>(MaxSendIntervalOf(rc)));
     FinishControl(fbb, jb.Finish());
   }
   (void)link.SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
@@ -373,17 +369,11 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
   // The time the states hold, not their arrival: an asynchronous world's steps arrive a step's
   // computation late and unevenly, and several steps may arrive in one output.
   const double state_time = out.state_time >= 0 ? std::min(out.state_time, now) : now;
-  if (out.state_time >= 0 && !out.moved.empty()) room_.ObservePhysicsLag(now - state_time);
   for (const RoomPhysics::MovedBody& m : out.moved) {
     Entity* e = room_.FindEntity(m.state.entity_id);
     if (e == nullptr || e->physics != PhysicsRole::kSimulated || !IsValidState(m.state)) continue;
     e->state = m.state;
     e->state_time = state_time;
-    if (KeepsRecentStates(room_.config().replication)) {
-      if (e->recent.size() < Entity::kRecentStates) e->recent.resize(Entity::kRecentStates);
-      e->recent[e->recent_next++ % Entity::kRecentStates] = {state_time, m.state.position,
-                                                             m.state.rotation};
-    }
     e->linear_velocity = m.linear;
     e->angular_velocity = m.angular;
     ++e->version;

@@ -383,47 +383,25 @@ TEST(RoomHostSharedEncoding, JoinedCarriesTheFormatAndBeginTickPreparesSharedVer
   }
 }
 
-// The format a room tells its members: format 9 by default, format 2
-// with shared_encoding off; a policy of the format-2 family takes precedence over format 9
-// whatever shared_encoding says: velocities format 12, key samples without velocities format
-// 13, state-time stamps format 2.
-TEST(RoomHostFormats, JoinedCarriesFormat9ByDefaultAndTheFormat2FamilyWhereAPolicyNeedsIt) {
-  struct Variant {
-    bool shared, velocities, key_samples, stamp;
-    uint8_t want;
-  };
-  const Variant variants[] = {
-      {true, false, false, false, kSharedDeltaStateFormat},
-      {false, false, false, false, kDeltaStateFormat},
-      {true, true, false, false, kVelocityDeltaStateFormat},
-      {false, true, false, false, kVelocityDeltaStateFormat},
-      {true, false, true, false, kPreviousDeltaStateFormat},
-      {false, false, true, false, kPreviousDeltaStateFormat},
-      {true, true, true, false, kVelocityDeltaStateFormat},
-      {true, false, false, true, kDeltaStateFormat},
-  };
+// The format a room tells its members: format 9 by default, format 2 with shared_encoding off.
+TEST(RoomHostFormats, JoinedCarriesFormat9ByDefaultAndFormat2WithoutSharedEncoding) {
   EXPECT_TRUE(RoomConfig().replication.shared_encoding);  // the default
-  for (size_t i = 0; i < std::size(variants); ++i) {
-    const Variant& v = variants[i];
+  for (bool shared : {true, false}) {
+    const uint8_t want = shared ? kSharedDeltaStateFormat : kDeltaStateFormat;
     AbuseLimits limits;
     RelayCounters counters;
     ScriptedPlacement placement;
     RoomConfig config;
-    config.replication.shared_encoding = v.shared;
-    config.replication.velocities = v.velocities;
-    if (v.key_samples) config.replication.key_sample_threshold_m = 0.02f;
-    config.replication.stamp_state_time = v.stamp;
+    config.replication.shared_encoding = shared;
     RoomHost host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0);
     RecordingMember a(7);
     ASSERT_TRUE(host.Join(a, 0));
     const auto* joined = a.Of(Body::Joined)[0]->body_as_Joined();
-    EXPECT_EQ(joined->state_format(), v.want) << i;
-    EXPECT_EQ(UsesSharedEncoding(config.replication), v.want == kSharedDeltaStateFormat) << i;
+    EXPECT_EQ(joined->state_format(), want) << shared;
+    EXPECT_EQ(UsesSharedEncoding(config.replication), shared);
     std::vector<MemberLink*> receivers;
     host.BeginTick(1.0, &receivers);  // a format-9 room makes its shared state on its first tick
-    EXPECT_EQ(host.room().shared_encoding() != nullptr, v.want == kSharedDeltaStateFormat) << i;
-    EXPECT_EQ(UsesVelocities(config.replication), v.want == kVelocityDeltaStateFormat) << i;
-    EXPECT_EQ(UsesPreviousReference(config.replication), v.want == kPreviousDeltaStateFormat) << i;
+    EXPECT_EQ(host.room().shared_encoding() != nullptr, shared);
   }
 }
 

@@ -72,9 +72,8 @@ edgephys_status Guarded(F&& body) {
 
 namespace {
 
-// edgephys_client_set_max_playout_delay's upper bound, seconds: the same bound the client puts on
-// a relay's announced send interval (Client::max_send_interval_s).
-constexpr double kMaxPlayoutDelayLimitS = edgephys::kMaxSendIntervalLimitS;
+// edgephys_client_set_max_playout_delay's upper bound, seconds.
+constexpr double kMaxPlayoutDelayLimitS = 4.0;
 
 std::mutex g_registry_mutex;
 std::unordered_set<const edgephys_client*>& Registry() {
@@ -585,12 +584,10 @@ edgephys_status edgephys_client_sample_pose(edgephys_client* client, uint32_t en
     return Fail(EDGEPHYS_E_NOT_FOUND, "no state of that entity has arrived");
   }
   edgephys::SnapshotBuffer& buffer = it->second->buffer;
-  const uint8_t format = client->client->state_format();
   const edgephys::Interpolator how = method == EDGEPHYS_INTERP_AUTO
-                                         ? edgephys::InterpolatorForStateFormat(format)
+                                         ? edgephys::Interpolator::kHermite
                                          : static_cast<edgephys::Interpolator>(method);
-  const edgephys::Pose pose = edgephys::Sample(buffer, buffer.RenderTime(now_s), how,
-                                               edgephys::SampleOptionsForStateFormat(format));
+  const edgephys::Pose pose = edgephys::Sample(buffer, buffer.RenderTime(now_s), how);
   *out = {{pose.position.x, pose.position.y, pose.position.z},
           {pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w}};
   return Ok();

@@ -68,8 +68,8 @@ struct edgephys_client final : edgephys::ClientListener {
     double sender_time_s = 0;
     bool started = false;
   };
-  // The joined room's playout (PlayoutConfigForRoom), and what new tracks get: room_config held
-  // to the application's max_playout_delay_s (CapPlayoutDelay; 0: no limit).
+  // The joined room's playout, and what new tracks get: room_config held to the application's
+  // max_playout_delay_s (CapPlayoutDelay; 0: no limit).
   edgephys::SnapshotBufferConfig room_config;
   edgephys::SnapshotBufferConfig snapshot_config;
   double max_playout_delay_s = 0;
@@ -125,10 +125,7 @@ struct edgephys_client final : edgephys::ClientListener {
   }
   void OnJoined(std::string_view room, uint32_t entity_id_base) override {
     tracks.clear();
-    // Key-sample and Hermite rooms send at irregular intervals: play out behind the longest.
-    room_config = edgephys::PlayoutConfigForRoom(
-        client->state_format(), client->max_send_interval_s(),
-        edgephys::SnapshotBufferConfig{.capacity = snapshot_config.capacity});
+    room_config = edgephys::SnapshotBufferConfig{.capacity = snapshot_config.capacity};
     ApplyPlayoutLimit();
     if (auto* ev = Push(EDGEPHYS_EVENT_JOINED)) {
       ev->player_id = client->player_id();
@@ -173,11 +170,6 @@ struct edgephys_client final : edgephys::ClientListener {
     snap.sender_time_s = track->sender_time_s;
     snap.position = e.state.position;
     snap.rotation = e.state.rotation;
-    if (e.has_velocity) {  // format 12 rooms: true tangents for interpolation and extrapolation
-      snap.has_linear_velocity = snap.has_angular_velocity = true;
-      snap.linear_velocity = e.velocity.linear;
-      snap.angular_velocity = e.velocity.angular;
-    }
     (void)track->buffer.Insert(snap, last_now);
     if (config.queue_state_events) {
       if (auto* ev = Push(EDGEPHYS_EVENT_STATE)) {

@@ -54,7 +54,7 @@ public enum EntityFlags : uint {
 }
 
 public enum ColliderShape : uint { Box = 0, Sphere, Capsule, Cylinder, ConvexHull, TriangleMesh }
-// Auto: what the joined room's state format calls for (LerpSlerp for key-sample rooms, else Hermite).
+// Auto: the recommended method (Hermite).
 public enum Interpolator : uint { LerpSlerp = 0, DualQuatDlb, DualQuatSclerp, Hermite, None, Auto }
 
 [StructLayout(LayoutKind.Sequential)]
@@ -397,7 +397,7 @@ public sealed class Client : IDisposable {
     return Native.edgephys_client_sample_pose(handle_, id, Native.Now(), (uint)method, out t) == Status.Ok;
   }
   // Latency limit for TrySamplePose in seconds: 0 (no limit) or (0, 4]; see
-  // edgephys_client_set_max_playout_delay for what it costs in key-sample rooms.
+  // edgephys_client_set_max_playout_delay for what it costs.
   public void SetMaxPlayoutDelay(double seconds) {
     Native.Check(Native.edgephys_client_set_max_playout_delay(handle_, seconds), "set_max_playout_delay");
   }

@@ -585,29 +585,22 @@ typedef enum edgephys_interpolator {
                                     Physics') */
   EDGEPHYS_INTERP_HERMITE = 3,
   EDGEPHYS_INTERP_NONE = 4,      /* hold the latest snapshot */
-  /* What the joined room's state format calls for (edgephys_client_get_state_format): LERP_SLERP
-   * for key-sample rooms (formats 13 and 14: the relay checks the straight line between
-   * samples), HERMITE otherwise (sent velocities as tangents in format 12, finite differences in
-   * 2 and 9; the best at send rates up to 30 Hz, docs/benchmarks.md "Interpolation"). */
+  /* The recommended method: HERMITE (finite-difference tangents; the most accurate at send
+   * rates up to 30 Hz, docs/benchmarks.md "Interpolation"). */
   EDGEPHYS_INTERP_AUTO = 5
 } edgephys_interpolator;
 
-/* The state format of the joined room, from its Joined message (docs/protocol.md §5): 2, 9
- * (the relay's default), 12 (velocities), 13 or 14 (key samples). EDGEPHYS_E_NOT_FOUND before
+/* The state format of the joined room, from its Joined message (docs/protocol.md §5): 9 (the
+ * relay's default), 2, or an emulation's (3, 4). EDGEPHYS_E_NOT_FOUND before
  * the client first joined a room (then *out is 0); after a leave, the last room's until the next
  * join. Cost O(1). */
 EDGEPHYS_API edgephys_status edgephys_client_get_state_format(edgephys_client* client,
                                                               uint32_t* out);
 
 /* The pose to render for entity `entity_id` at local time `now_s`: received states are kept in
- * a jitter buffer and played out with an adaptive delay (in rooms that send at irregular
- * intervals, key samples or Hermite checks, at least the room's max send interval plus 20 ms
- * behind, from its Joined), interpolated by `method`
+ * a jitter buffer and played out with an adaptive delay, interpolated by `method`
  * (client/interpolation.h explains each). Call once per rendered frame per entity with
- * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived.
- * Rooms whose relay sends key samples (`--key-samples`) check the straight line between them:
- * draw those with EDGEPHYS_INTERP_LERP_SLERP (HERMITE showed 1.4-4.1x the display error's p99
- * on the stirred boxes); EDGEPHYS_INTERP_AUTO picks it for them. */
+ * non-decreasing now_s. EDGEPHYS_E_NOT_FOUND if no state of that entity has arrived. */
 EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client,
                                                          uint32_t entity_id, double now_s,
                                                          uint32_t method,
@@ -616,16 +609,10 @@ EDGEPHYS_API edgephys_status edgephys_client_sample_pose(edgephys_client* client
 /* Holds the playout delay of edgephys_client_sample_pose to at most `max_delay_s` seconds (an
  * application's latency limit), for every entity, at once and in later rooms; 0 (the default)
  * removes the limit. EDGEPHYS_E_INVALID_ARGUMENT unless 0 or in (0, 4] (NaN and infinities
- * too). The price is accuracy where a room sends at irregular intervals: a key-sample room plays
- * out at its max send interval plus 20 ms (0.27 s at the relay's default 0.25 s) because the
- * relay only vouches for the line between samples; held below that, the render time runs ahead
- * of the longer segments and the SDK extrapolates the last line for up to 0.1 s. Measured on the
- * stirred boxes (display p99 against the room's playout, `edgephys-loadgen multiobject
- * --display-playout-limit`): at the default 0.25 s interval a 0.2 s limit
- * costs 1.0-1.1x, a 0.1 s limit 2.8-3.6x; a 0.3 s limit costs 1.2-1.6x at a 0.5 s interval and
- * 1.9-2.5x at 1 s. Keep the limit near the room's interval or ask the operator for a shorter
- * one. Fixed-rate rooms play out adaptively (1.5 send intervals plus jitter, at most 0.3 s), so
- * a limit only matters below that (6 Hz held to 0.1 s: 1.1-1.3x).
+ * too). Rooms play out adaptively (1.5 send intervals plus jitter, at most 0.3 s), so a limit
+ * only matters below that; its price is accuracy, since the render time then runs ahead of the
+ * newest state and the SDK extrapolates for up to 0.1 s (ambient bodies at 6 Hz held to 0.1 s:
+ * 1.1-1.3x the display error's p99, `edgephys-loadgen multiobject --display-playout-limit`).
  * A lower limit moves the render clock forward by at most 10 % of real time (it catches up
  * over a few seconds) or jumps past 1 s of difference. Cost O(entities). */
 EDGEPHYS_API edgephys_status edgephys_client_set_max_playout_delay(edgephys_client* client,

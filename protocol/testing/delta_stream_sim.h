@@ -134,11 +134,9 @@ struct SimConfig {
   int lossless_after_tick = 1 << 30;  // network becomes perfect and in order from this tick on
   bool check_references = true;
   // < 1: each entity goes in a tick with this probability (irregular gaps between an entity's
-  // versions, as key samples make them); the lossless ticks still send every entity.
+  // versions, as a bandwidth budget or selective sync makes them); the lossless ticks still send
+  // every entity.
   double send_probability = 1;
-  // > 0 with options.record_times (format 14): a state sent may be the truth of up to this many
-  // ticks earlier (later than the entity's previous one), added with AddAt at its own time.
-  int record_back_ticks = 0;
 };
 
 // The network the convergence tests share: 150 entities over 400 ticks at 48 Hz, 20 % loss,
@@ -161,8 +159,7 @@ inline SimConfig LossyReorderedSim(uint64_t seed) {
   return c;
 }
 
-// Irregular sends (each entity in a tick with probability `send_probability`, as key samples
-// send): 120 entities over 300 ticks at 60 Hz, lossless, alternating motions, a 0.5 mm lattice
+// Irregular sends (each entity in a tick with probability `send_probability`): 120 entities over 300 ticks at 60 Hz, lossless, alternating motions, a 0.5 mm lattice
 // for even seeds and 1 mm for odd ones; the truth freezes at tick 250, every entity is sent
 // from 260.
 inline SimConfig IrregularSendsSim(uint64_t seed, double send_probability) {
@@ -183,8 +180,6 @@ struct SimResult {
   uint64_t bytes = 0, updates = 0, packets = 0, outputs = 0;
   double max_pos_err = 0, max_rot_err = 0;
   uint64_t bad_references = 0;
-  uint64_t timed_records = 0;   // format 14: outputs whose time was before their payload's
-  uint64_t time_mismatches = 0; // format 14: outputs whose time is not the one sent
   DeltaEncoderStats enc;
   DeltaDecoderStats dec;
   bool converged = false;
@@ -206,7 +201,6 @@ inline SimResult RunStream(const SimConfig& c) {
   struct Sent {
     std::vector<uint8_t> payload;
     std::vector<EntityState> truth;  // sorted by id
-    std::vector<uint32_t> times;     // the time each truth holds (ms)
     uint16_t seq;
     int64_t encode_event;
     int64_t ack_event = -1;
@@ -234,10 +228,6 @@ inline SimResult RunStream(const SimConfig& c) {
   std::vector<bool> have_output(c.entities, false);
   StateBatch batch;
   int64_t counter_base = -1;
-  // record_back_ticks: the truths of the last ticks (front: now) and each entity's last sent tick.
-  const int back = c.options.record_times ? c.record_back_ticks : 0;
-  std::vector<std::deque<EntityState>> past(c.entities);
-  std::vector<int> last_sent_tick(c.entities, -1);
 
   for (int tick = 0; tick < c.ticks; ++tick) {
     const uint32_t time_ms = static_cast<uint32_t>(std::lround(tick * 1000.0 / c.tick_hz));
@@ -255,10 +245,6 @@ inline SimResult RunStream(const SimConfig& c) {
         truth[i].entity_id = static_cast<uint32_t>(i * 3 + 1);  // sparse ids
       }
     }
-    for (int i = 0; i < c.entities && back > 0; ++i) {
-      past[i].push_front(truth[i]);
-      if (past[i].size() > static_cast<size_t>(back) + 1) past[i].pop_back();
-    }
     // Encode all entities, as many payloads as needed.
     auto send = [&](size_t size) {
       if (size == 0) return;
@@ -275,42 +261,28 @@ inline SimResult RunStream(const SimConfig& c) {
       network.push_back({tick + delay, u(rng), counter});
     };
     std::vector<EntityState> in_payload;
-    std::vector<uint32_t> in_times;
     enc.Begin(buf, time_ms);
     for (int i = 0; i < c.entities; ++i) {
       if (c.send_probability < 1 && !lossless && u(rng) >= c.send_probability) continue;
-      // format 14: maybe a past truth (after the entity's previous one), at its own time.
-      int b = 0;
-      if (back > 0 && !lossless) {
-        const int room = std::min<int>(static_cast<int>(past[i].size()) - 1,
-                                       tick - last_sent_tick[i] - 1);
-        if (room > 0 && u(rng) < 0.5) b = 1 + static_cast<int>(rng() % static_cast<uint64_t>(room));
-      }
-      const EntityState& state = b > 0 ? past[i][b] : truth[i];
-      const uint32_t at = static_cast<uint32_t>(std::lround((tick - b) * 1000.0 / c.tick_hz));
-      auto add = [&] { return back > 0 ? enc.AddAt(state, nullptr, at) : enc.Add(state); };
+      const EntityState& state = truth[i];
+      auto add = [&] { return enc.Add(state); };
       if (!add()) {
         EXPECT_GT(enc.count(), 0u);
         const size_t size = enc.Finish();
         EXPECT_LE(size, kMaxUnreliablePayload);
         send(size);
         sent[next_counter - 1].truth = in_payload;
-        sent[next_counter - 1].times = in_times;
         in_payload.clear();
-        in_times.clear();
         enc.Begin(buf, time_ms);
         EXPECT_TRUE(add());
       }
       in_payload.push_back(state);
-      in_times.push_back(at);
-      last_sent_tick[i] = tick - b;
       ++res.updates;
     }
     const size_t last = enc.Finish();
     send(last);
     if (last > 0) {
       sent[next_counter - 1].truth = in_payload;
-      sent[next_counter - 1].times = in_times;
     }
 
     // Deliver what arrives this tick, in a random order among them (reordering).
@@ -334,7 +306,6 @@ inline SimResult RunStream(const SimConfig& c) {
       if (c.drop_stale && a.counter <= highest_delivered) continue;  // acked but dropped
       highest_delivered = std::max(highest_delivered, a.counter);
       batch.states.clear();
-      batch.times_ms.clear();
       Status st = dec.Decode(s.payload, &batch);
       EXPECT_TRUE(st.ok());
       if (counter_base < 0) counter_base = (int64_t{1} << 20) + (a.counter & 0xffff) - a.counter;
@@ -351,15 +322,6 @@ inline SimResult RunStream(const SimConfig& c) {
                              [](const EntityState& e, uint32_t id) { return e.entity_id < id; });
         EXPECT_TRUE(t != s.truth.end() && t->entity_id == out.entity_id);
         if (t == s.truth.end()) continue;
-        if (back > 0) {  // the time it holds is the one sent
-          const uint32_t want = s.times[static_cast<size_t>(t - s.truth.begin())];
-          const uint32_t payload_ms = LoadU32LE(s.payload.data() + 1);
-          if (batch.times_ms.size() != batch.states.size() || batch.times_ms[j] != want) {
-            ++res.time_mismatches;
-          } else if (want != payload_ms) {
-            ++res.timed_records;
-          }
-        }
         res.max_pos_err = std::max(res.max_pos_err, PositionError(out.position, t->position));
         res.max_rot_err = std::max(res.max_rot_err, RotationErrorDeg(out.rotation, t->rotation));
         const size_t idx = (out.entity_id - 1) / 3;

@@ -127,18 +127,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         break;
       case 1: {
         const bool format9 = (tag & 8) != 0;
-        const bool format12 = !format9 && (tag & 16) != 0;  // format 2 plus velocities
-        auto payload = WithFormat(bytes, format9    ? kSharedDeltaStateFormat
-                                         : format12 ? kVelocityDeltaStateFormat
-                                                    : kDeltaStateFormat);
+        auto payload = WithFormat(bytes, format9 ? kSharedDeltaStateFormat : kDeltaStateFormat);
         const size_t before = batch.states.size();
-        batch.velocities.clear();
         if ((format9 ? shared.Decode(payload, &batch) : delta.Decode(payload, &batch)).ok()) {
-          // Format 12: one velocity per state, within the lattice's range.
-          EDGEPHYS_FUZZ_CHECK(!format12 || batch.velocities.size() == batch.states.size());
-          for (const EntityVelocity& v : batch.velocities) {
-            EDGEPHYS_FUZZ_CHECK(std::fabs(v.linear.x) <= 64.f && std::fabs(v.angular.z) <= 64.f);
-          }
           for (size_t k = before; k < batch.states.size(); ++k) {
             const EntityState& s = batch.states[k];
             // Decoded states lie on the lattice inside the bounds and are finite.

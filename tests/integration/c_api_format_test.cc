@@ -1,7 +1,6 @@
 // edgephys_client_get_state_format and EDGEPHYS_INTERP_AUTO against a real relay on loopback
-// UDP: a receiver learns the room's state format from its Joined, and AUTO draws a key-sample
-// room's entities with lerp/slerp (the line the relay checks) and every other room's with
-// Hermite.
+// UDP: a receiver learns the room's state format (9, or 2 without shared encoding) from its
+// Joined, and AUTO draws with Hermite in both.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,15 +15,15 @@
 namespace edgephys::testing {
 namespace {
 
-RelayConfig KeySampleConfig() {
+RelayConfig Format2Config() {
   RelayConfig c = LoopbackWorld::DefaultConfig();
-  c.room_defaults.replication.key_sample_threshold_m = 0.01;  // format 13 rooms
+  c.room_defaults.replication.shared_encoding = false;  // format 2 rooms
   return c;
 }
 
-class CApiFormat : public ::testing::TestWithParam<bool> {  // param: key-sample room
+class CApiFormat : public ::testing::TestWithParam<bool> {  // param: a format-2 room
  protected:
-  CApiFormat() : world_(GetParam() ? KeySampleConfig() : LoopbackWorld::DefaultConfig()) {}
+  CApiFormat() : world_(GetParam() ? Format2Config() : LoopbackWorld::DefaultConfig()) {}
 
   void SetUp() override {
     for (int i = 0; i < 2; ++i) {
@@ -85,7 +84,7 @@ class CApiFormat : public ::testing::TestWithParam<bool> {  // param: key-sample
 };
 
 TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
-  const bool key_samples = GetParam();
+  const bool format2 = GetParam();
   uint32_t format = 77;
   EXPECT_EQ(edgephys_client_get_state_format(c_[1], &format), EDGEPHYS_E_NOT_FOUND);
   EXPECT_EQ(format, 0u);  // before a Joined
@@ -94,7 +93,7 @@ TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
 
   ASSERT_TRUE(RunUntil([&] { return joined_[0] && joined_[1]; }, 5.0));
   ASSERT_EQ(edgephys_client_get_state_format(c_[1], &format), EDGEPHYS_OK) << edgephys_last_error();
-  EXPECT_EQ(format, key_samples ? 13u : 9u);
+  EXPECT_EQ(format, format2 ? 2u : 9u);
 
   edgephys_spawn_desc d;
   ASSERT_EQ(edgephys_spawn_desc_init(&d), EDGEPHYS_OK);
@@ -107,10 +106,10 @@ TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
   EXPECT_EQ(edgephys_client_sample_pose(c_[1], entity_, world_.Now(), EDGEPHYS_INTERP_AUTO + 1, &t),
             EDGEPHYS_E_INVALID_ARGUMENT);
 
-  // For 1.5 s of the circle: AUTO is, at every frame, exactly the method the format calls for,
-  // and (the motion being curved) the other method differs from it at some frames.
-  const uint32_t wanted = key_samples ? EDGEPHYS_INTERP_LERP_SLERP : EDGEPHYS_INTERP_HERMITE;
-  const uint32_t other = key_samples ? EDGEPHYS_INTERP_HERMITE : EDGEPHYS_INTERP_LERP_SLERP;
+  // For 1.5 s of the circle: AUTO is, at every frame, exactly Hermite, and (the motion being
+  // curved) lerp/slerp differs from it at some frames.
+  const uint32_t wanted = EDGEPHYS_INTERP_HERMITE;
+  const uint32_t other = EDGEPHYS_INTERP_LERP_SLERP;
   int frames = 0, differing = 0;
   const double end = world_.Now() + 1.5;
   while (world_.Now() < end) {
@@ -129,28 +128,10 @@ TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
   EXPECT_GT(differing, frames / 10) << "the other method should draw the circle differently";
 }
 
-// Joined.max_send_interval_s: a key-sample room tells its max interval (0.25 s unless set),
-// which the SDK plays out behind (PlayoutConfigForRoom); a fixed-rate room tells 0.
-TEST_P(CApiFormat, TheRoomsMaxSendIntervalReachesTheClient) {
-  const bool key_samples = GetParam();
-  Client& c = world_.AddClient(MintToken("formats", 21));
-  EXPECT_EQ(c.max_send_interval_s(), 0.0);  // before a Joined
-  ASSERT_TRUE(RunUntil([&] { return c.state() == ClientState::kConnected; }, 5.0));
-  ASSERT_TRUE(c.JoinRoom("formats").ok());
-  ASSERT_TRUE(RunUntil([&] { return c.joined(); }, 5.0));
-  EXPECT_EQ(c.state_format(), key_samples ? 13 : 9);
-  const double want = key_samples ? ReplicationConfig{}.key_sample_max_interval_s : 0.0;
-  EXPECT_NEAR(c.max_send_interval_s(), want, 1e-6);
-  const SnapshotBufferConfig playout = PlayoutConfigForRoom(c.state_format(), c.max_send_interval_s());
-  EXPECT_NEAR(playout.min_delay_s, key_samples ? want + kPlayoutMarginS : SnapshotBufferConfig{}.min_delay_s,
-              1e-6);
-}
-
 // edgephys_client_set_max_playout_delay: a limit below the room's playout brings the delay of an
 // entity already playing down to it (slewing), holds a new entity's from its first frame, and
 // lifting it returns to the room's playout. Poses keep coming throughout.
 TEST_P(CApiFormat, APlayoutLimitHoldsTheDelayOfPlayingAndNewEntities) {
-  const bool key_samples = GetParam();
   ASSERT_TRUE(RunUntil([&] { return joined_[0] && joined_[1]; }, 5.0));
   edgephys_spawn_desc d;
   ASSERT_EQ(edgephys_spawn_desc_init(&d), EDGEPHYS_OK);
@@ -173,14 +154,10 @@ TEST_P(CApiFormat, APlayoutLimitHoldsTheDelayOfPlayingAndNewEntities) {
   ASSERT_TRUE(play(entity_, 2.0));
   double room = 0;
   ASSERT_EQ(edgephys_client_get_playout_delay(c_[1], entity_, &room), EDGEPHYS_OK) << edgephys_last_error();
-  if (key_samples) {
-    EXPECT_NEAR(room, ReplicationConfig{}.key_sample_max_interval_s + kPlayoutMarginS, 0.02);
-  } else {
-    EXPECT_GT(room, 0.0);
-    EXPECT_LE(room, SnapshotBufferConfig{}.max_delay_s + 1e-9);
-  }
+  EXPECT_GT(room, 0.0);
+  EXPECT_LE(room, SnapshotBufferConfig{}.max_delay_s + 1e-9);
 
-  const double limit = key_samples ? 0.1 : room / 2;
+  const double limit = room / 2;
   ASSERT_EQ(edgephys_client_set_max_playout_delay(c_[1], limit), EDGEPHYS_OK) << edgephys_last_error();
   ASSERT_TRUE(play(entity_, 3.0));
   double held = 0;
@@ -203,12 +180,12 @@ TEST_P(CApiFormat, APlayoutLimitHoldsTheDelayOfPlayingAndNewEntities) {
   ASSERT_TRUE(play(entity_, 3.0));
   double lifted = 0;
   ASSERT_EQ(edgephys_client_get_playout_delay(c_[1], entity_, &lifted), EDGEPHYS_OK);
-  EXPECT_NEAR(lifted, room, key_samples ? 0.02 : room / 2);
+  EXPECT_NEAR(lifted, room, room / 2);
 }
 
 INSTANTIATE_TEST_SUITE_P(Rooms, CApiFormat, ::testing::Values(false, true),
                          [](const ::testing::TestParamInfo<bool>& p) {
-                           return p.param ? std::string("KeySamples") : std::string("Default");
+                           return p.param ? std::string("Format2") : std::string("Default");
                          });
 
 }  // namespace

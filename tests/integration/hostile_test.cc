@@ -6,7 +6,7 @@
 #include <map>
 
 #include "client/client_endpoint.h"
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <map>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {

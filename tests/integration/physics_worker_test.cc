@@ -10,7 +10,7 @@
 #include <cmath>
 #include <map>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "tests/integration/harness.h"
 #include "tests/integration/plated_bunny.h"
 

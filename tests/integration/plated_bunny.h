@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {

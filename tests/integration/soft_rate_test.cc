@@ -6,7 +6,7 @@
 
 #include <algorithm>
 
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 #include "tests/integration/harness.h"
 #include "tests/integration/plated_bunny.h"
 

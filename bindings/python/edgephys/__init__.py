@@ -33,7 +33,7 @@ FLAG_HAND, FLAG_OFFLOADED, FLAG_REPORT_CONTACTS = 16, 32, 64
 
 SHAPE_BOX, SHAPE_SPHERE, SHAPE_CAPSULE, SHAPE_CYLINDER, SHAPE_CONVEX_HULL, SHAPE_TRIANGLE_MESH = range(6)
 JOINT_FIXED, JOINT_HINGE, JOINT_SPRING = range(3)
-# INTERP_AUTO: what the joined room's state format calls for (lerp/slerp for key-sample rooms, else Hermite)
+# INTERP_AUTO: the recommended method (Hermite)
 INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE, INTERP_AUTO = range(6)
 
 (EVENT_NONE, EVENT_CONNECTED, EVENT_REJECTED, EVENT_DISCONNECTED, EVENT_JOINED, EVENT_PLAYER_JOINED,
@@ -415,8 +415,8 @@ class Client:
         return t
 
     def set_max_playout_delay(self, seconds):
-        """Latency limit for sample_pose in seconds: 0 (none) or (0, 4]. In key-sample rooms a
-        limit below the room's playout costs accuracy (edgephys.h explains)."""
+        """Latency limit for sample_pose in seconds: 0 (none) or (0, 4]. A limit below the
+        room's adaptive playout costs accuracy (edgephys.h explains)."""
         _check(lib.edgephys_client_set_max_playout_delay(self._h, float(seconds)), "set_max_playout_delay")
 
     def playout_delay(self, entity_id):

@@ -1,4 +1,4 @@
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 #include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>

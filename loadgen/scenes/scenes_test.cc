@@ -1,4 +1,4 @@
-#include "physics_backend/scenes.h"
+#include "loadgen/scenes/scenes.h"
 
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
