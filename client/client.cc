@@ -229,6 +229,7 @@ void Client::Impl::HandleHandshakePacket(std::span<const uint8_t> packet, double
     }
     key_exchange_.reset();
     connection_ = std::make_unique<Connection>(accept->connection_id(), cc, now);
+    if (seal_) connection_->SetDatagramOverhead(kSealOverhead);  // count the sealed datagrams
     player_id_ = accept->player_id();
     state_ = ClientState::kConnected;
     if (resuming_) {  // transparent: rejoin the room at once

@@ -8,6 +8,12 @@
 // live relay again (Redis), time until every bot of those rooms has resumed and is seen
 // publishing again, latency p99 before and during recovery, and whether every persistent
 // entity is back exactly once with its owner. Exit status 1 if a check fails.
+// --fault stop:S instead freezes that relay (SIGSTOP) for S seconds and lets it run again
+// (SIGCONT): the fencing case. Newcomers then join each of its rooms twice, through another
+// relay while it is frozen and through the frozen relay itself once it runs again; the checks
+// add that every newcomer was admitted by the room's owner in Redis at that moment, that from
+// one second after the thaw no room has joined members on two relays, and that every member
+// ends in the one copy.
 // Bounded: every phase has a deadline; the processes it started are killed by PID at exit.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -20,6 +26,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <deque>
 #include <fstream>
 #include <map>
 #include <set>
@@ -76,7 +84,7 @@ int main(int argc, char** argv) {
   double publish_hz = 10, join_timeout_s = 30, settle_s = 2, recover_timeout_s = 15,
          after_s = 2;
   double relay_timeout_s = 1.0, ttl_ms = 1000, heartbeat_ms = 200, snapshot_ms = 500;
-  std::string json_path;
+  std::string json_path, fault = "kill";
   app.add_option("--relay-binary", relay_binary, "edgephys-relay to start")->capture_default_str();
   app.add_option("--relays", relays, "Relay processes")->capture_default_str()->check(CLI::Range(2, 16));
   app.add_option("--users", users, "Bot users")->capture_default_str()->check(CLI::Range(1, 2000));
@@ -92,7 +100,20 @@ int main(int argc, char** argv) {
   app.add_option("--heartbeat-ms", heartbeat_ms, "Relays' --cluster-heartbeat-ms")->capture_default_str();
   app.add_option("--snapshot-ms", snapshot_ms, "Relays' --cluster-snapshot-ms")->capture_default_str();
   app.add_option("--json", json_path, "Write the results as JSON here");
+  app.add_option("--fault", fault, "kill (SIGKILL) or stop:SECONDS (SIGSTOP, then SIGCONT)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  double stop_s = 0;  // > 0: --fault stop:S
+  if (fault.rfind("stop:", 0) == 0) {
+    stop_s = std::atof(fault.c_str() + 5);
+    if (!(stop_s > 0 && stop_s <= 60)) {
+      std::fprintf(stderr, "--fault stop:SECONDS takes 0 < SECONDS <= 60, got %s\n", fault.c_str());
+      return 2;
+    }
+  } else if (fault != "kill") {
+    std::fprintf(stderr, "--fault must be kill or stop:SECONDS, got %s\n", fault.c_str());
+    return 2;
+  }
   spdlog::set_level(spdlog::level::warn);
   const std::string secret = "failover-bench-secret";
 
@@ -139,11 +160,12 @@ int main(int argc, char** argv) {
 
   const auto start = Clock::now();
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
-  std::vector<Bot> bots(users);
-  for (int i = 0; i < users; ++i) {
-    Bot& b = bots[i];
-    b.room = "room" + std::to_string(i % rooms);
-    b.player = 1000 + i;
+  std::deque<Bot> bots;  // a deque: newcomers are added while pointers to others are held
+  // A bot of `room` as player `player`, connecting through relay `via`.
+  auto add_bot = [&](const std::string& room, uint32_t player, int via) -> Bot& {
+    Bot& b = bots.emplace_back();
+    b.room = room;
+    b.player = player;
     b.socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
     ClientConfig cc;
     cc.publish_rate_hz = publish_hz;
@@ -157,8 +179,10 @@ int main(int argc, char** argv) {
     t.player_id = b.player;
     t.expiry_unix_s = UnixNow() + 3600;
     t.nonce = SecureRandom64();
-    (void)b.client->Connect(ToRelayAddress(endpoints[i % relays]), *SignJoinToken(t, secret), now_s());
-  }
+    (void)b.client->Connect(ToRelayAddress(endpoints[via]), *SignJoinToken(t, secret), now_s());
+    return b;
+  };
+  for (int i = 0; i < users; ++i) add_bot("room" + std::to_string(i % rooms), 1000 + i, i % relays);
   // Latency samples: (receive time, one-way latency s).
   std::vector<std::pair<double, double>> samples;
   std::map<uint32_t, double> last_seen;  // player -> last time any member saw its entity move
@@ -266,16 +290,76 @@ int main(int argc, char** argv) {
   for (Bot& b : bots) {
     if (lost.count(b.room)) lost_bots.push_back(&b);
   }
-  kill(pids[victim], SIGKILL);
-  waitpid(pids[victim], nullptr, 0);
-  pids[victim] = -1;
+  if (stop_s > 0) {
+    kill(pids[victim], SIGSTOP);
+  } else {
+    kill(pids[victim], SIGKILL);
+    waitpid(pids[victim], nullptr, 0);
+    pids[victim] = -1;
+  }
   const double kill_s = now_s();
   double rooms_back_s = -1, users_back_s = -1;
   double next_redis_poll = 0;
-  while (now_s() < kill_s + recover_timeout_s && (rooms_back_s < 0 || users_back_s < 0)) {
+  // --fault stop: the thaw, the newcomers (wave A through another relay while the victim is
+  // frozen, wave B through the victim after the thaw) and the fencing checks.
+  const double thaw_at = kill_s + stop_s;
+  bool thawed = stop_s <= 0, wave_a = stop_s <= 0, wave_b = stop_s <= 0;
+  std::vector<Bot*> newcomers;
+  std::set<const Bot*> admitted;  // newcomers whose admission was checked
+  int newcomers_wrong_relay = 0, split_samples = 0, samples_checked = 0;
+  const auto relay_of = [&](const Bot& b) {
+    for (int i = 0; i < relays; ++i) {
+      if (b.client->server() == ToRelayAddress(endpoints[i])) return i;
+    }
+    return -1;
+  };
+  auto fencing_done = [&] {
+    if (stop_s <= 0) return true;
+    if (!wave_b || now_s() < thaw_at + 4.0) return false;
+    return std::all_of(newcomers.begin(), newcomers.end(), [](const Bot* b) { return b->entity != 0; });
+  };
+  const double give_up = kill_s + std::max(recover_timeout_s, stop_s + 4.0 + join_timeout_s);
+  while (now_s() < give_up && (rooms_back_s < 0 || users_back_s < 0 || !fencing_done())) {
     pump(true);
     observe();
     double t = now_s();
+    if (!wave_a && t >= kill_s + stop_s / 2) {
+      wave_a = true;
+      int n = 0;
+      for (const auto& room : lost) newcomers.push_back(&add_bot(room, 5000 + n++, (victim + 1) % relays));
+    }
+    if (!thawed && t >= thaw_at) {
+      thawed = true;
+      kill(pids[victim], SIGCONT);
+    }
+    if (!wave_b && t >= thaw_at + 0.3) {
+      wave_b = true;
+      int n = 0;
+      for (const auto& room : lost) newcomers.push_back(&add_bot(room, 6000 + n++, victim));
+    }
+    // Each newcomer, when it first holds an entity (joined and spawned): admitted by the relay
+    // Redis names the room's owner now.
+    for (const Bot* b : newcomers) {
+      if (b->entity == 0 || !admitted.insert(b).second) continue;
+      auto v = rc.Command({"GET", "edgephys:room:" + b->room});
+      const int owner = v.ok() && v->is_string() && relay_index.count(v->str) ? relay_index[v->str] : -2;
+      if (owner != relay_of(*b)) {
+        ++newcomers_wrong_relay;
+        std::fprintf(stderr, "newcomer %u of %s admitted by relay %d, owner %d\n", b->player,
+                     b->room.c_str(), relay_of(*b), owner);
+      }
+    }
+    // From 1 s after the thaw: no lost room has joined members on two relays.
+    if (stop_s > 0 && thawed && t >= thaw_at + 1.0) {
+      for (const auto& room : lost) {
+        std::set<int> on;
+        for (const Bot& b : bots) {
+          if (b.room == room && b.client->joined() && !b.client->resuming()) on.insert(relay_of(b));
+        }
+        ++samples_checked;
+        if (on.size() > 1) ++split_samples;
+      }
+    }
     if (rooms_back_s < 0 && t >= next_redis_poll) {
       next_redis_poll = t + 0.02;
       auto o = owners();
@@ -313,8 +397,8 @@ int main(int argc, char** argv) {
       if (members[b.room].count(e.owner) == 0 || !owners_seen.insert(e.owner).second) ++foreign;
     }
     missing += static_cast<int>(members[b.room].size() - 1 - owners_seen.size());
-    if (lost.count(b.room) && b.client->resumes() == 0) ++not_resumed;
   }
+  for (const Bot* b : lost_bots) not_resumed += b->client->resumes() == 0;  // newcomers never resume
   out["users"] = users;
   out["rooms"] = rooms;
   out["relays"] = relays;
@@ -332,6 +416,17 @@ int main(int argc, char** argv) {
   out["entities_missing"] = missing;
   out["entities_duplicated_or_foreign"] = foreign;
   out["users_not_resumed"] = not_resumed;
+  out["fault"] = fault;
+  if (stop_s > 0) {
+    out["newcomers"] = newcomers.size();
+    out["newcomers_admitted"] = admitted.size();
+    out["newcomers_admitted_by_a_non_owner"] = newcomers_wrong_relay;
+    out["split_samples_after_thaw"] = split_samples;
+    out["samples_checked_after_thaw"] = samples_checked;
+    if (newcomers_wrong_relay != 0 || split_samples != 0 || admitted.size() != newcomers.size()) {
+      ok = false;
+    }
+  }
   out["settings"] = {{"relay_timeout_s", relay_timeout_s}, {"ttl_ms", ttl_ms},
                      {"heartbeat_ms", heartbeat_ms}, {"snapshot_ms", snapshot_ms},
                      {"publish_hz", publish_hz}};

@@ -35,11 +35,13 @@
 
 #include "loadgen/motion.h"
 #include "protocol/connection.h"
+#include "protocol/packet_seal.h"
 
 namespace edgephys::loadgen {
 
-// Connection header + unreliable chunk header counted per packet (21 bytes).
-inline constexpr size_t kPacketHeaderBytes = kMaxPacketSize - kMaxUnreliablePayload;
+// Bytes counted per packet beyond its state payload, as on the wire: the connection and
+// unreliable chunk headers (21) and the seal (24, protocol/packet_seal.h).
+inline constexpr size_t kPacketHeaderBytes = kMaxPacketSize - kMaxUnreliablePayload + kSealOverhead;
 
 // The members --json echoes under "options" appear there under their own names.
 struct CodecSweepOptions {

@@ -119,10 +119,12 @@ void WindowMeter::Start(LoopbackRoom& world, size_t receivers) {
   receivers_ = receivers;
   relay_bytes0_.assign(receivers, 0);
   socket_bytes0_.assign(receivers, 0);
+  socket_packets0_.assign(receivers, 0);
   for (size_t k = 0; k < receivers; ++k) {
     const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
     relay_bytes0_[k] = rs ? rs->bytes_sent : 0;
     socket_bytes0_[k] = world.client(k + 1).stats()->bytes_received;
+    socket_packets0_[k] = world.client(k + 1).stats()->packets_received;
   }
   RelayCounters& c = world.counters();
   steps0_ = RelayCounters::Get(c.physics_steps);
@@ -138,6 +140,8 @@ WindowMeter::Totals WindowMeter::Finish(LoopbackRoom& world) const {
     const ConnectionStats* rs = world.relay().FindConnectionStats(static_cast<uint32_t>(k + 2));
     t.relay_bytes += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0_[k]) : 0;
     t.socket_bytes += static_cast<double>(world.client(k + 1).stats()->bytes_received - socket_bytes0_[k]);
+    t.socket_packets +=
+        static_cast<double>(world.client(k + 1).stats()->packets_received - socket_packets0_[k]);
   }
   RelayCounters& c = world.counters();
   t.physics_steps = RelayCounters::Get(c.physics_steps) - steps0_;

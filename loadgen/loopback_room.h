@@ -73,6 +73,7 @@ class WindowMeter {
     double elapsed_s = 0;
     double relay_bytes = 0;      // the relay's per-connection bytes sent, summed over receivers
     double socket_bytes = 0;     // the receivers' sockets' bytes received
+    double socket_packets = 0;   // and datagrams (each carries kIpUdpHeaderBytes more)
     uint64_t physics_steps = 0;
     double step_ms_mean = 0;     // the relay's mean PhyS step over the window
     // Per receiver, per second, in Mb/s (10^6 bits).
@@ -82,13 +83,17 @@ class WindowMeter {
     double SocketMbitPerReceiver(size_t receivers) const {
       return socket_bytes * 8 / 1e6 / (static_cast<double>(receivers) * elapsed_s);
     }
+    double IpUdpMbitPerReceiver(size_t receivers) const {
+      return socket_packets * kIpUdpHeaderBytes * 8 / 1e6 /
+             (static_cast<double>(receivers) * elapsed_s);
+    }
   };
   void Start(LoopbackRoom& world, size_t receivers);
   Totals Finish(LoopbackRoom& world) const;
 
  private:
   size_t receivers_ = 0;
-  std::vector<uint64_t> relay_bytes0_, socket_bytes0_;
+  std::vector<uint64_t> relay_bytes0_, socket_bytes0_, socket_packets0_;
   uint64_t steps0_ = 0, step_count0_ = 0;
   double step_sum0_ = 0, t0_ = 0;
 };

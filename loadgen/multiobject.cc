@@ -517,6 +517,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->relay_ok = true;
   r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
   r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
+  r->ip_udp_mbit_per_s_per_client = window.IpUdpMbitPerReceiver(R);
   r->updates_per_s_per_client = updates / per;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;

@@ -103,6 +103,9 @@ struct MultiObjectResult {
   bool relay_ok = false;
   double egress_mbit_per_s_per_client = 0;  // relay's counters, mean over receivers
   double socket_mbit_per_s_per_client = 0;  // receiving sockets
+  // The IP and UDP headers of the datagrams received, beside the UDP payload figures above
+  // (which count the sealed datagrams); unknown against an external relay.
+  double ip_udp_mbit_per_s_per_client = 0;
   double paper_mbit_per_s = 0;              // Decoupled Edge Physics' Obj_N (0: none)
   double updates_per_s_per_client = 0;
   double bytes_per_update = 0;              // all egress bytes / entity updates

@@ -179,6 +179,7 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   r->relay_ok = true;
   r->egress_mbit_per_s_per_client = relay_bytes * 8 / 1e6 / (static_cast<double>(R + 1) * elapsed);
   r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->ip_udp_mbit_per_s_per_client = kUnknown;
   r->updates_per_s_per_client = updates / per;
   r->bytes_per_update = updates > 0 ? relay_bytes / updates : kUnknown;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;

@@ -56,6 +56,7 @@ nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectRe
       e.update({{"relay_ok", r.relay_ok},
                 {"egress_mbit_per_s_per_client", r.egress_mbit_per_s_per_client},
                 {"socket_mbit_per_s_per_client", r.socket_mbit_per_s_per_client},
+                {"ip_udp_mbit_per_s_per_client", r.ip_udp_mbit_per_s_per_client},
                 {"paper_mbit_per_s", r.paper_mbit_per_s},
                 {"egress_ratio_to_paper",
                  RatioOr0(r.egress_mbit_per_s_per_client, r.paper_mbit_per_s)},

@@ -209,7 +209,8 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   double measure_start = t0 + o.warmup_s;
   double measure_end = measure_start + o.duration_s;
   bool measuring = false;
-  std::vector<uint64_t> relay_bytes0(o.receivers), socket_bytes0(o.receivers);
+  std::vector<uint64_t> relay_bytes0(o.receivers), socket_bytes0(o.receivers),
+      socket_packets0(o.receivers);
   RelayFigures figures0;        // external: /metrics at the window's start
   uint64_t host_bytes0 = 0;     // external: the host's socket at the window's start
   double last_progress = 0;
@@ -234,6 +235,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
         const ConnectionStats* rs = relay_owned ? relay_owned->FindConnectionStats(k + 2) : nullptr;
         relay_bytes0[k] = rs ? rs->bytes_sent : 0;
         socket_bytes0[k] = clients[k + 1]->stats()->bytes_received;
+        socket_packets0[k] = clients[k + 1]->stats()->packets_received;
         receivers[k]->measuring = true;
       }
     }
@@ -248,7 +250,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   }
   if (o.progress) std::fprintf(stderr, "\r%60s\r", "");
 
-  double relay_total = 0, socket_total = 0, updates = 0;
+  double relay_total = 0, socket_total = 0, socket_packets = 0, updates = 0;
   std::vector<double> pos, rot;
   if (external) {
     // The relay's whole egress over the window, less what went to the host: the receivers'.
@@ -263,6 +265,8 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     const ConnectionStats* rs = relay_owned ? relay_owned->FindConnectionStats(k + 2) : nullptr;
     relay_total += rs ? static_cast<double>(rs->bytes_sent - relay_bytes0[k]) : 0;
     socket_total += static_cast<double>(clients[k + 1]->stats()->bytes_received - socket_bytes0[k]);
+    socket_packets +=
+        static_cast<double>(clients[k + 1]->stats()->packets_received - socket_packets0[k]);
     updates += static_cast<double>(receivers[k]->updates);
     pos.insert(pos.end(), receivers[k]->pos_errors.begin(), receivers[k]->pos_errors.end());
     rot.insert(rot.end(), receivers[k]->rot_errors.begin(), receivers[k]->rot_errors.end());
@@ -270,6 +274,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   const double n = o.receivers * o.duration_s;
   result.egress_bytes_per_s_per_receiver = relay_total / n;
   result.socket_bytes_per_s_per_receiver = socket_total / n;
+  result.ip_udp_bytes_per_s_per_receiver = socket_packets * kIpUdpHeaderBytes / n;
   result.updates_per_s_per_receiver = updates / n;
   result.bytes_per_update = updates > 0 ? relay_total / updates : 0;
   result.pos_err_max_m = Max(pos);

@@ -47,8 +47,11 @@ struct RelayCompareResult {
   ReplicationMode mode;
   uint32_t objects = 0;
   double rate_hz = 0;
+  // Bytes are UDP payload as on the wire (sealed datagrams); the IP and UDP headers of the same
+  // datagrams are ip_udp_bytes_per_s_per_receiver.
   double egress_bytes_per_s_per_receiver = 0;         // relay's counters (external: /metrics)
   double socket_bytes_per_s_per_receiver = 0;         // receiving socket
+  double ip_udp_bytes_per_s_per_receiver = 0;         // kIpUdpHeaderBytes per datagram received
   double updates_per_s_per_receiver = 0;
   double bytes_per_update = 0;
   double pos_err_max_m = 0, pos_err_p99_m = 0;

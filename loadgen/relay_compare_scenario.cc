@@ -11,7 +11,8 @@ namespace edgephys::loadgen {
 // The mode is added by name.
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RelayCompareResult, objects, rate_hz,
                                    egress_bytes_per_s_per_receiver,
-                                   socket_bytes_per_s_per_receiver, updates_per_s_per_receiver,
+                                   socket_bytes_per_s_per_receiver, ip_udp_bytes_per_s_per_receiver,
+                                   updates_per_s_per_receiver,
                                    bytes_per_update, pos_err_max_m, pos_err_p99_m,
                                    rot_err_max_deg, rot_err_p99_deg, paper_bytes_per_s, samples)
 
@@ -54,20 +55,21 @@ nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompare
 // Beside the paper's columns.
 void FillTable(const RelayCompareOptions&, const std::vector<RelayCompareResult>& results,
                Table* t) {
-  t->Line("%-9s %7s %11s %11s %9s %7s %9s %7s %9s %9s %9s %9s\n", "mode", "objects",
-          "KB/s relay", "KB/s sock", "paper KB/s", "ratio", "upd/s", "B/upd", "pos max mm",
-          "pos p99", "rot max", "rot p99");
+  t->Line("%-9s %7s %11s %11s %9s %9s %7s %9s %7s %9s %9s %9s %9s\n", "mode", "objects",
+          "KB/s relay", "KB/s sock", "KB/s IP+UDP", "paper KB/s", "ratio", "upd/s", "B/upd",
+          "pos max mm", "pos p99", "rot max", "rot p99");
   for (const auto& r : results) {
-    t->Line("%-9s %7u %11.2f %11.2f %9.2f %7.3f %9.1f %7.2f %9.3f %9.3f %9.4f %9.4f\n",
+    t->Line("%-9s %7u %11.2f %11.2f %9.2f %9.2f %7.3f %9.1f %7.2f %9.3f %9.3f %9.4f %9.4f\n",
             std::string(ReplicationModeName(r.mode)).c_str(), r.objects,
             r.egress_bytes_per_s_per_receiver / 1000, r.socket_bytes_per_s_per_receiver / 1000,
-            r.paper_bytes_per_s / 1000,
+            r.ip_udp_bytes_per_s_per_receiver / 1000, r.paper_bytes_per_s / 1000,
             RatioOr0(r.egress_bytes_per_s_per_receiver, r.paper_bytes_per_s), r.updates_per_s_per_receiver,
             r.bytes_per_update, r.pos_err_max_m * 1000, r.pos_err_p99_m * 1000, r.rot_err_max_deg,
             r.rot_err_p99_deg);
   }
-  t->Text("(KB = 1000 bytes; paper KB/s: the paper's relay column for paper/edgephys, Photon for "
-          "photon)\n");
+  t->Text("(KB = 1000 bytes; relay and sock: UDP payload as sent, sealed; IP+UDP: the 28 bytes of "
+          "headers of every datagram received, beside them; paper KB/s: the paper's relay column "
+          "for paper/edgephys, Photon for photon)\n");
 }
 
 // <prefix>.dat (one index block per mode present), <prefix>_bandwidth and <prefix>_error.

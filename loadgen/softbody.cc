@@ -244,6 +244,7 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   r->relay_ok = true;
   r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
   r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
+  r->ip_udp_mbit_per_s_per_client = window.IpUdpMbitPerReceiver(R);
   r->soft_updates_per_s_per_client = updates / per;
   r->relay_step_ms_mean = window.step_ms_mean;
   r->sim_speed = static_cast<double>(window.physics_steps) * dt / elapsed;

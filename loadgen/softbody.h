@@ -63,6 +63,7 @@ struct SoftBodyResult {
   bool relay_ok = false;
   double egress_mbit_per_s_per_client = 0;  // relay's counters, mean over receivers
   double socket_mbit_per_s_per_client = 0;
+  double ip_udp_mbit_per_s_per_client = 0;  // IP+UDP headers beside it; unknown when external
   double paper_mbit_per_s = 0;              // Bunny_1 / Bunny_3 (0: not in Decoupled Edge Physics)
   double soft_updates_per_s_per_client = 0; // OnSoftBodyUpdated (one per chunk)
   double relay_step_ms_mean = 0;

@@ -143,6 +143,7 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
   r->egress_mbit_per_s_per_client =
       metrics ? (b.bytes_sent - a.bytes_sent) * 8 / 1e6 / (static_cast<double>(R + 1) * elapsed) : kUnknown;
   r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
+  r->ip_udp_mbit_per_s_per_client = kUnknown;
   r->soft_updates_per_s_per_client = updates / per;
   const double step_count = metrics ? b.physics_step_count - a.physics_step_count : 0;
   r->relay_step_ms_mean =

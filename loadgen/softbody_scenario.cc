@@ -18,6 +18,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyOptions, poke_period_s, bench_warmup_
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyResult, bunnies, particles, step_ms_median,
                                    step_ms_p99, bench_steps, relay_ok,
                                    egress_mbit_per_s_per_client, socket_mbit_per_s_per_client,
+                                   ip_udp_mbit_per_s_per_client,
                                    paper_mbit_per_s, soft_updates_per_s_per_client,
                                    relay_step_ms_mean, sim_speed, deformation_min_m,
                                    deformation_max_m, node_err_max_m, node_err_p99_m,

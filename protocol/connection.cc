@@ -109,7 +109,7 @@ struct Connection::Impl {
     unit_count = 0;
     out.WritePacket(std::span<const uint8_t>(scratch.data(), size));
     owner.stats_.packets_sent++;
-    owner.stats_.bytes_sent += size;
+    owner.stats_.bytes_sent += size + owner.datagram_overhead_;
     last_send_time = now;
     ack_pending = false;
     ack_urgent = false;
@@ -129,7 +129,7 @@ struct Connection::Impl {
       scratch[size++] = static_cast<uint8_t>(owner.disconnect_reason_);
       out.WritePacket(std::span<const uint8_t>(scratch.data(), size));
       owner.stats_.packets_sent++;
-      owner.stats_.bytes_sent += size;
+      owner.stats_.bytes_sent += size + owner.datagram_overhead_;
     }
   }
 
@@ -363,7 +363,7 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
     }
     disconnect_reason_ = static_cast<DisconnectReason>(value);
     stats_.packets_received++;
-    stats_.bytes_received += packet.size();
+    stats_.bytes_received += packet.size() + datagram_overhead_;
     return Status::Ok();
   }
   if (prefix.type != PacketType::kData) return kMalformed;
@@ -390,7 +390,7 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   if (stale) {
     impl_->last_receive_time = now;
     stats_.packets_received++;
-    stats_.bytes_received += packet.size();
+    stats_.bytes_received += packet.size() + datagram_overhead_;
     stats_.stale_dropped++;
     impl_->ProcessAcks(parsed.ack, parsed.ack_bits, now, handler);
     return Status::Ok();
@@ -400,7 +400,7 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   impl_->received.Record(parsed.sequence);
   impl_->last_receive_time = now;
   stats_.packets_received++;
-  stats_.bytes_received += packet.size();
+  stats_.bytes_received += packet.size() + datagram_overhead_;
   if (parsed.unit_count > 0 || parsed.has_unreliable) {
     if (!impl_->ack_pending) impl_->ack_pending_since = now;
     impl_->ack_pending = true;

@@ -129,6 +129,10 @@ class Connection {
 
   // Changes the silence timeout (e.g. shorter for relay <-> worker links). Seconds, > 0.
   void SetTimeout(double timeout_s);
+  // Bytes every datagram carries beyond the packet this connection writes or reads: the seal's
+  // kSealOverhead (protocol/packet_seal.h) once the packets are sealed, so that stats() count
+  // the UDP payload as it goes on the wire. 0 by default (unsealed). O(1).
+  void SetDatagramOverhead(size_t bytes) { datagram_overhead_ = bytes; }
 
   bool connected() const { return disconnect_reason_ == DisconnectReason::kNone; }
   DisconnectReason disconnect_reason() const { return disconnect_reason_; }
@@ -139,6 +143,7 @@ class Connection {
   uint32_t connection_id_;
   DisconnectReason disconnect_reason_ = DisconnectReason::kNone;
   ConnectionStats stats_;
+  size_t datagram_overhead_ = 0;  // SetDatagramOverhead
   Impl* impl_;  // owned; the channel state (kept out of the header)
 };
 

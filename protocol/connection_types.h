@@ -39,6 +39,10 @@ struct ConnectionConfig {
 };
 
 // Real-time status of one connection (GameNetworkingSockets style); the relay exports it.
+// IPv4 (20) and UDP (8) header bytes of every datagram (IPv6: 48), for reports that show what
+// the network carries beside the UDP payload.
+inline constexpr size_t kIpUdpHeaderBytes = 28;
+
 struct ConnectionStats {
   // Smoothed round-trip time. Includes how long the peer held its acknowledgement: a relay
   // waits up to its ConnectionConfig::max_ack_delay_s (edgephys-relay --ack-delay, 0.02 s by
@@ -50,6 +54,9 @@ struct ConnectionStats {
   double loss = 0;              // smoothed fraction of our packets not acknowledged (0..1)
   uint64_t packets_sent = 0;
   uint64_t packets_received = 0;
+  // UDP payload bytes as on the wire: every packet plus, once the connection is sealed, the
+  // seal's 24 bytes (Connection::SetDatagramOverhead). IP and UDP headers are not included: add
+  // kIpUdpHeaderBytes per packet for what the network carries.
   uint64_t bytes_sent = 0;
   uint64_t bytes_received = 0;
   uint64_t reliable_resends = 0;    // reliable units sent more than once

@@ -79,6 +79,7 @@ void Session::EnableSeal(const ConnectionKeys& keys) {
   seal_ = std::make_unique<PacketSeal>(keys, PacketSeal::Side::kRelay);
   seal_buffer_.resize(kMaxDatagramSize);
   open_buffer_.resize(kMaxDatagramSize);
+  connection().SetDatagramOverhead(kSealOverhead);  // its byte counts: the sealed datagrams
 }
 
 std::span<const uint8_t> Session::Open(std::span<const uint8_t> datagram, DropReason* reason) {

@@ -19,14 +19,16 @@ num() { jq -r "$1" "$2"; }
 le() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a <= b) }'; }
 
 # relay-compare at 32 objects: emulations within tolerance of the paper, edgephys <= 1/4 at
-# 1 mm / 0.1 degree.
+# 1 mm / 0.1 degree. Bytes are counted as sent (sealed datagrams): the emulations' datagrams
+# carry edgephys' own connection header and 24-byte seal, which the systems they emulate do not
+# (about +1.4 KB/s at 60 datagrams/s, +8-13 % here), hence the upper bounds.
 "$lg" relay-compare --objects 32 --modes photon,paper,edgephys --duration 3 --receivers 1 \
   --no-progress --charts '' --json rc.json >/dev/null
 for mode in photon paper edgephys; do
   ratio=$(num ".results[] | select(.mode==\"$mode\") | .ratio_to_paper" rc.json)
   case $mode in
-    photon) le 0.85 "$ratio" && le "$ratio" 1.15 || fail "photon ratio $ratio outside 0.85..1.15" ;;
-    paper) le 0.80 "$ratio" && le "$ratio" 1.20 || fail "paper ratio $ratio outside 0.80..1.20" ;;
+    photon) le 0.85 "$ratio" && le "$ratio" 1.30 || fail "photon ratio $ratio outside 0.85..1.30" ;;
+    paper) le 0.80 "$ratio" && le "$ratio" 1.35 || fail "paper ratio $ratio outside 0.80..1.35" ;;
     edgephys)
       le "$ratio" 0.25 || fail "edgephys ratio $ratio above 0.25"
       pos=$(num '.results[] | select(.mode=="edgephys") | .pos_err_max_m' rc.json)

@@ -99,7 +99,9 @@ def t_relay_compare(j):
         n = r["objects"]
         anchor = PAPER_PHOTON_KBPS if r["mode"] == "photon" else PAPER_RELAY_KBPS
         kbps = r["egress_bytes_per_s_per_receiver"] / 1000.0
-        rows.append([r["mode"], n, kbps, anchor.get(n),
+        ip_udp = r.get("ip_udp_bytes_per_s_per_receiver")
+        rows.append([r["mode"], n, kbps, ip_udp / 1000.0 if ip_udp is not None else None,
+                     anchor.get(n),
                      kbps / anchor[n] if n in anchor else None,
                      r["bytes_per_update"], r["pos_err_max_m"] * 1000, r["rot_err_max_deg"]])
     return rows
@@ -111,7 +113,8 @@ def t_multiobject(j):
         n = r["objects"]
         mbps = r.get("egress_mbit_per_s_per_client", 0.0)
         rows.append([n, r.get("step_ms_median", 0.0), r.get("raw_bullet_step_ms_median", 0.0),
-                     r.get("step_ratio_phys_to_raw", 0.0), mbps, PAPER_OBJ_MBPS.get(n),
+                     r.get("step_ratio_phys_to_raw", 0.0), mbps,
+                     r.get("ip_udp_mbit_per_s_per_client"), PAPER_OBJ_MBPS.get(n),
                      mbps / PAPER_OBJ_MBPS[n] if n in PAPER_OBJ_MBPS else None,
                      r.get("display_err_p99_m", 0.0) * 1000, r.get("pos_err_sent_max_m", 0.0) * 1000])
     return rows
@@ -122,7 +125,8 @@ def t_softbody(j):
     for r in j["results"]:
         b = r["bunnies"]
         mbps = r["egress_mbit_per_s_per_client"]
-        rows.append([b, r["particles"], r["step_ms_median"], mbps, PAPER_BUNNY_MBPS.get(b),
+        rows.append([b, r["particles"], r["step_ms_median"], mbps,
+                     r.get("ip_udp_mbit_per_s_per_client"), PAPER_BUNNY_MBPS.get(b),
                      mbps / PAPER_BUNNY_MBPS[b] if b in PAPER_BUNNY_MBPS else None,
                      r["node_err_p99_m"] * 1000, r["node_err_sent_max_m"] * 1000])
     return rows
