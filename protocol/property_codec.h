@@ -21,18 +21,6 @@ flatbuffers::Offset<schema::PropertyValue> WritePropertyValue(flatbuffers::FlatB
 // as not finite (refused). Copies string/bytes.
 PropertyValue ReadPropertyValue(const schema::PropertyValue* value);
 
-// Fields of a PropertyChanged or PropertyConflict, read from the wire.
-struct PropertyRecord {
-  uint32_t entity_id = 0;  // 0: a room property
-  std::string key;
-  PropertyValue value;
-  uint32_t version = 0;    // 0: the property does not exist (a conflict's current state)
-  uint32_t writer = 0;     // player who wrote `value`
-  uint32_t owner = 0;      // room properties: the creator; entity properties: 0
-  PropertyAuthority authority = PropertyAuthority::kOwner;
-  uint32_t request_id = 0; // the writer's request (PropertyChanged); the refused one (Conflict)
-};
-
 // Builds a whole ControlMessage{PropertyChanged} for `record` into `fbb` (cleared first).
 void BuildPropertyChanged(flatbuffers::FlatBufferBuilder& fbb, const PropertyRecord& record);
 

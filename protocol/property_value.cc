@@ -83,8 +83,9 @@ Status ValidatePropertyValue(const PropertyValue& v) {
       return Status::Ok();
     case PropertyType::kNone: break;
   }
-  return Status::InvalidArgument("unknown property type " +
-                                 std::to_string(static_cast<unsigned>(v.type)));
+  return Status::InvalidArgument(
+      "unknown property type",
+      "unknown property type " + std::to_string(static_cast<unsigned>(v.type)));
 }
 
 std::string_view PropertyTypeName(PropertyType type) {

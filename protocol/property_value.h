@@ -82,10 +82,23 @@ struct PropertyValue {
   bool operator==(const PropertyValue& o) const;
 };
 
+// One property as the relay announced it (PropertyChanged, or PropertyConflict's current
+// state).
+struct PropertyRecord {
+  uint32_t entity_id = 0;  // 0: a room property
+  std::string key;
+  PropertyValue value;
+  uint32_t version = 0;    // 0: the property does not exist (a conflict's current state)
+  uint32_t writer = 0;     // player who wrote `value`
+  uint32_t owner = 0;      // room properties: the creator; entity properties: 0
+  PropertyAuthority authority = PropertyAuthority::kOwner;
+  uint32_t request_id = 0; // the writer's request (PropertyChanged); the refused one (Conflict)
+};
+
 // OK, or kInvalidArgument naming the cause: an empty key, one over kMaxPropertyKeyBytes, or one
 // holding a NUL byte.
 Status ValidatePropertyKey(std::string_view key);
-// OK, or kInvalidArgument naming the cause: type kNone or unknown, a bool other than 0/1, a
+// OK, or kInvalidArgument naming the cause (Status::reason()): type kNone or unknown, a bool other than 0/1, a
 // NaN or infinite double/vec3/quat component, string/bytes over kMaxPropertyValueBytes.
 Status ValidatePropertyValue(const PropertyValue& value);
 // "bool", "int64", ...; "none" for kNone and unknown numbers.

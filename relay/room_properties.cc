@@ -47,11 +47,11 @@ void RoomHost::SetProperty(MemberLink& link, const schema::PropertySet& set, dou
     return refuse(RejectReason::RateLimited, "too many property writes from this player; slow down");
   }
   if (Status st = ValidatePropertyKey(key); !st.ok()) {
-    return refuse(RejectReason::InvalidMessage, st.message());
+    return refuse(RejectReason::InvalidMessage, st.reason());
   }
   const PropertyValue value = ReadPropertyValue(set.value());
   if (Status st = ValidatePropertyValue(value); !st.ok()) {
-    return refuse(RejectReason::InvalidMessage, st.message());
+    return refuse(RejectReason::InvalidMessage, st.reason());
   }
   const uint8_t authority_number = static_cast<uint8_t>(set.authority());
   if (authority_number > static_cast<uint8_t>(PropertyAuthority::kAnyone)) {
