@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "edgephys/edgephys.h"
+#include "edgephys/edgephys.hpp"
 #include "protocol/join_token.h"
 #include "tests/integration/harness.h"
 
@@ -229,6 +230,63 @@ TEST(CApiProperties, RefusalsAreErrorEventsNamingThePropertyAndBadArgumentsNever
   for (CClient* c : {&a, &b}) c->Update(nullptr);
   EXPECT_EQ(a.changed.size(), 1u);  // only "lights" ever existed
   EXPECT_TRUE(a.errors.empty());
+}
+
+TEST(CApiProperties, TheCppWrapperWritesAndReadsEveryType) {
+  LoopbackWorld world;
+  edgephys_client_config cfg;
+  ASSERT_EQ(edgephys_client_config_init(&cfg), EDGEPHYS_OK);
+  cfg.bind_address = "127.0.0.1:0";
+  sdk::Client a(&cfg), b(&cfg);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const std::string relay = "127.0.0.1:" + std::to_string(world.relay_endpoint().port());
+  ASSERT_EQ(a.Connect(relay, Base64UrlEncode(MintToken("cpp", 1)), world.Now()), EDGEPHYS_OK);
+  ASSERT_EQ(b.Connect(relay, Base64UrlEncode(MintToken("cpp", 2)), world.Now()), EDGEPHYS_OK);
+  int joined = 0;
+  std::vector<sdk::Property> seen;
+  const auto pump = [&](const std::function<bool()>& done) {
+    return world.RunUntil([&] {
+      for (sdk::Client* c : {&a, &b}) {
+        EXPECT_EQ(c->Update(world.Now()), EDGEPHYS_OK);
+        edgephys_event ev;
+        while (c->Poll(&ev)) {
+          if (ev.type == EDGEPHYS_EVENT_CONNECTED) EXPECT_EQ(c->Join("cpp"), EDGEPHYS_OK);
+          if (ev.type == EDGEPHYS_EVENT_JOINED) ++joined;
+          if (ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED && c == &b) {
+            sdk::Property p;
+            EXPECT_TRUE(c->EventProperty(&p));
+            seen.push_back(p);
+          }
+        }
+      }
+      return done();
+    }, 5.0);
+  };
+  ASSERT_TRUE(pump([&] { return joined == 2; }));
+  const std::string text = "hello", blob("\0\xff\x01", 3);
+  EXPECT_NE(a.SetProperty(0, "b", sdk::BoolValue(true)), 0u);
+  EXPECT_NE(a.SetProperty(0, "i", sdk::Int64Value(-7)), 0u);
+  EXPECT_NE(a.SetProperty(0, "d", sdk::DoubleValue(2.5)), 0u);
+  EXPECT_NE(a.SetProperty(0, "s", sdk::StringValue(text)), 0u);
+  EXPECT_NE(a.SetProperty(0, "y", sdk::StringValue(blob, true)), 0u);
+  EXPECT_NE(a.SetProperty(0, "v", sdk::Vec3Value({1, 2, 3})), 0u);
+  EXPECT_NE(a.SetProperty(0, "q", sdk::QuatValue({0, 0, 0, 1})), 0u);
+  EXPECT_EQ(a.SetProperty(0, "n", sdk::DoubleValue(NAN)), 0u);
+  ASSERT_TRUE(pump([&] { return seen.size() == 7; }));
+  sdk::Property p;
+  ASSERT_TRUE(b.GetProperty(0, "s", &p));
+  EXPECT_EQ(std::string(static_cast<const char*>(p.info.value.data), p.info.value.size), text);
+  ASSERT_TRUE(b.GetProperty(0, "y", &p));
+  EXPECT_EQ(p.bytes, blob);
+  ASSERT_TRUE(b.GetProperty(0, "v", &p));
+  EXPECT_FLOAT_EQ(p.info.value.vec3.y, 2);
+  ASSERT_TRUE(b.GetProperty(0, "d", &p));
+  EXPECT_DOUBLE_EQ(p.info.value.double_value, 2.5);
+  ASSERT_TRUE(b.GetProperty(0, "i", &p));
+  EXPECT_EQ(p.info.value.int_value, -7);
+  EXPECT_EQ(p.info.writer, 1u);
+  EXPECT_FALSE(b.GetProperty(0, "n", &p));
+  EXPECT_EQ(seen[3].bytes, text);  // the event's own copy
 }
 
 }  // namespace
