@@ -325,7 +325,6 @@ Result<uint32_t> Client::Impl::Spawn(const SpawnDesc& desc) {
 Status Client::Impl::Despawn(uint32_t entity_id) {
   if (owned_.erase(entity_id) == 0) return Status::NotFound("not an owned entity");
   tracker_.Forget(entity_id);
-  despawned_.insert(entity_id);  // its properties' late announcements are ignored
   ForgetEntityProperties(entity_id);
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));

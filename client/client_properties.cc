@@ -49,7 +49,11 @@ void Client::Impl::OnPropertyMessage(const schema::ControlMessage& msg) {
     r.request_id = c->request_id();
     // What a relay sends is checked like what it receives: a bad record is ignored.
     if (!ValidatePropertyKey(r.key).ok() || !ValidatePropertyValue(r.value).ok()) return;
-    if (r.entity_id != 0 && despawned_.count(r.entity_id) != 0) return;
+    // An entity's properties follow its Spawn; one for an entity not (or no longer) known is
+    // late news of a despawned entity.
+    if (r.entity_id != 0 && owned_.count(r.entity_id) == 0 && entities_.count(r.entity_id) == 0) {
+      return;
+    }
     PropertyRecord& stored = properties_[PropertyKey(r.entity_id, r.key)];
     stored = std::move(r);
     listener_->OnPropertyChanged(stored);
