@@ -84,6 +84,7 @@ void RoomHost::SetProperty(MemberLink& link, const schema::PropertySet& set, dou
   const uint32_t version = current != nullptr ? current->version : 0;
   if (set.check_version() && set.expected_version() != version) {
     ++property_stats_.conflicts;
+    RelayCounters::Inc(env_.counters->property_conflicts);
     flatbuffers::FlatBufferBuilder fbb(128 + (current ? current->value.text.size() : 0));
     const auto key_offset = fbb.CreateString(key.data(), key.size());
     flatbuffers::Offset<schema::PropertyValue> now_value;
@@ -120,6 +121,7 @@ void RoomHost::SetProperty(MemberLink& link, const schema::PropertySet& set, dou
                   StoredProperty{value, record.version, player, record.owner, record.authority,
                                  record.request_id});
   ++property_stats_.accepted;
+  RelayCounters::Inc(env_.counters->property_writes);
   flatbuffers::FlatBufferBuilder fbb(128 + value.text.size());
   BuildPropertyChanged(fbb, record);
   BroadcastReliable({fbb.GetBufferPointer(), fbb.GetSize()}, 0);

@@ -176,6 +176,8 @@ TEST(Properties, OfTwoCompareAndSetWritersExactlyOneWinsAndTheOtherSeesTheCurren
   EXPECT_EQ(stats.conflicts, kRounds + 1);
   EXPECT_EQ(stats.accepted, kRounds + 1);
   EXPECT_EQ(stats.refused, 0u);
+  EXPECT_EQ(world.counters().property_conflicts.load(), kRounds + 1);  // /metrics
+  EXPECT_EQ(world.counters().property_writes.load(), kRounds + 1);
   EXPECT_TRUE(ic.conflicts.empty());  // a conflict goes to the losing writer only
 }
 
