@@ -272,6 +272,7 @@ void Client::Impl::ResetRoom() {
   entities_.clear();
   despawned_.clear();
   owned_.clear();
+  properties_.clear();
   players_.clear();
   tracker_ = ReplicationTracker();
 }
@@ -319,6 +320,7 @@ Result<uint32_t> Client::Impl::Spawn(const SpawnDesc& desc) {
 Status Client::Impl::Despawn(uint32_t entity_id) {
   if (owned_.erase(entity_id) == 0) return Status::NotFound("not an owned entity");
   tracker_.Forget(entity_id);
+  ForgetEntityProperties(entity_id);
   flatbuffers::FlatBufferBuilder fbb(32);
   FinishControl(fbb, schema::CreateDespawn(fbb, entity_id));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
@@ -553,6 +555,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       if (shared_decoder_) shared_decoder_->Forget(id);
       if (soft_decoder_) soft_decoder_->Forget(id);
       despawned_.insert(id);
+      ForgetEntityProperties(id);
       listener_->OnEntityDespawned(id);
       break;
     }
@@ -586,6 +589,8 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       listener_->OnMessage(m->sender(), payload);
       break;
     }
+    case schema::Body::PropertyChanged:
+    case schema::Body::PropertyConflict: return OnPropertyMessage(*msg);
     case schema::Body::Disconnecting: {
       const auto* d = msg->body_as_Disconnecting();
       disconnect_detail_ = d->detail() ? d->detail()->str() : std::string();

@@ -41,6 +41,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <span>
 #include <string>
@@ -50,6 +51,7 @@
 
 #include "protocol/connection_types.h"
 #include "protocol/entity_spec.h"
+#include "protocol/property_value.h"
 #include "protocol/status.h"
 #include "protocol/types.h"
 
@@ -179,7 +181,20 @@ class ClientListener {
   virtual void OnMessage(uint32_t sender, std::span<const uint8_t> payload) {
     (void)sender, (void)payload;
   }
+  // A property of the room (entity_id 0) or of an entity changed: `property` is it now, with
+  // the player who wrote it, its new version and (for this client's own writes) the request id
+  // SetProperty returned. Also called, once per property, for the properties a room holds when
+  // this client joins (after the spawns of their entities). In the order the relay accepted
+  // the writes. Valid during the call only.
+  virtual void OnPropertyChanged(const PropertyRecord& property) { (void)property; }
+  // This client's compare-and-set `current.request_id` lost: `current` is the property as it
+  // is now (version 0 and type kNone when it does not exist). Its PropertyChanged arrived
+  // before, so properties() already holds it.
+  virtual void OnPropertyConflict(const PropertyRecord& current) { (void)current; }
 };
+
+// A property's place: (entity id, 0 for the room; key).
+using PropertyKey = std::pair<uint32_t, std::string>;
 
 // Whom an application message is for (schema MessageTarget).
 enum class MessageTarget : uint8_t {
@@ -244,6 +259,34 @@ class Client final {
   // over kMaxMessagePayload, an unknown target or a kPlayer target of 0, kResourceExhausted when
   // the reliable queue is full. The payload is copied.
   Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
+  // Properties (docs/protocol.md, "Properties"). Writes `value` under `key` (1..64 bytes) of
+  // the room (`entity_id` 0) or of an entity; the relay stores it and sends every member,
+  // this client included, OnPropertyChanged with the new version. `authority` applies when
+  // the write creates the property: kOwner (only the entity's owner, or for a room property
+  // this player, may write it) or kAnyone; later writes keep it. Returns the request id that
+  // OnPropertyChanged and OnPropertyConflict carry. The relay refuses with OnError
+  // (NotPermitted, RateLimited, NotOwner, UnknownEntity, OverBudget naming the budget,
+  // InvalidMessage). kNotConnected before OnJoined; kInvalidArgument for a bad key, a bad value
+  // (unknown type, NaN/infinite double, vec3 or quat component, bool not 0/1, string/bytes
+  // over kMaxPropertyValueBytes) or an unknown authority; kNotFound for an entity this client
+  // does not know; kResourceExhausted when the reliable queue is full. Copies everything.
+  Result<uint32_t> SetProperty(uint32_t entity_id, std::string_view key,
+                               const PropertyValue& value,
+                               PropertyAuthority authority = PropertyAuthority::kOwner);
+  // As SetProperty, but the relay applies it only if the property's version is
+  // `expected_version` (0: only if it does not exist); otherwise OnPropertyConflict with the
+  // current value and version. Of concurrent writers expecting the same version exactly one
+  // wins.
+  Result<uint32_t> CompareAndSetProperty(uint32_t entity_id, std::string_view key,
+                                         const PropertyValue& value, uint32_t expected_version,
+                                         PropertyAuthority authority = PropertyAuthority::kOwner);
+  // The property as the relay last announced it (this client's own writes included, once the
+  // relay accepted them); null if unknown. Valid until the next Update() or room change.
+  const PropertyRecord* FindProperty(uint32_t entity_id, std::string_view key) const;
+  // Every property of the joined room, room properties first. An entity's properties go when it
+  // is despawned; all go on leaving the room.
+  const std::map<PropertyKey, PropertyRecord>& properties() const;
+
   // Records the latest transform of an owned entity; it goes out at the publish rate.
   // kNotFound if not owned, kInvalidArgument if not finite / not unit.
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);

@@ -3,6 +3,7 @@
 // public forwarders, the address conversions and ClientTesting. Contracts are Client's.
 #pragma once
 
+#include <map>
 #include <memory>
 #include <span>
 #include <string>
@@ -43,6 +44,12 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status Release(uint32_t entity_id);
   Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
+  // Properties (client/client_properties.cc).
+  Result<uint32_t> WriteProperty(uint32_t entity_id, std::string_view key,
+                                 const PropertyValue& value, PropertyAuthority authority,
+                                 bool check_version, uint32_t expected_version);
+  void OnPropertyMessage(const schema::ControlMessage& msg);
+  void ForgetEntityProperties(uint32_t entity_id);
   void Disconnect();
   const ConnectionStats* stats() const;
   const RemoteEntity* FindEntity(uint32_t id) const;
@@ -103,6 +110,8 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   std::unordered_map<uint32_t, RemoteEntity> entities_;
   std::unordered_set<uint32_t> despawned_;  // tombstones: late states for these are ignored
   std::unordered_map<uint32_t, OwnedEntity> owned_;
+  std::map<PropertyKey, PropertyRecord> properties_;
+  uint32_t last_property_request_ = 0;
   ReplicationTracker tracker_;
   double next_publish_ = 0;
   double now_ = 0;

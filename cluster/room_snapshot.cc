@@ -8,7 +8,7 @@
 namespace edgephys::cluster {
 namespace {
 
-constexpr uint8_t kVersion = 1;
+constexpr uint8_t kVersion = 2;  // 1: no property section
 constexpr char kMagic[4] = {'E', 'P', 'R', 'S'};
 
 class Writer {
@@ -28,6 +28,11 @@ class Writer {
     StoreF32LE(out_->data() + n, v);
   }
   void Vec(const Vec3f& v) { F32(v.x), F32(v.y), F32(v.z); }
+  void F64(double v) {
+    uint64_t bits;
+    std::memcpy(&bits, &v, 8);
+    U64(bits);
+  }
   void Bytes(const void* p, size_t n) {
     size_t at = Grow(n);
     if (n > 0) std::memcpy(out_->data() + at, p, n);
@@ -70,6 +75,13 @@ class Reader {
     if (!std::isfinite(v)) ok_ = false;
     return v;
   }
+  double F64() {
+    const uint64_t bits = U64();
+    double v;
+    std::memcpy(&v, &bits, 8);
+    if (!std::isfinite(v)) ok_ = false;
+    return v;
+  }
   Vec3f Vec() {
     Vec3f v;
     v.x = F32();
@@ -90,6 +102,66 @@ class Reader {
   size_t pos_ = 0;
   bool ok_ = true;
 };
+
+void WriteProperty(Writer& w, const PropertySnapshot& p) {
+  w.U32(p.entity_id);
+  w.U8(static_cast<uint8_t>(p.key.size()));
+  w.Bytes(p.key.data(), p.key.size());
+  w.U8(static_cast<uint8_t>(p.value.type));
+  w.U8(static_cast<uint8_t>(p.authority));
+  w.U32(p.version), w.U32(p.writer), w.U32(p.owner), w.U32(p.request_id);
+  switch (p.value.type) {
+    case PropertyType::kBool:
+    case PropertyType::kInt64: w.U64(static_cast<uint64_t>(p.value.number)); break;
+    case PropertyType::kDouble: w.F64(p.value.real); break;
+    case PropertyType::kVec3: w.Vec(p.value.vec); break;
+    case PropertyType::kQuat:
+      w.F32(p.value.quat.x), w.F32(p.value.quat.y), w.F32(p.value.quat.z), w.F32(p.value.quat.w);
+      break;
+    case PropertyType::kString:
+    case PropertyType::kBytes:
+      w.U32(static_cast<uint32_t>(p.value.text.size()));
+      w.Bytes(p.value.text.data(), p.value.text.size());
+      break;
+    case PropertyType::kNone: break;
+  }
+}
+
+// False on any violation (the reader is then not ok() or the property is invalid).
+bool ReadProperty(Reader& r, PropertySnapshot* p) {
+  p->entity_id = r.U32();
+  const uint8_t key_len = r.U8();
+  const auto key = r.Bytes(key_len);
+  if (!r.ok()) return false;
+  p->key.assign(reinterpret_cast<const char*>(key.data()), key.size());
+  p->value.type = static_cast<PropertyType>(r.U8());
+  const uint8_t authority = r.U8();
+  p->authority = static_cast<PropertyAuthority>(authority);
+  p->version = r.U32(), p->writer = r.U32(), p->owner = r.U32(), p->request_id = r.U32();
+  switch (p->value.type) {
+    case PropertyType::kBool:
+    case PropertyType::kInt64: p->value.number = static_cast<int64_t>(r.U64()); break;
+    case PropertyType::kDouble: p->value.real = r.F64(); break;
+    case PropertyType::kVec3: p->value.vec = r.Vec(); break;
+    case PropertyType::kQuat:
+      p->value.quat.x = r.F32(), p->value.quat.y = r.F32(), p->value.quat.z = r.F32();
+      p->value.quat.w = r.F32();
+      break;
+    case PropertyType::kString:
+    case PropertyType::kBytes: {
+      const uint32_t n = r.U32();
+      if (!r.ok() || n > kMaxPropertyValueBytes) return false;
+      const auto bytes = r.Bytes(n);
+      p->value.text.assign(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+      break;
+    }
+    case PropertyType::kNone: return false;
+    default: return false;
+  }
+  return r.ok() && authority <= static_cast<uint8_t>(PropertyAuthority::kAnyone) &&
+         p->version != 0 && ValidatePropertyKey(p->key).ok() &&
+         ValidatePropertyValue(p->value).ok();
+}
 
 }  // namespace
 
@@ -121,6 +193,8 @@ std::vector<uint8_t> EncodeRoomSnapshot(const RoomSnapshot& s) {
     w.U32(static_cast<uint32_t>(e.spawn.size()));
     w.Bytes(e.spawn.data(), e.spawn.size());
   }
+  w.U32(static_cast<uint32_t>(s.properties.size()));
+  for (const PropertySnapshot& p : s.properties) WriteProperty(w, p);
   return out;
 }
 
@@ -129,7 +203,8 @@ Result<RoomSnapshot> DecodeRoomSnapshot(std::span<const uint8_t> bytes) {
   Reader r(bytes);
   auto magic = r.Bytes(4);
   if (!r.ok() || std::memcmp(magic.data(), kMagic, 4) != 0) return bad;
-  if (r.U8() != kVersion) return bad;
+  const uint8_t version = r.U8();
+  if (version != 1 && version != kVersion) return bad;
   RoomSnapshot s;
   uint8_t room_len = r.U8();
   auto room = r.Bytes(room_len);
@@ -171,6 +246,17 @@ Result<RoomSnapshot> DecodeRoomSnapshot(std::span<const uint8_t> bytes) {
     auto spawn = r.Bytes(spawn_len);
     if (!r.ok()) return bad;
     e.spawn.assign(spawn.begin(), spawn.end());
+  }
+  if (version >= 2) {
+    const uint32_t properties = r.U32();
+    constexpr size_t kMinPropertyBytes = 4 + 1 + 1 + 1 + 1 + 16 + 4;
+    if (!r.ok() || properties > kMaxSnapshotProperties || properties > r.left() / kMinPropertyBytes) {
+      return bad;
+    }
+    s.properties.resize(properties);
+    for (PropertySnapshot& p : s.properties) {
+      if (!ReadProperty(r, &p)) return bad;
+    }
   }
   if (!r.ok() || r.left() != 0) return bad;
   return s;

@@ -2,17 +2,23 @@
 // (cluster/directory.h) and another relay restores it (relay/cluster_hook.h): the players'
 // entity id blocks (slots), and every entity's owner, creator, flags, spawn message (its
 // containers: colliders, bodies, soft bodies), latest state, PhyS velocities and soft-body
-// nodes.
+// nodes; and the room's properties (room and entity properties, protocol/property_value.h).
 //
-// Binary layout (little-endian), "EPRS" version 1:
+// Binary layout (little-endian), "EPRS" version 2 (version 1, without the property section,
+// is still read):
 //   "EPRS" | u8 version | u8 room length | room | u64 written (unix ms)
 //   | u32 slot count | { u32 player | u32 slot }*
 //   | u32 entity count | { u32 id | u32 owner | u32 creator | u32 flags | u32 held_by
 //       | u8 physics role | u64 spawn_seq | f32 x3 position | f32 x4 rotation
 //       | f32 x3 linear velocity | f32 x3 angular velocity
 //       | u32 node count | f32 x3 per node | u32 spawn length | spawn bytes }*
+//   | u32 property count | { u32 entity id (0: room) | u8 key length | key | u8 type
+//       | u8 authority | u32 version | u32 writer | u32 owner | u32 request id
+//       | value: i64 (bool, int64) | f64 (double) | f32 x3 (vec3) | f32 x4 (quat)
+//              | u32 length, bytes (string, bytes) }*
 // Decode treats its input as untrusted (anything may sit in a Redis key): every length is
-// checked against the bytes left and the limits below, floats must be finite; any violation
+// checked against the bytes left and the limits below, floats must be finite, property keys
+// and values must pass ValidatePropertyKey/Value, versions be non-zero; any violation
 // is kMalformed, never a crash. Thread-safety: free functions, thread-safe.
 #pragma once
 
@@ -21,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "protocol/property_value.h"
 #include "protocol/status.h"
 #include "protocol/types.h"
 
@@ -30,6 +37,7 @@ inline constexpr uint32_t kMaxSnapshotEntities = 1u << 20;
 inline constexpr uint32_t kMaxSnapshotNodes = 1u << 16;      // per soft body
 inline constexpr uint32_t kMaxSnapshotSpawnBytes = 1u << 20;  // per entity
 inline constexpr uint32_t kMaxSnapshotSlots = 1u << 16;
+inline constexpr uint32_t kMaxSnapshotProperties = 1u << 20;
 
 struct EntitySnapshot {
   uint32_t id = 0;
@@ -46,6 +54,17 @@ struct EntitySnapshot {
   std::vector<uint8_t> spawn;  // ControlMessage{Spawn} as the relay stores it
 };
 
+struct PropertySnapshot {
+  uint32_t entity_id = 0;  // 0: a room property
+  std::string key;
+  PropertyValue value;
+  PropertyAuthority authority = PropertyAuthority::kOwner;
+  uint32_t version = 0;
+  uint32_t writer = 0;
+  uint32_t owner = 0;
+  uint32_t request_id = 0;
+};
+
 struct RoomSnapshot {
   std::string room;
   uint64_t written_unix_ms = 0;
@@ -55,6 +74,7 @@ struct RoomSnapshot {
   };
   std::vector<Slot> slots;  // players' entity id blocks, kept across failover
   std::vector<EntitySnapshot> entities;
+  std::vector<PropertySnapshot> properties;
 };
 
 std::vector<uint8_t> EncodeRoomSnapshot(const RoomSnapshot& snapshot);

@@ -32,6 +32,25 @@ RoomSnapshot Sample() {
   b.creator = 9;
   b.state = {b.id, {-1, 0, 0}, {0, 0, 0, 1}};
   s.entities.push_back(b);
+  const auto prop = [](uint32_t entity, const char* key, PropertyValue v, uint32_t version) {
+    PropertySnapshot p;
+    p.entity_id = entity;
+    p.key = key;
+    p.value = std::move(v);
+    p.version = version;
+    p.writer = 9;
+    p.owner = entity == 0 ? 7 : 0;
+    p.authority = entity == 0 ? PropertyAuthority::kAnyone : PropertyAuthority::kOwner;
+    p.request_id = version + 100;
+    return p;
+  };
+  s.properties = {prop(0, "step", PropertyValue::Int64(-5), 3),
+                  prop(0, "lit", PropertyValue::Bool(true), 1),
+                  prop(0, "gain", PropertyValue::Double(0.25), 2),
+                  prop(0, "title", PropertyValue::String("caf\xc3\xa9"), 4),
+                  prop(0, "blob", PropertyValue::Bytes(std::string("\0\1\2", 3)), 1),
+                  prop(a.id, "tip", PropertyValue::Vec3({1, -2, 3}), 7),
+                  prop(a.id, "aim", PropertyValue::Quat({0, 0, 1, 0}), 2)};
   return s;
 }
 
@@ -57,6 +76,48 @@ TEST(RoomSnapshot, RoundTrips) {
   EXPECT_FLOAT_EQ(a.nodes[1].y, 2);
   EXPECT_EQ(a.spawn, s.entities[0].spawn);
   EXPECT_EQ(back->entities[1].creator, 9u);
+  ASSERT_EQ(back->properties.size(), s.properties.size());
+  for (size_t i = 0; i < s.properties.size(); ++i) {
+    const PropertySnapshot& want = s.properties[i];
+    const PropertySnapshot& got = back->properties[i];
+    EXPECT_EQ(got.entity_id, want.entity_id) << want.key;
+    EXPECT_EQ(got.key, want.key);
+    EXPECT_EQ(got.value, want.value) << want.key;
+    EXPECT_EQ(got.version, want.version);
+    EXPECT_EQ(got.writer, want.writer);
+    EXPECT_EQ(got.owner, want.owner);
+    EXPECT_EQ(got.authority, want.authority);
+    EXPECT_EQ(got.request_id, want.request_id);
+  }
+}
+
+TEST(RoomSnapshot, BadPropertiesAreRefused) {
+  const auto refused = [](auto change) {
+    RoomSnapshot s = Sample();
+    change(s.properties[5]);
+    return !DecodeRoomSnapshot(EncodeRoomSnapshot(s)).ok();
+  };
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.value.vec.y = std::nanf(""); }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.value = PropertyValue::Double(INFINITY); }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.key.clear(); }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.key.assign(65, 'k'); }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.version = 0; }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.authority = static_cast<PropertyAuthority>(2); }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.value.type = static_cast<PropertyType>(8); }));
+  EXPECT_TRUE(refused([](PropertySnapshot& p) { p.value = PropertyValue::Bool(true), p.value.number = 2; }));
+  EXPECT_FALSE(refused([](PropertySnapshot&) {}));
+}
+
+TEST(RoomSnapshot, VersionOneWithoutPropertiesIsStillRead) {
+  RoomSnapshot s = Sample();
+  s.properties.clear();
+  std::vector<uint8_t> bytes = EncodeRoomSnapshot(s);
+  bytes[4] = 1;                           // version
+  bytes.resize(bytes.size() - 4);         // no property count
+  auto back = DecodeRoomSnapshot(bytes);
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->entities.size(), 2u);
+  EXPECT_TRUE(back->properties.empty());
 }
 
 TEST(RoomSnapshot, EveryTruncationIsRefused) {

@@ -7,7 +7,9 @@
 // of the relay holding most rooms, and it measures: time until every lost room is owned by a
 // live relay again (Redis), time until every bot of those rooms has resumed and is seen
 // publishing again, latency p99 before and during recovery, and whether every persistent
-// entity is back exactly once with its owner. Exit status 1 if a check fails.
+// entity is back exactly once with its owner, and every room property ("p<player>") and entity
+// property ("bot" on each bot's entity) its bots wrote is back at every member with its value.
+// Exit status 1 if a check fails.
 // --fault stop:S instead freezes that relay (SIGSTOP) for S seconds and lets it run again
 // (SIGCONT): the fencing case. Newcomers then join each of its rooms twice, through another
 // relay while it is frozen and through the frozen relay itself once it runs again; the checks
@@ -73,6 +75,7 @@ struct Bot {
   uint32_t player = 0;
   uint32_t entity = 0;
   bool join_sent = false;
+  bool properties_sent = false;  // its room property and its entity's property
 };
 
 }  // namespace
@@ -202,6 +205,11 @@ int main(int argc, char** argv) {
         auto id = b.client->Spawn(d);
         if (id.ok()) b.entity = *id;
       }
+      if (b.client->joined() && b.entity != 0 && !b.properties_sent) {
+        const PropertyValue me = PropertyValue::Int64(b.player);
+        b.properties_sent = b.client->SetProperty(0, "p" + std::to_string(b.player), me).ok() &&
+                            b.client->SetProperty(b.entity, "bot", me).ok();
+      }
       if (publish && b.entity != 0 && b.client->joined()) {
         float x = static_cast<float>(std::fmod(t, kStampPeriodS));
         (void)b.client->PublishTransform(b.entity, {x, 1, 0}, Quatf{});
@@ -232,7 +240,8 @@ int main(int argc, char** argv) {
   // 1. Join.
   double deadline = now_s() + join_timeout_s;
   auto all_spawned = [&] {
-    return std::all_of(bots.begin(), bots.end(), [](const Bot& b) { return b.entity != 0; });
+    return std::all_of(bots.begin(), bots.end(),
+                       [](const Bot& b) { return b.entity != 0 && b.properties_sent; });
   };
   while (now_s() < deadline && !all_spawned()) pump(false);
   const double joined_s = now_s();
@@ -399,6 +408,18 @@ int main(int argc, char** argv) {
     missing += static_cast<int>(members[b.room].size() - 1 - owners_seen.size());
   }
   for (const Bot* b : lost_bots) not_resumed += b->client->resumes() == 0;  // newcomers never resume
+  // 5. Properties: every member holds every room member's room property and entity property.
+  int properties_missing = 0;
+  for (const Bot& b : bots) {
+    for (const Bot& o : bots) {
+      if (o.room != b.room) continue;
+      const PropertyValue want = PropertyValue::Int64(o.player);
+      const PropertyRecord* room_p = b.client->FindProperty(0, "p" + std::to_string(o.player));
+      const PropertyRecord* entity_p = b.client->FindProperty(o.entity, "bot");
+      properties_missing += (room_p == nullptr || !(room_p->value == want) || room_p->writer != o.player);
+      properties_missing += (entity_p == nullptr || !(entity_p->value == want));
+    }
+  }
   out["users"] = users;
   out["rooms"] = rooms;
   out["relays"] = relays;
@@ -427,11 +448,13 @@ int main(int argc, char** argv) {
       ok = false;
     }
   }
+  out["properties_missing"] = properties_missing;
   out["settings"] = {{"relay_timeout_s", relay_timeout_s}, {"ttl_ms", ttl_ms},
                      {"heartbeat_ms", heartbeat_ms}, {"snapshot_ms", snapshot_ms},
                      {"publish_hz", publish_hz}};
   (void)before_end;
-  if (rooms_back_s < 0 || users_back_s < 0 || missing != 0 || foreign != 0 || not_resumed != 0) {
+  if (rooms_back_s < 0 || users_back_s < 0 || missing != 0 || foreign != 0 || not_resumed != 0 ||
+      properties_missing != 0) {
     ok = false;
   }
   out["ok"] = ok;

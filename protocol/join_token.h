@@ -30,7 +30,9 @@ inline constexpr uint32_t kPermissionSpawn = 1u << 0;     // may spawn and publi
 inline constexpr uint32_t kPermissionOperator = 1u << 1;  // may create rooms with custom settings
 inline constexpr uint32_t kPermissionWorker = 1u << 2;    // a remote PhyS worker (edgephys-phys)
 inline constexpr uint32_t kPermissionMessage = 1u << 3;   // may send application messages
-inline constexpr uint32_t kDefaultPermissions = kPermissionSpawn | kPermissionMessage;
+inline constexpr uint32_t kPermissionProperty = 1u << 4;  // may write room/entity properties
+inline constexpr uint32_t kDefaultPermissions =
+    kPermissionSpawn | kPermissionMessage | kPermissionProperty;
 
 struct JoinToken {
   std::string room;          // 1..kMaxRoomNameSize bytes

@@ -217,7 +217,7 @@ void ClusterHook::SaveSnapshots(uint64_t unix_now_s) {
     }
     // Only the lease holder writes (the write is also conditional in Redis).
     if (owner == view->room_owner.end() || owner->second != directory_->relay_id()) continue;
-    uint64_t sig = Signature(room);
+    uint64_t sig = Signature(room) + host->properties().changes() * 0x9E3779B97F4A7C15ull;
     auto saved = saved_sig_.find(name);
     if (saved != saved_sig_.end() && saved->second == sig) continue;
     saved_sig_[name] = sig;
@@ -229,6 +229,11 @@ void ClusterHook::SaveSnapshots(uint64_t unix_now_s) {
     for (const auto& [pid, slot] : slots) snap.slots.push_back({pid, slot});
     snap.entities.reserve(room.entities().size());
     for (const auto& [id, e] : room.entities()) snap.entities.push_back(ToSnapshot(e));
+    snap.properties.reserve(host->properties().count());
+    for (const auto& [key, p] : host->properties().all()) {
+      snap.properties.push_back(
+          {key.first, key.second, p.value, p.authority, p.version, p.writer, p.owner, p.request_id});
+    }
     directory_->SaveSnapshot(name, cluster::EncodeRoomSnapshot(snap));
     ++counters_.snapshots_saved;
   }
@@ -238,19 +243,29 @@ void ClusterHook::Restore(const cluster::DirectoryEvent& event, double now) {
   RoomHost& host = relay_->GetOrCreateRoom(event.room, now);
   std::vector<Entity> entities;
   std::map<uint32_t, uint32_t> slots;
+  std::vector<std::pair<PropertyTable::Key, StoredProperty>> properties;
   if (event.has_snapshot) {
     cluster::RoomSnapshot snap = event.snapshot;
     for (const auto& s : snap.slots) slots[s.player_id] = s.slot;
     entities.reserve(snap.entities.size());
     for (auto& e : snap.entities) entities.push_back(FromSnapshot(std::move(e)));
+    for (auto& p : snap.properties) {
+      properties.emplace_back(PropertyTable::Key(p.entity_id, std::move(p.key)),
+                              StoredProperty{std::move(p.value), p.version, p.writer, p.owner,
+                                             p.authority, p.request_id});
+    }
   }
   const size_t total = entities.size();
   const size_t skipped = host.Restore(std::move(entities), slots, now);
+  const size_t properties_total = properties.size();
+  const size_t properties_skipped = host.RestoreProperties(std::move(properties));
   ++counters_.rooms_restored;
   counters_.entities_restored += total - skipped;
   counters_.entities_skipped += skipped;
-  spdlog::warn("cluster: room '{}' restored here ({} entities, {} skipped, {} players expected)",
-               event.room, total - skipped, skipped, slots.size());
+  spdlog::warn("cluster: room '{}' restored here ({} entities, {} skipped, {} properties, {} "
+               "skipped, {} players expected)",
+               event.room, total - skipped, skipped, properties_total - properties_skipped,
+               properties_skipped, slots.size());
 }
 
 }  // namespace edgephys

@@ -313,6 +313,77 @@ TEST_F(ClusterTest, ADeadRelaysRoomsComeBackWithTheirEntitiesAndSessionsResume) 
   EXPECT_EQ(hook->counters().entities_skipped, 0u);
 }
 
+// Room and entity properties survive the death of their room's relay: the snapshot carries
+// them, the relay that claims the room restores them (values, versions, writers, authority),
+// the resumed members are told them again, and compare-and-set goes on from the same versions.
+TEST_F(ClusterTest, PropertiesComeBackWithTheRoomAfterItsRelayDies) {
+  ClusterWorld world(redis_.port(), 3);
+  world.RunUntil([] { return false; }, 0.3);
+  CountingListener la, lb;
+  Client& a = world.AddClient(0, Token("pr", 301), &la);
+  Client& b = world.AddClient(1, Token("pr", 302), &lb);
+  world.set_room(a, "pr");
+  world.set_room(b, "pr");
+  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 15.0));
+  SpawnDesc d;
+  d.flags = kPersistent;
+  auto tool = a.Spawn(d);
+  ASSERT_TRUE(tool.ok());
+  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) != nullptr; }, 5.0));
+  ASSERT_TRUE(a.CompareAndSetProperty(0, "step", PropertyValue::Int64(1), 0,
+                                      PropertyAuthority::kAnyone).ok());
+  ASSERT_TRUE(a.SetProperty(*tool, "tip", PropertyValue::Vec3({1, 2, 3})).ok());
+  ASSERT_TRUE(b.SetProperty(0, "title", PropertyValue::String("suture")).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    const PropertyRecord* step = b.FindProperty(0, "step");
+    return step != nullptr && step->version == 1 && b.properties().size() == 3 &&
+           a.properties().size() == 3;
+  }, 5.0));
+  ASSERT_TRUE(b.CompareAndSetProperty(0, "step", PropertyValue::Int64(2), 1).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return a.FindProperty(0, "step")->version == 2; }, 5.0));
+  const std::map<PropertyKey, PropertyRecord> before = a.properties();
+  world.RunUntil([] { return false; }, 0.4);  // a snapshot interval or more
+  const int victim = world.Holder("pr");
+  ASSERT_GE(victim, 0);
+  world.Kill(victim);
+  ASSERT_TRUE(world.RunUntil([&] {
+    const int h = world.Holder("pr");
+    return h >= 0 && world.relay(h)->rooms().count("pr") != 0 &&
+           world.relay(h)->rooms().at("pr")->properties().count() == 3;
+  }, 5.0));
+  const RoomHost& host = *world.relay(world.Holder("pr"))->rooms().at("pr");
+  for (const auto& [k, want] : before) {
+    const StoredProperty* got = host.properties().Find(k.first, k.second);
+    ASSERT_NE(got, nullptr) << k.second;
+    EXPECT_EQ(got->value, want.value) << k.second;
+    EXPECT_EQ(got->version, want.version) << k.second;
+    EXPECT_EQ(got->writer, want.writer) << k.second;
+    EXPECT_EQ(got->authority, want.authority) << k.second;
+  }
+  // The members resume and are told every property again, as it was.
+  ASSERT_TRUE(world.RunUntil([&] {
+    return a.resumes() + b.resumes() >= 2 && a.joined() && b.joined() &&
+           a.properties().size() == 3 && b.properties().size() == 3;
+  }, 10.0));
+  for (const Client* c : {&a, &b}) {
+    for (const auto& [k, want] : before) {
+      const PropertyRecord* got = c->FindProperty(k.first, k.second);
+      ASSERT_NE(got, nullptr) << k.second;
+      EXPECT_EQ(got->value, want.value);
+      EXPECT_EQ(got->version, want.version);
+    }
+  }
+  // Compare-and-set goes on from the restored version; an outdated one loses.
+  ASSERT_TRUE(a.CompareAndSetProperty(0, "step", PropertyValue::Int64(3), 2).ok());
+  ASSERT_TRUE(b.CompareAndSetProperty(0, "step", PropertyValue::Int64(9), 1).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    const PropertyRecord* step = b.FindProperty(0, "step");
+    return step != nullptr && step->version == 3;
+  }, 5.0));
+  EXPECT_EQ(b.FindProperty(0, "step")->value, PropertyValue::Int64(3));
+  EXPECT_EQ(host.property_stats().conflicts, 1u);
+}
+
 // The room's owner key is overwritten with an unknown relay id while its holder is healthy:
 // another relay claims and restores the room. The old holder admits nobody into its copy
 // (a newcomer is redirected), hands it over (members resume at the new holder with their

@@ -94,8 +94,13 @@ struct RelayCounters {
   std::array<Counter, kRejectReasonCount> requests_rejected{};
   // Connections ended, by DisconnectReason.
   std::array<Counter, kDisconnectReasonCount> disconnects{};
-  // Spawns refused with Error{OverBudget}, by the budget used up (BudgetKind).
+  // Spawns and property writes refused with Error{OverBudget}, by the budget used up
+  // (BudgetKind).
   std::array<Counter, kBudgetKindCount> budget_refusals{};
+  // Property writes (RoomHost::SetProperty): accepted and broadcast, and compare-and-set writes
+  // that lost (answered with PropertyConflict). Refused ones count in requests_rejected.
+  Counter property_writes{0};
+  Counter property_conflicts{0};
 
   // PhyS (embedded worlds, all rooms).
   Counter physics_steps{0};

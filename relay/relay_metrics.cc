@@ -217,8 +217,16 @@ const FamilySpec kFamilies[] = {
      "Connect, join and command requests refused to clients, by reason.",
      ReasonCountersSource{CountersOf<&C::requests_rejected>, RejectLabels}},
     {"edgephys_budget_refusals_total",
-     "Spawns refused with Error{OverBudget}, by the room or player budget used up.",
+     "Spawns and property writes refused with Error{OverBudget}, by the room or player budget "
+     "used up.",
      ReasonCountersSource{CountersOf<&C::budget_refusals>, BudgetLabels}},
+    {"edgephys_property_writes_total",
+     "Room and entity property writes accepted and sent to the room's members.",
+     CounterSource{&C::property_writes}},
+    {"edgephys_property_conflicts_total",
+     "Property compare-and-set writes that expected another version (answered with the current "
+     "value).",
+     CounterSource{&C::property_conflicts}},
     {"edgephys_disconnects_total", "Connections ended, by reason.",
      ReasonCountersSource{CountersOf<&C::disconnects>, DisconnectLabels}},
     {"edgephys_rtt_seconds", "Connection round-trip time samples, in seconds.",

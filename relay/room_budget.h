@@ -36,6 +36,13 @@ struct RoomBudgets {
   double message_bytes_per_s_per_player = 256u << 10;
   double messages_per_s = 2000;
   double message_bytes_per_s = 4u << 20;
+  // Properties (RoomHost::SetProperty): how many the room holds (room and entity properties
+  // together), their key and value bytes in all, one string/bytes value's size, and writes per
+  // second per player (sustained; bursts of 2 s allowed).
+  uint32_t max_properties = 4096;
+  size_t max_property_bytes = 1u << 20;
+  size_t max_property_value_bytes = 16u << 10;
+  double property_writes_per_s_per_player = 120;
 
   // Every limit off (benchmarks that build large scenes on purpose).
   static RoomBudgets Unlimited() {
@@ -45,14 +52,18 @@ struct RoomBudgets {
     b.max_bytes_per_player = b.max_bytes = b.max_name_bytes = 0;
     b.messages_per_s_per_player = b.message_bytes_per_s_per_player = 0;
     b.messages_per_s = b.message_bytes_per_s = 0;
+    b.max_properties = 0;
+    b.max_property_bytes = b.max_property_value_bytes = 0;
+    b.property_writes_per_s_per_player = 0;
     return b;
   }
 };
 
-// Why a spawn was refused by a budget: the label of edgephys_budget_refusals_total.
+// Why a spawn or a property write was refused by a budget: the label of edgephys_budget_refusals_total.
 enum class BudgetKind : uint8_t {
   kPlayerEntities, kRoomEntities, kPlayerBodies, kRoomBodies, kPlayerParticles, kRoomParticles,
   kPlayerJoints, kRoomJoints, kPlayerBytes, kRoomBytes, kNameLength,
+  kRoomProperties, kRoomPropertyBytes, kPropertyValueBytes,  // property writes
   kNone,  // within budget
 };
 inline constexpr size_t kBudgetKindCount = static_cast<size_t>(BudgetKind::kNone);
@@ -70,6 +81,9 @@ inline std::string_view BudgetKindName(BudgetKind kind) {
     case BudgetKind::kPlayerBytes: return "player_bytes";
     case BudgetKind::kRoomBytes: return "room_bytes";
     case BudgetKind::kNameLength: return "name_length";
+    case BudgetKind::kRoomProperties: return "room_properties";
+    case BudgetKind::kRoomPropertyBytes: return "room_property_bytes";
+    case BudgetKind::kPropertyValueBytes: return "property_value_bytes";
     case BudgetKind::kNone: return "none";
   }
   return "none";

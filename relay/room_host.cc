@@ -92,6 +92,7 @@ bool RoomHost::Join(MemberLink& link, double now) {
     return false;
   }
   SendJoinState(link, slot);
+  SendJoinProperties(link.player_id());
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreatePlayerJoined(fbb, link.player_id()));
   BroadcastReliable({fbb.GetBufferPointer(), fbb.GetSize()}, link.player_id());
@@ -167,7 +168,10 @@ void RoomHost::Leave(MemberLink& link, double now) {
   for (const auto& [pid, m] : room_.members()) {
     for (uint32_t id : despawned) m.link->Forget(id);
   }
-  for (uint32_t id : despawned) BroadcastDespawn(id, 0);
+  for (uint32_t id : despawned) {
+    properties_.EraseEntity(id);  // receivers drop an entity's properties with its Despawn
+    BroadcastDespawn(id, 0);
+  }
   // Entities the room took over: their stored spawn now names the room as owner.
   for (const auto& [id, e] : room_.entities()) {
     if (e.owner == 0) SetStoredOwner(const_cast<std::vector<uint8_t>&>(e.spawn), 0);
@@ -279,6 +283,7 @@ void RoomHost::Despawn(MemberLink& link, uint32_t entity_id) {
   }
   const bool simulated = e->physics == PhysicsRole::kSimulated;
   room_.RemoveEntity(entity_id);
+  properties_.EraseEntity(entity_id);
   env_.counters->entities.fetch_sub(1, std::memory_order_relaxed);
   for (const auto& [pid, m] : room_.members()) m.link->Forget(entity_id);
   BroadcastDespawn(entity_id, simulated ? 0 : player);

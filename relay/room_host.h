@@ -25,6 +25,7 @@
 
 #include "relay/join_stream.h"
 #include "relay/member_link.h"
+#include "relay/property_table.h"
 #include "relay/rate_limit.h"
 #include "relay/relay_config.h"
 #include "relay/relay_counters.h"
@@ -103,6 +104,35 @@ class RoomHost {
   };
   const MessageStats& message_stats() const { return message_stats_; }
 
+  // A property write from the member (docs/protocol.md, "Properties"; relay/room_properties.cc).
+  // Accepted: stored (version 1 on creation, +1 after) and PropertyChanged sent to every member,
+  // the writer included, in the order of acceptance. A compare-and-set whose expected version
+  // is not the property's (0: it must not exist) is answered with PropertyConflict carrying
+  // the current value and version to the writer only, and counted in conflicts. Refused (Error
+  // on `link`, counted in requests_rejected and property_stats().refused): without the join
+  // token's kPermissionProperty (NotPermitted); over the player's write rate (RateLimited); a
+  // bad key, an unknown type tag or authority, a NaN/infinite double/vec3/quat, a missing value
+  // (InvalidMessage); an entity the room does not hold (UnknownEntity); a property under Owner
+  // authority written by another than its owner (the entity's owner, or the room property's
+  // creator), or created Owner-only on another's entity (NotOwner); the authority is fixed
+  // when the property is created; a string/bytes value over
+  // RoomBudgets::max_property_value_bytes, a new property over max_properties, or bytes over
+  // max_property_bytes (OverBudget, detail "over budget: <budget>", also counted by budget).
+  // O(log properties + members).
+  void SetProperty(MemberLink& link, const schema::PropertySet& set, double now);
+  struct PropertyStats {
+    uint64_t accepted = 0;   // writes stored and broadcast
+    uint64_t conflicts = 0;  // compare-and-set writes that lost
+    uint64_t refused = 0;    // writes refused (any reason)
+  };
+  const PropertyStats& property_stats() const { return property_stats_; }
+  const PropertyTable& properties() const { return properties_; }
+  // Cluster failover: properties as a snapshot held them. A room property is taken as it is; an
+  // entity property only when the room holds its entity (Restore first), else it is skipped.
+  // Invalid keys and values are skipped too. Returns how many were skipped. Call before members
+  // join. O(properties).
+  size_t RestoreProperties(std::vector<std::pair<PropertyTable::Key, StoredProperty>> properties);
+
   // An unreliable state payload from the member: each state is applied if the member owns the
   // entity and it is valid (early states of its own unspawned entities are held, bounded).
   // O(states).
@@ -144,6 +174,9 @@ class RoomHost {
   void BroadcastPhysicsEvent(schema::PhysicsEventKind kind, uint32_t a, uint32_t b, double now);
   void BroadcastDespawn(uint32_t entity_id, uint32_t except_player);
   void SendJoinState(MemberLink& link, uint32_t slot);
+  // Queues PropertyChanged for every property the room holds to a joining member (after its
+  // join stream's spawns).
+  void SendJoinProperties(uint32_t player_id);
   // Sends what fits of the join streams (all members, or `only`); drops finished ones.
   void PumpJoinStreams(uint32_t only = 0);
 
@@ -160,6 +193,9 @@ class RoomHost {
   MessageRates room_message_rates_;
   bool message_rates_ready_ = false;
   MessageStats message_stats_;
+  PropertyTable properties_;
+  PropertyStats property_stats_;
+  std::unordered_map<uint32_t, TokenBucket> property_rates_;  // per player identity
 };
 
 }  // namespace edgephys

@@ -45,7 +45,8 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case Body::Despawn:
     case Body::Grab:
     case Body::Release:
-    case Body::AppMessage: break;
+    case Body::AppMessage:
+    case Body::PropertySet: break;
     default: return SendError(RejectReason::InvalidMessage, 0, "unexpected message type");
   }
   // Requests about the joined room's entities.
@@ -53,6 +54,7 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
   if (msg->body_type() == Body::Despawn) entity = msg->body_as_Despawn()->entity_id();
   if (msg->body_type() == Body::Grab) entity = msg->body_as_Grab()->entity_id();
   if (msg->body_type() == Body::Release) entity = msg->body_as_Release()->entity_id();
+  if (msg->body_type() == Body::PropertySet) entity = msg->body_as_PropertySet()->entity_id();
   if (room_ == nullptr) return SendError(RejectReason::NotJoined, entity, "join a room first");
   switch (msg->body_type()) {
     case Body::Spawn: return room_->Spawn(*this, message, *msg->body_as_Spawn(), now_);
@@ -60,6 +62,7 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case Body::Grab: return room_->Grab(*this, entity, msg->body_as_Grab()->hand_id());
     case Body::Release: return room_->Release(*this, entity, now_);
     case Body::AppMessage: return room_->Message(*this, *msg->body_as_AppMessage(), now_);
+    case Body::PropertySet: return room_->SetProperty(*this, *msg->body_as_PropertySet(), now_);
     default: return;
   }
 }

@@ -108,6 +108,14 @@ edgephys_status CheckNow(edgephys_client* c, double now_s) {
 
 }  // namespace
 
+namespace edgephys::capi {
+edgephys_status CheckHandle(const edgephys_client* c) { return Check(c); }
+edgephys_status SetError(edgephys_status code, std::string_view message) {
+  return Fail(code, message);
+}
+edgephys_status SetStatus(const Status& st) { return st.ok() ? Ok() : FailStatus(st); }
+}  // namespace edgephys::capi
+
 extern "C" {
 
 uint32_t edgephys_abi_version(void) { return EDGEPHYS_ABI_VERSION; }
@@ -417,6 +425,7 @@ edgephys_status edgephys_client_poll_event(edgephys_client* client, edgephys_eve
   EDGEPHYS_CHECK(client);
   if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");
   client->has_polled_message = false;
+  client->has_polled_property = false;
   if (client->count == 0) {
     std::memset(out, 0, sizeof(*out));
     out->type = EDGEPHYS_EVENT_NONE;
@@ -430,6 +439,13 @@ edgephys_status edgephys_client_poll_event(edgephys_client* client, edgephys_eve
     client->polled_message = std::move(client->message_payloads.front());
     client->message_payloads.pop_front();
     client->message_bytes -= client->polled_message.size();
+  }
+  client->has_polled_property = out->type == EDGEPHYS_EVENT_PROPERTY_CHANGED ||
+                                out->type == EDGEPHYS_EVENT_PROPERTY_CONFLICT;
+  if (client->has_polled_property) {
+    client->polled_property = std::move(client->event_properties.front());
+    client->event_properties.pop_front();
+    client->message_bytes -= client->polled_property.value.text.size();
   }
   return Ok();
 }

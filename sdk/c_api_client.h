@@ -40,6 +40,12 @@ inline edgephys_transform ToC(const EntityState& s) {
           {s.rotation.x, s.rotation.y, s.rotation.z, s.rotation.w}};
 }
 
+// Shared with sdk/c_api_properties.cc (defined in c_api.cc): the handle check, and recording
+// an outcome in the thread's last-error string.
+edgephys_status CheckHandle(const edgephys_client* c);
+edgephys_status SetError(edgephys_status code, std::string_view message);
+edgephys_status SetStatus(const Status& st);  // Ok, or the error st names
+
 }  // namespace edgephys::capi
 
 // The handle. Lives in the registry from create to destroy.
@@ -60,6 +66,12 @@ struct edgephys_client final : edgephys::ClientListener {
   size_t message_bytes = 0;
   std::vector<uint8_t> polled_message;
   bool has_polled_message = false;
+  // The properties of the queued PROPERTY_CHANGED / _CONFLICT events, oldest first (one per
+  // such event in the ring; their string/bytes values count in message_bytes), and the one of
+  // the event polled last.
+  std::deque<edgephys::PropertyRecord> event_properties;
+  edgephys::PropertyRecord polled_property;
+  bool has_polled_property = false;
   uint64_t states_received = 0;
 
   struct Track {
@@ -209,6 +221,28 @@ struct edgephys_client final : edgephys::ClientListener {
       message_payloads.emplace_back(payload.begin(), payload.end());
       message_bytes += payload.size();
     }
+  }
+  void QueueProperty(uint32_t type, const edgephys::PropertyRecord& p) {
+    if (message_bytes + p.value.text.size() > kMaxQueuedMessageBytes) {
+      ++dropped;
+      return;
+    }
+    if (auto* ev = Push(type)) {
+      ev->entity_id = p.entity_id;
+      ev->player_id = p.writer;
+      ev->code = p.version;
+      ev->other_id = p.request_id;
+      ev->flags = static_cast<uint32_t>(p.value.type);
+      edgephys::capi::CopyDetail(p.key, ev);
+      event_properties.push_back(p);
+      message_bytes += p.value.text.size();
+    }
+  }
+  void OnPropertyChanged(const edgephys::PropertyRecord& p) override {
+    QueueProperty(EDGEPHYS_EVENT_PROPERTY_CHANGED, p);
+  }
+  void OnPropertyConflict(const edgephys::PropertyRecord& p) override {
+    QueueProperty(EDGEPHYS_EVENT_PROPERTY_CONFLICT, p);
   }
   void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) override {
     if (auto* ev = Push(EDGEPHYS_EVENT_ERROR)) {

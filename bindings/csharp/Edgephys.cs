@@ -30,8 +30,12 @@ public enum Status : int {
 public enum EventType : uint {
   None = 0, Connected, Rejected, Disconnected, Joined, PlayerJoined, PlayerLeft, Spawned,
   Despawned, State, SoftBody, CollisionEnter, CollisionExit, TriggerEnter, TriggerExit,
-  GuardReset, Grabbed, Released, Error, Message,
+  GuardReset, Grabbed, Released, Error, Message, PropertyChanged, PropertyConflict,
 }
+
+// Properties (edgephys.h, "properties"): value types, and who may write a property.
+public enum PropertyType : uint { None = 0, Bool, Int64, Double, String, Bytes, Vec3, Quat }
+public enum PropertyAuthority : uint { Owner = 0, Anyone = 1 }
 
 // Whom an application message is for (edgephys_client_send_message).
 public enum MessageTarget : uint { Room = 0, Others = 1, Player = 2 }
@@ -69,6 +73,47 @@ public struct Quat {
   public float X, Y, Z, W;  // unit quaternion
   public Quat(float x, float y, float z, float w) { X = x; Y = y; Z = z; W = w; }
   public static readonly Quat Identity = new Quat(0, 0, 0, 1);
+}
+
+// edgephys_property_value. String and Bytes values are passed with Client.SetProperty's
+// string/byte[] overloads (Data and Size are set there).
+[StructLayout(LayoutKind.Sequential)]
+public struct PropertyValue {
+  public uint Type;
+  uint reserved_;
+  public long IntValue;       // Bool (0/1), Int64
+  public double DoubleValue;  // Double
+  public Vec3 Vec3;
+  public Quat Quat;
+  public IntPtr Data;         // String, Bytes
+  public UIntPtr Size;
+  public static PropertyValue Bool(bool v) { var p = new PropertyValue(); p.Type = (uint)PropertyType.Bool; p.IntValue = v ? 1 : 0; return p; }
+  public static PropertyValue Int64(long v) { var p = new PropertyValue(); p.Type = (uint)PropertyType.Int64; p.IntValue = v; return p; }
+  public static PropertyValue Double(double v) { var p = new PropertyValue(); p.Type = (uint)PropertyType.Double; p.DoubleValue = v; return p; }
+  public static PropertyValue FromVec3(Vec3 v) { var p = new PropertyValue(); p.Type = (uint)PropertyType.Vec3; p.Vec3 = v; return p; }
+  public static PropertyValue FromQuat(Quat q) { var p = new PropertyValue(); p.Type = (uint)PropertyType.Quat; p.Quat = q; return p; }
+}
+
+[StructLayout(LayoutKind.Sequential)]
+public struct NativeProperty {
+  public uint StructSize, EntityId, Version, Writer, Owner, Authority, RequestId, Reserved;
+  public PropertyValue Value;
+}
+
+// A property as the relay announced it (Client.GetProperty, PropertyChanged, PropertyConflict).
+public sealed class Property {
+  public uint EntityId;          // 0: a room property
+  public string Key;
+  public PropertyType Type;      // None: it does not exist (a conflict's current state)
+  public uint Version, Writer, Owner, RequestId;
+  public PropertyAuthority Authority;
+  public long IntValue;          // Bool (0/1), Int64
+  public double DoubleValue;
+  public Vec3 Vec3;
+  public Quat Quat;
+  public byte[] Bytes;           // String (UTF-8), Bytes; null otherwise
+  public bool BoolValue { get { return IntValue != 0; } }
+  public string StringValue { get { return Bytes == null ? null : Encoding.UTF8.GetString(Bytes); } }
 }
 
 [StructLayout(LayoutKind.Sequential)]
@@ -217,6 +262,10 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_send_message(IntPtr client, uint target, uint toPlayer, byte[] data, UIntPtr size);
   [DllImport(Lib)] public static extern Status edgephys_client_get_message(IntPtr client, byte[] buffer, UIntPtr capacity, out UIntPtr size);
   public const int MaxMessageBytes = 65536;
+  [DllImport(Lib)] public static extern Status edgephys_client_set_property(IntPtr client, uint entity, byte[] key, ref PropertyValue v, uint authority, out uint requestId);
+  [DllImport(Lib)] public static extern Status edgephys_client_compare_and_set_property(IntPtr client, uint entity, byte[] key, ref PropertyValue v, uint expectedVersion, uint authority, out uint requestId);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_property(IntPtr client, uint entity, byte[] key, ref NativeProperty p, byte[] buffer, UIntPtr capacity);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_event_property(IntPtr client, ref NativeProperty p, byte[] buffer, UIntPtr capacity);
   [DllImport(Lib)] public static extern Status edgephys_client_publish_transform(IntPtr client, uint id, ref Transform t);
   [DllImport(Lib)] public static extern Status edgephys_client_grab(IntPtr client, uint entity, uint hand);
   [DllImport(Lib)] public static extern Status edgephys_client_release(IntPtr client, uint entity);
@@ -264,6 +313,8 @@ public sealed class Client : IDisposable {
   public event PhysicsHandler Physics;                // collision / trigger / grab / guard events
   public event Action<RejectReason, uint, string> Error;  // reason, entity, detail
   public event Action<uint, byte[]> MessageReceived;     // sender, payload (allocates per message)
+  public event Action<Property> PropertyChanged;         // the property now (writer, version, ...)
+  public event Action<uint, Property> PropertyConflict;  // the refused request id, the property now
 
   IntPtr handle_;
   Event event_;  // reused for every poll
@@ -351,6 +402,12 @@ public sealed class Client : IDisposable {
           MessageReceived(event_.PlayerId, payload);
         }
         break;
+      case EventType.PropertyChanged:
+        if (PropertyChanged != null) PropertyChanged(EventProperty());
+        break;
+      case EventType.PropertyConflict:
+        if (PropertyConflict != null) PropertyConflict(event_.OtherId, EventProperty());
+        break;
       case EventType.Error: if (Error != null) Error((RejectReason)event_.Code, event_.EntityId, event_.DetailString()); break;
       case EventType.CollisionEnter: case EventType.CollisionExit: case EventType.TriggerEnter:
       case EventType.TriggerExit: case EventType.GuardReset: case EventType.Grabbed: case EventType.Released:
@@ -387,6 +444,77 @@ public sealed class Client : IDisposable {
       return id;
     }
   }
+  // Properties. Writes a property of the room (entityId 0) or of an entity; returns the request
+  // id its events carry (edgephys_client_set_property, _compare_and_set_property: expected
+  // version 0 means it must not exist yet).
+  public uint SetProperty(uint entityId, string key, PropertyValue value, PropertyAuthority authority = PropertyAuthority.Owner) {
+    uint id;
+    Native.Check(Native.edgephys_client_set_property(handle_, entityId, Native.Utf8Z(key), ref value, (uint)authority, out id), "set_property");
+    return id;
+  }
+  public uint SetProperty(uint entityId, string key, string text, PropertyAuthority authority = PropertyAuthority.Owner) {
+    return WriteBytes(entityId, key, PropertyType.String, text == null ? null : Encoding.UTF8.GetBytes(text), false, 0, authority);
+  }
+  public uint SetProperty(uint entityId, string key, byte[] data, PropertyAuthority authority = PropertyAuthority.Owner) {
+    return WriteBytes(entityId, key, PropertyType.Bytes, data, false, 0, authority);
+  }
+  public uint CompareAndSetProperty(uint entityId, string key, PropertyValue value, uint expectedVersion,
+                                    PropertyAuthority authority = PropertyAuthority.Owner) {
+    uint id;
+    Native.Check(Native.edgephys_client_compare_and_set_property(handle_, entityId, Native.Utf8Z(key), ref value, expectedVersion,
+                                                                 (uint)authority, out id), "compare_and_set_property");
+    return id;
+  }
+  public uint CompareAndSetProperty(uint entityId, string key, string text, uint expectedVersion,
+                                    PropertyAuthority authority = PropertyAuthority.Owner) {
+    return WriteBytes(entityId, key, PropertyType.String, text == null ? null : Encoding.UTF8.GetBytes(text), true, expectedVersion, authority);
+  }
+  // The property as this client knows it; null if unknown.
+  public Property GetProperty(uint entityId, string key) {
+    byte[] k = Native.Utf8Z(key);
+    return ReadProperty(key, (ref NativeProperty p, byte[] b, UIntPtr n) => Native.edgephys_client_get_property(handle_, entityId, k, ref p, b, n));
+  }
+
+  unsafe uint WriteBytes(uint entityId, string key, PropertyType type, byte[] data, bool check, uint expected, PropertyAuthority authority) {
+    if (data == null) throw new EdgephysException(Status.InvalidArgument, "value is null");
+    var v = new PropertyValue();
+    v.Type = (uint)type;
+    uint id;
+    fixed (byte* p = data) {
+      v.Data = (IntPtr)p;
+      v.Size = (UIntPtr)data.Length;
+      Native.Check(check ? Native.edgephys_client_compare_and_set_property(handle_, entityId, Native.Utf8Z(key), ref v, expected, (uint)authority, out id)
+                         : Native.edgephys_client_set_property(handle_, entityId, Native.Utf8Z(key), ref v, (uint)authority, out id),
+                   "set_property");
+    }
+    return id;
+  }
+
+  delegate Status PropertyGetter(ref NativeProperty p, byte[] buffer, UIntPtr capacity);
+  Property ReadProperty(string key, PropertyGetter get) {
+    var raw = new NativeProperty();
+    raw.StructSize = (uint)Marshal.SizeOf(typeof(NativeProperty));
+    byte[] buffer = null;
+    Status s = get(ref raw, null, UIntPtr.Zero);
+    if (s == Status.BufferTooSmall) {
+      buffer = new byte[(int)raw.Value.Size];
+      s = get(ref raw, buffer, (UIntPtr)buffer.Length);
+    }
+    if (s == Status.NotFound) return null;
+    Native.Check(s, "get_property");
+    var t = (PropertyType)raw.Value.Type;
+    var prop = new Property {
+      EntityId = raw.EntityId, Key = key, Type = t, Version = raw.Version, Writer = raw.Writer, Owner = raw.Owner,
+      RequestId = raw.RequestId, Authority = (PropertyAuthority)raw.Authority, IntValue = raw.Value.IntValue,
+      DoubleValue = raw.Value.DoubleValue, Vec3 = raw.Value.Vec3, Quat = raw.Value.Quat,
+    };
+    if (t == PropertyType.String || t == PropertyType.Bytes) prop.Bytes = buffer ?? new byte[0];
+    return prop;
+  }
+  Property EventProperty() {
+    return ReadProperty(event_.DetailString(), (ref NativeProperty p, byte[] b, UIntPtr n) => Native.edgephys_client_get_event_property(handle_, ref p, b, n));
+  }
+
   public void Despawn(uint id) { Native.Check(Native.edgephys_client_despawn(handle_, id), "despawn"); }
   public void Publish(uint id, Transform t) { Native.Check(Native.edgephys_client_publish_transform(handle_, id, ref t), "publish"); }
   public void Grab(uint entity, uint hand) { Native.Check(Native.edgephys_client_grab(handle_, entity, hand), "grab"); }

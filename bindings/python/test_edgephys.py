@@ -139,6 +139,87 @@ class BindingTest(unittest.TestCase):
             self.assertEqual(by_sender(got[a]), [(3, b"hello, room"), (4, b"just for 3"), (4, b"")])
             self.assertEqual(by_sender(got[b]), [(3, b"hello, room"), (3, big), (4, b"")])
 
+    def test_property_values_are_checked_before_sending(self):
+        with ep.Client(bind_address="127.0.0.1:0") as c:
+            with self.assertRaises(ep.EdgephysError) as e:
+                c.set_property("step", 1)
+            self.assertEqual(e.exception.status, ep.E_NOT_CONNECTED)
+            with self.assertRaises(TypeError):
+                c.set_property("step", object())
+            self.assertIsNone(c.get_property("step"))
+
+    @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
+    def test_properties_converge_and_one_compare_and_set_wins(self):
+        relay, room = os.environ["EDGEPHYS_RELAY"], os.environ["EDGEPHYS_ROOM"]
+        with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
+            a.connect(relay, os.environ["EDGEPHYS_TOKEN_5"])
+            b.connect(relay, os.environ["EDGEPHYS_TOKEN_6"])
+            changed = {a: [], b: []}
+            conflicts = {a: [], b: []}
+            errors = {a: [], b: []}
+            joined = set()
+            deadline = time.monotonic() + 10
+
+            def pump():
+                for c in (a, b):
+                    c.update()
+                    for ev in c.events():
+                        if ev.type == ep.EVENT_CONNECTED:
+                            c.join(room)
+                        elif ev.type == ep.EVENT_JOINED:
+                            joined.add(c)
+                        elif ev.type == ep.EVENT_PROPERTY_CHANGED:
+                            changed[c].append(ev.property)
+                        elif ev.type == ep.EVENT_PROPERTY_CONFLICT:
+                            conflicts[c].append((ev.other_id, ev.property))
+                        elif ev.type == ep.EVENT_ERROR:
+                            errors[c].append((ev.code, ep.detail(ev)))
+                time.sleep(0.005)
+
+            while len(joined) < 2 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(len(joined), 2, "both clients joined")
+            values = {"py.flag": True, "py.count": -3, "py.gain": 0.5, "py.title": "step one",
+                      "py.blob": b"\x00\xff", "py.where": (1.0, 2.0, 3.0), "py.turn": (0.0, 0.0, 0.0, 1.0)}
+            for k, v in values.items():
+                a.set_property(k, v, authority=ep.AUTHORITY_ANYONE)
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.set_property("py.bad", math.nan)
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            while (b.get_property("py.turn") is None) and time.monotonic() < deadline:
+                pump()
+            for k, v in values.items():
+                p = b.get_property(k)
+                self.assertIsNotNone(p, k)
+                self.assertEqual(p.value, v, k)
+                self.assertEqual((p.version, p.writer), (1, 5), k)
+            # Both advance "py.count" from version 1: one wins, the other sees its value.
+            ra = a.compare_and_set_property("py.count", 10, 1)
+            rb = b.compare_and_set_property("py.count", 20, 1)
+            while not (conflicts[a] or conflicts[b]) and time.monotonic() < deadline:
+                pump()
+            for _ in range(20):
+                pump()
+            self.assertEqual(len(conflicts[a]) + len(conflicts[b]), 1)
+            loser, request = (a, ra) if conflicts[a] else (b, rb)
+            got_request, current = conflicts[loser][0]
+            self.assertEqual(got_request, request)
+            self.assertEqual(current.version, 2)
+            self.assertEqual(current.value, 20 if loser is a else 10)
+            self.assertEqual(a.get_property("py.count").value, current.value)
+            self.assertEqual(b.get_property("py.count").value, current.value)
+            # Owner-only: B may not write A's property.
+            a.set_property("py.mine", 1)
+            b.set_property("py.flag", False)  # anyone may
+            while b.get_property("py.mine") is None and time.monotonic() < deadline:
+                pump()
+            b.set_property("py.mine", 2)
+            while not errors[b] and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(errors[b][0][0], ep.REJECT_NOT_OWNER)
+            self.assertIn("py.mine", errors[b][0][1])
+            self.assertEqual(a.get_property("py.flag").value, False)
+
 
 if __name__ == "__main__":
     unittest.main()

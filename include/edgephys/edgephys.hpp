@@ -25,6 +25,53 @@ namespace edgephys::sdk {
 // REJECTED, ERROR and DISCONNECTED events; "unknown" for any other event or code.
 inline const char* ReasonName(const edgephys_event& ev) { return edgephys_reason_name(ev.type, ev.code); }
 
+// Property values (edgephys_property_value) from C++ types. String and Bytes point into `text`,
+// which must outlive the call they are passed to.
+inline edgephys_property_value BoolValue(bool v) {
+  edgephys_property_value p{};
+  p.type = EDGEPHYS_PROPERTY_BOOL;
+  p.int_value = v ? 1 : 0;
+  return p;
+}
+inline edgephys_property_value Int64Value(int64_t v) {
+  edgephys_property_value p{};
+  p.type = EDGEPHYS_PROPERTY_INT64;
+  p.int_value = v;
+  return p;
+}
+inline edgephys_property_value DoubleValue(double v) {
+  edgephys_property_value p{};
+  p.type = EDGEPHYS_PROPERTY_DOUBLE;
+  p.double_value = v;
+  return p;
+}
+inline edgephys_property_value Vec3Value(edgephys_vec3 v) {
+  edgephys_property_value p{};
+  p.type = EDGEPHYS_PROPERTY_VEC3;
+  p.vec3 = v;
+  return p;
+}
+inline edgephys_property_value QuatValue(edgephys_quat q) {
+  edgephys_property_value p{};
+  p.type = EDGEPHYS_PROPERTY_QUAT;
+  p.quat = q;
+  return p;
+}
+inline edgephys_property_value StringValue(const std::string& text, bool bytes = false) {
+  edgephys_property_value p{};
+  p.type = bytes ? EDGEPHYS_PROPERTY_BYTES : EDGEPHYS_PROPERTY_STRING;
+  p.data = text.data();
+  p.size = text.size();
+  return p;
+}
+
+// A property read back: `info` as edgephys_property (its value.data points into `bytes` for
+// String and Bytes values).
+struct Property {
+  edgephys_property info{};
+  std::string bytes;
+};
+
 class Client {
  public:
   // Creates the client with `config` (nullptr: edgephys_client_config_init defaults).
@@ -97,6 +144,37 @@ class Client {
     return edgephys_client_get_message(handle_, out->data(), out->size(), &size) == EDGEPHYS_OK;
   }
 
+  // Properties (edgephys_client_set_property, _compare_and_set_property): the request id, or 0
+  // on failure (LastError() says why).
+  uint32_t SetProperty(uint32_t entity_id, const std::string& key,
+                       const edgephys_property_value& value,
+                       edgephys_property_authority authority = EDGEPHYS_AUTHORITY_OWNER) {
+    uint32_t id = 0;
+    return edgephys_client_set_property(handle_, entity_id, key.c_str(), &value, authority, &id) ==
+                   EDGEPHYS_OK ? id : 0;
+  }
+  uint32_t CompareAndSetProperty(uint32_t entity_id, const std::string& key,
+                                 const edgephys_property_value& value, uint32_t expected_version,
+                                 edgephys_property_authority authority = EDGEPHYS_AUTHORITY_OWNER) {
+    uint32_t id = 0;
+    return edgephys_client_compare_and_set_property(handle_, entity_id, key.c_str(), &value,
+                                                    expected_version, authority, &id) == EDGEPHYS_OK
+               ? id : 0;
+  }
+  // The property as this client knows it (edgephys_client_get_property); false if unknown.
+  bool GetProperty(uint32_t entity_id, const std::string& key, Property* out) const {
+    return ReadProperty(out, [&](edgephys_property* p, void* b, size_t n) {
+      return edgephys_client_get_property(handle_, entity_id, key.c_str(), p, b, n);
+    });
+  }
+  // The property of the PROPERTY_CHANGED / _CONFLICT event Poll returned last
+  // (edgephys_client_get_event_property); false if that event was another.
+  bool EventProperty(Property* out) {
+    return ReadProperty(out, [&](edgephys_property* p, void* b, size_t n) {
+      return edgephys_client_get_event_property(handle_, p, b, n);
+    });
+  }
+
   // The next event into *out; false when none is queued (or on error).
   bool Poll(edgephys_event* out) {
     return edgephys_client_poll_event(handle_, out) == EDGEPHYS_OK && out->type != EDGEPHYS_EVENT_NONE;
@@ -130,6 +208,21 @@ class Client {
   }
 
  private:
+  template <typename Get>
+  static bool ReadProperty(Property* out, Get get) {
+    out->info = {};
+    out->info.struct_size = sizeof(out->info);
+    edgephys_status st = get(&out->info, nullptr, 0);
+    if (st == EDGEPHYS_E_BUFFER_TOO_SMALL) {
+      out->bytes.resize(out->info.value.size);
+      st = get(&out->info, out->bytes.data(), out->bytes.size());
+    } else {
+      out->bytes.clear();
+    }
+    if (st == EDGEPHYS_OK && out->info.value.data != nullptr) out->info.value.data = out->bytes.data();
+    return st == EDGEPHYS_OK;
+  }
+
   edgephys_client* handle_ = nullptr;
   edgephys_status status_ = EDGEPHYS_OK;
 };

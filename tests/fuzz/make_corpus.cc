@@ -2,6 +2,7 @@
 // for packet_fuzz, reliable_fuzz, state_fuzz and message_fuzz (input formats: see each
 // target's header comment). Small valid inputs, so the fuzzers start past the verifiers.
 // The committed corpus (tests/fuzz/corpus) was produced by this program.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 #include "protocol/emulation_codec.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
+#include "protocol/property_codec.h"
 #include "protocol/quantize.h"
 #include "protocol/soft_body_codec.h"
 #include "protocol/soft_delta_stream.h"
@@ -415,6 +417,33 @@ void MessageCorpus() {
             .Add(0, app(T::Player, 2, 3)).Add(0, app(T::Player, 99, 1))
             .Add(1, app(static_cast<T>(7), 0, 2)).Add(0, app(T::Room, 0, 0)).Add(3, {4}).bytes);
 
+  // Relay: property writes (docs/protocol.md §4b): set, compare-and-set won and lost, owner-only
+  // refused, and malformed (unknown type, NaN, long key, unknown entity).
+  auto set = [](uint32_t entity, const std::string& key, PropertyValue v, bool check,
+                uint32_t expected, uint8_t authority) {
+    return Msg([&](auto& fbb) {
+      const auto k = fbb.CreateString(key);
+      const auto value = WritePropertyValue(fbb, v);
+      return schema::CreatePropertySet(fbb, entity, k, value, check, expected,
+                                       static_cast<schema::PropertyAuthority>(authority), 1);
+    });
+  };
+  PropertyValue bad_type = PropertyValue::Int64(1);
+  bad_type.type = static_cast<PropertyType>(9);
+  Write("message_fuzz", "relay_properties",
+        Input(0).Add(0, set(0, "step", PropertyValue::Int64(1), true, 0, 1))
+            .Add(1, set(0, "step", PropertyValue::Int64(2), true, 1, 0))
+            .Add(0, set(0, "step", PropertyValue::Int64(3), true, 1, 0))
+            .Add(0, set(0, "title", PropertyValue::String("suture"), false, 0, 0))
+            .Add(1, set(0, "title", PropertyValue::String("mine"), false, 0, 0))
+            .Add(0, set(0, "where", PropertyValue::Vec3({1, 2, 3}), false, 0, 1))
+            .Add(0, set(0, "aim", PropertyValue::Quat({0, 0, 0, 1}), false, 0, 1))
+            .Add(1, set(0, "blob", PropertyValue::Bytes(std::string(300, 'b')), false, 0, 1))
+            .Add(0, set(0, "bad", bad_type, false, 0, 0))
+            .Add(0, set(0, "nan", PropertyValue::Double(std::nan("")), false, 0, 0))
+            .Add(0, set(0, std::string(65, 'k'), PropertyValue::Bool(true), false, 0, 0))
+            .Add(0, set(65537, "tip", PropertyValue::Double(1), false, 0, 0)).bytes);
+
   // Relay, remote PhyS: room handle 1 is on worker W.
   Write("message_fuzz", "relay_worker",
         Input(1).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
@@ -459,6 +488,26 @@ void MessageCorpus() {
   Write("message_fuzz", "client_app_message",
         Input(2 | 4).Add(0, app(T::Others, 0, 2)).Add(0, app(T::Player, 1, 0))
             .Add(0, app(T::Room, 0, 1024)).bytes);
+  // Client side: property announcements and a conflict (and one with a NaN the SDK ignores).
+  auto changed = [](uint32_t entity, const std::string& key, PropertyValue v, uint32_t version) {
+    return Msg([&](auto& fbb) {
+      const auto k = fbb.CreateString(key);
+      const auto value = WritePropertyValue(fbb, v);
+      return schema::CreatePropertyChanged(fbb, entity, k, value, version, 7, 7,
+                                           schema::PropertyAuthority::Anyone, 3);
+    });
+  };
+  Bytes conflict = Msg([](auto& fbb) {
+    const auto k = fbb.CreateString("step");
+    const auto value = WritePropertyValue(fbb, PropertyValue::Int64(4));
+    return schema::CreatePropertyConflict(fbb, 5, 0, k, value, 2, 7);
+  });
+  Write("message_fuzz", "client_properties",
+        Input(2 | 4).Add(0, changed(0, "step", PropertyValue::Int64(4), 2))
+            .Add(0, changed(0, "title", PropertyValue::String("suture"), 1))
+            .Add(0, changed(65537, "tip", PropertyValue::Vec3({1, 2, 3}), 1))
+            .Add(0, changed(0, "nan", PropertyValue::Vec3({std::nanf(""), 0, 0}), 1))
+            .Add(0, conflict).bytes);
   // Client side as a PhyS worker: relay -> worker messages.
   EntitySpec cube = Cube(1, 0);
   Bytes assign = Msg([](auto& fbb) { return schema::CreateWorkerAssign(fbb, 1, 1.0f / 60); });

@@ -196,6 +196,62 @@ static class ClientTests {
     }
   }
 
+  static void PropertiesConvergeAndOneCompareAndSetWins() {
+    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
+    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
+    using (var a = new Client(false))
+    using (var b = new Client(false)) {
+      int joined = 0;
+      var changedAtB = new System.Collections.Generic.List<Property>();
+      var conflicts = new System.Collections.Generic.List<string>();
+      var errors = new System.Collections.Generic.List<RejectReason>();
+      a.Connected += id => a.Join(room);
+      b.Connected += id => b.Join(room);
+      a.Joined += (r, x) => ++joined;
+      b.Joined += (r, x) => ++joined;
+      b.PropertyChanged += p => changedAtB.Add(p);
+      a.PropertyConflict += (req, p) => conflicts.Add("a:" + req + ":" + p.Version + ":" + p.IntValue);
+      b.PropertyConflict += (req, p) => conflicts.Add("b:" + req + ":" + p.Version + ":" + p.IntValue);
+      b.Error += (reason, entity, detail) => errors.Add(reason);
+      a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_5"));
+      b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_6"));
+      double end = Native.Now() + 10;
+      Action pump = () => { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); };
+      while (joined < 2 && Native.Now() < end) pump();
+      Expect(joined == 2, "both joined");
+      a.SetProperty(0, "cs.step", PropertyValue.Int64(1), PropertyAuthority.Anyone);
+      a.SetProperty(0, "cs.title", "step one");
+      a.SetProperty(0, "cs.blob", new byte[] { 0, 255 });
+      a.SetProperty(0, "cs.where", PropertyValue.FromVec3(new Vec3(1, 2, 3)));
+      a.SetProperty(0, "cs.lit", PropertyValue.Bool(true));
+      ExpectStatus(Status.InvalidArgument, () => a.SetProperty(0, "cs.bad", PropertyValue.Double(double.NaN)), "NaN property");
+      ExpectStatus(Status.InvalidArgument, () => a.SetProperty(0, new string('k', 65), PropertyValue.Int64(1)), "long key");
+      while (changedAtB.Count < 5 && Native.Now() < end) pump();
+      Expect(changedAtB.Count == 5, "B told of 5 properties, got " + changedAtB.Count);
+      Property title = b.GetProperty(0, "cs.title");
+      Expect(title != null && title.StringValue == "step one" && title.Writer == 5, "title at B");
+      Property where = b.GetProperty(0, "cs.where");
+      Expect(where != null && where.Vec3.Y == 2, "vec3 at B");
+      Property blob = b.GetProperty(0, "cs.blob");
+      Expect(blob != null && blob.Bytes.Length == 2 && blob.Bytes[1] == 255, "bytes at B");
+      Expect(b.GetProperty(0, "cs.none") == null, "unknown property");
+      uint ra = a.CompareAndSetProperty(0, "cs.step", PropertyValue.Int64(10), 1);
+      uint rb = b.CompareAndSetProperty(0, "cs.step", PropertyValue.Int64(20), 1);
+      while (conflicts.Count < 1 && Native.Now() < end) pump();
+      for (int i = 0; i < 20; ++i) pump();
+      Expect(conflicts.Count == 1, "one conflict: " + string.Join("|", conflicts));
+      if (conflicts.Count == 1) {
+        bool aLost = conflicts[0].StartsWith("a:");
+        Expect(conflicts[0] == (aLost ? "a:" + ra + ":2:20" : "b:" + rb + ":2:10"), "the loser sees the winner: " + conflicts[0]);
+      }
+      Property step = b.GetProperty(0, "cs.step");
+      Expect(step != null && step.Version == 2 && a.GetProperty(0, "cs.step").IntValue == step.IntValue, "both agree on the step");
+      b.SetProperty(0, "cs.title", "hijacked");  // owner only: refused
+      while (errors.Count < 1 && Native.Now() < end) pump();
+      Expect(errors.Count == 1 && errors[0] == RejectReason.NotOwner, "NotOwner for another's property");
+    }
+  }
+
   static int Main(string[] args) {
     Console.WriteLine("edgephys " + Native.Version() + " (C# binding, Mono)");
     if (args.Length == 2 && args[0] == "--bench") {
@@ -207,7 +263,8 @@ static class ClientTests {
       return 0;
     }
     var tests = new Action[] { BadArgumentsThrowWithTheirStatus, RejectionCarriesReasonAndDetail,
-                               MessagesReachTheAddressedPlayers, NoAllocationPerReceivedState };
+                               MessagesReachTheAddressedPlayers, PropertiesConvergeAndOneCompareAndSetWins,
+                               NoAllocationPerReceivedState };
     foreach (var t in tests) {
       Console.WriteLine("[ RUN  ] " + t.Method.Name);
       int before = failures;

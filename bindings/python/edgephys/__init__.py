@@ -39,7 +39,15 @@ INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE,
 (EVENT_NONE, EVENT_CONNECTED, EVENT_REJECTED, EVENT_DISCONNECTED, EVENT_JOINED, EVENT_PLAYER_JOINED,
  EVENT_PLAYER_LEFT, EVENT_SPAWNED, EVENT_DESPAWNED, EVENT_STATE, EVENT_SOFT_BODY,
  EVENT_COLLISION_ENTER, EVENT_COLLISION_EXIT, EVENT_TRIGGER_ENTER, EVENT_TRIGGER_EXIT,
- EVENT_GUARD_RESET, EVENT_GRABBED, EVENT_RELEASED, EVENT_ERROR, EVENT_MESSAGE) = range(20)
+ EVENT_GUARD_RESET, EVENT_GRABBED, EVENT_RELEASED, EVENT_ERROR, EVENT_MESSAGE,
+ EVENT_PROPERTY_CHANGED, EVENT_PROPERTY_CONFLICT) = range(22)
+
+# Properties (edgephys.h, "properties"): value types and who may write a property.
+(PROPERTY_NONE, PROPERTY_BOOL, PROPERTY_INT64, PROPERTY_DOUBLE, PROPERTY_STRING, PROPERTY_BYTES,
+ PROPERTY_VEC3, PROPERTY_QUAT) = range(8)
+AUTHORITY_OWNER, AUTHORITY_ANYONE = 0, 1
+MAX_PROPERTY_KEY_BYTES = 64
+MAX_PROPERTY_VALUE_BYTES = 65536
 
 # Application messages (edgephys_client_send_message): whom a message is for.
 TO_ROOM, TO_OTHERS, TO_PLAYER = 0, 1, 2
@@ -150,6 +158,77 @@ class Entity(ctypes.Structure):
                 ("transform", Transform)]
 
 
+class PropertyValue(ctypes.Structure):
+    _fields_ = [("type", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("int_value", ctypes.c_int64),
+                ("double_value", ctypes.c_double), ("vec3", Vec3), ("quat", Quat),
+                ("data", ctypes.c_void_p), ("size", ctypes.c_size_t)]
+
+
+class PropertyStruct(ctypes.Structure):
+    _fields_ = [("struct_size", ctypes.c_uint32), ("entity_id", ctypes.c_uint32), ("version", ctypes.c_uint32),
+                ("writer", ctypes.c_uint32), ("owner", ctypes.c_uint32), ("authority", ctypes.c_uint32),
+                ("request_id", ctypes.c_uint32), ("reserved", ctypes.c_uint32), ("value", PropertyValue)]
+
+
+class Property:
+    """A property as the relay announced it: entity_id (0: the room), key, value (bool, int,
+    float, str, bytes, a (x, y, z) tuple for VEC3 or (x, y, z, w) for QUAT; None when it does
+    not exist), type, version, writer, owner, authority, request_id."""
+
+    def __init__(self, key, raw, data):
+        self.key = key
+        self.entity_id, self.version, self.writer = raw.entity_id, raw.version, raw.writer
+        self.owner, self.authority, self.request_id = raw.owner, raw.authority, raw.request_id
+        v = raw.value
+        self.type = v.type
+        self.value = {PROPERTY_BOOL: lambda: bool(v.int_value), PROPERTY_INT64: lambda: v.int_value,
+                      PROPERTY_DOUBLE: lambda: v.double_value, PROPERTY_STRING: lambda: data.decode("utf-8", "replace"),
+                      PROPERTY_BYTES: lambda: data, PROPERTY_VEC3: lambda: (v.vec3.x, v.vec3.y, v.vec3.z),
+                      PROPERTY_QUAT: lambda: (v.quat.x, v.quat.y, v.quat.z, v.quat.w)}.get(v.type, lambda: None)()
+
+    def __repr__(self):
+        return (f"Property(entity_id={self.entity_id}, key={self.key!r}, value={self.value!r}, "
+                f"version={self.version}, writer={self.writer})")
+
+
+def _property_value(value, kind=None):
+    """(PropertyValue, keep-alive buffer) for a Python value; `kind` forces a PROPERTY_* type."""
+    v = PropertyValue()
+    keep = None
+    if kind is None:
+        if isinstance(value, bool):
+            kind = PROPERTY_BOOL
+        elif isinstance(value, int):
+            kind = PROPERTY_INT64
+        elif isinstance(value, float):
+            kind = PROPERTY_DOUBLE
+        elif isinstance(value, str):
+            kind = PROPERTY_STRING
+        elif isinstance(value, (bytes, bytearray)):
+            kind = PROPERTY_BYTES
+        elif isinstance(value, Vec3) or (isinstance(value, (tuple, list)) and len(value) == 3):
+            kind = PROPERTY_VEC3
+        elif isinstance(value, Quat) or (isinstance(value, (tuple, list)) and len(value) == 4):
+            kind = PROPERTY_QUAT
+        else:
+            raise TypeError(f"no property type for {type(value).__name__}")
+    v.type = kind
+    if kind in (PROPERTY_BOOL, PROPERTY_INT64):
+        v.int_value = int(value)
+    elif kind == PROPERTY_DOUBLE:
+        v.double_value = float(value)
+    elif kind == PROPERTY_VEC3:
+        v.vec3 = value if isinstance(value, Vec3) else Vec3(*value)
+    elif kind == PROPERTY_QUAT:
+        v.quat = value if isinstance(value, Quat) else Quat(*value)
+    elif kind in (PROPERTY_STRING, PROPERTY_BYTES):
+        raw = value.encode() if isinstance(value, str) else bytes(value)
+        keep = ctypes.create_string_buffer(raw, max(1, len(raw)))
+        v.data = ctypes.cast(keep, ctypes.c_void_p)
+        v.size = len(raw)
+    return v, keep
+
+
 class EdgephysError(RuntimeError):
     """A C API call failed: .status is the edgephys_status, the message edgephys_last_error()."""
 
@@ -211,6 +290,12 @@ def _load():
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
         "edgephys_client_send_message": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
         "edgephys_client_get_message": ([c, ctypes.c_char_p, sz, P(sz)], ctypes.c_int),
+        "edgephys_client_set_property": ([c, u32, ctypes.c_char_p, P(PropertyValue), u32, P(u32)], ctypes.c_int),
+        "edgephys_client_compare_and_set_property": ([c, u32, ctypes.c_char_p, P(PropertyValue), u32, u32, P(u32)],
+                                                     ctypes.c_int),
+        "edgephys_client_get_property": ([c, u32, ctypes.c_char_p, P(PropertyStruct), ctypes.c_void_p, sz],
+                                         ctypes.c_int),
+        "edgephys_client_get_event_property": ([c, P(PropertyStruct), ctypes.c_void_p, sz], ctypes.c_int),
         "edgephys_client_get_info": ([c, P(ClientInfo)], ctypes.c_int),
         "edgephys_client_get_connection_status": ([c, P(ConnectionStatus)], ctypes.c_int),
         "edgephys_client_get_entity": ([c, u32, P(Entity)], ctypes.c_int),
@@ -390,7 +475,52 @@ class Client:
                 n = ctypes.c_size_t(0)
                 _check(lib.edgephys_client_get_message(self._h, buf, len(buf), ctypes.byref(n)), "get_message")
                 ev.payload = buf.raw[:n.value]
+            if ev.type in (EVENT_PROPERTY_CHANGED, EVENT_PROPERTY_CONFLICT):
+                ev.property = self._read_property(ev.detail.decode("utf-8", "replace"),
+                                                  lambda p, b, n: lib.edgephys_client_get_event_property(self._h, p, b, n))
             yield ev
+
+    def _read_property(self, key, get):
+        raw = PropertyStruct()
+        raw.struct_size = ctypes.sizeof(PropertyStruct)
+        st = get(ctypes.byref(raw), None, 0)
+        data = b""
+        if st == E_BUFFER_TOO_SMALL:
+            buf = ctypes.create_string_buffer(max(1, raw.value.size))
+            st = get(ctypes.byref(raw), ctypes.cast(buf, ctypes.c_void_p), len(buf))
+            data = buf.raw[:raw.value.size]
+        if st == E_NOT_FOUND:
+            return None
+        _check(st, "get_property")
+        return Property(key, raw, data)
+
+    def set_property(self, key, value, entity_id=0, authority=AUTHORITY_OWNER, kind=None):
+        """Writes a property of the room (entity_id 0) or of an entity; returns the request id
+        (edgephys_client_set_property). The type follows the value (bool, int, float, str,
+        bytes, 3-tuple VEC3, 4-tuple QUAT) unless `kind` (a PROPERTY_*) says."""
+        v, keep = _property_value(value, kind)
+        out = ctypes.c_uint32()
+        _check(lib.edgephys_client_set_property(self._h, entity_id, key.encode(), ctypes.byref(v), authority,
+                                                ctypes.byref(out)), "set_property")
+        del keep
+        return out.value
+
+    def compare_and_set_property(self, key, value, expected_version, entity_id=0, authority=AUTHORITY_OWNER,
+                                 kind=None):
+        """As set_property, applied only if the property's version is `expected_version` (0: it
+        must not exist); otherwise an EVENT_PROPERTY_CONFLICT with the current value follows."""
+        v, keep = _property_value(value, kind)
+        out = ctypes.c_uint32()
+        _check(lib.edgephys_client_compare_and_set_property(self._h, entity_id, key.encode(), ctypes.byref(v),
+                                                            expected_version, authority, ctypes.byref(out)),
+               "compare_and_set_property")
+        del keep
+        return out.value
+
+    def get_property(self, key, entity_id=0):
+        """The Property as this client knows it, or None."""
+        k = key.encode()
+        return self._read_property(key, lambda p, b, n: lib.edgephys_client_get_property(self._h, entity_id, k, p, b, n))
 
     def send_message(self, data, target=TO_ROOM, to_player=0):
         """Sends `data` (bytes, up to MAX_MESSAGE_BYTES) reliably to the room (TO_ROOM), the others
