@@ -7,12 +7,7 @@
 set -euo pipefail
 lg="$1"
 relay_bin="${2:-}"
-relay_pid=""
-source "$(dirname "$0")/../scripts/lib/stop_process.sh"
-source "$(dirname "$0")/../scripts/lib/start_relay.sh"
-work=$(mktemp -d)
-cleanup() { stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
 cd "$work"
 fail() { echo "FAIL: $*"; exit 1; }
 num() { jq -r "$1" "$2"; }
