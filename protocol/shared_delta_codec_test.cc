@@ -21,11 +21,7 @@
 namespace edgephys {
 namespace {
 
-using testing_util::FloatSlack;
-using testing_util::PositionError;
-using testing_util::RandomRotation;
-using testing_util::RotationErrorDeg;
-using testing_util::TestMotion;
+using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
 constexpr size_t kPacketOverhead = 18 + 3;  // connection header + unreliable chunk header
 
