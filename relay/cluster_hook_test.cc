@@ -22,6 +22,7 @@
 #include "protocol/redirect.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
+#include "tests/integration/harness.h"
 
 namespace edgephys {
 namespace {
@@ -29,19 +30,11 @@ namespace {
 constexpr char kSecret[] = "cluster-secret";
 constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
+using testing::UnixNow;
 
+// A join token for `player` in `room`, valid for an hour, signed with the cluster's secret.
 std::vector<uint8_t> Token(const std::string& room, uint32_t player) {
-  JoinToken t;
-  t.room = room;
-  t.player_id = player;
-  t.expiry_unix_s = UnixNow() + 3600;
-  t.nonce = SecureRandom64();
-  return *SignJoinToken(t, kSecret);
+  return testing::MintToken(room, player, 3600, kDefaultPermissions, kSecret);
 }
 
 struct CountingListener : ClientListener {
