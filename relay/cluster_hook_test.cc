@@ -112,6 +112,21 @@ class ClusterWorld {
   }
   void set_room(Client& c, const std::string& room) { rooms_[&c] = room; }
 
+  // One player per listener: player first_player + i joins room "<prefix><i % rooms>" through
+  // relay i % size().
+  std::vector<Client*> AddPlayers(const std::string& prefix, int rooms, uint32_t first_player,
+                                  std::vector<CountingListener>* listeners) {
+    std::vector<Client*> clients;
+    for (size_t i = 0; i < listeners->size(); ++i) {
+      const std::string room = prefix + std::to_string(i % rooms);
+      Client& c = AddClient(static_cast<int>(i % nodes_.size()),
+                            Token(room, first_player + static_cast<uint32_t>(i)), &(*listeners)[i]);
+      set_room(c, room);
+      clients.push_back(&c);
+    }
+    return clients;
+  }
+
   // Destroys relay `i` (its UDP port goes silent; clean directory stop).
   void Kill(int i) { nodes_[i]->relay.reset(); }
   Relay* relay(int i) { return nodes_[i]->relay.get(); }
@@ -151,13 +166,7 @@ TEST_F(ClusterTest, PlayersJoiningThroughAnyRelayLandOnTheirRoomsRelay) {
   world.RunUntil([] { return false; }, 0.3);  // relays register
   constexpr int kRooms = 6, kPerRoom = 4;
   std::vector<CountingListener> listeners(kRooms * kPerRoom);
-  std::vector<Client*> clients;
-  for (int i = 0; i < kRooms * kPerRoom; ++i) {
-    std::string room = "room" + std::to_string(i % kRooms);
-    Client& c = world.AddClient(i % 3, Token(room, 100 + i), &listeners[i]);
-    world.set_room(c, room);
-    clients.push_back(&c);
-  }
+  const std::vector<Client*> clients = world.AddPlayers("room", kRooms, 100, &listeners);
   ASSERT_TRUE(world.RunUntil(
       [&] {
         for (Client* c : clients) {
@@ -198,13 +207,7 @@ TEST_F(ClusterTest, ADeadRelaysRoomsComeBackWithTheirEntitiesAndSessionsResume) 
   world.RunUntil([] { return false; }, 0.3);
   constexpr int kRooms = 3, kPerRoom = 3;
   std::vector<CountingListener> listeners(kRooms * kPerRoom);
-  std::vector<Client*> clients;
-  for (int i = 0; i < kRooms * kPerRoom; ++i) {
-    std::string room = "fo" + std::to_string(i % kRooms);
-    Client& c = world.AddClient(i % 3, Token(room, 200 + i), &listeners[i]);
-    world.set_room(c, room);
-    clients.push_back(&c);
-  }
+  const std::vector<Client*> clients = world.AddPlayers("fo", kRooms, 200, &listeners);
   auto all_joined = [&] {
     for (Client* c : clients) {
       if (!c->joined()) return false;
