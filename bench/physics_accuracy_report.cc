@@ -36,6 +36,7 @@
 #include "loadgen/chart.h"
 #include "physics_backend/container_builder.h"
 #include "physics_backend/physics_world.h"
+#include "physics_backend/testing/physics_probes.h"
 #include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
@@ -50,9 +51,8 @@ std::string g_out = ".";
 // Small helpers.
 
 bool AddSpec(PhysicsWorld& world, const EntitySpec& spec) {
-  const std::vector<uint8_t> buf = BuildContainer(spec);
   InvalidReason reason = InvalidReason::kNone;
-  const Status st = world.AddEntity(AsContainer(buf), &reason);
+  const Status st = testing::Add(world, spec, &reason);
   if (!st.ok()) {
     std::fprintf(stderr, "AddEntity(%u) failed: %s\n", spec.id,
                  std::string(InvalidReasonName(reason)).c_str());
@@ -61,31 +61,12 @@ bool AddSpec(PhysicsWorld& world, const EntitySpec& spec) {
   return true;
 }
 
-Vec3f PosOf(const PhysicsWorld& world, uint32_t id) {
-  EntityState s;
-  (void)world.GetState(id, &s);
-  return s.position;
-}
-
-Vec3f VelOf(const PhysicsWorld& world, uint32_t id) {
-  Vec3f lin, ang;
-  (void)world.GetVelocity(id, &lin, &ang);
-  return lin;
-}
+using testing::Pos;
+using testing::Vel;
 
 double Distance(const Vec3f& a, const Vec3f& b) {
   const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
-// Static slab with its top face at y = 0.
-EntitySpec GroundSlab(uint32_t id, float friction, float restitution) {
-  EntitySpec g = StaticBox(id, {0, -0.5f, 0}, {50.0f, 0.5f, 50.0f});
-  g.rigid_body = RigidBodySpec{};
-  g.rigid_body->mass = 0;
-  g.rigid_body->friction = friction;
-  g.rigid_body->restitution = restitution;
-  return g;
 }
 
 // A file in --out that is written line by line.
@@ -168,7 +149,7 @@ FallRun FreeFall(int hz, double seconds, OutFile* trace) {
   if (trace) trace->Printf("%.5f %.6f %.6f %.6f\n", 0.0, 0.0, 0.0, 0.0);
   for (int n = 1; n <= steps; ++n) {
     world.Step();
-    const double y = PosOf(world, 1).y;
+    const double y = Pos(world, 1).y;
     const double t = dt * n;
     // Semi-implicit Euler: v_n = -g n dt, y_n = y_{n-1} + v_n dt = -g dt^2 n (n + 1) / 2.
     const double pred = -kG * dt * dt * n * (n + 1) / 2.0;
@@ -177,7 +158,7 @@ FallRun FreeFall(int hz, double seconds, OutFile* trace) {
     if (trace) trace->Printf("%.5f %.6f %.6f %.6f\n", t, y, pred, analytic);
   }
   const double t = dt * steps;
-  r.final_err_analytic = std::abs(PosOf(world, 1).y - (-0.5 * kG * t * t));
+  r.final_err_analytic = std::abs(Pos(world, 1).y - (-0.5 * kG * t * t));
   r.bound = 0.5 * kG * dt * t;
   return r;
 }
@@ -228,39 +209,20 @@ void RunFreeFall() {
 // ---------------------------------------------------------------------------------------------
 // (2) Restitution.
 
-// Sphere (r 0.1 m) dropped from h0 (its bottom above the ground) on a restitution-1 ground; the
-// pair's restitution is the ball's e (Bullet multiplies). Apex heights (bottom above ground),
-// interpolated between 1/60 s samples with the ballistic parabola, until `max_apexes` or the
-// first apex under min_height.
+// The bounce experiment (testing::BounceApexes: apex heights of a sphere dropped from h0 with
+// restitution e) with `substeps` and `iterations`, at most 30 s.
 std::vector<double> BounceApexes(int substeps, float e, float h0, int max_apexes,
                                  double min_height, int iterations = 10) {
   PhysicsConfig cfg;
   cfg.substeps = substeps;
   cfg.solver_iterations = iterations;
-  PhysicsWorld world(cfg);
-  const float r = 0.1f;
-  AddSpec(world, GroundSlab(1, 0.5f, 1.0f));
-  EntitySpec ball = DynamicSphere(2, {0, h0 + r, 0}, r, 1.0f);
-  ball.rigid_body->restitution = e;
-  AddSpec(world, ball);
-  std::vector<double> apex{h0};
-  const double dt = cfg.fixed_dt;
-  double prev_vy = 0;
-  bool rising = false;
-  for (int i = 0; i < 60 * 30 && static_cast<int>(apex.size()) < max_apexes; ++i) {
-    world.Step();
-    const double vy = VelOf(world, 2).y;
-    if (prev_vy < 0 && vy > 0) rising = true;
-    if (rising && prev_vy > 0 && vy <= 0) {
-      const double t_zero = dt * prev_vy / (prev_vy - vy);  // after the previous sample
-      const double y = PosOf(world, 2).y - r + 0.5 * kG * (dt - t_zero) * (dt - t_zero);
-      if (y < min_height) break;
-      apex.push_back(y);
-      rising = false;
-    }
-    prev_vy = vy;
+  const testing::BounceRun run =
+      testing::BounceApexes(cfg, e, h0, max_apexes, min_height, 60 * 30);
+  if (!run.added.ok()) {
+    std::fprintf(stderr, "bounce scene: AddEntity failed\n");
+    std::exit(2);
   }
-  return apex;
+  return run.heights;
 }
 
 void RunBounce() {
@@ -318,7 +280,7 @@ SlopeRun Slope(double angle, float mu) {
   cfg.gravity = Vec3f{static_cast<float>(kG * std::sin(angle)),
                       static_cast<float>(-kG * std::cos(angle)), 0};
   PhysicsWorld world(cfg);
-  AddSpec(world, GroundSlab(1, 1.0f, 0.0f));  // pair friction = 1 * mu
+  AddSpec(world, testing::Ground(1, 1.0f, 0.0f));  // pair friction = 1 * mu
   EntitySpec cube = DynamicBox(2, {0, 0.1f, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
   cube.rigid_body->friction = mu;
   AddSpec(world, cube);
@@ -326,10 +288,10 @@ SlopeRun Slope(double angle, float mu) {
   double v_half = 0;
   for (int i = 1; i <= 120; ++i) {
     world.Step();
-    if (i == 30) v_half = VelOf(world, 2).x;
-    if (i == 90) r.acceleration = VelOf(world, 2).x - v_half;
+    if (i == 30) v_half = Vel(world, 2).x;
+    if (i == 90) r.acceleration = Vel(world, 2).x - v_half;
   }
-  r.displacement = PosOf(world, 2).x;
+  r.displacement = Pos(world, 2).x;
   return r;
 }
 
@@ -399,7 +361,7 @@ StackRun Stack(const StackSetting& s, double seconds, OutFile* series, int sampl
   cfg.sleep_linear_threshold = s.sleep_lin;
   cfg.sleep_angular_threshold = s.sleep_ang;
   PhysicsWorld world(cfg);
-  AddSpec(world, GroundSlab(1, 0.5f, 0.0f));
+  AddSpec(world, testing::Ground(1, 0.5f, 0.0f));
   const float h = 0.25f;
   std::vector<Vec3f> start;
   for (uint32_t i = 0; i < 10; ++i) {
@@ -412,14 +374,14 @@ StackRun Stack(const StackSetting& s, double seconds, OutFile* series, int sampl
   for (int n = 1; n <= steps; ++n) {
     world.Step();
     for (uint32_t i = 0; i < 10; ++i) {
-      r.max_drift = std::max(r.max_drift, Distance(PosOf(world, 10 + i), start[i]));
+      r.max_drift = std::max(r.max_drift, Distance(Pos(world, 10 + i), start[i]));
     }
     if (series && n % sample_every == 0) {
-      series->Printf("%.3f %.6e %.6e\n", n * cfg.fixed_dt, Distance(PosOf(world, 19), start[9]),
+      series->Printf("%.3f %.6e %.6e\n", n * cfg.fixed_dt, Distance(Pos(world, 19), start[9]),
                      r.max_drift);
     }
   }
-  r.top_drift = Distance(PosOf(world, 19), start[9]);
+  r.top_drift = Distance(Pos(world, 19), start[9]);
   r.sleeping_end = world.counters().sleeping_bodies;
   return r;
 }
@@ -485,9 +447,9 @@ CcdRun Ccd(double thickness, bool ccd) {
   CcdRun r;
   for (int i = 0; i < 30; ++i) {
     world.Step();
-    r.max_x = std::max<double>(r.max_x, PosOf(world, 2).x);
+    r.max_x = std::max<double>(r.max_x, Pos(world, 2).x);
   }
-  r.final_x = PosOf(world, 2).x;
+  r.final_x = Pos(world, 2).x;
   return r;
 }
 
@@ -545,7 +507,7 @@ SoftCell RunSoftCell(float k, int hz, int iterations, float max_link) {
   cfg.soft_iterations = iterations;
   cfg.soft_max_link_stiffness = max_link;
   PhysicsWorld world(cfg);
-  AddSpec(world, GroundSlab(1, 0.5f, 0.0f));
+  AddSpec(world, testing::Ground(1, 0.5f, 0.0f));
   EntitySpec e;
   e.id = 2;
   e.soft_body = MakeLatticeCubeSoftBody(k);

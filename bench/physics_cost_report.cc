@@ -36,6 +36,7 @@
 #include "bench/physics_cost_candidates.h"
 #include "physics_backend/container_builder.h"
 #include "physics_backend/physics_world.h"
+#include "physics_backend/testing/physics_probes.h"
 #include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {
@@ -46,30 +47,16 @@ constexpr double kG = 9.81;
 // ---------------------------------------------------------------------------------------------
 // Accuracy: the suite's experiments with `base` as the config.
 
+using testing::Ground;
+using testing::Pos;
+using testing::Vel;
+
+void FailedToAdd(uint32_t id) {
+  std::fprintf(stderr, "AddEntity(%u) failed\n", id);
+  std::exit(2);
+}
 void Add(PhysicsWorld& w, const EntitySpec& spec) {
-  const std::vector<uint8_t> buf = BuildContainer(spec);
-  if (!w.AddEntity(AsContainer(buf)).ok()) {
-    std::fprintf(stderr, "AddEntity(%u) failed\n", spec.id);
-    std::exit(2);
-  }
-}
-Vec3f Pos(const PhysicsWorld& w, uint32_t id) {
-  EntityState s;
-  (void)w.GetState(id, &s);
-  return s.position;
-}
-Vec3f Vel(const PhysicsWorld& w, uint32_t id) {
-  Vec3f l, a;
-  (void)w.GetVelocity(id, &l, &a);
-  return l;
-}
-EntitySpec Ground(uint32_t id, float friction, float restitution = 0) {
-  EntitySpec g = StaticBox(id, {0, -0.5f, 0}, {50, 0.5f, 50});
-  g.rigid_body = RigidBodySpec{};
-  g.rigid_body->mass = 0;
-  g.rigid_body->friction = friction;
-  g.rigid_body->restitution = restitution;
-  return g;
+  if (!testing::Add(w, spec).ok()) FailedToAdd(spec.id);
 }
 double Dist(const Vec3f& a, const Vec3f& b) {
   return std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z));
@@ -117,29 +104,12 @@ std::vector<double> BounceRatios(const PhysicsConfig& base, float e, bool ccd) {
   PhysicsConfig cfg = base;
   cfg.substeps = SuiteSubsteps(base);
   cfg.ccd = ccd;
-  PhysicsWorld w(cfg);
-  const float r = 0.1f;
-  Add(w, Ground(1, 0.5f, 1.0f));
-  EntitySpec ball = DynamicSphere(2, {0, 2.0f + r, 0}, r, 1.0f);
-  ball.rigid_body->restitution = e;
-  Add(w, ball);
-  std::vector<double> h{2.0};
-  float prev = 0;
-  bool bounced = false;
-  for (int i = 0; i < 1200 && h.size() < 4; ++i) {
-    w.Step();
-    const float vy = Vel(w, 2).y;
-    if (prev < 0 && vy > 0) bounced = true;
-    if (bounced && prev > 0 && vy <= 0) {
-      const double dt = cfg.fixed_dt;
-      const double tp = dt * prev / (prev - vy);
-      const double y = Pos(w, 2).y - r + 0.5 * kG * (dt - tp) * (dt - tp);
-      if (y < 0.1) break;
-      h.push_back(y);
-      bounced = false;
-    }
-    prev = vy;
+  const testing::BounceRun run = testing::BounceApexes(cfg, e, 2.0f, 4, 0.1, 1200);
+  if (!run.added.ok()) {
+    std::fprintf(stderr, "bounce scene: AddEntity failed\n");
+    std::exit(2);
   }
+  const std::vector<double>& h = run.heights;
   std::vector<double> ratios;
   for (size_t i = 1; i < h.size(); ++i) ratios.push_back(h[i] / h[i - 1]);
   return ratios;

@@ -26,6 +26,16 @@ std::vector<std::vector<EntityState>> MakeFrames(int n, int frames) {
   return bench::MakeFrames(n, frames, kTickHz, /*first_id=*/1);
 }
 
+// Every iteration sent `n` entities to each of `receivers`: items processed (receiver-entity
+// updates), ns per update and payload bytes per update (`bytes` over all iterations).
+void ReportPerUpdate(benchmark::State& state, int receivers, int n, size_t bytes) {
+  const double updates = static_cast<double>(state.iterations()) * receivers * n;
+  state.SetItemsProcessed(static_cast<int64_t>(updates));
+  state.counters["ns_per_receiver_entity"] =
+      benchmark::Counter(updates, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["payload_bytes_per_update"] = static_cast<double>(bytes) / updates;
+}
+
 void BM_Format2PerReceiver(benchmark::State& state) {
   const int receivers = static_cast<int>(state.range(0));
   const int n = static_cast<int>(state.range(1));
@@ -56,11 +66,7 @@ void BM_Format2PerReceiver(benchmark::State& state) {
     }
     benchmark::DoNotOptimize(buf.data());
   }
-  const double updates = static_cast<double>(state.iterations()) * receivers * n;
-  state.SetItemsProcessed(static_cast<int64_t>(updates));
-  state.counters["ns_per_receiver_entity"] =
-      benchmark::Counter(updates, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-  state.counters["payload_bytes_per_update"] = static_cast<double>(bytes) / updates;
+  ReportPerUpdate(state, receivers, n, bytes);
 }
 
 void BM_Format9PerReceiver(benchmark::State& state) {
@@ -101,11 +107,7 @@ void BM_Format9PerReceiver(benchmark::State& state) {
     }
     benchmark::DoNotOptimize(buf.data());
   }
-  const double updates = static_cast<double>(state.iterations()) * receivers * n;
-  state.SetItemsProcessed(static_cast<int64_t>(updates));
-  state.counters["ns_per_receiver_entity"] =
-      benchmark::Counter(updates, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-  state.counters["payload_bytes_per_update"] = static_cast<double>(bytes) / updates;
+  ReportPerUpdate(state, receivers, n, bytes);
   double hits = 0;
   for (const auto& s : streams) hits += static_cast<double>(s->stats().cache_hits);
   state.counters["cache_hit_ratio"] =

@@ -50,9 +50,7 @@ void AddExternalNotes(const CcuOptions& o, const CcuResult& r, nlohmann::json* s
   (*summary)["notes"] = {
       {"egress_bytes_per_s_per_user",
        "edgephys_bytes_sent_total differences over the relay's whole process (all rooms)"},
-      {"relay_cpu_mean", o.external.relay_pid > 0
-                             ? "process CPU (all threads) from /proc/<pid>/stat"
-                             : "null: the exporter has no process CPU series; pass --relay-pid"},
+      {"relay_cpu_mean", ExternalRelayCpuNote(o.external)},
       {"latency_physics_step_ms_p99",
        "edgephys_physics_step_seconds_sum / edgephys_physics_steps_total per second"},
       {"latency_relay_wait_ms_mean",
@@ -84,10 +82,7 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
     j["runs"].push_back({{"summary", summary}, {"series", Series(r)}});
   }
   if (o.external.enabled()) {
-    j["relay"] = {{"external", true},
-                  {"address", o.external.relay},
-                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics},
-                  {"cpu_source", o.external.relay_pid > 0 ? "/proc/<pid>/stat" : "unknown"}};
+    j["relay"] = ExternalRelayJson(o.external);
     j["options"]["measure_every"] = o.measure_every;
   } else if (o.measure_every != 1) {
     j["options"]["measure_every"] = o.measure_every;

@@ -54,10 +54,7 @@ nlohmann::json Json(const CeilingOptions& o, const CeilingResults& results) {
     j["repetitions"].push_back({{"relay", r.relay}, {"iperf3", r.iperf}});
   }
   if (o.external.enabled()) {
-    j["relay"] = {{"external", true},
-                  {"address", o.external.relay},
-                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics},
-                  {"cpu_source", o.external.relay_pid > 0 ? "/proc/<pid>/stat" : "unknown"}};
+    j["relay"] = ExternalRelayJson(o.external);
     j["notes"] = {
         {"io_threads, tick_rate_hz",
          "the external relay's own flags (--io-threads, --tick-rate); echoed, not set"},
@@ -68,9 +65,7 @@ nlohmann::json Json(const CeilingOptions& o, const CeilingResults& results) {
         {"replication",
          "in-process the relay sends every moving entity each tick (fixed_rate_hz = tick rate); "
          "an external relay uses its own replication flags, so its egress may be lower"},
-        {"relay_cpu_cores", o.external.relay_pid > 0
-                                ? "the relay process's CPU from /proc/<pid>/stat"
-                                : "null: the exporter has no process CPU series; pass --relay-pid"}};
+        {"relay_cpu_cores", ExternalRelayCpuNote(o.external)}};
   }
   return j;
 }

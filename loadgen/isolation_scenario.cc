@@ -8,6 +8,10 @@
 
 namespace edgephys::loadgen {
 
+// The options a report echoes, named as the members (with b_mode and b_decode added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(IsolationOptions, users, boxes, b_receivers, ramp_s, phase_s,
+                                   after_phase, late_join_delay_s, late_join_timeout_s, publish_hz,
+                                   measure_every, seed, burn_nice, b_thread_nice, b_thread_idle)
 // NaN becomes JSON null (nlohmann::json writes non-finite numbers as null).
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(IsolationPhase, name, start_s, end_s, samples, latency_ms_p50,
                                    latency_ms_p99, arrival_latency_ms_p50, arrival_latency_ms_p99,
@@ -22,35 +26,17 @@ namespace {
 nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
   nlohmann::json j;
   j["scenario"] = "isolation";
-  j["options"] = {{"users", o.users},
-                  {"boxes", o.boxes},
-                  {"b_receivers", o.b_receivers},
-                  {"ramp_s", o.ramp_s},
-                  {"phase_s", o.phase_s},
-                  {"after_phase", o.after_phase},
-                  {"late_join_delay_s", o.late_join_delay_s},
-                  {"late_join_timeout_s", o.late_join_timeout_s},
-                  {"publish_hz", o.publish_hz},
-                  {"measure_every", o.measure_every},
-                  {"seed", o.seed},
-                  {"b_mode", o.b_burn ? "burn" : "scene"},
-                  {"burn_nice", o.burn_nice},
-                  {"b_decode", o.b_decode ? "all" : "joiner"},
-                  {"b_thread_nice", o.b_thread_nice},
-                  {"b_thread_idle", o.b_thread_idle}};
+  j["options"] = o;
+  j["options"].update({{"b_mode", o.b_burn ? "burn" : "scene"},
+                       {"b_decode", o.b_decode ? "all" : "joiner"}});
   if (o.external.enabled()) {
-    j["relay"] = {{"external", true},
-                  {"address", o.external.relay},
-                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics},
-                  {"cpu_source", o.external.relay_pid > 0 ? "/proc/<pid>/stat" : "unknown"}};
+    j["relay"] = ExternalRelayJson(o.external);
     j["notes"] = {
         {"relay figures",
          "differences of the external relay's /metrics counters over each phase "
          "(edgephys_bytes_sent_total, edgephys_bytes_received_total, edgephys_physics_steps_total, "
          "edgephys_physics_step_seconds_sum/_count): process-wide, all rooms"},
-        {"relay_cpu", o.external.relay_pid > 0
-                          ? "process CPU (all threads) from /proc/<pid>/stat"
-                          : "null: the exporter has no process CPU series; pass --relay-pid"},
+        {"relay_cpu", ExternalRelayCpuNote(o.external)},
         {"tick_rate_hz, physics_threads", "the external relay's own flags; not exported"}};
   } else {
     j["options"]["tick_rate_hz"] = o.tick_rate_hz;

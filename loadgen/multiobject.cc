@@ -9,6 +9,7 @@
 
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
+#include "loadgen/paper_figures.h"
 #include "loadgen/stats.h"
 #include "loadgen/scenes/scenes.h"
 #include "protocol/handshake.h"
@@ -553,18 +554,6 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
 }
 
 }  // namespace
-
-double PaperObjMbitPerS(uint32_t objects) {
-  switch (objects) {
-    case 500: return 0.72;
-    case 1000: return 1.32;
-    case 2000: return 2.70;
-    case 5000: return 5.45;
-    case 7500: return 8.31;
-    case 10000: return 10.95;
-  }
-  return 0;
-}
 
 std::vector<MultiObjectResult> RunMultiObject(const MultiObjectOptions& o) {
   std::vector<MultiObjectResult> results;

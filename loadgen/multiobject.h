@@ -145,7 +145,4 @@ physics::MultiObjectParams MultiObjectSceneParams(const MultiObjectOptions& opti
 void ExternalMultiObjectRun(const MultiObjectOptions& options, uint32_t objects,
                             MultiObjectResult* result);
 
-// Decoupled Edge Physics' PhyS throughput for Obj_N, Mb/s (0 where it has none).
-double PaperObjMbitPerS(uint32_t objects);
-
 }  // namespace edgephys::loadgen

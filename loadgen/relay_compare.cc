@@ -10,6 +10,7 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
+#include "loadgen/paper_figures.h"
 #include "loadgen/stats.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -128,14 +129,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     relay_endpoint = relay_socket->LocalEndpoint();
   }
 
-  auto token = [&](uint32_t player) {
-    JoinToken t;
-    t.room = room;
-    t.player_id = player;
-    t.expiry_unix_s = UnixNow() + 3600;
-    t.nonce = SecureRandom64();
-    return *SignJoinToken(t, token_secret);
-  };
+  auto token = [&](uint32_t player) { return MintJoinToken(token_secret, room, player); };
   Truth truth;
   std::vector<std::unique_ptr<UdpSocket>> sockets;
   std::vector<std::unique_ptr<Client>> clients;
@@ -288,28 +282,6 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
 }
 
 }  // namespace
-
-double PaperRelayBytesPerS(uint32_t objects) {
-  switch (objects) {
-    case 32: return 12560;
-    case 64: return 24860;
-    case 128: return 49500;
-    case 256: return 96800;
-    case 512: return 193600;
-  }
-  return 0;
-}
-
-double PaperPhotonBytesPerS(uint32_t objects) {
-  switch (objects) {
-    case 32: return 16520;
-    case 64: return 32580;
-    case 128: return 63000;
-    case 256: return 130500;
-    case 512: return 257400;
-  }
-  return 0;
-}
 
 std::vector<RelayCompareResult> RunRelayCompare(const RelayCompareOptions& options) {
   std::vector<RelayCompareResult> results;

@@ -63,8 +63,4 @@ struct RelayCompareResult {
 // Runs every (mode, objects) pair in sequence; returns one result each.
 std::vector<RelayCompareResult> RunRelayCompare(const RelayCompareOptions& options);
 
-// Decoupled Edge Physics' figures, bytes/s: 0 where it has none.
-double PaperRelayBytesPerS(uint32_t objects);
-double PaperPhotonBytesPerS(uint32_t objects);
-
 }  // namespace edgephys::loadgen

@@ -37,9 +37,7 @@ nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompare
     j["results"].push_back(e);
   }
   if (o.external.enabled()) {
-    j["relay"] = {{"external", true},
-                  {"address", o.external.relay},
-                  {"metrics", o.external.metrics.empty() ? "(relay host):9464" : o.external.metrics}};
+    j["relay"] = ExternalRelayJson(o.external);
     j["notes"] = {
         {"mode, rate_hz, position_step_m, rotation_bound_deg, thresholds",
          "the external relay's own flags (--replication-mode, --position-step, ...); the load "

@@ -214,13 +214,18 @@ RelayTarget::RelayTarget(const ExternalRelayOptions& options,
 
 RelayTarget::~RelayTarget() = default;
 
-std::vector<uint8_t> RelayTarget::Token(const std::string& room, uint32_t player_id) const {
+std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
+                                   uint32_t player_id) {
   JoinToken t;
   t.room = room;
   t.player_id = player_id;
   t.expiry_unix_s = UnixNow() + 3600;
   t.nonce = SecureRandom64();
-  return *SignJoinToken(t, secret_);
+  return *SignJoinToken(t, secret);
+}
+
+std::vector<uint8_t> RelayTarget::Token(const std::string& room, uint32_t player_id) const {
+  return MintJoinToken(secret_, room, player_id);
 }
 
 RelayFigures RelayTarget::Read() const {
@@ -284,6 +289,18 @@ std::string RelayTarget::cpu_source() const {
   if (thread_) return "relay thread";
   if (external_.relay_pid > 0) return "/proc/" + std::to_string(external_.relay_pid) + "/stat";
   return "unknown";
+}
+
+nlohmann::json ExternalRelayJson(const ExternalRelayOptions& options) {
+  return {{"external", true},
+          {"address", options.relay},
+          {"metrics", options.metrics.empty() ? "(relay host):9464" : options.metrics},
+          {"cpu_source", options.relay_pid > 0 ? "/proc/<pid>/stat" : "unknown"}};
+}
+
+const char* ExternalRelayCpuNote(const ExternalRelayOptions& options) {
+  return options.relay_pid > 0 ? "process CPU (all threads) from /proc/<pid>/stat"
+                               : "null: the exporter has no process CPU series; pass --relay-pid";
 }
 
 nlohmann::json RelayTarget::Describe() const {

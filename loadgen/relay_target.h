@@ -48,6 +48,15 @@ struct ExternalRelayOptions {
 void AddExternalRelayOptions(CLI::App& cmd, ExternalRelayOptions* options);
 // "" or an error message (unparsable endpoints, --relay without --secret, ...).
 std::string ValidateExternalRelay(const ExternalRelayOptions& options);
+// A join token for `player_id` in `room`, valid for an hour, signed with `secret`.
+std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
+                                   uint32_t player_id);
+// A report's "relay" block for an external relay: external (true), address, metrics ("(relay
+// host):9464" without --metrics) and cpu_source ("/proc/<pid>/stat", or "unknown" without
+// --relay-pid).
+nlohmann::json ExternalRelayJson(const ExternalRelayOptions& options);
+// A report's note on an external relay's CPU figure: where it comes from, or why it is null.
+const char* ExternalRelayCpuNote(const ExternalRelayOptions& options);
 
 // A plain HTTP/1.0 GET of http://<host:port><path>; the body, or "" with *error set.
 std::string HttpGet(const std::string& host_port, const std::string& path, double timeout_s,

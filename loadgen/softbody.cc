@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "loadgen/loopback_room.h"
+#include "loadgen/paper_figures.h"
 #include "loadgen/softbody_scene.h"
 #include "loadgen/stats.h"
 #include "loadgen/scenes/scenes.h"
@@ -258,14 +259,6 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
 }
 
 }  // namespace
-
-double PaperBunnyMbitPerS(uint32_t bunnies) {
-  switch (bunnies) {
-    case 1: return 0.46;
-    case 3: return 1.40;
-  }
-  return 0;
-}
 
 std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& o) {
   std::vector<SoftBodyResult> results;

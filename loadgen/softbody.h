@@ -79,6 +79,5 @@ struct SoftBodyResult {
 std::vector<SoftBodyResult> RunSoftBody(const SoftBodyOptions& options);
 // The relay part of one size against options.external (softbody_external.cc).
 void ExternalSoftBodyRun(const SoftBodyOptions& options, uint32_t bunnies, SoftBodyResult* result);
-double PaperBunnyMbitPerS(uint32_t bunnies);
 
 }  // namespace edgephys::loadgen

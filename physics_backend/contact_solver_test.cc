@@ -14,10 +14,7 @@
 namespace edgephys::physics {
 namespace {
 
-using testing::Add;
-using testing::Ground;
-using testing::Pos;
-using testing::Vel;
+using namespace testing;  // physics_test_util.h: Add, Ground, Pos, Vel
 
 constexpr double kG = 9.81;
 

@@ -16,10 +16,7 @@
 namespace edgephys::physics {
 namespace {
 
-using testing::Add;
-using testing::Ground;
-using testing::Pos;
-using testing::Vel;
+using namespace testing;  // physics_test_util.h: Add, Ground, Pos, Vel
 
 constexpr double kG = 9.81;
 
@@ -70,40 +67,6 @@ TEST(PhysicsAccuracyTest, FreeFallMatchesSymplecticEulerAndAnalyticBound) {
               r.final_err_analytic / half.final_err_analytic);
 }
 
-// Drops a sphere (r = 0.1 m) from `h0` (its bottom above the ground) on a restitution-1 static
-// box (Bullet multiplies restitutions, so the pair's restitution is the ball's `e`) and returns
-// the heights of its apexes (bottom above the ground), starting with h0, until `apexes` heights
-// or the first apex under `min_height`.
-std::vector<double> BounceApexes(const PhysicsConfig& cfg, float e, float h0, int apexes,
-                                 double min_height) {
-  PhysicsWorld world(cfg);
-  const float r = 0.1f;
-  EXPECT_TRUE(Add(world, Ground(1, 0.5f, 1.0f)).ok());
-  EntitySpec ball = DynamicSphere(2, {0, h0 + r, 0}, r, 1.0f);
-  ball.rigid_body->restitution = e;
-  EXPECT_TRUE(Add(world, ball).ok());
-  std::vector<double> heights{h0};
-  float prev_vy = 0;
-  bool bounced = false;
-  for (int i = 0; i < 60 * 20 && static_cast<int>(heights.size()) < apexes; ++i) {
-    world.Step();
-    const float vy = Vel(world, 2).y;
-      if (prev_vy < 0 && vy > 0) bounced = true;
-    if (bounced && prev_vy > 0 && vy <= 0) {
-      // Apex between this sample and the last: v = 0 at dt * prev_vy / (prev_vy - vy) after the
-      // last sample; the parabola peaks above the current sample by g/2 * (time to the peak)^2.
-      const double dt = cfg.fixed_dt;
-      const double t_peak = dt * prev_vy / (prev_vy - vy);
-      const double y = Pos(world, 2).y - r + 0.5 * kG * (dt - t_peak) * (dt - t_peak);
-      if (y < min_height) break;
-      heights.push_back(y);
-      bounced = false;
-    }
-    prev_vy = vy;
-  }
-  return heights;
-}
-
 // Ratio of consecutive apex heights, worst relative error against e^2 (over bounces whose apex
 // is at least 10 cm: below that the ball travels a large share of the apex height per step).
 struct BounceResult {
@@ -111,7 +74,9 @@ struct BounceResult {
   double worst_rel_err = 0;
 };
 BounceResult Bounce(const PhysicsConfig& cfg, float e) {
-  const std::vector<double> h = BounceApexes(cfg, e, 2.0f, 4, 0.1);
+  const testing::BounceRun run = testing::BounceApexes(cfg, e, 2.0f, 4, 0.1, 60 * 20);
+  EXPECT_TRUE(run.added.ok());
+  const std::vector<double>& h = run.heights;
   BounceResult r;
   for (size_t i = 1; i < h.size(); ++i) {
     r.ratios.push_back(h[i] / h[i - 1]);

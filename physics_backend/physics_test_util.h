@@ -1,4 +1,4 @@
-// Helpers shared by the physics tests.
+// Helpers shared by the physics tests (with the probes of testing/physics_probes.h).
 #pragma once
 
 #include <gtest/gtest.h>
@@ -8,35 +8,24 @@
 
 #include "physics_backend/container_builder.h"
 #include "physics_backend/physics_world.h"
+#include "physics_backend/testing/physics_probes.h"
 
 namespace edgephys::physics::testing {
 
-inline Status Add(PhysicsWorld& world, const EntitySpec& spec, InvalidReason* reason = nullptr) {
-  const std::vector<uint8_t> buf = BuildContainer(spec);
-  return world.AddEntity(AsContainer(buf), reason);
-}
-
-inline Vec3f Pos(const PhysicsWorld& world, uint32_t id) {
-  EntityState s;
-  (void)world.GetState(id, &s);
-  return s.position;
-}
-
-inline Vec3f Vel(const PhysicsWorld& world, uint32_t id) {
-  Vec3f lin, ang;
-  (void)world.GetVelocity(id, &lin, &ang);
-  return lin;
-}
-
-// A static ground slab with its top face at y = 0.
-inline EntitySpec Ground(uint32_t id, float friction = 0.5f, float restitution = 0.0f,
-                         float half = 50.0f) {
-  EntitySpec g = StaticBox(id, {0, -0.5f, 0}, {half, 0.5f, half});
-  g.rigid_body = RigidBodySpec{};
-  g.rigid_body->mass = 0;
-  g.rigid_body->friction = friction;
-  g.rigid_body->restitution = restitution;
-  return g;
+// After the step that broke entity `id`: the world reported exactly one event, a guard reset
+// of `id` for a non-finite state.
+inline ::testing::AssertionResult OneNonFiniteGuardReset(PhysicsWorld& world, uint32_t id) {
+  std::vector<PhysicsEvent> events;
+  world.DrainEvents(&events);
+  if (events.size() != 1) return ::testing::AssertionFailure() << events.size() << " events";
+  const PhysicsEvent& e = events[0];
+  if (e.type != PhysicsEventType::kGuardReset || e.cause != GuardCause::kNonFinite ||
+      e.entity_a != id) {
+    return ::testing::AssertionFailure()
+           << "event type " << static_cast<int>(e.type) << ", cause " << static_cast<int>(e.cause)
+           << ", entity " << e.entity_a;
+  }
+  return ::testing::AssertionSuccess();
 }
 
 inline Quatf AxisAngle(float ax, float ay, float az, float angle) {

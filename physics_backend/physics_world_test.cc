@@ -14,10 +14,7 @@
 namespace edgephys::physics {
 namespace {
 
-using testing::Add;
-using testing::Ground;
-using testing::Pos;
-using testing::Vel;
+using namespace testing;  // physics_test_util.h: Add, Ground, Pos, Vel
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr uint32_t kInteractable = static_cast<uint32_t>(schema::EntityFlags::Interactable);
@@ -535,12 +532,7 @@ TEST(PhysicsWorldTest, GuardRestoresNonFiniteAndRunawayBodies) {
   ASSERT_NE(body, nullptr);
   body->setLinearVelocity(btVector3(kNaN, 0, 0));  // what a broken constraint can produce
   world.Step();
-  std::vector<PhysicsEvent> events;
-  world.DrainEvents(&events);
-  ASSERT_EQ(events.size(), 1u);
-  EXPECT_EQ(events[0].type, PhysicsEventType::kGuardReset);
-  EXPECT_EQ(events[0].cause, GuardCause::kNonFinite);
-  EXPECT_EQ(events[0].entity_a, 2u);
+  ASSERT_TRUE(OneNonFiniteGuardReset(world, 2));
   EXPECT_EQ(Pos(world, 2).y, before.y);  // restored to the last good state
   EXPECT_EQ(world.counters().guard_resets, 1u);
   std::vector<EntityState> moved;
@@ -549,7 +541,7 @@ TEST(PhysicsWorldTest, GuardRestoresNonFiniteAndRunawayBodies) {
 
   body->setLinearVelocity(btVector3(0, 500, 0));
   world.Step();
-  events.clear();
+  std::vector<PhysicsEvent> events;
   world.DrainEvents(&events);
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].cause, GuardCause::kRunawaySpeed);

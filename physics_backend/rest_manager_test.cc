@@ -17,10 +17,7 @@
 namespace edgephys::physics {
 namespace {
 
-using testing::Add;
-using testing::Dist;
-using testing::Ground;
-using testing::Pos;
+using namespace testing;  // physics_test_util.h: Add, Dist, Ground, Pos
 
 constexpr float kG = 9.81f;
 

@@ -19,14 +19,8 @@ using testing::RecordingHandler;
 
 // The impairment every end-to-end test below must survive.
 NetworkConditions Harsh(uint64_t seed) {
-  NetworkConditions c;
-  c.loss = 0.2;
-  c.duplicate = 0.05;
-  c.reorder = 0.1;
-  c.latency_s = 0.05;
-  c.jitter_s = 0.02;
-  c.seed = seed;
-  return c;
+  return {.loss = 0.2, .duplicate = 0.05, .reorder = 0.1, .latency_s = 0.05,
+          .jitter_s = 0.02, .seed = seed};
 }
 
 // Message `index`: varied sizes (mostly small, some spanning several units), content derived
@@ -509,13 +503,8 @@ TEST(ConnectionTest, AckDelayWaitsForAPacketOfOursButNotForReliableUnits) {
 }
 
 TEST(ConnectionTest, SequencesAndUnitIdsWrapAround) {
-  NetworkConditions c;
-  c.loss = 0.05;
-  c.duplicate = 0.02;
-  c.reorder = 0.05;
-  c.latency_s = 0.02;
-  c.jitter_s = 0.005;
-  c.seed = 15;
+  const NetworkConditions c{.loss = 0.05, .duplicate = 0.02, .reorder = 0.05, .latency_s = 0.02,
+                            .jitter_s = 0.005, .seed = 15};
   Link link(c);
   link.b.handler.keep_payloads = false;
   constexpr uint32_t kSteps = 75000;  // > 65536 packets and > 65536 reliable units

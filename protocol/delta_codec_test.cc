@@ -22,6 +22,17 @@ namespace {
 
 using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
+// A format-2 encoder and decoder at the default quantization, with a payload buffer, an
+// entity's state (id `id`) to send and a batch to decode into.
+struct Codec {
+  explicit Codec(uint32_t id = 0) { s.entity_id = id; }
+  QuantizationParams params = *MakeQuantizationParams(QuantizationConfig{});
+  DeltaEncoder enc{params};
+  DeltaDecoder dec{params};
+  std::vector<uint8_t> buf = std::vector<uint8_t>(kMaxUnreliablePayload);
+  EntityState s;
+  StateBatch batch;
+};
 
 TEST(DeltaCodec, UnknownBaselineIsRejectedCleanly) {
   auto params = MakeQuantizationParams(QuantizationConfig{});
@@ -58,13 +69,8 @@ TEST(DeltaCodec, UnknownBaselineIsRejectedCleanly) {
 }
 
 TEST(DeltaCodec, EncoderNeverReferencesUnackedStates) {
-  auto params = MakeQuantizationParams(QuantizationConfig{});
-  DeltaEncoder enc(*params);
-  DeltaDecoder dec(*params);
-  std::vector<uint8_t> buf(kMaxUnreliablePayload);
-  EntityState s;
-  s.entity_id = 9;
-  StateBatch batch;
+  Codec codec(9);
+  auto& [params, enc, dec, buf, s, batch] = codec;
   // Nothing acked: every send is a keyframe.
   for (int i = 0; i < 5; ++i) {
     s.position.x = 0.01f * i;
@@ -410,13 +416,8 @@ TEST(DeltaCodec, UnchangedFieldsCostAboutOneBit) {
 }
 
 TEST(DeltaCodec, ForgetStartsOverWithAKeyframe) {
-  auto params = MakeQuantizationParams(QuantizationConfig{});
-  DeltaEncoder enc(*params);
-  DeltaDecoder dec(*params);
-  std::vector<uint8_t> buf(kMaxUnreliablePayload);
-  EntityState s;
-  s.entity_id = 42;
-  StateBatch batch;
+  Codec codec(42);
+  auto& [params, enc, dec, buf, s, batch] = codec;
   for (int t = 0; t < 6; ++t) {
     if (t == 3) {
       enc.Forget(42);
@@ -437,14 +438,11 @@ TEST(DeltaCodec, ForgetStartsOverWithAKeyframe) {
 }
 
 TEST(DeltaCodec, SteadyStateAllocatesNothing) {
-  auto params = MakeQuantizationParams(QuantizationConfig{});
-  DeltaEncoder enc(*params);
-  DeltaDecoder dec(*params);
-  std::vector<uint8_t> buf(kMaxUnreliablePayload);
+  Codec codec;
+  auto& [params, enc, dec, buf, s, batch] = codec;
   std::vector<TestMotion> motions;
   for (uint32_t i = 0; i < 300; ++i) motions.emplace_back(5, i, 1.5, 90, 0);
   std::vector<EntityState> truth(motions.size());
-  StateBatch batch;
   batch.states.reserve(1024);
   uint16_t seq = 0;
   std::vector<uint16_t> to_ack;

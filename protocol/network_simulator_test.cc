@@ -153,13 +153,8 @@ TEST(NetworkSimulatorTest, ReorderLetsLaterDatagramsOvertake) {
 }
 
 TEST(NetworkSimulatorTest, DeterministicForASeed) {
-  NetworkConditions c;
-  c.loss = 0.1;
-  c.duplicate = 0.1;
-  c.reorder = 0.1;
-  c.latency_s = 0.02;
-  c.jitter_s = 0.01;
-  c.seed = 77;
+  NetworkConditions c{.loss = 0.1, .duplicate = 0.1, .reorder = 0.1, .latency_s = 0.02,
+                      .jitter_s = 0.01, .seed = 77};
   auto first = Pump(c, 3000);
   auto second = Pump(c, 3000);
   ASSERT_EQ(first.size(), second.size());

@@ -10,10 +10,7 @@
 namespace edgephys {
 namespace {
 
-using testing_util::FloatSlack;
-using testing_util::PositionError;
-using testing_util::RandomRotation;
-using testing_util::RotationErrorDeg;
+using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
 QuantizationConfig Config(float step, float rot_deg, float extent) {
   QuantizationConfig c;

@@ -21,11 +21,7 @@
 namespace edgephys {
 namespace {
 
-using testing_util::FloatSlack;
-using testing_util::PositionError;
-using testing_util::RandomRotation;
-using testing_util::RotationErrorDeg;
-using testing_util::TestMotion;
+using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
 constexpr size_t kPacketOverhead = 18 + 3;  // connection header + unreliable chunk header
 
@@ -104,6 +100,36 @@ struct Receiver {
   }
 };
 
+// A TestRoom with bodies 1..entities on TestMotion paths (seed `seed`; family i % 2 if
+// `both_families`, else 0) and `receivers` receivers.
+struct Crowd {
+  Crowd(int receivers, uint32_t entities, uint64_t seed, bool both_families,
+        size_t versions = kSharedVersionWindow)
+      : r(versions) {
+    for (int i = 0; i < receivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
+    for (uint32_t i = 0; i < entities; ++i) {
+      motion.emplace_back(seed, i, 1.5, 90.0, both_families ? static_cast<int>(i % 2) : 0);
+      ids.push_back(i + 1);
+    }
+  }
+  // Moves every body to motion time `t` (s) and prepares the room's tick at `time_ms`.
+  void Advance(double t, uint32_t time_ms) {
+    for (size_t i = 0; i < motion.size(); ++i) r.Set(ids[i], motion[i].AdvanceTo(t));
+    r.Tick(time_ms);
+  }
+  // Bodies the receivers' streams took from the room's cache.
+  uint64_t CacheHits() const {
+    uint64_t hits = 0;
+    for (const auto& x : rx) hits += x->stream.stats().cache_hits;
+    return hits;
+  }
+
+  TestRoom r;
+  std::vector<std::unique_ptr<Receiver>> rx;
+  std::vector<TestMotion> motion;
+  std::vector<uint32_t> ids;
+};
+
 void ExpectWithin(const QuantizationParams& p, const EntityState& truth, const EntityState& got,
                   const char* what) {
   EXPECT_LE(PositionError(truth.position, got.position), PosBound(p, truth.position))
@@ -156,13 +182,11 @@ TEST(SharedDeltaCodec, RandomTransformsRoundTripWithinTheLatticeBound) {
 // duplication, reordering (random extra delay), lost acks. Every receiver ends within the
 // bound of the truth, and the room's cache was shared.
 TEST(SharedDeltaCodec, SeveralReceiversConvergeUnderLossDuplicationAndReordering) {
-  TestRoom r;
   constexpr int kReceivers = 6;
   constexpr uint32_t kEntities = 40;
-  std::vector<std::unique_ptr<Receiver>> rx;
-  for (int i = 0; i < kReceivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
-  std::vector<TestMotion> motion;
-  for (uint32_t i = 0; i < kEntities; ++i) motion.emplace_back(7, i, 1.5, 90.0, i % 2);
+  Crowd crowd(kReceivers, kEntities, 7, true);
+  TestRoom& r = crowd.r;
+  auto& rx = crowd.rx;
   std::mt19937_64 rng(99);
   std::uniform_real_distribution<double> u(0, 1);
   struct InFlight {
@@ -182,10 +206,7 @@ TEST(SharedDeltaCodec, SeveralReceiversConvergeUnderLossDuplicationAndReordering
   const int motion_ticks = 600, settle_ticks = 900;
   for (int tick = 0; tick < motion_ticks + settle_ticks; ++tick) {
     const double now = tick / tick_hz;
-    for (uint32_t i = 0; i < kEntities; ++i) {
-      r.Set(i + 1, motion[i].AdvanceTo(std::min(tick, motion_ticks) / tick_hz));
-    }
-    r.Tick(static_cast<uint32_t>(now * 1000));
+    crowd.Advance(std::min(tick, motion_ticks) / tick_hz, static_cast<uint32_t>(now * 1000));
     for (int k = 0; k < kReceivers; ++k) {
       Receiver& x = *rx[k];
       // Receiver k is sent at 12 Hz (every 5th tick) with its own phase; receivers 0..2 share
@@ -239,8 +260,7 @@ TEST(SharedDeltaCodec, SeveralReceiversConvergeUnderLossDuplicationAndReordering
     EXPECT_EQ(rx[k]->decoder.stats().unresolved_references, 0u) << "receiver " << k;
   }
   const auto& st = r.room.stats();
-  uint64_t hits = 0;
-  for (auto& x : rx) hits += x->stream.stats().cache_hits;
+  const uint64_t hits = crowd.CacheHits();
   std::printf("cache: %llu encodes, %llu hits, %llu uncached, %llu missing versions\n",
               static_cast<unsigned long long>(st.encodes.load()),
               static_cast<unsigned long long>(hits),
@@ -252,21 +272,15 @@ TEST(SharedDeltaCodec, SeveralReceiversConvergeUnderLossDuplicationAndReordering
 // Receivers with one send phase and the same round trip on a mildly lossy link (2 %): most
 // bodies are encoded once and appended by the others.
 TEST(SharedDeltaCodec, ReceiversInPhaseMostlyShareUnderMildLoss) {
-  TestRoom r;
   constexpr int kReceivers = 10;
   constexpr uint32_t kEntities = 50;
-  std::vector<std::unique_ptr<Receiver>> rx;
-  for (int i = 0; i < kReceivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
-  std::vector<TestMotion> motion;
-  for (uint32_t i = 0; i < kEntities; ++i) motion.emplace_back(4, i, 1.5, 90.0, i % 2);
-  std::vector<uint32_t> ids;
-  for (uint32_t id = 1; id <= kEntities; ++id) ids.push_back(id);
+  Crowd crowd(kReceivers, kEntities, 4, true);
+  auto& [r, rx, motion, ids] = crowd;
   std::mt19937_64 rng(8);
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<std::vector<uint16_t>> pending(kReceivers);
   for (int tick = 0; tick < 60 * 10; ++tick) {
-    for (uint32_t i = 0; i < kEntities; ++i) r.Set(i + 1, motion[i].AdvanceTo(tick / 60.0));
-    r.Tick(static_cast<uint32_t>(tick * 1000 / 60));
+    crowd.Advance(tick / 60.0, static_cast<uint32_t>(tick * 1000 / 60));
     if (tick % 5 != 0) continue;
     for (int k = 0; k < kReceivers; ++k) {
       for (uint16_t s : pending[k]) rx[k]->stream.OnPacketAcked(s);  // one send later
@@ -279,8 +293,7 @@ TEST(SharedDeltaCodec, ReceiversInPhaseMostlyShareUnderMildLoss) {
     }
   }
   const auto& st = r.room.stats();
-  uint64_t hits = 0;
-  for (auto& x : rx) hits += x->stream.stats().cache_hits;
+  const uint64_t hits = crowd.CacheHits();
   const double shared = static_cast<double>(hits) /
                         static_cast<double>(hits + st.encodes.load() + st.uncached.load());
   std::printf("in phase, 2 %% loss: %.1f %% of bodies from the cache (%llu encodes)\n",
@@ -291,21 +304,14 @@ TEST(SharedDeltaCodec, ReceiversInPhaseMostlyShareUnderMildLoss) {
 // N receivers holding the same baselines: one encode per (entity, key) per tick, every other
 // receiver appends the cached bits; their payloads are byte-identical.
 TEST(SharedDeltaCodec, ReceiversOnTheSameBaselineShareOneEncode) {
-  TestRoom r;
   constexpr int kReceivers = 10;
   constexpr uint32_t kEntities = 50;
-  std::vector<std::unique_ptr<Receiver>> rx;
-  for (int i = 0; i < kReceivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
-  std::vector<TestMotion> motion;
-  for (uint32_t i = 0; i < kEntities; ++i) motion.emplace_back(3, i, 1.5, 90.0, 0);
-  std::vector<uint32_t> ids;
-  for (uint32_t id = 1; id <= kEntities; ++id) ids.push_back(id);
+  Crowd crowd(kReceivers, kEntities, 3, false);
+  auto& [r, rx, motion, ids] = crowd;
   for (int tick = 0; tick < 100; ++tick) {
-    for (uint32_t i = 0; i < kEntities; ++i) r.Set(i + 1, motion[i].AdvanceTo(tick / 60.0));
-    r.Tick(static_cast<uint32_t>(tick * 1000 / 60));
+    crowd.Advance(tick / 60.0, static_cast<uint32_t>(tick * 1000 / 60));
     const uint64_t encodes_before = r.room.stats().encodes.load();
-    uint64_t hits_before = 0;
-    for (auto& x : rx) hits_before += x->stream.stats().cache_hits;
+    const uint64_t hits_before = crowd.CacheHits();
     std::vector<std::vector<uint8_t>> first;
     for (int k = 0; k < kReceivers; ++k) {
       auto sent = rx[k]->Send(r, ids, tick / 60.0);
@@ -320,8 +326,7 @@ TEST(SharedDeltaCodec, ReceiversOnTheSameBaselineShareOneEncode) {
       }
     }
     EXPECT_EQ(r.room.stats().encodes.load() - encodes_before, kEntities) << "tick " << tick;
-    uint64_t hits = 0;
-    for (auto& x : rx) hits += x->stream.stats().cache_hits;
+    const uint64_t hits = crowd.CacheHits();
     EXPECT_EQ(hits - hits_before, (kReceivers - 1) * kEntities);
   }
   EXPECT_EQ(r.room.stats().uncached.load(), 0u);
@@ -333,19 +338,13 @@ TEST(SharedDeltaCodec, ReceiversOnTheSameBaselineShareOneEncode) {
 // Receivers' ticks run in parallel (as on the relay's pool): the cache hands out each body
 // once and every receiver decodes within the bound. (Meaningful under -fsanitize=thread too.)
 TEST(SharedDeltaCodec, ParallelReceiversShareTheCacheSafely) {
-  TestRoom r;
   constexpr int kReceivers = 8;
   constexpr uint32_t kEntities = 60;
-  std::vector<std::unique_ptr<Receiver>> rx;
-  for (int i = 0; i < kReceivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
-  std::vector<TestMotion> motion;
-  for (uint32_t i = 0; i < kEntities; ++i) motion.emplace_back(6, i, 1.5, 90.0, i % 2);
-  std::vector<uint32_t> ids;
-  for (uint32_t id = 1; id <= kEntities; ++id) ids.push_back(id);
+  Crowd crowd(kReceivers, kEntities, 6, true);
+  auto& [r, rx, motion, ids] = crowd;
   constexpr int kTicks = 120;
   for (int tick = 0; tick < kTicks; ++tick) {
-    for (uint32_t i = 0; i < kEntities; ++i) r.Set(i + 1, motion[i].AdvanceTo(tick / 60.0));
-    r.Tick(static_cast<uint32_t>(tick * 1000 / 60));
+    crowd.Advance(tick / 60.0, static_cast<uint32_t>(tick * 1000 / 60));
     auto work = [&](int first) {
       for (int k = first; k < kReceivers; k += 2) {
         for (auto& [seq, payload] : rx[k]->Send(r, ids, tick / 60.0, 500)) {
@@ -364,8 +363,7 @@ TEST(SharedDeltaCodec, ParallelReceiversShareTheCacheSafely) {
   const auto& st = r.room.stats();
   // Two threads may both code a body they found being built: at most one extra per pair.
   EXPECT_LE(st.encodes.load() + st.uncached.load(), 2u * kTicks * kEntities);
-  uint64_t hits = 0;
-  for (auto& x : rx) hits += x->stream.stats().cache_hits;
+  const uint64_t hits = crowd.CacheHits();
   EXPECT_GE(hits, (kReceivers - 2u) * kTicks * kEntities);
 }
 
@@ -374,19 +372,13 @@ TEST(SharedDeltaCodec, ParallelReceiversShareTheCacheSafely) {
 // fallback keyframes); the 60 Hz default window of 64 would not.
 TEST(SharedDeltaCodec, HighTickRatesKeepEnoughVersionsForSlowReceivers) {
   for (size_t window : {kSharedVersionWindow, SharedVersionWindowFor(240)}) {
-    TestRoom r(window);
     constexpr int kReceivers = 20;
-    std::vector<std::unique_ptr<Receiver>> rx;
-    for (int i = 0; i < kReceivers; ++i) rx.push_back(std::make_unique<Receiver>(r.params));
-    std::vector<TestMotion> motion;
-    for (uint32_t i = 0; i < 10; ++i) motion.emplace_back(2, i, 1.5, 90.0, 0);
-    std::vector<uint32_t> ids;
-    for (uint32_t id = 1; id <= 10; ++id) ids.push_back(id);
+    Crowd crowd(kReceivers, 10, 2, false, window);
+    auto& [r, rx, motion, ids] = crowd;
     std::vector<std::vector<uint16_t>> pending(kReceivers);
     uint64_t keyframes = 0;
     for (int tick = 0; tick < 240 * 6; ++tick) {
-      for (uint32_t i = 0; i < 10; ++i) r.Set(i + 1, motion[i].AdvanceTo(tick / 240.0));
-      r.Tick(static_cast<uint32_t>(tick * 1000 / 240));
+      crowd.Advance(tick / 240.0, static_cast<uint32_t>(tick * 1000 / 240));
       for (int k = 0; k < kReceivers; ++k) {
         if ((tick + 2 * k) % 40 != 0) continue;  // 6 Hz, phases 2 ticks apart
         for (uint16_t s : pending[k]) rx[k]->stream.OnPacketAcked(s);
@@ -530,17 +522,13 @@ TEST(SharedDeltaCodec, ForgedReferencesAreDroppedAndCounted) {
 }
 
 TEST(SharedDeltaCodec, MalformedAndTruncatedPayloadsChangeNothing) {
-  TestRoom r;
-  Receiver rx(r.params);
-  std::vector<TestMotion> motion;
-  for (uint32_t i = 0; i < 20; ++i) motion.emplace_back(9, i, 1.5, 90.0, 0);
-  std::vector<uint32_t> ids;
-  for (uint32_t id = 1; id <= 20; ++id) ids.push_back(id);
+  Crowd crowd(1, 20, 9, false);
+  TestRoom& r = crowd.r;
+  Receiver& rx = *crowd.rx[0];
   std::vector<uint8_t> last;
   for (int tick = 0; tick < 30; ++tick) {
-    for (uint32_t i = 0; i < 20; ++i) r.Set(i + 1, motion[i].AdvanceTo(tick / 60.0));
-    r.Tick(static_cast<uint32_t>(tick * 16));
-    auto sent = rx.Send(r, ids, tick / 60.0);
+    crowd.Advance(tick / 60.0, static_cast<uint32_t>(tick * 16));
+    auto sent = rx.Send(r, crowd.ids, tick / 60.0);
     ASSERT_EQ(sent.size(), 1u);
     if (tick == 29) {
       last = sent[0].second;  // a delta payload, not yet decoded

@@ -22,17 +22,22 @@ using Harness = testing_util::SharedDeltaHarness;
 
 EntityState At(float x) { return {0, {x, 1, 2}, {0, 0, 0, 1}}; }
 
+// Entity `e` (id `id`) ticked at x = 0, 0.01, ... and sent, decoded and acknowledged, `times`
+// times: the stream's track of it holds an acked baseline.
+void SendAcked(Harness& h, SharedEntity* e, uint32_t id, int times) {
+  for (int i = 0; i < times; ++i) {
+    h.Tick({{e, At(0.01f * i)}});
+    auto [s, payload] = h.Send({{id, e}});
+    (void)h.Decode(payload, id);
+    h.stream.OnPacketAcked(s);
+  }
+}
+
 TEST(SharedDeltaSlots, AReusedSlotNeverAliasesItsPreviousOccupant) {
   Harness h;
   auto a = std::make_unique<SharedEntity>();
   a->BindSlot(0, 1);
-  // A (id 5) is sent and acknowledged a few times: its track holds an acked baseline.
-  for (int i = 0; i < 5; ++i) {
-    h.Tick({{a.get(), At(0.01f * i)}});
-    auto [s, payload] = h.Send({{5, a.get()}});
-    (void)h.Decode(payload, 5);
-    h.stream.OnPacketAcked(s);
-  }
+  SendAcked(h, a.get(), 5, 5);  // A (id 5) has an acked baseline
   // One more send of A whose ack comes late.
   h.Tick({{a.get(), At(0.2f)}});
   const uint16_t late = h.Send({{5, a.get()}}).first;
@@ -65,12 +70,7 @@ TEST(SharedDeltaSlots, ARespawnUnderTheSameIdAndSlotStartsOverWithAKeyframe) {
   Harness h;
   auto first = std::make_unique<SharedEntity>();
   first->BindSlot(3, 10);
-  for (int i = 0; i < 4; ++i) {
-    h.Tick({{first.get(), At(0.01f * i)}});
-    auto [s, payload] = h.Send({{7, first.get()}});
-    (void)h.Decode(payload, 7);
-    h.stream.OnPacketAcked(s);
-  }
+  SendAcked(h, first.get(), 7, 4);
   auto second = std::make_unique<SharedEntity>();  // id 7 again, same slot, next serial
   second->BindSlot(3, 11);
   const uint64_t keyframes = h.stream.stats().keyframes;

@@ -24,10 +24,7 @@
 namespace edgephys {
 namespace {
 
-using testing_util::FloatSlack;
-using testing_util::PositionError;
-using testing_util::RotationErrorDeg;
-using testing_util::TestMotion;
+using namespace testing_util;  // NOLINT(google-build-using-namespace): test helpers
 
 EntityState At(float x) { return {0, {x, 1, 2}, {0, 0, 0, 1}}; }
 

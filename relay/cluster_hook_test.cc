@@ -22,6 +22,7 @@
 #include "protocol/redirect.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
+#include "tests/integration/harness.h"
 
 namespace edgephys {
 namespace {
@@ -29,19 +30,11 @@ namespace {
 constexpr char kSecret[] = "cluster-secret";
 constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
+using testing::UnixNow;
 
+// A join token for `player` in `room`, valid for an hour, signed with the cluster's secret.
 std::vector<uint8_t> Token(const std::string& room, uint32_t player) {
-  JoinToken t;
-  t.room = room;
-  t.player_id = player;
-  t.expiry_unix_s = UnixNow() + 3600;
-  t.nonce = SecureRandom64();
-  return *SignJoinToken(t, kSecret);
+  return testing::MintToken(room, player, 3600, kDefaultPermissions, kSecret);
 }
 
 struct CountingListener : ClientListener {
@@ -119,6 +112,21 @@ class ClusterWorld {
   }
   void set_room(Client& c, const std::string& room) { rooms_[&c] = room; }
 
+  // One player per listener: player first_player + i joins room "<prefix><i % rooms>" through
+  // relay i % size().
+  std::vector<Client*> AddPlayers(const std::string& prefix, int rooms, uint32_t first_player,
+                                  std::vector<CountingListener>* listeners) {
+    std::vector<Client*> clients;
+    for (size_t i = 0; i < listeners->size(); ++i) {
+      const std::string room = prefix + std::to_string(i % rooms);
+      Client& c = AddClient(static_cast<int>(i % nodes_.size()),
+                            Token(room, first_player + static_cast<uint32_t>(i)), &(*listeners)[i]);
+      set_room(c, room);
+      clients.push_back(&c);
+    }
+    return clients;
+  }
+
   // Destroys relay `i` (its UDP port goes silent; clean directory stop).
   void Kill(int i) { nodes_[i]->relay.reset(); }
   Relay* relay(int i) { return nodes_[i]->relay.get(); }
@@ -158,13 +166,7 @@ TEST_F(ClusterTest, PlayersJoiningThroughAnyRelayLandOnTheirRoomsRelay) {
   world.RunUntil([] { return false; }, 0.3);  // relays register
   constexpr int kRooms = 6, kPerRoom = 4;
   std::vector<CountingListener> listeners(kRooms * kPerRoom);
-  std::vector<Client*> clients;
-  for (int i = 0; i < kRooms * kPerRoom; ++i) {
-    std::string room = "room" + std::to_string(i % kRooms);
-    Client& c = world.AddClient(i % 3, Token(room, 100 + i), &listeners[i]);
-    world.set_room(c, room);
-    clients.push_back(&c);
-  }
+  const std::vector<Client*> clients = world.AddPlayers("room", kRooms, 100, &listeners);
   ASSERT_TRUE(world.RunUntil(
       [&] {
         for (Client* c : clients) {
@@ -205,13 +207,7 @@ TEST_F(ClusterTest, ADeadRelaysRoomsComeBackWithTheirEntitiesAndSessionsResume) 
   world.RunUntil([] { return false; }, 0.3);
   constexpr int kRooms = 3, kPerRoom = 3;
   std::vector<CountingListener> listeners(kRooms * kPerRoom);
-  std::vector<Client*> clients;
-  for (int i = 0; i < kRooms * kPerRoom; ++i) {
-    std::string room = "fo" + std::to_string(i % kRooms);
-    Client& c = world.AddClient(i % 3, Token(room, 200 + i), &listeners[i]);
-    world.set_room(c, room);
-    clients.push_back(&c);
-  }
+  const std::vector<Client*> clients = world.AddPlayers("fo", kRooms, 200, &listeners);
   auto all_joined = [&] {
     for (Client* c : clients) {
       if (!c->joined()) return false;

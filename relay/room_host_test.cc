@@ -353,17 +353,30 @@ TEST_F(RoomHostTest, FailOverRestoresASoftBodyFromItsLastParticles) {
   EXPECT_EQ(counters_.physics_failovers.load(), 1u);
 }
 
+// A room "r" with shared encoding on or off, and a member (player 7) that has not joined yet.
+struct OneMemberRoom {
+  explicit OneMemberRoom(bool shared)
+      : config(WithSharedEncoding(shared)),
+        host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0) {}
+  static RoomConfig WithSharedEncoding(bool shared) {
+    RoomConfig c;
+    c.replication.shared_encoding = shared;
+    return c;
+  }
+  AbuseLimits limits;
+  RelayCounters counters;
+  ScriptedPlacement placement;
+  RoomConfig config;
+  RoomHost host;
+  RecordingMember a{7};
+};
+
 // The state format a room tells its members follows the shared-encoding flag, and a format-9
 // room's tick prepares every entity's shared version (and nothing of the kind otherwise).
 TEST(RoomHostSharedEncoding, JoinedCarriesTheFormatAndBeginTickPreparesSharedVersions) {
   for (bool shared : {false, true}) {
-    AbuseLimits limits;
-    RelayCounters counters;
-    ScriptedPlacement placement;
-    RoomConfig config;
-    config.replication.shared_encoding = shared;
-    RoomHost host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0);
-    RecordingMember a(7);
+    OneMemberRoom r(shared);
+    auto& [limits, counters, placement, config, host, a] = r;
     ASSERT_TRUE(host.Join(a, 0));
     const auto* joined = a.Of(Body::Joined)[0]->body_as_Joined();
     EXPECT_EQ(joined->state_format(), shared ? kSharedDeltaStateFormat : kDeltaStateFormat);
@@ -388,13 +401,8 @@ TEST(RoomHostFormats, JoinedCarriesFormat9ByDefaultAndFormat2WithoutSharedEncodi
   EXPECT_TRUE(RoomConfig().replication.shared_encoding);  // the default
   for (bool shared : {true, false}) {
     const uint8_t want = shared ? kSharedDeltaStateFormat : kDeltaStateFormat;
-    AbuseLimits limits;
-    RelayCounters counters;
-    ScriptedPlacement placement;
-    RoomConfig config;
-    config.replication.shared_encoding = shared;
-    RoomHost host("r", config, RoomHostEnv{&limits, &counters, &placement}, 0.0);
-    RecordingMember a(7);
+    OneMemberRoom r(shared);
+    auto& [limits, counters, placement, config, host, a] = r;
     ASSERT_TRUE(host.Join(a, 0));
     const auto* joined = a.Of(Body::Joined)[0]->body_as_Joined();
     EXPECT_EQ(joined->state_format(), want) << shared;

@@ -31,12 +31,14 @@ c="pose 3 1.363048 0.100047 -0.001953 0.000503 -0.003018 0.000503 0.999995"
 d="pose 3 1.368048 0.100047 -0.001953 0.000503 -0.003520 0.000503 0.999994"
 base="$a
 $b"
-expect PASS "identical poses" "$base
-$c" "$base
-$c"
-expect PASS "identical poses, norm above 1" "$base
-$d" "$base
-$d"
+# expect3 PASS|FAIL NAME WATCHER_POSE EXAMPLE_POSE: both logs hold $base, then the pose given.
+expect3() {
+  expect "$1" "$2" "$base
+$3" "$base
+$4"
+}
+expect3 PASS "identical poses" "$c" "$c"
+expect3 PASS "identical poses, norm above 1" "$d" "$d"
 expect PASS "watcher lines among other output" "watching
 $base
 DBG other
@@ -46,27 +48,21 @@ $base
 $c
 ok"
 # 0.05 degree about y: (0, sin(0.025 deg), 0, cos(0.025 deg)).
-expect PASS "0.05 degree apart" "$base
-pose 3 0 0.1 0 0 0 0 1" "$base
-pose 3 0 0.1 0 0.000000 0.000436 0.000000 1.000000"
+expect3 PASS "0.05 degree apart" "pose 3 0 0.1 0 0 0 0 1" \
+  "pose 3 0 0.1 0 0.000000 0.000436 0.000000 1.000000"
 # 0.15 degree about y.
-expect FAIL "0.15 degree apart" "$base
-pose 3 0 0.1 0 0 0 0 1" "$base
-pose 3 0 0.1 0 0.000000 0.001309 0.000000 0.999999"
-expect PASS "sign-flipped quaternion" "$base
-pose 3 0 0.1 0 0.000503 -0.003018 0.000503 0.999995" "$base
-pose 3 0 0.1 0 -0.000503 0.003018 -0.000503 -0.999995"
-expect PASS "0.5 mm apart" "$base
-pose 3 0 0.1 0 0 0 0 1" "$base
-pose 3 0.0005 0.1 0 0 0 0 1"
-expect FAIL "1.5 mm apart" "$base
-pose 3 0 0.1 0 0 0 0 1" "$base
-pose 3 0.0015 0.1 0 0 0 0 1"
+expect3 FAIL "0.15 degree apart" "pose 3 0 0.1 0 0 0 0 1" \
+  "pose 3 0 0.1 0 0.000000 0.001309 0.000000 0.999999"
+expect3 PASS "sign-flipped quaternion" "pose 3 0 0.1 0 0.000503 -0.003018 0.000503 0.999995" \
+  "pose 3 0 0.1 0 -0.000503 0.003018 -0.000503 -0.999995"
+expect3 PASS "0.5 mm apart" "pose 3 0 0.1 0 0 0 0 1" \
+  "pose 3 0.0005 0.1 0 0 0 0 1"
+expect3 FAIL "1.5 mm apart" "pose 3 0 0.1 0 0 0 0 1" \
+  "pose 3 0.0015 0.1 0 0 0 0 1"
 expect FAIL "entity the watcher never saw" "$base" "$base
 $c"
 expect FAIL "fewer than 3 poses" "$base" "$base"
-expect FAIL "garbage rotation" "$base
-pose 3 0 0.1 0 0 0 0 0" "$base
-pose 3 0 0.1 0 0 0 0 0"
+expect3 FAIL "garbage rotation" "pose 3 0 0.1 0 0 0 0 0" \
+  "pose 3 0 0.1 0 0 0 0 0"
 [ "$failures" -eq 0 ] || { echo "$failures case(s) failed"; exit 1; }
 echo "compare_poses ok"

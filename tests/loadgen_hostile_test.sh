@@ -6,12 +6,7 @@
 set -euo pipefail
 lg="$1"
 relay_bin="$2"
-source "$(dirname "$0")/../scripts/lib/stop_process.sh"
-source "$(dirname "$0")/../scripts/lib/start_relay.sh"
-work=$(mktemp -d)
-relay_pid=""
-cleanup() { stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
 fail() { echo "FAIL: $*"; [ -f "$work/relay.log" ] && tail -20 "$work/relay.log"; exit 1; }
 cd "$work"
 

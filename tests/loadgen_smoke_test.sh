@@ -7,16 +7,18 @@
 set -euo pipefail
 lg="$1"
 relay_bin="${2:-}"
-relay_pid=""
-source "$(dirname "$0")/../scripts/lib/stop_process.sh"
-source "$(dirname "$0")/../scripts/lib/start_relay.sh"
-work=$(mktemp -d)
-cleanup() { stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
 cd "$work"
 fail() { echo "FAIL: $*"; exit 1; }
 num() { jq -r "$1" "$2"; }
 le() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a <= b) }'; }
+# near_socket WHAT RELAY SOCKET HIGH [PLUS]: an external relay's /metrics egress RELAY lies within
+# [0.9, HIGH] x the receivers' own socket figure SOCKET (+ PLUS); else fails naming both.
+near_socket() {
+  le "$(awk -v s="$3" 'BEGIN { print s * 0.9 }')" "$2" &&
+    le "$2" "$(awk -v s="$3" -v h="$4" -v p="${5:-0}" 'BEGIN { print s * h + p }')" ||
+    fail "$1: /metrics egress $2 vs socket $3"
+}
 
 # relay-compare at 32 objects: emulations within tolerance of the paper, edgephys <= 1/4 at
 # 1 mm / 0.1 degree. Bytes are counted as sent (sealed datagrams): the emulations' datagrams
@@ -170,9 +172,7 @@ if [ -n "$relay_bin" ]; then
   relay_b=$(num '.results[0].egress_bytes_per_s_per_receiver' rcext.json)
   sock_b=$(num '.results[0].socket_bytes_per_s_per_receiver' rcext.json)
   le 100 "$relay_b" || fail "relay-compare external: no egress from /metrics"
-  le "$(awk -v s="$sock_b" 'BEGIN { print s * 0.9 }')" "$relay_b" &&
-    le "$relay_b" "$(awk -v s="$sock_b" 'BEGIN { print s * 1.1 + 100 }')" ||
-    fail "relay-compare external: /metrics egress $relay_b B/s vs socket $sock_b B/s"
+  near_socket "relay-compare external (B/s)" "$relay_b" "$sock_b" 1.1 100
   [ "$(num '.relay.external' moext.json)" = "true" ] || fail "multiobject external: not marked external"
   [ "$(num '.results[0].relay_ok' moext.json)" = "true" ] || fail "multiobject external: no relay run"
   le 0.000001 "$(num '.results[0].sim_speed' moext.json)" || fail "multiobject external: no PhyS steps"
@@ -181,9 +181,7 @@ if [ -n "$relay_bin" ]; then
   mo_relay=$(num '.results[0].egress_mbit_per_s_per_client' moext.json)
   mo_sock=$(num '.results[0].socket_mbit_per_s_per_client' moext.json)
   le 0.0001 "$mo_sock" || fail "multiobject external: the receivers got nothing"
-  le "$(awk -v s="$mo_sock" 'BEGIN { print s * 0.9 }')" "$mo_relay" &&
-    le "$mo_relay" "$(awk -v s="$mo_sock" 'BEGIN { print s * 1.25 }')" ||
-    fail "multiobject external: /metrics egress $mo_relay Mb/s vs socket $mo_sock Mb/s"
+  near_socket "multiobject external (Mb/s)" "$mo_relay" "$mo_sock" 1.25
   [ "$(num '.relay.external' sbext.json)" = "true" ] || fail "softbody external: not marked external"
   [ "$(num '.results[0].relay_ok' sbext.json)" = "true" ] || fail "softbody external: no relay run"
   le 1 "$(num '.results[0].soft_updates_per_s_per_client' sbext.json)" || fail "softbody external: no soft-body updates"

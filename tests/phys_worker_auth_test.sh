@@ -7,13 +7,9 @@
 set -euo pipefail
 relay_bin="$1"
 phys_bin="$2"
-source "$(dirname "$0")/../scripts/lib/stop_process.sh"
-source "$(dirname "$0")/../scripts/lib/start_relay.sh"
-work=$(mktemp -d)
-relay_pid=""
+source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
 worker_pid=""
-cleanup() { stop "$worker_pid"; stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+stop_on_exit worker_pid
 fail() { echo "FAIL: $*"; for f in "$work"/*.log; do echo "-- $f"; tail -5 "$f"; done; exit 1; }
 cd "$work"
 secret="phys-$RANDOM$RANDOM"

@@ -15,13 +15,9 @@ if [ ! -x "$prometheus" ]; then
 fi
 command -v curl >/dev/null || { echo "SKIPPED: curl not installed"; exit 0; }
 
-work=$(mktemp -d)
-relay_pid=""
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"  # $work, relay_pid, stop_on_exit, wait_for_url
 prom_pid=""
-# shellcheck source=../scripts/lib/stop_process.sh
-source "$(dirname "${BASH_SOURCE[0]}")/../scripts/lib/stop_process.sh"  # stop <pid> [seconds]
-cleanup() { stop "$prom_pid"; stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+stop_on_exit prom_pid
 fail() {
   echo "FAIL: $*"
   echo "--- relay log";      tail -n 20 "$work/relay.log" 2>/dev/null || true
@@ -43,14 +39,7 @@ for _ in 1 2 3 4 5; do
   "$relay" --bind 127.0.0.1:0 --metrics "127.0.0.1:$port" --run-for 110 --log-level info \
     >"$work/relay.log" 2>&1 &
   relay_pid=$!
-  for _ in $(seq 1 50); do
-    if curl -fsS --max-time 2 "http://127.0.0.1:$port/metrics" -o /dev/null 2>/dev/null; then
-      metrics_port=$port; break
-    fi
-    kill -0 "$relay_pid" 2>/dev/null || break
-    sleep 0.1
-  done
-  [ -n "$metrics_port" ] && break
+  wait_for_url "http://127.0.0.1:$port/metrics" "$relay_pid" 50 && { metrics_port=$port; break; }
   stop "$relay_pid"; relay_pid=""
 done
 [ -n "$metrics_port" ] || fail "the relay never served /metrics"
@@ -86,14 +75,8 @@ for _ in 1 2 3 4 5; do
     --web.console.templates="$work/consoles" --web.console.libraries="$work/consoles" \
     --log.level=info >"$work/prometheus.log" 2>&1 &
   prom_pid=$!
-  for _ in $(seq 1 150); do   # up to 15 s for the TSDB and the web server
-    if curl -fsS --max-time 2 "http://127.0.0.1:$port/-/ready" -o /dev/null 2>/dev/null; then
-      prom_port=$port; break
-    fi
-    kill -0 "$prom_pid" 2>/dev/null || break
-    sleep 0.1
-  done
-  [ -n "$prom_port" ] && break
+  # Up to 15 s for the TSDB and the web server.
+  wait_for_url "http://127.0.0.1:$port/-/ready" "$prom_pid" 150 && { prom_port=$port; break; }
   stop "$prom_pid"; prom_pid=""
 done
 [ -n "$prom_port" ] || fail "prometheus never became ready"

@@ -10,15 +10,10 @@
 # Prints SKIPPED (exit 0) when the example's runtime is missing (mono, python3).
 set -euo pipefail
 relay="$1"; watcher="$2"; shift 2
-source "$(dirname "$0")/../scripts/lib/stop_process.sh"
-source "$(dirname "$0")/../scripts/lib/start_relay.sh"
-case "$1" in
-  mono|python3) command -v "$1" >/dev/null || { echo "SKIPPED: $1 is not installed"; exit 0; } ;;
-esac
-work=$(mktemp -d)
-relay_pid=""; watch_pid=""
-cleanup() { stop "$watch_pid"; stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
+skip_unless_runtime "$1"
+watch_pid=""
+stop_on_exit watch_pid
 
 start_relay "$relay" "$work/relay.log" 120 || exit 1
 address="$relay_address"

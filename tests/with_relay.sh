@@ -6,15 +6,8 @@
 # Usage: with_relay.sh <edgephys-relay> <command...>
 set -euo pipefail
 relay="$1"; shift
-source "$(dirname "$0")/../scripts/lib/stop_process.sh"
-source "$(dirname "$0")/../scripts/lib/start_relay.sh"
-case "$1" in
-  mono|python3) command -v "$1" >/dev/null || { echo "SKIPPED: $1 is not installed"; exit 0; } ;;
-esac
-work=$(mktemp -d)
-relay_pid=""
-cleanup() { stop "$relay_pid"; rm -rf "$work"; }
-trap cleanup EXIT
+source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
+skip_unless_runtime "$1"
 start_relay "$relay" "$work/relay.log" 300 || exit 1
 EDGEPHYS_RELAY="$relay_address"
 export EDGEPHYS_RELAY

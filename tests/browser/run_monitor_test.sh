@@ -8,14 +8,6 @@ cd "$(dirname "$0")"
 command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 0; }
 chromium="${CHROMIUM:-/usr/bin/chromium}"
 [ -x "$chromium" ] || { echo "SKIPPED: no Chromium at $chromium (scripts/setup.sh installs it)"; exit 0; }
-if ! cmp -s package-lock.json node_modules/.edgephys-lock 2>/dev/null; then
-  # A lock next to node_modules: parallel runs install once.
-  exec 9>".npm-ci.lock"
-  flock 9
-  if ! cmp -s package-lock.json node_modules/.edgephys-lock 2>/dev/null; then
-    npm ci --no-audit --no-fund --loglevel=error
-    cp package-lock.json node_modules/.edgephys-lock
-  fi
-  flock -u 9
-fi
+source "../../scripts/lib/npm_ci.sh"
+npm_ci_once
 exec timeout 150 node monitor_test.mjs "$@"

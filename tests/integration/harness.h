@@ -2,9 +2,12 @@
 // InMemoryNetwork with a NetworkSimulator (fake clock, deterministic).
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <thread>
@@ -110,6 +113,33 @@ class LoopbackWorld {
   std::vector<std::unique_ptr<Client>> clients_;
   std::chrono::steady_clock::time_point start_;
 };
+
+// Pumps `world` (a LoopbackWorld or a SimWorld) until every client is connected, has each join
+// `room`, then pumps until every one has joined; each wait is bounded by `timeout_s`. Fails
+// naming the step that did not finish.
+template <typename World>
+::testing::AssertionResult ConnectAndJoinAll(World& world, std::initializer_list<Client*> clients,
+                                             const std::string& room, double timeout_s) {
+  auto all = [&](auto pred) {
+    for (Client* c : clients) {
+      if (!pred(*c)) return false;
+    }
+    return true;
+  };
+  auto connected = [](Client& c) { return c.state() == ClientState::kConnected; };
+  if (!world.RunUntil([&] { return all(connected); }, timeout_s)) {
+    return ::testing::AssertionFailure() << "handshake did not finish";
+  }
+  for (Client* c : clients) {
+    if (!c->JoinRoom(room).ok()) {
+      return ::testing::AssertionFailure() << "JoinRoom(" << room << ") failed";
+    }
+  }
+  if (!world.RunUntil([&] { return all([](Client& c) { return c.joined(); }); }, timeout_s)) {
+    return ::testing::AssertionFailure() << "join of " << room << " did not finish";
+  }
+  return ::testing::AssertionSuccess();
+}
 
 // True if `a` is within the default edgephys encoder's stated precision of `b`: position
 // step 1 mm (Euclidean error <= sqrt(3)/2 mm) and rotation error <= 0.1 degree.

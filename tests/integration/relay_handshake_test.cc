@@ -316,12 +316,7 @@ TEST(RelayHostileInput, ThousandsOfRandomAndMutatedPacketsNeverBreakTheRelay) {
   // The relay still serves honest clients.
   Client& a = world.AddClient(MintToken("after", 10));
   Client& b = world.AddClient(MintToken("after", 11));
-  ASSERT_TRUE(world.RunUntil([&] {
-    return a.state() == ClientState::kConnected && b.state() == ClientState::kConnected;
-  }, 3.0));
-  ASSERT_TRUE(a.JoinRoom("after").ok());
-  ASSERT_TRUE(b.JoinRoom("after").ok());
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 3.0));
+  ASSERT_TRUE(ConnectAndJoinAll(world, {&a, &b}, "after", 3.0));
   auto id = a.Spawn({});
   ASSERT_TRUE(id.ok());
   ASSERT_TRUE(a.PublishTransform(*id, {3, 2, 1}, {}).ok());

@@ -10,25 +10,15 @@ namespace edgephys::testing {
 namespace {
 
 NetworkConditions Bad() {
-  NetworkConditions c;
-  c.loss = 0.20;
-  c.duplicate = 0.05;
-  c.reorder = 0.10;
-  c.latency_s = 0.050;
-  c.jitter_s = 0.020;
-  return c;
+  return {.loss = 0.20, .duplicate = 0.05, .reorder = 0.10, .latency_s = 0.050,
+          .jitter_s = 0.020};
 }
 
 TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   SimWorld world(Bad());
   Client& a = world.AddClient(MintToken("sim", 1));
   Client& b = world.AddClient(MintToken("sim", 2));
-  ASSERT_TRUE(world.RunUntil([&] {
-    return a.state() == ClientState::kConnected && b.state() == ClientState::kConnected;
-  }, 10.0));
-  ASSERT_TRUE(a.JoinRoom("sim").ok());
-  ASSERT_TRUE(b.JoinRoom("sim").ok());
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 10.0));
+  ASSERT_TRUE(ConnectAndJoinAll(world, {&a, &b}, "sim", 10.0));
 
   std::vector<uint32_t> ids;
   for (int k = 0; k < 8; ++k) ids.push_back(*a.Spawn({.position = {float(k), 0, 0}}));
@@ -133,12 +123,7 @@ TEST(RelaySimulated, SpawnsAndDespawnsArriveOnceInOrderUnderLoss) {
   } log;
   Client& a = world.AddClient(MintToken("order", 1));
   Client& b = world.AddClient(MintToken("order", 2), &log);
-  ASSERT_TRUE(world.RunUntil([&] {
-    return a.state() == ClientState::kConnected && b.state() == ClientState::kConnected;
-  }, 10.0));
-  ASSERT_TRUE(a.JoinRoom("order").ok());
-  ASSERT_TRUE(b.JoinRoom("order").ok());
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 10.0));
+  ASSERT_TRUE(ConnectAndJoinAll(world, {&a, &b}, "order", 10.0));
 
   std::vector<std::pair<char, uint32_t>> expected;
   for (int i = 0; i < 100; ++i) {
@@ -160,12 +145,7 @@ TEST(RelaySimulated, SilentClientTimesOutAndLeavesTheRoom) {
   SimWorld world;
   Client& a = world.AddClient(MintToken("t", 1));
   Client& b = world.AddClient(MintToken("t", 2));
-  ASSERT_TRUE(world.RunUntil([&] {
-    return a.state() == ClientState::kConnected && b.state() == ClientState::kConnected;
-  }, 5.0));
-  ASSERT_TRUE(a.JoinRoom("t").ok());
-  ASSERT_TRUE(b.JoinRoom("t").ok());
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 5.0));
+  ASSERT_TRUE(ConnectAndJoinAll(world, {&a, &b}, "t", 5.0));
   auto id = a.Spawn({});
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*id) != nullptr; }, 5.0));
   world.Freeze(0);  // A's process stops

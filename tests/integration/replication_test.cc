@@ -153,12 +153,7 @@ TEST(Replication, SharedEncodingOnLoopbackDeliversStatesWithinTheBound) {
   Client& a = world.AddClient(MintToken("shared", 1));
   Client& b = world.AddClient(MintToken("shared", 2));
   Client& c = world.AddClient(MintToken("shared", 3));
-  ASSERT_TRUE(world.RunUntil([&] {
-    return a.state() == ClientState::kConnected && b.state() == ClientState::kConnected &&
-           c.state() == ClientState::kConnected;
-  }, 5.0));
-  for (Client* x : {&a, &b, &c}) ASSERT_TRUE(x->JoinRoom("shared").ok());
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined() && c.joined(); }, 5.0));
+  ASSERT_TRUE(ConnectAndJoinAll(world, {&a, &b, &c}, "shared", 5.0));
   std::vector<uint32_t> ids;
   for (int i = 0; i < 30; ++i) ids.push_back(*a.Spawn({.flags = i % 3 == 0 ? 1u << 4 : 0u}));
   const double start = world.Now();
@@ -204,12 +199,8 @@ TEST(Replication, SharedEncodingOnLoopbackDeliversStatesWithinTheBound) {
 TEST(Replication, SharedEncodingConvergesOnALossyNetwork) {
   ReplicationConfig r;
   r.shared_encoding = true;
-  NetworkConditions net;
-  net.loss = 0.2;
-  net.duplicate = 0.1;
-  net.reorder = 0.2;
-  net.latency_s = 0.02;
-  net.jitter_s = 0.01;
+  const NetworkConditions net{.loss = 0.2, .duplicate = 0.1, .reorder = 0.2, .latency_s = 0.02,
+                              .jitter_s = 0.01};
   Room2 room(r, net);
   std::vector<uint32_t> ids;
   for (int i = 0; i < 40; ++i) ids.push_back(*room.a->Spawn({}));

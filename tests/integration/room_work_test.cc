@@ -19,35 +19,12 @@
 #include <vector>
 
 #include "protocol/testing/in_memory_network.h"
+#include "protocol/testing/tap_socket.h"
 #include "tests/integration/bulk_rooms.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
 namespace {
-
-// The relay's socket: counts datagrams from one address per update, and calls a hook on
-// each send.
-class WatchingSocket final : public DatagramSocket {
- public:
-  explicit WatchingSocket(DatagramSocket* inner) : inner_(inner) {}
-  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
-    if (on_send) on_send(to);
-    return inner_->SendTo(to, data);
-  }
-  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
-    size_t n = inner_->ReceiveFrom(from, buffer);
-    if (n > 0 && *from == watched) ++received_from_watched;
-    return n;
-  }
-  Endpoint LocalEndpoint() const override { return inner_->LocalEndpoint(); }
-
-  Endpoint watched;
-  int received_from_watched = 0;
-  std::function<void(const Endpoint&)> on_send;
-
- private:
-  DatagramSocket* inner_;
-};
 
 double RoomSeconds(const RelayCounters& counters, const std::string& room) {
   for (const RoomWorkTimes::Series& s : counters.room_work.Snapshot()) {
@@ -64,7 +41,7 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
     const RelayConfig config = BulkRoomsConfig(GetParam());
     const Endpoint relay_at(asio::ip::make_address("10.0.0.1"), 7777);
     relay_raw_ = network_.CreateSocket(relay_at);
-    socket_ = std::make_unique<WatchingSocket>(relay_raw_.get());
+    socket_ = std::make_unique<TapSocket>(relay_raw_.get());
     relay_ = std::make_unique<Relay>(config, socket_.get(), &counters_);
     if (light_room_phase_s_ > 0) {  // the light room ticks this long after the bulk room
       ASSERT_TRUE(relay_->CreateRoom("a-bulk", config.room_defaults, now_).ok());
@@ -106,7 +83,8 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
   double now_ = 0;
   RelayCounters counters_;
   std::unique_ptr<DatagramSocket> relay_raw_;
-  std::unique_ptr<WatchingSocket> socket_;
+  std::unique_ptr<TapSocket> socket_;
+  int received_from_bulk_receiver_ = 0;  // datagrams, counted by a test's on_receive hook
   std::unique_ptr<Relay> relay_;
   std::vector<Member> members_;
   std::vector<uint32_t> bulk_, light_;
@@ -114,25 +92,29 @@ class BulkRoomTest : public ::testing::TestWithParam<size_t> {
 
 TEST_P(BulkRoomTest, ABulkRoomsDatagramsAreHandledAfterTheLightRoomsTick) {
   const uint32_t bulk_receiver_player = 2;  // members_[1]
-  socket_->watched = members_[1].socket->LocalEndpoint();
+  const Endpoint bulk_receiver = members_[1].socket->LocalEndpoint();
+  socket_->on_receive = [this, bulk_receiver](const Endpoint& from, std::span<const uint8_t>) {
+    if (from == bulk_receiver) ++received_from_bulk_receiver_;
+  };
   const Endpoint light_receiver = members_[3].socket->LocalEndpoint();
   const ConnectionStats* bulk_stats = relay_->FindConnectionStats(bulk_receiver_player);
   ASSERT_NE(bulk_stats, nullptr);
   int checked = 0;
   for (int t = 1; t <= 30; ++t) {
     const uint64_t before = bulk_stats->packets_received;
-    socket_->received_from_watched = 0;
+    received_from_bulk_receiver_ = 0;
     int64_t seen_at_light_send = -1;
-    socket_->on_send = [&](const Endpoint& to) {
+    socket_->on_send = [&](const Endpoint& to, std::span<const uint8_t>) {
       if (to == light_receiver && seen_at_light_send < 0) {
         seen_at_light_send = static_cast<int64_t>(bulk_stats->packets_received);
       }
     };
     MoveAndStep(t);
     socket_->on_send = nullptr;
-    if (socket_->received_from_watched == 0) continue;
+    if (received_from_bulk_receiver_ == 0) continue;
     // Whatever came from the bulk receiver in this update was handled by its end.
-    EXPECT_EQ(bulk_stats->packets_received, before + socket_->received_from_watched) << "update " << t;
+    EXPECT_EQ(bulk_stats->packets_received, before + received_from_bulk_receiver_)
+        << "update " << t;
     if (seen_at_light_send < 0) continue;
     ++checked;
     // ...but none of it before the light room's first datagram left.
@@ -186,7 +168,7 @@ TEST_P(BulkRoomPhaseTest, ABulkRoomDueJustBeforeALightRoomTicksInItsUpdate) {
   const Endpoint bulk_receiver = members_[1].socket->LocalEndpoint();
   const Endpoint light_receiver = members_[3].socket->LocalEndpoint();
   int first_bulk = -1, first_light = -1, sends = 0;
-  socket_->on_send = [&](const Endpoint& to) {
+  socket_->on_send = [&](const Endpoint& to, std::span<const uint8_t>) {
     if (to == bulk_receiver && first_bulk < 0) first_bulk = sends;
     if (to == light_receiver && first_light < 0) first_light = sends;
     ++sends;

@@ -9,34 +9,12 @@
 #include <vector>
 
 #include "protocol/testing/in_memory_network.h"
+#include "protocol/testing/tap_socket.h"
 #include "tests/integration/bulk_rooms.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
 namespace {
-
-// The relay's socket, recording where each datagram went and in which update.
-class RecordingSocket final : public DatagramSocket {
- public:
-  explicit RecordingSocket(DatagramSocket* inner) : inner_(inner) {}
-  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
-    sends.push_back({update, to});
-    return inner_->SendTo(to, data);
-  }
-  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
-    return inner_->ReceiveFrom(from, buffer);
-  }
-  Endpoint LocalEndpoint() const override { return inner_->LocalEndpoint(); }
-  struct Send {
-    int update;
-    Endpoint to;
-  };
-  std::vector<Send> sends;
-  int update = 0;
-
- private:
-  DatagramSocket* inner_;
-};
 
 class TickOrderTest : public ::testing::TestWithParam<size_t> {
  protected:
@@ -44,7 +22,9 @@ class TickOrderTest : public ::testing::TestWithParam<size_t> {
     const RelayConfig config = BulkRoomsConfig(GetParam());
     const Endpoint relay_at(asio::ip::make_address("10.0.0.1"), 7777);
     auto relay_raw = network_.CreateSocket(relay_at);
-    RecordingSocket socket(relay_raw.get());
+    TapSocket socket(relay_raw.get());
+    std::vector<Endpoint> sent_to;  // where this update's datagrams went, in order
+    socket.on_send = [&](const Endpoint& to, std::span<const uint8_t>) { sent_to.push_back(to); };
     RelayCounters counters;
     Relay relay(config, &socket, &counters);
     std::vector<BulkRoomsMember> members;
@@ -52,7 +32,6 @@ class TickOrderTest : public ::testing::TestWithParam<size_t> {
     ASSERT_FALSE(HasFatalFailure());
     auto step = [&](double dt) {
       now_ += dt;
-      ++socket.update;
       relay.Update(now_, UnixNow());
       for (BulkRoomsMember& m : members) m.Update(now_);
     };
@@ -70,14 +49,14 @@ class TickOrderTest : public ::testing::TestWithParam<size_t> {
         (void)members[0].client->PublishTransform(bulk[i], {0.01f * i, 0.001f * t, 0}, {});
       }
       (void)members[2].client->PublishTransform(light[0], {0.01f * t, 1, 0}, {});
-      socket.sends.clear();
+      sent_to.clear();
       step(1.0 / 30);
       // In this update: the first datagram to the light room's receiver must come before the
       // first to the bulk room's receiver.
       int first_bulk = -1, first_light = -1;
-      for (size_t i = 0; i < socket.sends.size(); ++i) {
-        if (socket.sends[i].to == bulk_receiver && first_bulk < 0) first_bulk = static_cast<int>(i);
-        if (socket.sends[i].to == light_receiver && first_light < 0) first_light = static_cast<int>(i);
+      for (size_t i = 0; i < sent_to.size(); ++i) {
+        if (sent_to[i] == bulk_receiver && first_bulk < 0) first_bulk = static_cast<int>(i);
+        if (sent_to[i] == light_receiver && first_light < 0) first_light = static_cast<int>(i);
       }
       if (first_bulk < 0 || first_light < 0) continue;
       ++both;

@@ -5,13 +5,6 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 command -v node >/dev/null || { echo "FAIL: node is not installed (scripts/setup.sh installs nodejs)"; exit 1; }
-if ! cmp -s package-lock.json node_modules/.edgephys-lock 2>/dev/null; then
-  exec 9>".npm-ci.lock"
-  flock 9
-  if ! cmp -s package-lock.json node_modules/.edgephys-lock 2>/dev/null; then
-    npm ci --no-audit --no-fund --loglevel=error
-    cp package-lock.json node_modules/.edgephys-lock
-  fi
-  flock -u 9
-fi
+source "../../../scripts/lib/npm_ci.sh"
+npm_ci_once
 exec timeout 60 node validate.mjs ../../..
