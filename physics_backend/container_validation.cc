@@ -105,8 +105,15 @@ InvalidReason ValidateSoftBody(const schema::Container& c, const PhysicsConfig& 
   return R::kNone;
 }
 
-// The rigid body component (if any): finite, non-negative mass, damping/restitution in [0, 1].
-InvalidReason ValidateRigidBody(const schema::Container& c) {
+// Speed of a velocity, in double (a float square of 1e30 would overflow).
+double Speed(const schema::Vec3& v) {
+  return std::sqrt(double{v.x()} * v.x() + double{v.y()} * v.y() + double{v.z()} * v.z());
+}
+
+// The rigid body component (if any): finite, non-negative mass, damping/restitution in [0, 1],
+// initial velocities within the stability guard's speeds (PhysicsConfig::max_linear_speed,
+// max_angular_speed: a faster body would be reset on its first step anyway).
+InvalidReason ValidateRigidBody(const schema::Container& c, const PhysicsConfig& config) {
   const schema::RigidBody* rb = c.rigid_body();
   if (rb == nullptr) return R::kNone;
   if (!Finite(rb->mass()) || !Finite(rb->linear_damping()) || !Finite(rb->angular_damping()) ||
@@ -115,6 +122,12 @@ InvalidReason ValidateRigidBody(const schema::Container& c) {
   }
   if (rb->linear_velocity() && !Finite(*rb->linear_velocity())) return R::kNaN;
   if (rb->angular_velocity() && !Finite(*rb->angular_velocity())) return R::kNaN;
+  if (rb->linear_velocity() && Speed(*rb->linear_velocity()) > config.max_linear_speed) {
+    return R::kOutOfRange;
+  }
+  if (rb->angular_velocity() && Speed(*rb->angular_velocity()) > config.max_angular_speed) {
+    return R::kOutOfRange;
+  }
   if (rb->mass() < 0) return R::kNegativeMass;
   // A dynamic body from 1 mg to a million tonnes: outside it float inverse masses and inertias
   // overflow or swamp every contact, and the guard would reset the body on every step.
@@ -287,7 +300,7 @@ InvalidReason ValidateContainer(const schema::Container& c, const PhysicsConfig&
   if (const InvalidReason r = ValidateTransform(c, config); r != R::kNone) return r;
   // A soft body entity ignores rigid_body and colliders.
   if (c.soft_body() != nullptr) return ValidateSoftBody(c, config);
-  if (const InvalidReason r = ValidateRigidBody(c); r != R::kNone) return r;
+  if (const InvalidReason r = ValidateRigidBody(c, config); r != R::kNone) return r;
   const bool dynamic = IsDynamic(c);
   if (const InvalidReason r = ValidateColliders(c, config, dynamic); r != R::kNone) return r;
   return ValidateJoints(c, config, dynamic, entities);

@@ -99,7 +99,8 @@ enum class InvalidReason : uint8_t {
                        // zero-length quaternion/axis, position outside the world bounds;
                        // a scaled collider size outside [0.1 mm, 2 * world_half_extent], a
                        // scaled offset or vertex beyond 2 * world_half_extent; a dynamic
-                       // mass or a non-zero particle mass outside [1e-6, 1e9] kg
+                       // mass or a non-zero particle mass outside [1e-6, 1e9] kg; an initial
+                       // velocity over max_linear_speed / max_angular_speed
   kDegenerateMesh,     // hull without volume, mesh without (non-degenerate) triangles, bad indices
   kTooManyNodes,       // soft-body particles/springs or mesh size over the configured limits
   kTooManyColliders,   // over max_colliders or max_joints

@@ -108,6 +108,20 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
       {"restitution > 1", [](EntitySpec* s) { s->rigid_body->restitution = 2; },
        InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      // Initial velocities: finite but beyond the stability guard's speeds (issue 35 item 8).
+      {"linear velocity 1e30", [](EntitySpec* s) { s->rigid_body->linear_velocity = {1e30f, 0, 0}; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"linear velocity over max speed",
+       [](EntitySpec* s) { s->rigid_body->linear_velocity = {0, 150, 150}; },  // 212 m/s
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"angular velocity 1e30",
+       [](EntitySpec* s) { s->rigid_body->angular_velocity = {0, 0, -1e30f}; },
+       InvalidReason::kOutOfRange, StatusCode::kInvalidArgument},
+      {"infinite linear velocity",
+       [](EntitySpec* s) {
+         s->rigid_body->linear_velocity = {std::numeric_limits<float>::infinity(), 0, 0};
+       },
+       InvalidReason::kNaN, StatusCode::kInvalidArgument},
       // Denormal components square to 0 in float; such a quaternion is not the all-zero
       // "identity" and normalises to NaN (a crash in Bullet's soft-body SDF the fuzzer found).
       {"denormal collider rotation",

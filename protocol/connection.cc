@@ -82,7 +82,7 @@ struct Connection::Impl {
       : owner(owner_in),
         config(config_in),
         sender(config_in.max_message_size, config_in.max_pending_reliable_bytes),
-        receiver(config_in.max_message_size),
+        receiver(config_in.max_message_size, config_in.max_held_reliable_bytes),
         last_receive_time(now),
         last_send_time(now),
         last_now(now) {}
@@ -382,6 +382,18 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
     }
   }
 
+  // Reliable units that would need reassembly memory past the bound, and do not continue the
+  // stream: refused whole and unacknowledged (the peer resends them); its acks still apply.
+  if (!impl_->receiver.Admits(std::span<const ReliableUnitView>(parsed.units.data(),
+                                                                  parsed.unit_count))) {
+    impl_->last_receive_time = now;
+    stats_.packets_received++;
+    stats_.bytes_received += packet.size();
+    stats_.reassembly_refused++;
+    impl_->ProcessAcks(parsed.ack, parsed.ack_bits, now, handler);
+    return Status::QueueFull("reliable reassembly memory full");
+  }
+
   // A packet whose unreliable payload is stale is dropped whole, reliable units included (the
   // peer resends them), and not acknowledged, so the sender never counts a dropped payload
   // as delivered (the delta codecs reference only acknowledged states). Its acks still apply.
@@ -427,6 +439,9 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   }
   return Status::Ok();
 }
+
+size_t Connection::reliable_held_bytes() const { return impl_->receiver.held_bytes(); }
+size_t Connection::reliable_partial_bytes() const { return impl_->receiver.partial_bytes(); }
 
 void Connection::SetTimeout(double timeout_s) {
   if (timeout_s > 0) impl_->config.timeout_s = timeout_s;

@@ -16,8 +16,11 @@
 //    kMaxReliableUnitSize bytes, each resent on an RTT-based timeout until the packet carrying
 //    it is acknowledged. New units leave on the next Update() or ride on an unreliable payload's
 //    packet if one leaves first. The receiver drops duplicate units and delivers whole messages exactly
-//    once, in send order. Receive-side memory is bounded by the window (kReliableWindow units)
-//    and by ConnectionConfig::max_message_size for the message being reassembled.
+//    once, in send order. Receive-side memory (the message being reassembled, out-of-order
+//    units, their buffers) stays under max(ConnectionConfig::max_held_reliable_bytes,
+//    max_message_size) plus kReliableHeldSlack (1 MiB + 192 KiB by default): a packet that
+//    would need more and does not carry the next unit of the stream is refused
+//    unacknowledged (resent later), so an honest peer only slows down.
 //  * Unreliable-sequenced: SendUnreliable() sends one packet now. The receiver delivers its
 //    payload only if the packet is newer than every unreliable payload it has delivered
 //    (older ones are dropped as stale and counted). A packet with a stale payload is dropped
@@ -45,6 +48,11 @@ namespace edgephys {
 inline constexpr size_t kConnectionHeaderSize = kPacketPrefixSize + 8;
 inline constexpr size_t kMaxReliableUnitSize = 1024;
 inline constexpr uint16_t kReliableWindow = 1024;  // units in flight / buffered, each way
+// Receive-side memory a Connection may hold beyond max(ConnectionConfig::max_held_reliable_bytes,
+// max_message_size):
+// one datagram's units, the out-of-order slot table (kReliableWindow small records), the
+// growth step of the message buffer and the buffers kept for reuse (bytes).
+inline constexpr size_t kReliableHeldSlack = 192 * 1024;
 // Largest unreliable payload that fits one packet with its chunk header.
 inline constexpr size_t kMaxUnreliablePayload = kMaxPacketSize - kConnectionHeaderSize - 3;
 
@@ -98,7 +106,9 @@ class Connection {
   // malformed packet changes no state and returns kMalformed; a kDisconnect packet marks the
   // connection disconnected with the peer's reason.
   // Other results: kAlreadyExists for a duplicate (or too old) packet sequence (counted in
-  // stats.duplicates_dropped, nothing else changes); kTooLarge (reassembly beyond
+  // stats.duplicates_dropped, nothing else changes); kQueueFull when its reliable units would
+  // pass max_held_reliable_bytes (counted in stats.reassembly_refused; only its acks apply, it
+  // is not acknowledged and the peer resends it); kTooLarge (reassembly beyond
   // max_message_size) or kResourceExhausted (reliable unit beyond the window): the peer broke
   // the protocol, the connection is disconnected with kProtocolError and the next Update()
   // sends the disconnect packets; kNotConnected once disconnected. A stale unreliable payload
@@ -137,6 +147,12 @@ class Connection {
   bool connected() const { return disconnect_reason_ == DisconnectReason::kNone; }
   DisconnectReason disconnect_reason() const { return disconnect_reason_; }
   const ConnectionStats& stats() const { return stats_; }
+  // Bytes of reassembly memory held for the peer's partial reliable messages (allocated
+  // capacity: the message being reassembled, out-of-order units, their slot table). O(1).
+  size_t reliable_held_bytes() const;
+  // The part of it that belongs to messages in progress (a message with units received but
+  // not its last, out-of-order units); the rest is buffers kept for reuse. O(1).
+  size_t reliable_partial_bytes() const;
 
  private:
   struct Impl;

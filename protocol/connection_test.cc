@@ -201,7 +201,9 @@ TEST(ConnectionTest, ReassemblyStopsAtMaxMessageSize) {
 }
 
 TEST(ConnectionTest, UnitsOutsideTheWindowAreAProtocolError) {
-  Connection c(kTestConnectionId, ConnectionConfig{}, 0);
+  ConnectionConfig config;
+  config.max_held_reliable_bytes = 4 << 20;  // the window, not the memory bound, is under test
+  Connection c(kTestConnectionId, config, 0);
   RecordingHandler h;
   Bytes unit(1024, 1);
   // Fill the whole window except the first unit: buffered, bounded, never delivered.

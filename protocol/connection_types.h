@@ -26,6 +26,12 @@ struct ConnectionConfig {
   double keepalive_interval_s = 0.1;  // send at least one packet this often
   double timeout_s = 5.0;             // nothing received for this long: disconnect (kTimeout)
   size_t max_message_size = 1 << 20;  // reliable message limit, both ways (bytes)
+  // Receive side: reassembly and out-of-order memory one peer can make us hold (bytes). A
+  // packet whose reliable units would need more, and that does not continue the stream, is
+  // refused unacknowledged (the peer resends it). Held memory stays under this plus
+  // kReliableHeldSlack, or max_message_size plus it if that is larger (protocol/connection.h;
+  // docs/protocol.md "Reliable-ordered channel").
+  size_t max_held_reliable_bytes = 1 << 20;
   size_t max_pending_reliable_bytes = 8 << 20;  // SendReliable() beyond this: kQueueFull
   double min_resend_s = 0.03;         // floor of the RTT-based resend timeout
   double max_resend_s = 1.0;          // ceiling of the resend timeout
@@ -63,6 +69,9 @@ struct ConnectionStats {
   uint64_t reliable_delivered = 0;  // whole reliable messages delivered to the handler
   uint64_t stale_dropped = 0;       // unreliable payloads dropped as older than delivered
   uint64_t duplicates_dropped = 0;  // packets or reliable units received twice
+  // Packets refused unacknowledged because their reliable units would have passed
+  // ConnectionConfig::max_held_reliable_bytes (ProcessPacket returned kQueueFull).
+  uint64_t reassembly_refused = 0;
   size_t pending_reliable_bytes = 0;  // queued or unacknowledged reliable bytes
 };
 

@@ -32,6 +32,10 @@ std::string_view DropReasonName(DropReason reason) {
       return "bad_auth";
     case DropReason::kReplayed:
       return "replayed";
+    case DropReason::kReassemblyFull:
+      return "reassembly_full";
+    case DropReason::kSessionHeld:
+      return "session_held";
     case DropReason::kTooShort:
       return "too_short";
     case DropReason::kTooLarge:

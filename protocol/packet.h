@@ -60,6 +60,9 @@ enum class DropReason : uint8_t {
   kNotJoined,          // state update from a connection that has joined no room
   kBadAuth,            // a sealed packet whose AEAD tag does not verify (forged, corrupted)
   kReplayed,           // a sealed packet already received, or older than the replay window
+  kReassemblyFull,     // reliable units that would pass the connection's reassembly memory
+                       // bound (ConnectionConfig::max_held_reliable_bytes); resent by the peer
+  kSessionHeld,        // a Connect with another token from an address holding a live session
   kCount               // number of reasons; not a reason
 };
 

@@ -103,7 +103,8 @@ void ReliableSender::Compact() {
 // ---------------------------------------------------------------------------------------------
 // ReliableReceiver
 
-ReliableReceiver::ReliableReceiver(size_t max_message_size) : max_message_size_(max_message_size) {}
+ReliableReceiver::ReliableReceiver(size_t max_message_size, size_t max_held_bytes)
+    : max_message_size_(max_message_size), max_held_bytes_(max_held_bytes) {}
 
 ReliableReceiver::Placement ReliableReceiver::Classify(uint16_t id) const {
   int diff = SequenceDiff(id, next_id_);
@@ -113,6 +114,33 @@ ReliableReceiver::Placement ReliableReceiver::Classify(uint16_t id) const {
     return Placement::kDuplicate;
   }
   return Placement::kInWindow;
+}
+
+size_t ReliableReceiver::held_bytes() const {
+  const size_t table = slots_.capacity() * sizeof(Slot) + spare_.capacity() * sizeof(spare_[0]);
+  return partial_bytes() + (message_.empty() ? message_.capacity() : 0) +
+         spare_.size() * kMaxReliableUnitSize + table;
+}
+
+size_t ReliableReceiver::partial_bytes() const {
+  return (message_.empty() ? 0 : message_.capacity()) + in_use_capacity_;
+}
+
+bool ReliableReceiver::Admits(std::span<const ReliableUnitView> units) const {
+  // Units past the next expected one are counted as if the whole span up to the furthest
+  // buffered one were full units: the gap before them is later filled in order, without
+  // another check, and must fit too.
+  size_t span = buffered_bytes_ > 0 ? static_cast<size_t>(SequenceDiff(buffered_end_, next_id_)) : 0;
+  bool out_of_order = false;
+  for (const ReliableUnitView& unit : units) {
+    if (Classify(unit.id) != Placement::kInWindow) continue;
+    if (unit.id == next_id_) return true;  // progress is always possible
+    out_of_order = true;
+    span = std::max(span, static_cast<size_t>(SequenceDiff(unit.id, next_id_)) + 1);
+  }
+  if (!out_of_order) return true;
+  const size_t table = kReliableWindow * sizeof(Slot) + kMaxSpareBuffers * sizeof(spare_[0]);
+  return message_.capacity() + table + span * kMaxReliableUnitSize <= max_held_bytes_;
 }
 
 Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler& handler,
@@ -127,12 +155,24 @@ Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler
       break;
   }
   if (unit.id != next_id_) {
-    if (slots_.empty()) slots_.resize(kReliableWindow);
-    Slot& slot = slots_[unit.id % kReliableWindow];
+    if (slots_.empty()) {
+      slots_.resize(kReliableWindow);
+      spare_.reserve(kMaxSpareBuffers);
+    }
+    Slot& slot = slots_[unit.id % kReliableWindow];  // not present: holds no buffer
     slot.present = true;
     slot.last = unit.last;
-    slot.data.reserve(kMaxReliableUnitSize);  // once per slot; reused from then on
+    if (!spare_.empty()) {
+      slot.data = std::move(spare_.back());
+      spare_.pop_back();
+    } else {
+      slot.data.reserve(kMaxReliableUnitSize);  // every buffer is one unit: reusable for any
+    }
     slot.data.assign(unit.data.begin(), unit.data.end());
+    in_use_capacity_ += slot.data.capacity();
+    if (buffered_bytes_ == 0 || SequenceDiff(unit.id, buffered_end_) >= 0) {
+      buffered_end_ = static_cast<uint16_t>(unit.id + 1);
+    }
     buffered_bytes_ += unit.data.size();
     return Status::Ok();
   }
@@ -142,14 +182,28 @@ Status ReliableReceiver::Receive(const ReliableUnitView& unit, ConnectionHandler
     slot.present = false;
     buffered_bytes_ -= slot.data.size();
     status = Append(slot.data, slot.last, handler, delivered);
+    // Its bytes moved into message_: the buffer is kept for reuse (up to kMaxSpareBuffers,
+    // no allocation: spare_ is reserved) or freed.
+    in_use_capacity_ -= slot.data.capacity();
+    if (spare_.size() < kMaxSpareBuffers) {
+      spare_.push_back(std::move(slot.data));
+    }
+    std::vector<uint8_t>().swap(slot.data);
   }
   return status;
 }
 
 Status ReliableReceiver::Append(std::span<const uint8_t> data, bool last,
                                 ConnectionHandler& handler, uint64_t* delivered) {
-  if (message_.size() + data.size() > max_message_size_) {
+  const size_t size = message_.size() + data.size();
+  if (size > max_message_size_) {
     return Status::TooLarge("reliable message exceeds max_message_size");
+  }
+  if (size > message_.capacity()) {
+    // Doubles up to kMessageGrowthStep, then grows by that much at a time, never past
+    // max_message_size: at most kMessageGrowthStep allocated beyond the bytes held.
+    const size_t step = std::min(message_.capacity(), kMessageGrowthStep);
+    message_.reserve(std::min(max_message_size_, std::max(size, message_.capacity() + step)));
   }
   message_.insert(message_.end(), data.begin(), data.end());
   ++next_id_;
@@ -157,6 +211,7 @@ Status ReliableReceiver::Append(std::span<const uint8_t> data, bool last,
     ++*delivered;
     handler.OnReliableMessage(message_);
     message_.clear();
+    if (message_.capacity() > kRetainedMessageBytes) std::vector<uint8_t>().swap(message_);
   }
   return Status::Ok();
 }

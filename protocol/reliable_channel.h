@@ -9,8 +9,16 @@
 //
 // ReliableReceiver: accepts units whose id lies in [next expected, next expected + window),
 // buffers out-of-order ones, drops duplicates and hands whole messages to the handler in send
-// order, exactly once. Memory is bounded by kReliableWindow * kMaxReliableUnitSize buffered
-// bytes plus max_message_size for the message being reassembled.
+// order, exactly once. Memory: held_bytes() counts every byte it keeps allocated (the message
+// being reassembled, the out-of-order units' buffers, the slot table) and stays under
+// max(max_held_bytes, max_message_size) plus kReliableHeldSlack (connection.h): the caller asks
+// Admits() before a packet's units and refuses the packet (unacknowledged, so the peer
+// resends) when it says no. Out-of-order units are admitted only while the message so far plus
+// the whole span up to the furthest of them, as full units, fits max_held_bytes; the unit
+// that continues the stream is always admitted, so a peer within the protocol always
+// progresses, only slower. Kept for reuse after delivery (so that steady traffic with loss
+// allocates nothing): the slot table (32 KiB, from the first out-of-order unit on), up to
+// kMaxSpareBuffers unit buffers, and a message buffer up to kRetainedMessageBytes.
 //
 // Thread-safety: none (owned by one Connection). Cost: O(unit size) per unit.
 #pragma once
@@ -93,7 +101,16 @@ class ReliableSender {
 
 class ReliableReceiver {
  public:
-  explicit ReliableReceiver(size_t max_message_size);
+  // Unit buffers (kMaxReliableUnitSize each) kept for reuse once their units are delivered.
+  static constexpr size_t kMaxSpareBuffers = 64;
+  // Capacity of the message buffer kept after a delivery; a larger one is freed.
+  static constexpr size_t kRetainedMessageBytes = 16 * 1024;
+  // The message buffer grows by at most this much at a time (bytes).
+  static constexpr size_t kMessageGrowthStep = 64 * 1024;
+
+  // `max_held_bytes`: bound on held_bytes() enforced through Admits() (the protocol's
+  // promise: ConnectionConfig::max_held_reliable_bytes).
+  ReliableReceiver(size_t max_message_size, size_t max_held_bytes);
 
   enum class Placement { kInWindow, kDuplicate, kOutsideWindow };
   // Where unit `id` falls relative to the receive window. Does not change state.
@@ -106,21 +123,38 @@ class ReliableReceiver {
   Status Receive(const ReliableUnitView& unit, ConnectionHandler& handler, uint64_t* delivered,
                  uint64_t* duplicates);
 
+  // Whether the in-window units of one packet may be taken: true when they hold the next
+  // expected unit (the stream progresses) or no out-of-order unit, or when the message so far,
+  // the slot table and every unit up to the furthest out-of-order one (as full units) fit
+  // max_held_bytes. Does not change state. O(units).
+  bool Admits(std::span<const ReliableUnitView> units) const;
+
+  // Out-of-order unit bytes waiting for the gap before them.
   size_t buffered_bytes() const { return buffered_bytes_; }
+  // Every byte of reassembly memory this receiver keeps allocated (capacities, not sizes):
+  // partial_bytes() plus the buffers kept for reuse and the slot table.
+  size_t held_bytes() const;
+  // Bytes allocated for messages in progress: the message being reassembled (once it has a
+  // unit) and the buffers of out-of-order units waiting for a gap.
+  size_t partial_bytes() const;
 
  private:
   struct Slot {
     bool present = false;
     bool last = false;
-    std::vector<uint8_t> data;  // capacity kept for reuse
+    std::vector<uint8_t> data;  // a buffer only while present
   };
   Status Append(std::span<const uint8_t> data, bool last, ConnectionHandler& handler,
                 uint64_t* delivered);
 
   size_t max_message_size_;
+  size_t max_held_bytes_;
   uint16_t next_id_ = 0;     // next unit to deliver
   std::vector<Slot> slots_;  // kReliableWindow slots, allocated on first out-of-order unit
   size_t buffered_bytes_ = 0;
+  size_t in_use_capacity_ = 0;    // capacity of the present slots' buffers
+  std::vector<std::vector<uint8_t>> spare_;  // delivered units' buffers, for reuse
+  uint16_t buffered_end_ = 0;     // one past the furthest buffered unit (buffered_bytes_ > 0)
   std::vector<uint8_t> message_;  // the message being reassembled
 };
 

@@ -25,6 +25,9 @@ struct Entity {
   uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones;
                                  // the room's budgets charge it `cost` until it is removed)
   uint32_t parent = 0;           // parent entity (Container.parent_id), 0: none
+  // The parent it had when that parent was despawned (it is a root since): members present
+  // then still show it under that id (clients keep a spawn's parent_id). 0: none.
+  uint32_t former_parent = 0;
   uint32_t children = 0;         // entities whose parent this is
   EntityCost cost;
   PhysicsRole physics = PhysicsRole::kNone;

@@ -53,6 +53,7 @@ Relay::~Relay() {
   // remote PhyS link holds its worker Session and sends it WorkerUnassign when destroyed.
   for (const auto& [name, room] : rooms_) ForgetRoomWork(*room);
   rooms_.clear();
+  for (const auto& [id, s] : sessions_) PublishHeld(*s, 0);  // the gauge is a sum of shares
   if (shard_.shared_counters) {  // withdraw this relay's share of the shared gauges
     PublishGauge(counters_->rooms, &published_rooms_, 0);
     PublishGauge(counters_->clients, &published_clients_, 0);
@@ -275,10 +276,54 @@ void Relay::HandleSessionPacket(Session& s, std::span<const uint8_t> data, doubl
   if (st.code() == StatusCode::kAlreadyExists) {
     // The network delivered a packet twice: ordinary, so counted but not logged.
     counters_->RejectPacket(DropReason::kDuplicate);
+  } else if (st.code() == StatusCode::kQueueFull) {
+    drop(DropReason::kReassemblyFull);  // not acknowledged: an honest peer resends it
   } else if (!st.ok()) {
     drop(DropReason::kMalformed);
   }
   charge();
+  AccountReassembly(s, now);
+}
+
+void Relay::PublishHeld(Session& s, size_t held) {
+  const auto delta = static_cast<int64_t>(held) - static_cast<int64_t>(s.held_published());
+  if (delta != 0) counters_->reassembly_held_bytes.fetch_add(delta, std::memory_order_relaxed);
+  s.set_held_published(held);
+}
+
+void Relay::AccountReassembly(Session& s, double now) {
+  const size_t held = s.connection().connected() ? s.connection().reliable_partial_bytes() : 0;
+  const bool grew = held > s.held_published();
+  PublishHeld(s, held);
+  const size_t cap = config_.limits.max_reassembly_bytes;
+  if (!grew || cap == 0) return;
+  // Past the cap: end the largest holder of this relay, provided it holds more than an even
+  // share of the cap (with shards, the relay holding the largest share of the excess acts; a
+  // light holder is never the one to go because another shard's client is heavy).
+  while (counters_->reassembly_held_bytes.load(std::memory_order_relaxed) >
+         static_cast<int64_t>(cap)) {
+    Session* largest = nullptr;
+    for (auto& [id, other] : sessions_) {
+      if (other->is_worker()) continue;  // PhyS workers are the operator's own
+      if (largest == nullptr || other->held_published() > largest->held_published()) {
+        largest = other.get();
+      }
+    }
+    // The clients gauge is published once per update; this relay's own count is exact.
+    const int64_t clients = std::max<int64_t>(
+        {1, counters_->clients.load(std::memory_order_relaxed),
+         static_cast<int64_t>(sessions_.size())});
+    if (largest == nullptr || largest->held_published() == 0 ||
+        static_cast<int64_t>(largest->held_published()) < static_cast<int64_t>(cap) / clients) {
+      return;
+    }
+    Log().Note("connection dropped", "reassembly memory cap", largest->endpoint(), now);
+    RelayCounters::Inc(counters_->reassembly_evictions);
+    largest->connection().Disconnect(DisconnectReason::kKicked, *largest);
+    largest->ServiceSoon();  // removed (and its memory freed) by this update's UpdateSessions
+    sessions_deadline_ = -std::numeric_limits<double>::infinity();
+    PublishHeld(*largest, 0);
+  }
 }
 
 void Relay::Transmit(const Endpoint& to, std::span<const uint8_t> data) {
@@ -448,6 +493,7 @@ void Relay::RemoveSession(uint32_t connection_id, double now) {
       if (room->physics_worker() == connection_id) room->FailOver(now);
     }
   }
+  PublishHeld(s, 0);
   DisconnectReason reason = s.connection().disconnect_reason();
   counters_->CountDisconnect(reason);
   spdlog::info("player {} disconnected ({})", s.player_id(), DisconnectReasonName(reason));

@@ -141,6 +141,14 @@ class Relay final : private SessionHost {
   // A data or disconnect packet of an established session: opened and handed to its
   // connection; its time charged to the session's room.
   void HandleSessionPacket(Session& s, std::span<const uint8_t> data, double now);
+  // Publishes `s`'s reassembly bytes (RelayCounters::reassembly_held_bytes) after a packet;
+  // when they grew the relay-wide sum past AbuseLimits::max_reassembly_bytes, ends the largest
+  // client holders (kicked, counted in reassembly_evictions; never a PhyS worker, never one
+  // holding less than an even share of the cap) until it is back under. O(sessions) per
+  // eviction.
+  void AccountReassembly(Session& s, double now);
+  // Sets `s`'s share of the reassembly gauge to `held` bytes.
+  void PublishHeld(Session& s, size_t held);
   // Whether `room` ticks in the bulk pass (more than kBulkRoomEntities entities at its last tick).
   static bool IsBulk(const RoomHost& room) { return room.room().frame().by_id.size() > kBulkRoomEntities; }
   // Handles the datagrams of bulk rooms' members that this update's receive loop set aside.

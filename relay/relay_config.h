@@ -36,6 +36,11 @@ struct AbuseLimits {
   double handshakes_per_s = 20;          // Hello/Connect per source address, burst 40
   size_t max_sessions_per_address = 64;  // live connections from one IP address
   double join_timeout_s = 10;            // a connection that joins no room by then is dropped
+  // Bytes all connections together may hold for clients' partial reliable messages
+  // (reassembly and out-of-order units; each connection also stays under
+  // ConnectionConfig::max_held_reliable_bytes + kReliableHeldSlack). Past it, the connection
+  // holding the most is ended (kicked) and counted. 0: no relay-wide cap.
+  size_t max_reassembly_bytes = size_t{128} << 20;
 };
 
 // The relay's connections: an ack owed for a client's unreliable payloads waits up to 20 ms

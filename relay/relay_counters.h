@@ -135,6 +135,11 @@ struct RelayCounters {
       {0.00001, 0.00005, 0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.05}};
   // Seconds of relay work per room (relay/room_work_times.h): edgephys_room_update_seconds_total.
   RoomWorkTimes room_work;
+  // Partial reliable messages of clients (Connection::reliable_partial_bytes(), all shards): bytes
+  // held now, and connections ended because the sum passed AbuseLimits::max_reassembly_bytes
+  // (the largest holder goes; relay/relay.h).
+  Gauge reassembly_held_bytes{0};
+  Counter reassembly_evictions{0};
   // Datagrams of bulk rooms' members handled after the light rooms' tick (Relay::Update).
   Counter bulk_datagrams_deferred{0};
 

@@ -92,6 +92,8 @@ void AddRooms(CLI::App& app, RelayFlags* f) {
   tuning("--max-spawns-per-s", lim.spawns_per_s, "Per-connection spawn rate");
   tuning("--max-handshakes-per-s", lim.handshakes_per_s, "Hello/Connect per source address");
   tuning("--join-timeout", lim.join_timeout_s, "Seconds a connection may stay without a room");
+  tuning("--max-reassembly-bytes", lim.max_reassembly_bytes,
+         "Bytes of partial reliable messages all connections may hold (0: no cap)");
 }
 
 void AddReplication(CLI::App& app, RelayFlags* f) {

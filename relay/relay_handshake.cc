@@ -86,9 +86,15 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
       Transmit(from, existing.accept_packet());
       return;
     }
-    // A new token from the same address: the client restarted. Replace the old session.
-    existing.connection().Disconnect(DisconnectReason::kKicked, existing);
-    RemoveSession(it->second, now);
+    // Another token from an address that holds a live session. Anyone who can send from that
+    // address (a spoofer that reads the Challenge) can get this far, so it never ends the
+    // session: only what proves the session's keys does (a sealed Disconnect, or the silence
+    // timeout of a client that restarted without saying so). Refused and counted.
+    if (existing.connection().connected()) {
+      counters_->RejectPacket(DropReason::kSessionHeld);
+      Log().Note("connect rejected", DropReasonName(DropReason::kSessionHeld), from, now);
+      return SendReject(from, Code(RejectReason::RateLimited), data.size());
+    }
   }
   if (!admitting_) {  // draining
     Log().Note("connect rejected", "relay draining", from, now);

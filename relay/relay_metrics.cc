@@ -267,6 +267,13 @@ const FamilySpec kFamilies[] = {
      "results, its ticks), summed over the relay's threads; rooms past the cap summed in "
      "room=\"~other\".",
      RoomWorkSource{&C::room_work}},
+    {"edgephys_reassembly_held_bytes",
+     "Bytes held for clients' partial reliable messages (reassembly and out-of-order units).",
+     GaugeSource{&C::reassembly_held_bytes}},
+    {"edgephys_reassembly_evictions_total",
+     "Connections ended because the bytes held for partial messages passed "
+     "--max-reassembly-bytes (the largest holder goes).",
+     CounterSource{&C::reassembly_evictions}},
     {"edgephys_bulk_datagrams_deferred_total",
      "Datagrams of bulk rooms' members handled after the light rooms' tick.",
      CounterSource{&C::bulk_datagrams_deferred}},

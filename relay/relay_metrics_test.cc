@@ -118,6 +118,8 @@ TEST_F(MetricsExporterTest, ExportsScalarCountersAndGauges) {
   RelayCounters::Inc(counters_.connections_accepted, 5);
   RelayCounters::Inc(counters_.send_errors, 6);
   RelayCounters::Inc(counters_.io_queue_drops, 8);
+  RelayCounters::Inc(counters_.reassembly_evictions, 13);
+  counters_.reassembly_held_bytes = 65536;
   counters_.rooms = 2;
   counters_.clients = 9;
   counters_.entities = 31;
@@ -138,6 +140,8 @@ TEST_F(MetricsExporterTest, ExportsScalarCountersAndGauges) {
       {"edgephys_connections_accepted_total", 5},
       {"edgephys_send_errors_total", 6},
       {"edgephys_io_queue_drops_total", 8},
+      {"edgephys_reassembly_evictions_total", 13},
+      {"edgephys_reassembly_held_bytes", 65536},
       {"edgephys_rooms", 2},
       {"edgephys_clients", 9},
       {"edgephys_entities", 31},
@@ -168,6 +172,8 @@ TEST_F(MetricsExporterTest, TypeAndHelpLinesAndSingleTotalSuffix) {
       {"edgephys_connections_accepted_total", "counter"},
       {"edgephys_send_errors_total", "counter"},
       {"edgephys_io_queue_drops_total", "counter"},
+      {"edgephys_reassembly_held_bytes", "gauge"},
+      {"edgephys_reassembly_evictions_total", "counter"},
       {"edgephys_packets_rejected_total", "counter"},
       {"edgephys_entity_updates_rejected_total", "counter"},
       {"edgephys_requests_rejected_total", "counter"},

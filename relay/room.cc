@@ -115,10 +115,29 @@ void Room::RemoveEntity(uint32_t id) {
   for (auto& [cid, child] : entities_) {
     if (child.parent != id) continue;
     child.parent = 0;
+    child.former_parent = id;
     auto* msg = schema::GetMutableControlMessage(child.spawn.data());
     auto* spawn = static_cast<schema::Spawn*>(msg->mutable_body());
     if (auto* c = spawn->mutable_container()) c->mutate_parent_id(0);
   }
+}
+
+bool Room::ParentWouldCycle(uint32_t id, uint32_t parent) const {
+  // An entity has one upward link at most (its parent, or once that went, its former parent:
+  // a parent is never set again), and a spawn that would close a cycle is refused here, so
+  // the walk is a chain of at most entities_.size() steps; the bound is a guard.
+  std::vector<uint32_t> pending{parent};
+  size_t steps = 0;
+  while (!pending.empty() && steps++ <= entities_.size()) {
+    const uint32_t at = pending.back();
+    pending.pop_back();
+    if (at == id) return true;
+    auto it = entities_.find(at);
+    if (it == entities_.end()) continue;
+    if (it->second.parent != 0) pending.push_back(it->second.parent);
+    if (it->second.former_parent != 0) pending.push_back(it->second.former_parent);
+  }
+  return !pending.empty();  // the guard tripped: refuse rather than risk a cycle
 }
 
 void Room::BuildFrame() {

@@ -55,8 +55,15 @@ class Room {
   // Inserts a new entity (the caller validated ownership, id range, parent and budgets) and
   // charges its cost to its creator in ledger().
   Entity& AddEntity(Entity entity);
-  // Removes an entity (from PhyS too) and refunds its creator; its children become roots.
+  // Removes an entity (from PhyS too) and refunds its creator; its children become roots
+  // (their former_parent keeps the id members present now still show as their parent).
   void RemoveEntity(uint32_t id);
+  // Whether an entity `id` under `parent` would close a parent cycle in any member's view:
+  // `id` is reachable from `parent` through parents or former parents (Entity::former_parent:
+  // a member that saw a child's spawn before its parent went still shows the child under that
+  // id, so a new entity with that id as the child's child is a cycle there, and refused for
+  // every member alike). O(ancestors); at most entities().size() steps.
+  bool ParentWouldCycle(uint32_t id, uint32_t parent) const;
   // What the entities cost, by creator and in all (relay/room_budget.h).
   const RoomLedger& ledger() const { return ledger_; }
   const EntityTable& entities() const { return entities_; }

@@ -230,10 +230,15 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
                           "scale must be finite and within [1e-4, 1e4] on every axis");
   }
   if (c->parent_id() != 0) {
-    // The parent must exist already: with ids never reused while a child names them (Room::
-    // RemoveEntity unparents children), no cycle can form.
+    // The parent must exist already, and not descend from this id in any member's view
+    // (Room::ParentWouldCycle: a despawned parent's id coming back as its old child's child).
     if (c->parent_id() == id || room_.FindEntity(c->parent_id()) == nullptr) {
       return link.SendError(RejectReason::UnknownEntity, id, "unknown parent (or itself)");
+    }
+    if (room_.ParentWouldCycle(id, c->parent_id())) {
+      return link.SendError(RejectReason::InvalidMessage, id,
+                            "parent would form a cycle (a member still shows this id as an "
+                            "ancestor of that parent)");
     }
   }
   e.physics = RoomPhysics::RoleOf(*c);

@@ -79,25 +79,68 @@ TEST_F(RoomHostHostileTest, ParentsMustExistAndCanNeverFormACycle) {
   child.parent_id = p;
   Spawn(a, child);
   ASSERT_EQ(a.errors.size(), 2u);
-  // The parent goes; the id comes back as the child's child: with the child still naming the
-  // old parent that would be the cycle p -> c -> p. The child became a root instead, also in
-  // what a late joiner is sent.
+  // The parent goes; the id comes back as the child's child. The child became a root in the
+  // relay and in what a late joiner is sent, but `a` (present when the child spawned) still
+  // shows it under p: p -> c -> p would be a cycle in its view. Refused, for every member.
   host_->Despawn(a, p);
   EXPECT_EQ(Find(c)->parent, 0u);
   EntitySpec again = LocalBox(p, 1);
   again.parent_id = c;
   Spawn(a, again);
-  ASSERT_EQ(a.errors.size(), 2u);
+  ASSERT_EQ(a.errors.size(), 3u);
+  EXPECT_TRUE(a.HasError(RejectReason::InvalidMessage, p));
+  EXPECT_EQ(Find(p), nullptr);
   ASSERT_TRUE(host_->Join(b, 0));
   for (const auto* msg : b.Of(Body::Spawn)) {
     const auto* container = msg->body_as_Spawn()->container();
+    EXPECT_NE(container->entity_id(), p);
     if (container->entity_id() == c) {
       EXPECT_EQ(container->parent_id(), 0u);
     }
-    if (container->entity_id() == p) {
-      EXPECT_EQ(container->parent_id(), c);
-    }
   }
+  // Also refused now that a late joiner (to whom c is a root) is present: one rule for all.
+  Spawn(a, again);
+  EXPECT_EQ(a.errors.size(), 4u);
+  // The id itself is free: as a root, or under an unrelated parent, it comes back.
+  const uint32_t other = Base(a) + 3;
+  Spawn(a, LocalBox(other, 1));
+  EntitySpec elsewhere = LocalBox(p, 1);
+  elsewhere.parent_id = other;
+  Spawn(a, elsewhere);
+  EXPECT_EQ(a.errors.size(), 4u);
+  ASSERT_NE(Find(p), nullptr);
+  EXPECT_EQ(Find(p)->parent, other);
+}
+
+// A longer chain: g <- p <- c, then p goes; p coming back as c's grandchild (under c's new
+// child q) closes p -> q -> c -> p in the view of members present: refused. A new id under q
+// is fine.
+TEST_F(RoomHostHostileTest, FormerParentsCountAlongTheWholeChain) {
+  config_.max_entities_per_player = 16;
+  Rebuild();
+  RecordingMember a(1);
+  ASSERT_TRUE(host_->Join(a, 0));
+  const uint32_t g = Base(a) + 1, p = Base(a) + 2, c = Base(a) + 3, q = Base(a) + 4;
+  Spawn(a, LocalBox(g, 1));
+  EntitySpec ps = LocalBox(p, 1);
+  ps.parent_id = g;
+  Spawn(a, ps);
+  EntitySpec cs = LocalBox(c, 1);
+  cs.parent_id = p;
+  Spawn(a, cs);
+  host_->Despawn(a, p);  // c: root, former parent p
+  EntitySpec qs = LocalBox(q, 1);
+  qs.parent_id = c;
+  Spawn(a, qs);
+  ASSERT_TRUE(a.errors.empty());
+  EntitySpec back = LocalBox(p, 1);  // p under q: q -> c -> p(former) -> ... is p itself
+  back.parent_id = q;
+  Spawn(a, back);
+  EXPECT_TRUE(a.HasError(RejectReason::InvalidMessage, p));
+  EntitySpec g2 = LocalBox(Base(a) + 5, 1);  // a new id under q: no cycle
+  g2.parent_id = q;
+  Spawn(a, g2);
+  EXPECT_EQ(a.errors.size(), 1u);
 }
 
 // Finding 3: persistent entities, leave, rejoin with a fresh id block and a reset counter,

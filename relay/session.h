@@ -135,6 +135,10 @@ class Session final : public ConnectionHandler,
   double service_at() const { return service_at_; }
   void set_service_at(double at) { service_at_ = at; }
   void ServiceSoon() { service_at_ = -std::numeric_limits<double>::infinity(); }
+  // Reassembly bytes of this connection last added to RelayCounters::reassembly_held_bytes
+  // (Connection::reliable_partial_bytes() when the relay last looked; 0 once evicted).
+  size_t held_published() const { return held_published_; }
+  void set_held_published(size_t bytes) { held_published_ = bytes; }
   double close_deadline() const { return close_deadline_; }
 
  private:
@@ -164,6 +168,7 @@ class Session final : public ConnectionHandler,
   size_t outbox_size_ = 0;
   double now_;
   double service_at_ = -std::numeric_limits<double>::infinity();
+  size_t held_published_ = 0;
   TokenBucket packets_, bytes_, spawns_;
   double connected_at_;
   size_t reliable_capacity_;  // ConnectionConfig::max_pending_reliable_bytes

@@ -347,6 +347,19 @@ void ReliableCorpus() {
         Input(0).Add(1, Bytes(800, 9)).Add(3, {10}).Add(0, one).Add(0, frag1).Add(0, frag2)
             .Add(0, frag3).Add(0, ack).Add(3, {200}).bytes);
   Write("reliable_fuzz", "raw_disconnect", Input(0).Add(0, one).Add(4, disconnect).bytes);
+  // Reassembly bound (max_held_reliable_bytes): 30 units in order, 30 beyond a gap (some
+  // refused unacknowledged), then the gap filled in order.
+  Input held(0);
+  uint16_t seq = 0;
+  auto unit = [&](uint16_t id) {
+    Bytes p = Header(seq++, 0xffff, 0);
+    ReliableChunk(&p, id, false, Bytes(1024, static_cast<uint8_t>(id)));
+    held.Add(0, p);
+  };
+  for (uint16_t id = 0; id < 30; ++id) unit(id);
+  for (uint16_t id = 89; id >= 60; --id) unit(id);
+  for (uint16_t id = 30; id < 60; ++id) unit(id);
+  Write("reliable_fuzz", "raw_held_bound", held.bytes);
   Bytes unreliable = Header(0, 0xffff, 0);
   UnreliableChunk(&unreliable, Bytes(100, 5));
   Bytes older = Header(7, 0xffff, 0);

@@ -11,7 +11,8 @@
 // clear; sizes up to 8 KB, so several units each) or unreliable payloads. Checked: B delivers
 // a prefix of A's reliable messages, in order, exactly once, and unreliable payloads only
 // newer than those before; after the link heals, everything reliable arrives.
-// Memory is bounded by small max_message_size / pending limits.
+// Memory is bounded by small max_message_size / pending limits; in "raw" mode every step
+// checks the receive side's bound (Connection::reliable_held_bytes(), connection.h).
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -31,6 +32,7 @@ ConnectionConfig FuzzConnectionConfig() {
   ConnectionConfig c;
   c.max_message_size = 64 << 10;
   c.max_pending_reliable_bytes = 256 << 10;
+  c.max_held_reliable_bytes = 96 << 10;  // below max_message_size + window: refusals happen
   return c;
 }
 
@@ -74,6 +76,7 @@ void RunRaw(Reader& in) {
         break;
     }
     EDGEPHYS_FUZZ_CHECK(c.stats().pending_reliable_bytes <= (256u << 10) + (64u << 10));
+    EDGEPHYS_FUZZ_CHECK(c.reliable_held_bytes() <= (96u << 10) + kReliableHeldSlack);
   }
   c.Update(now + 0.5, out);
 }

@@ -94,6 +94,16 @@ else {
   if (!dockerfile.match(/^\s+curl \\$/m)) fail("Dockerfile: the runtime image lacks curl, which preStop runs");
   if (c.livenessProbe?.httpGet?.path !== "/healthz") fail("relay: liveness is not /healthz");
   if (c.readinessProbe?.httpGet?.path !== "/readyz") fail("relay: readiness is not /readyz");
+  // Memory: the limit covers docs/operations.md "Memory" at the flags it runs with (idle
+  // process + clients x per-connection idle + partial-message cap), with 256 MiB for rooms.
+  const flag = (name, dflt) => +(new RegExp(`--${name}\\s+(\\d+)`).exec(cmd)?.[1] ?? dflt);
+  const mib = 1024 * 1024;
+  const worst = 40 * mib + flag("max-clients", 4096) * 210 * 1024 +
+                flag("max-reassembly-bytes", 128 * mib) + 256 * mib;
+  const units = { Ki: 1024, Mi: mib, Gi: 1024 * mib };
+  const lim = /^(\d+)(Ki|Mi|Gi)$/.exec(c.resources?.limits?.memory ?? "");
+  if (!lim || +lim[1] * units[lim[2]] < worst)
+    fail(`relay: memory limit ${c.resources?.limits?.memory} under the documented worst case ${Math.ceil(worst / mib)}Mi (docs/operations.md "Memory")`);
 }
 
 const pdb = docs.find((d) => d.obj.kind === "PodDisruptionBudget")?.obj;
