@@ -9,7 +9,7 @@
 #include <algorithm>
 #include <vector>
 
-#include "physics_backend/physics_test_util.h"
+#include "physics_backend/testing/physics_test_util.h"
 
 namespace edgephys::physics {
 namespace {

@@ -11,7 +11,7 @@
 
 #include <btBulletDynamicsCommon.h>
 
-#include "physics_backend/physics_test_util.h"
+#include "physics_backend/testing/physics_test_util.h"
 
 namespace edgephys::physics {
 namespace {

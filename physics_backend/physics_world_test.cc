@@ -8,7 +8,7 @@
 #include <functional>
 #include <limits>
 
-#include "physics_backend/physics_test_util.h"
+#include "physics_backend/testing/physics_test_util.h"
 #include "physics_backend/state_hash.h"
 
 namespace edgephys::physics {

@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "physics_backend/physics_test_util.h"
+#include "physics_backend/testing/physics_test_util.h"
 #include "loadgen/scenes/scenes.h"
 #include "physics_backend/state_hash.h"
 

@@ -9,7 +9,7 @@
 #include <limits>
 #include <memory>
 
-#include "physics_backend/physics_test_util.h"
+#include "physics_backend/testing/physics_test_util.h"
 #include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "physics_backend/physics_test_util.h"
+#include "physics_backend/testing/physics_test_util.h"
 #include "loadgen/scenes/scenes.h"
 
 namespace edgephys::physics {

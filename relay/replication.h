@@ -40,6 +40,7 @@
 #include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/flat_id_map.h"
+#include "protocol/packet_seal.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/shared_delta_codec.h"
 #include "protocol/soft_body_codec.h"
@@ -162,8 +163,10 @@ class ClientReplicator {
  private:
   friend class LockstepGroup;
   static constexpr double kEpsilon = 1e-6;
-  // Bytes a datagram costs beyond its state payload (connection header + chunk header).
-  static constexpr double kPacketOverhead = static_cast<double>(kConnectionHeaderSize + 3);
+  // Bytes a datagram costs on the wire beyond its state payload: connection header, chunk
+  // header and the seal (the budget is counted as the sealed datagrams go out).
+  static constexpr double kPacketOverhead =
+      static_cast<double>(kConnectionHeaderSize + 3 + kSealOverhead);
 
   // One per entity slot (Entity::slot), valid while `serial` equals the entity's. 32 bytes:
   // every receiver reads one per entity each tick (the walk is bound by loading them), so
