@@ -228,8 +228,8 @@ TEST(Properties, BytesOnTheWirePerUpdate) {
       if (repeat == 1) {
         std::printf("property update %-10s key '%s': writer->relay %llu B, relay->member %llu B "
                     "(sealed UDP payload)\n",
-                    k.name, k.key, static_cast<unsigned long long>(up_bytes + kSealOverhead),
-                    static_cast<unsigned long long>(down_bytes + kSealOverhead));
+                    k.name, k.key, static_cast<unsigned long long>(up_bytes),
+                    static_cast<unsigned long long>(down_bytes));  // stats count the seal
         // Of which the ControlMessage{PropertyChanged} itself:
         PropertyRecord r{0, k.key, k.value, 2, 1, 1, PropertyAuthority::kOwner, 1};
         flatbuffers::FlatBufferBuilder fbb(128);
