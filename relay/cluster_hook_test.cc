@@ -419,6 +419,14 @@ TEST_F(ClusterTest, ALostLeaseIsHandedOverNotServedTwice) {
   // admitted to its copy (it waits, then is sent to the new holder).
   ASSERT_TRUE(world.RunUntil([&] { return world.relay(new_holder)->FindRoom("split") != nullptr; },
                              5.0));
+  // Fencing acts on the old holder's view of Redis, refreshed every 200 ms: until its next
+  // refresh it cannot know it lost the lease. The newcomer arrives once it could know.
+  const cluster::Directory& old_directory = world.relay(old_holder)->cluster()->directory();
+  ASSERT_TRUE(world.RunUntil([&] {
+    auto view = old_directory.view();
+    auto owner = view->room_owner.find("split");
+    return owner != view->room_owner.end() && owner->second != old_directory.relay_id();
+  }, 5.0));
   Client& late = world.AddClient(old_holder, Token("split", 399), &listeners[2]);
   world.set_room(late, "split");
   members.push_back(&late);
