@@ -6,11 +6,22 @@
 #include <thread>
 
 #include "client/client_endpoint.h"
+#include "edgephys/schema/control_generated.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/udp_socket.h"
 
 namespace edgephys::loadgen {
+
+void RefusalWatch::OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
+  if (refused_) return;
+  refused_ = true;
+  const bool named = reason <= static_cast<uint16_t>(schema::RejectReason::MAX);
+  what_ = named ? schema::EnumNameRejectReason(static_cast<schema::RejectReason>(reason))
+                : "reason " + std::to_string(reason);
+  if (entity_id != 0) what_ += " (entity " + std::to_string(entity_id) + ")";
+  if (!detail.empty()) what_ += ": " + std::string(detail);
+}
 
 struct ExternalRoom::Member {
   std::unique_ptr<UdpSocket> socket;

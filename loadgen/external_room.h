@@ -26,6 +26,21 @@
 
 namespace edgephys::loadgen {
 
+// The host's listener in a scenario that spawns its scene: remembers the relay's first refusal
+// (a spawn over a budget arrives as OnError after Spawn() returned an id), so the scenario ends
+// with the relay's reason instead of waiting for entities that will never come.
+class RefusalWatch : public ClientListener {
+ public:
+  void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) override;
+  bool refused() const { return refused_; }
+  // "OverBudget (entity 1234): <the relay's detail>"; empty before a refusal.
+  const std::string& what() const { return what_; }
+
+ private:
+  bool refused_ = false;
+  std::string what_;
+};
+
 class ExternalRoom {
  public:
   // `listeners[i]` (may be nullptr, or shorter than `members`) listens to member i; member 0

@@ -56,7 +56,8 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> box_index;
   std::vector<std::unique_ptr<ExternalReceiver>> receivers;
-  std::vector<ClientListener*> listeners = {nullptr};  // the host
+  RefusalWatch host_watch;
+  std::vector<ClientListener*> listeners = {&host_watch};  // the host
   for (uint32_t i = 0; i < o.receivers; ++i) {
     receivers.push_back(std::make_unique<ExternalReceiver>(&box_index));
     listeners.push_back(receivers.back().get());
@@ -106,6 +107,11 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
     spawned = std::all_of(receivers.begin(), receivers.end(),
                           [&](const auto& l) { return l->spawned >= box_index.size(); });
     if (spawned) break;
+    if (host_watch.refused()) {
+      std::fprintf(stderr, "\nmultiobject: the relay refused the scene: %s (raise its budgets: "
+                   "docs/operations.md, \"Room budgets\")\n", host_watch.what().c_str());
+      return;
+    }
     if (o.progress) {
       std::fprintf(stderr, "\r  %6u objects  external relay: spawning (%zu / %zu at receiver 1)  ",
                    n, receivers[0]->spawned, box_index.size());

@@ -37,7 +37,8 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
   RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> bunny_index;
   std::vector<std::unique_ptr<ExternalSoftReceiver>> receivers;
-  std::vector<ClientListener*> listeners = {nullptr};  // the host
+  RefusalWatch host_watch;
+  std::vector<ClientListener*> listeners = {&host_watch};  // the host
   for (uint32_t i = 0; i < o.receivers; ++i) {
     receivers.push_back(std::make_unique<ExternalSoftReceiver>(&bunny_index));
     listeners.push_back(receivers.back().get());
@@ -89,6 +90,11 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
     round();
     ready = true;
     for (size_t c = 0; c < world.size() && ready; ++c) ready = has_bunnies(world.client(c));
+    if (host_watch.refused()) {
+      std::fprintf(stderr, "softbody: the relay refused the scene: %s (its particle budgets: "
+                   "docs/operations.md, \"Room budgets\")\n", host_watch.what().c_str());
+      return;
+    }
   }
   if (!ready) {
     std::fprintf(stderr, "softbody: the scene did not reach every client within 30 s\n");

@@ -166,6 +166,23 @@ if [ -n "$relay_bin" ]; then
     --relay-pid "$relay_pid" --no-progress --charts '' --json sbext.json >/dev/null ||
     fail "softbody external exited with an error"
   stop "$relay_pid"; relay_pid=""
+  # A scene over the relay's budget: multiobject ends with the relay's refusal and its reason
+  # within seconds (the spawns are refused after Spawn() returned), never waits for the scene.
+  start_relay_with_metrics "$relay_bin" relay_budget.log 60 --secret "$secret" \
+    --max-player-bodies 50 --packet-auth false || fail "edgephys-relay (budget) did not start"
+  t0=$SECONDS; status=0
+  timeout 60 "$lg" multiobject --objects 200 --no-bench --duration 2 --settle-steps 30 \
+    --relay "$relay_address" --secret "$secret" --metrics "$metrics_address" \
+    --no-progress --charts '' --json mobudget.json >/dev/null 2>mobudget.err || status=$?
+  took=$((SECONDS - t0))
+  stop "$relay_pid"; relay_pid=""
+  [ "$status" -ne 0 ] && [ "$status" -ne 124 ] || { cat mobudget.err; fail "multiobject over budget: exit $status"; }
+  grep -q "the relay refused the scene: OverBudget" mobudget.err ||
+    { cat mobudget.err; fail "multiobject over budget: no relay reason"; }
+  grep -q "player_bodies\|PhyS bodies\|bodies" mobudget.err ||
+    { cat mobudget.err; fail "multiobject over budget: the budget is not named"; }
+  [ "$took" -le 15 ] || fail "multiobject over budget: ended after ${took}s"
+  echo "multiobject over budget: ended in ${took}s: $(grep -o 'refused the scene:.*' mobudget.err | head -1)"
   [ "$(num '.summary.late_join_ok' isoext.json)" = "true" ] || fail "isolation external: late joiner"
   le 1 "$(num '.phases[1].egress_bytes_per_s' isoext.json)" || fail "isolation external: no egress"
   le 0.000001 "$(num '.phases[1].physics_steps_per_s' isoext.json)" || fail "isolation external: no PhyS steps"
