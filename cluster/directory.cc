@@ -348,9 +348,21 @@ void Directory::ClaimOrphans(DirectoryView* view) {
     if (!info.draining) candidates.push_back(id);
   }
   if (candidates.empty()) return;  // std::map: already sorted
+  std::set<std::string> local;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    local = local_rooms_;
+  }
+  std::map<std::string, int> orphans;
   for (auto& [room, owner] : view->room_owner) {
     if (view->relays.count(owner) != 0 || view->unroutable.count(owner) != 0) continue;
-    if (candidates[Fnv1a(room) % candidates.size()] != options_.relay_id) continue;
+    // Ownerless: the holder (a live copy here) takes it back at once; the relay the room
+    // hashes to waits one more refresh, so a live holder keeps its room.
+    const int seen = orphans[room] = orphan_refreshes_[room] + 1;
+    const bool held_here = local.count(room) != 0;
+    if (!held_here && (seen < 2 || candidates[Fnv1a(room) % candidates.size()] != options_.relay_id)) {
+      continue;
+    }
     auto claimed = redis_->Command({"EVAL", kClaimScript, "1", Key("room:", room), owner,
                                     options_.relay_id});
     if (!claimed.ok()) {
@@ -385,8 +397,15 @@ void Directory::ClaimOrphans(DirectoryView* view) {
                  ev.snapshot.entities.size());
     counters_.claims.fetch_add(1, std::memory_order_relaxed);
     owner = options_.relay_id;
+    orphans.erase(room);
     Post(std::move(ev));
   }
+  orphan_refreshes_ = std::move(orphans);
+}
+
+void Directory::SetLocalRooms(std::set<std::string> rooms) {
+  std::lock_guard<std::mutex> lock(mu_);
+  local_rooms_ = std::move(rooms);
 }
 
 void Directory::DoPlacement(const std::string& room, bool prefer_self) {

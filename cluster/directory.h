@@ -118,6 +118,11 @@ class Directory {
   // Stores `room`'s latest snapshot (encoded, cluster/room_snapshot.h). Writes are batched on
   // the thread; a newer snapshot of a room replaces one not yet written.
   void SaveSnapshot(const std::string& room, std::vector<uint8_t> bytes);
+  // The rooms this relay serves now. When one of their owner keys names a relay that is not
+  // live (or an unusable value), this relay takes the lease back at its next refresh; other
+  // relays claim such a room only after it stayed ownerless over two refreshes, so a live
+  // holder always wins against a corrupted key and keeps its live copy.
+  void SetLocalRooms(std::set<std::string> rooms);
   // This relay no longer holds `room` (closed): its ownership and snapshot are deleted if this
   // relay still owns it.
   void Release(const std::string& room);
@@ -154,7 +159,9 @@ class Directory {
   std::vector<std::string> releases_;
   std::vector<DirectoryEvent> events_;
   std::shared_ptr<const DirectoryView> view_;
+  std::set<std::string> local_rooms_;
   double last_ok_refresh_ = -1e9;  // thread only
+  std::map<std::string, int> orphan_refreshes_;  // thread only: room -> refreshes seen ownerless
 
   std::thread thread_;
 };

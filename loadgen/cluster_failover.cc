@@ -16,6 +16,14 @@
 // add that every newcomer was admitted by the room's owner in Redis at that moment, that from
 // one second after the thaw no room has joined members on two relays, and that every member
 // ends in the one copy.
+// --fault redis:ANOMALY leaves every process running and instead corrupts Redis once, as the
+// issue's probe did: `set-missing` (the holder's id removed from the relay set),
+// `entry-garbage` (its relay entry overwritten with non-JSON), `owner-unknown` (its rooms'
+// owner keys set to a relay id that does not exist), `owner-wrong-type` (those keys replaced
+// by hashes), `set-wrong-type` (the relay set replaced by a string). Newcomers join as for
+// stop (through another relay at once, through the holder 0.3 s later) and the same fencing
+// checks apply from one second after the anomaly; the rooms need not move, so no resume is
+// required, but every member must end joined at the relay Redis names the room's owner.
 // Bounded: every phase has a deadline; the processes it started are killed by PID at exit.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -103,7 +111,9 @@ int main(int argc, char** argv) {
   app.add_option("--heartbeat-ms", heartbeat_ms, "Relays' --cluster-heartbeat-ms")->capture_default_str();
   app.add_option("--snapshot-ms", snapshot_ms, "Relays' --cluster-snapshot-ms")->capture_default_str();
   app.add_option("--json", json_path, "Write the results as JSON here");
-  app.add_option("--fault", fault, "kill (SIGKILL) or stop:SECONDS (SIGSTOP, then SIGCONT)")
+  app.add_option("--fault", fault,
+                 "kill (SIGKILL), stop:SECONDS (SIGSTOP, then SIGCONT) or redis:ANOMALY (set-missing, "
+                 "entry-garbage, owner-unknown, owner-wrong-type, set-wrong-type)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   double stop_s = 0;  // > 0: --fault stop:S
@@ -113,10 +123,22 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "--fault stop:SECONDS takes 0 < SECONDS <= 60, got %s\n", fault.c_str());
       return 2;
     }
-  } else if (fault != "kill") {
-    std::fprintf(stderr, "--fault must be kill or stop:SECONDS, got %s\n", fault.c_str());
+  }
+  const std::set<std::string> kAnomalies = {"set-missing", "entry-garbage", "owner-unknown",
+                                            "owner-wrong-type", "set-wrong-type"};
+  std::string anomaly;  // --fault redis:ANOMALY
+  if (fault.rfind("redis:", 0) == 0) {
+    anomaly = fault.substr(6);
+    if (kAnomalies.count(anomaly) == 0) {
+      std::fprintf(stderr, "--fault redis: takes set-missing, entry-garbage, owner-unknown, "
+                   "owner-wrong-type or set-wrong-type, got %s\n", fault.c_str());
+      return 2;
+    }
+  } else if (fault != "kill" && stop_s <= 0) {
+    std::fprintf(stderr, "--fault must be kill, stop:SECONDS or redis:ANOMALY, got %s\n", fault.c_str());
     return 2;
   }
+  const bool fenced = stop_s > 0 || !anomaly.empty();  // the victim lives on: fencing checks
   spdlog::set_level(spdlog::level::warn);
   const std::string secret = "failover-bench-secret";
 
@@ -142,7 +164,7 @@ int main(int argc, char** argv) {
                                      "--cluster-snapshot-ms", std::to_string(snapshot_ms),
                                      "--max-handshakes-per-s", "100000",
                                      "--max-connections-per-address", "100000",
-                                     "--log-level", "warn", "--run-for", "600"};
+                                     "--admin-addr", "off", "--log-level", "warn", "--run-for", "600"};
     pid_t pid = fork();
     if (pid == 0) {
       std::vector<char*> cargs;
@@ -299,7 +321,33 @@ int main(int argc, char** argv) {
   for (Bot& b : bots) {
     if (lost.count(b.room)) lost_bots.push_back(&b);
   }
-  if (stop_s > 0) {
+  std::string victim_id;
+  for (auto& [id, i] : relay_index) {
+    if (i == victim) victim_id = id;
+  }
+  if (!anomaly.empty()) {
+    const std::string p = "edgephys:";
+    std::vector<std::vector<std::string>> commands;
+    if (anomaly == "set-missing") commands.push_back({"SREM", p + "relays", victim_id});
+    if (anomaly == "entry-garbage") commands.push_back({"SET", p + "relay:" + victim_id, "{garbage", "PX", "60000"});
+    if (anomaly == "set-wrong-type") {
+      commands.push_back({"DEL", p + "relays"});
+      commands.push_back({"SET", p + "relays", "oops"});
+    }
+    for (const auto& room : lost) {
+      if (anomaly == "owner-unknown") commands.push_back({"SET", p + "room:" + room, "ghost-relay"});
+      if (anomaly == "owner-wrong-type") {
+        commands.push_back({"DEL", p + "room:" + room});
+        commands.push_back({"HSET", p + "room:" + room, "f", "v"});
+      }
+    }
+    for (const auto& c : commands) {
+      if (!rc.Command(c).ok()) {
+        std::fprintf(stderr, "cannot write the anomaly to Redis (%s)\n", c[0].c_str());
+        ok = false;
+      }
+    }
+  } else if (stop_s > 0) {
     kill(pids[victim], SIGSTOP);
   } else {
     kill(pids[victim], SIGKILL);
@@ -312,18 +360,32 @@ int main(int argc, char** argv) {
   // --fault stop: the thaw, the newcomers (wave A through another relay while the victim is
   // frozen, wave B through the victim after the thaw) and the fencing checks.
   const double thaw_at = kill_s + stop_s;
-  bool thawed = stop_s <= 0, wave_a = stop_s <= 0, wave_b = stop_s <= 0;
+  bool thawed = stop_s <= 0, wave_a = !fenced, wave_b = !fenced;
   std::vector<Bot*> newcomers;
   std::set<const Bot*> admitted;  // newcomers whose admission was checked
   int newcomers_wrong_relay = 0, split_samples = 0, samples_checked = 0;
+  std::map<std::string, std::set<int>> admitting;  // room -> relays that admitted newcomers
   const auto relay_of = [&](const Bot& b) {
     for (int i = 0; i < relays; ++i) {
       if (b.client->server() == ToRelayAddress(endpoints[i])) return i;
     }
     return -1;
   };
+  // --fault redis: every member of the victim's rooms joined (not resuming) at the relay Redis
+  // names the room's owner, and that relay is live.
+  auto settled_at_owner = [&] {
+    auto o = owners();
+    for (Bot* b : lost_bots) {
+      auto it = o.find(b->room);
+      if (it == o.end() || relay_index.count(it->second) == 0) return false;
+      if (!b->client->joined() || b->client->resuming() || relay_of(*b) != relay_index[it->second]) {
+        return false;
+      }
+    }
+    return true;
+  };
   auto fencing_done = [&] {
-    if (stop_s <= 0) return true;
+    if (!fenced) return true;
     if (!wave_b || now_s() < thaw_at + 4.0) return false;
     return std::all_of(newcomers.begin(), newcomers.end(), [](const Bot* b) { return b->entity != 0; });
   };
@@ -352,14 +414,15 @@ int main(int argc, char** argv) {
       if (b->entity == 0 || !admitted.insert(b).second) continue;
       auto v = rc.Command({"GET", "edgephys:room:" + b->room});
       const int owner = v.ok() && v->is_string() && relay_index.count(v->str) ? relay_index[v->str] : -2;
+      admitting[b->room].insert(relay_of(*b));
       if (owner != relay_of(*b)) {
         ++newcomers_wrong_relay;
-        std::fprintf(stderr, "newcomer %u of %s admitted by relay %d, owner %d\n", b->player,
-                     b->room.c_str(), relay_of(*b), owner);
+        std::fprintf(stderr, "newcomer %u of %s admitted by relay %d, owner in Redis now %d\n",
+                     b->player, b->room.c_str(), relay_of(*b), owner);
       }
     }
-    // From 1 s after the thaw: no lost room has joined members on two relays.
-    if (stop_s > 0 && thawed && t >= thaw_at + 1.0) {
+    // From 1 s after the thaw (the anomaly): no lost room has joined members on two relays.
+    if (fenced && thawed && t >= thaw_at + 1.0) {
       for (const auto& room : lost) {
         std::set<int> on;
         for (const Bot& b : bots) {
@@ -369,6 +432,12 @@ int main(int argc, char** argv) {
         if (on.size() > 1) ++split_samples;
       }
     }
+    if (!anomaly.empty() && users_back_s < 0 && t >= next_redis_poll && t >= kill_s + 1.0) {
+      next_redis_poll = t + 0.05;
+      if (settled_at_owner()) rooms_back_s = users_back_s = t - kill_s;
+      continue;
+    }
+    if (!anomaly.empty()) continue;
     if (rooms_back_s < 0 && t >= next_redis_poll) {
       next_redis_poll = t + 0.02;
       auto o = owners();
@@ -407,7 +476,9 @@ int main(int argc, char** argv) {
     }
     missing += static_cast<int>(members[b.room].size() - 1 - owners_seen.size());
   }
-  for (const Bot* b : lost_bots) not_resumed += b->client->resumes() == 0;  // newcomers never resume
+  for (const Bot* b : lost_bots) {  // newcomers never resume; an anomaly need not move the room
+    not_resumed += anomaly.empty() && b->client->resumes() == 0;
+  }
   // 5. Properties: every member holds every room member's room property and entity property.
   int properties_missing = 0;
   for (const Bot& b : bots) {
@@ -438,13 +509,30 @@ int main(int argc, char** argv) {
   out["entities_duplicated_or_foreign"] = foreign;
   out["users_not_resumed"] = not_resumed;
   out["fault"] = fault;
-  if (stop_s > 0) {
+  if (!anomaly.empty()) {
+    out["settled_at_owner"] = settled_at_owner();
+    if (!out["settled_at_owner"].get<bool>()) ok = false;
+  }
+  if (fenced) {
     out["newcomers"] = newcomers.size();
     out["newcomers_admitted"] = admitted.size();
     out["newcomers_admitted_by_a_non_owner"] = newcomers_wrong_relay;
     out["split_samples_after_thaw"] = split_samples;
     out["samples_checked_after_thaw"] = samples_checked;
-    if (newcomers_wrong_relay != 0 || split_samples != 0 || admitted.size() != newcomers.size()) {
+    // Redis anomalies: a relay acts on its view of Redis, refreshed every heartbeat, so the
+    // holder may admit within one refresh after its key was corrupted (counted above, not a
+    // failure); what must hold is that one relay admits to each room, the one that owns it in
+    // the end.
+    int rooms_admitted_by_two = 0;
+    const auto final_owners = owners();
+    for (const auto& [room, relays_seen] : admitting) {
+      auto o = final_owners.find(room);
+      const int final_owner = o != final_owners.end() && relay_index.count(o->second) ? relay_index[o->second] : -2;
+      if (relays_seen.size() > 1 || *relays_seen.begin() != final_owner) ++rooms_admitted_by_two;
+    }
+    out["rooms_admitted_by_a_relay_that_is_not_the_final_owner"] = rooms_admitted_by_two;
+    if ((anomaly.empty() && newcomers_wrong_relay != 0) || rooms_admitted_by_two != 0 ||
+        split_samples != 0 || admitted.size() != newcomers.size()) {
       ok = false;
     }
   }

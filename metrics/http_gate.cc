@@ -20,6 +20,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "metrics/http_head.h"
 #include "protocol/endpoint.h"
 
 namespace edgephys::http {
@@ -97,12 +98,6 @@ std::string ErrorResponse(int status, const char* code, const std::string& messa
   std::string body = std::string("{\"error\":{\"code\":\"") + code + "\",\"message\":\"" + message +
                      "\"}}";
   return JsonResponse(status, body);
-}
-
-std::string Lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
 }
 
 std::string IpOf(const sockaddr_storage& ss, int* port) {
@@ -330,91 +325,17 @@ struct HttpGate::Impl {
   // Checks the bytes read so far; returns true while more are needed.
   bool Examine(Conn& c) {
     if (c.request_bytes == 0) {
-      size_t end = c.in.find("\r\n\r\n");
-      size_t head_len = end == std::string::npos ? std::string::npos : end + 4;
-      if (end == std::string::npos) {
-        if (c.in.size() > options.max_head_bytes) {
-          Reject(c, 431, "header_too_large", "the request head exceeds the limit");
-          return false;
-        }
-        return true;
-      }
-      if (head_len > options.max_head_bytes) {
-        Reject(c, 431, "header_too_large", "the request head exceeds the limit");
+      const RequestHead head = ParseRequestHead(c.in, {options.max_head_bytes, options.max_headers,
+                                                       options.max_body_bytes});
+      if (head.outcome == RequestHead::Outcome::kNeedMore) return true;
+      if (head.outcome == RequestHead::Outcome::kRefused) {
+        Reject(c, head.status, head.code, head.message);
         return false;
       }
-      std::string_view head(c.in.data(), end);
-      size_t headers = 0;
-      long long content_length = -1;
-      bool expect_continue = false;
-      std::string method, path;
-      size_t pos = 0;
-      for (bool first = true; pos <= head.size(); first = false) {
-        size_t eol = head.find("\r\n", pos);
-        if (eol == std::string_view::npos) eol = head.size();
-        std::string_view line = head.substr(pos, eol - pos);
-        pos = eol + 2;
-        for (char ch : line) {
-          const auto u = static_cast<unsigned char>(ch);
-          if ((u < 0x20 && u != '\t') || u == 0x7f) {
-            Reject(c, 400, "bad_request", "a control byte in the request head");
-            return false;
-          }
-        }
-        if (first) {
-          size_t sp1 = line.find(' ');
-          size_t sp2 = sp1 == std::string_view::npos ? sp1 : line.find(' ', sp1 + 1);
-          if (sp2 == std::string_view::npos) {
-            Reject(c, 400, "bad_request", "malformed request line");
-            return false;
-          }
-          method = std::string(line.substr(0, sp1));
-          path = std::string(line.substr(sp1 + 1, sp2 - sp1 - 1));
-          continue;
-        }
-        if (++headers > options.max_headers) {
-          Reject(c, 431, "too_many_headers",
-                 "more than " + std::to_string(options.max_headers) + " header lines");
-          return false;
-        }
-        size_t colon = line.find(':');
-        if (colon == std::string_view::npos || colon == 0) {
-          Reject(c, 400, "bad_request", "a header line without a name");
-          return false;
-        }
-        const std::string name = Lower(line.substr(0, colon));
-        std::string_view raw = line.substr(colon + 1);
-        size_t b = raw.find_first_not_of(" \t");
-        std::string_view value = b == std::string_view::npos ? std::string_view{} : raw.substr(b);
-        if (name == "authorization" && (!value.empty() && (value.back() == ' ' || value.back() == '\t'))) {
-          Reject(c, 400, "bad_authorization", "whitespace after the Authorization value");
-          return false;
-        }
-        while (!value.empty() && (value.back() == ' ' || value.back() == '\t')) value.remove_suffix(1);
-        if (name == "transfer-encoding") {
-          Reject(c, 411, "length_required", "send the body with Content-Length");
-          return false;
-        }
-        if (name == "content-length") {
-          if (value.empty() || value.size() > 18 ||
-              value.find_first_not_of("0123456789") != std::string_view::npos) {
-            Reject(c, 400, "bad_request", "Content-Length is not a number");
-            return false;
-          }
-          long long v = std::stoll(std::string(value));
-          if (content_length >= 0 && v != content_length) {
-            Reject(c, 400, "bad_request", "conflicting Content-Length headers");
-            return false;
-          }
-          content_length = v;
-        }
-        if (name == "expect" && Lower(value) == "100-continue") expect_continue = true;
-      }
-      if (content_length > static_cast<long long>(options.max_body_bytes)) {
-        Reject(c, 413, "body_too_large", "the request body exceeds the limit");
-        return false;
-      }
-      c.request_bytes = head_len + static_cast<size_t>(std::max(0LL, content_length));
+      c.request_bytes = head.request_bytes;
+      const std::string& method = head.method;
+      const std::string& path = head.path;
+      const bool expect_continue = head.expect_continue;
       if (!options.health_path.empty() && options.health &&
           (method == "GET" || method == "HEAD") && path == options.health_path) {
         HealthAnswer a = options.health();

@@ -82,9 +82,22 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
     // Held here: admitted only while no other live relay holds the room's lease (a copy that
     // lost it admits nobody; it is handed over in Update()).
     if (!view->healthy) return Route::kLocal;
+    if (local_fallback_.count(token.room) != 0) return Route::kLocal;
     auto recorded = view->room_owner.find(token.room);
-    if (recorded == view->room_owner.end() || recorded->second == directory_->relay_id()) {
-      return Route::kLocal;  // ours, or not registered yet (SaveSnapshots registers it)
+    if (recorded != view->room_owner.end() && recorded->second == directory_->relay_id()) {
+      return Route::kLocal;  // ours
+    }
+    if (recorded == view->room_owner.end()) {
+      // Held here but not (or no longer) recorded in Redis (a room created here, or its key
+      // deleted or replaced by garbage): registered first (get-or-set, this relay preferred),
+      // admitted once the view shows the lease.
+      auto asked = asked_.find(token.room);
+      if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
+        asked_[token.room] = relay_->now_;
+        directory_->RequestPlacement(token.room, /*prefer_self=*/true);
+      }
+      ++counters_.connects_deferred;
+      return Route::kDeferred;
     }
     const cluster::RelayInfo* owner = view->OwnerOf(token.room);
     if (owner == nullptr) {  // the lease names another relay that is not live: wait
@@ -168,6 +181,7 @@ void ClusterHook::Update(double now, uint64_t unix_now_s) {
       saved_sig_.erase(name);
     }
   }
+  if (rooms != known_rooms_) directory_->SetLocalRooms(rooms);
   known_rooms_ = std::move(rooms);
   if (now >= next_snapshot_) {
     next_snapshot_ = now + options_.snapshot_interval_s;
@@ -240,6 +254,13 @@ void ClusterHook::SaveSnapshots(uint64_t unix_now_s) {
 }
 
 void ClusterHook::Restore(const cluster::DirectoryEvent& event, double now) {
+  if (relay_->rooms_.count(event.room) != 0) {
+    // The lease came back to the relay serving the room (its key was corrupted or named a
+    // relay that is not live): the live copy is newer than any snapshot; keep it.
+    lost_since_.erase(event.room);
+    spdlog::warn("cluster: room '{}' lease taken back; the live copy is kept", event.room);
+    return;
+  }
   RoomHost& host = relay_->GetOrCreateRoom(event.room, now);
   std::vector<Entity> entities;
   std::map<uint32_t, uint32_t> slots;

@@ -14,7 +14,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build=${FUZZ_BUILD_DIR:-$root/build/fuzz}
 seconds=${FUZZ_SECONDS:-20}
 jobs=${FUZZ_JOBS:-2}
-read -r -a targets <<< "${FUZZ_TARGETS:-packet_fuzz reliable_fuzz state_fuzz message_fuzz}"
+read -r -a targets <<< "${FUZZ_TARGETS:-packet_fuzz reliable_fuzz state_fuzz message_fuzz http_head_fuzz}"
 
 cc=${CC:-}; cxx=${CXX:-}
 if [[ -z "$cxx" || "$cxx" != *clang* ]]; then
