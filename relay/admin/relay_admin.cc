@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "relay/admin/room_map.h"
 #include "relay/admin/room_request.h"
 
 namespace edgephys::admin {
@@ -70,6 +71,18 @@ AdminReply RelayAdmin::GetRoom(const std::string& id) {
     if (!view) return AdminError(404, "room_not_found", "no room '" + id + "' on this relay");
     AdminReply r;
     r.body = std::move(*view);
+    return r;
+  });
+}
+
+AdminReply RelayAdmin::GetRoomMap(const std::string& id, size_t limit) {
+  return OnRelay([this, id, limit](double) {
+    auto it = relay_->rooms().find(id);
+    if (it == relay_->rooms().end()) {
+      return AdminError(404, "room_not_found", "no room '" + id + "' on this relay");
+    }
+    AdminReply r;
+    r.body = RoomMapJson(it->second->room(), limit);
     return r;
   });
 }
