@@ -146,6 +146,47 @@ try {
   await page.waitForFunction(() => [...document.querySelectorAll("[data-room]")].map((e) => e.dataset.room).join() === "arena,lobby",
                              { timeout: 5000 });
   step("search and sort");
+  // The map: arena (first by id) is mapped until another room is chosen; its canvas shows what
+  // GET /v1/rooms/arena/map lists, each player's entities in that player's colour.
+  // Clicked inside the page: the poll rebuilds the cards every second, so a puppeteer click
+  // (find, then move the mouse, then press) can land on a card just replaced.
+  const press = (sel) => page.$eval(sel, (b) => b.click());
+  await press('[data-room="lobby"] button.map-toggle');
+  await page.waitForSelector('[data-room="lobby"] canvas.room-map', { timeout: 5000 });
+  if (await page.$('[data-room="arena"] canvas.room-map')) throw new Error("two rooms mapped at once");
+  await press('[data-room="arena"] button.map-toggle');
+  await page.waitForSelector('[data-room="arena"] canvas.room-map[data-drawn]', { timeout: 5000 });
+  const apiMap = await api("GET", "/v1/rooms/arena/map");
+  if (apiMap.total !== 2 || apiMap.entities.some((e) => e.owner !== 11 && e.owner !== 12)) {
+    throw new Error("arena map from the API: " + JSON.stringify(apiMap));
+  }
+  const drawn = await page.waitForFunction((n) => {
+    const card = document.querySelector('[data-room="arena"]');
+    const c = card && card.querySelector("canvas.room-map");
+    if (!c || Number(c.dataset.drawn) !== n || Number(c.dataset.listed) !== n) return false;
+    // Each player's colour (its legend swatch) must cover a marker's worth of pixels; the
+    // grid, background and the room's and PhyS's marks are grey.
+    const { data } = c.getContext("2d").getImageData(0, 0, c.width, c.height);
+    const perPlayer = {};
+    for (const item of card.querySelectorAll("[data-legend-player]")) {
+      const rgb = getComputedStyle(item.querySelector("i")).backgroundColor.match(/\d+/g).map(Number);
+      let count = 0;
+      for (let i = 0; i < data.length; i += 4) {
+        if (Math.abs(data[i] - rgb[0]) + Math.abs(data[i + 1] - rgb[1]) + Math.abs(data[i + 2] - rgb[2]) < 24) ++count;
+      }
+      perPlayer[item.dataset.legendPlayer] = count;
+    }
+    const counts = Object.values(perPlayer);
+    return counts.length === 2 && counts.every((k) => k >= 40) ? perPlayer : false;
+  }, { timeout: 10000 }, apiMap.total);
+  const mapInfo = await drawn.jsonValue();
+  const legend = await page.$$eval('[data-room="arena"] [data-legend-player]', (els) => els.map((e) => e.textContent));
+  if (legend.length !== 2 || !/player 11 \(1\)/.test(legend[0]) || !/player 12 \(1\)/.test(legend[1])) {
+    throw new Error("map legend: " + JSON.stringify(legend));
+  }
+  const countText = await page.$eval('[data-room="arena"] .map-count', (e) => e.textContent);
+  if (!/2 entities/.test(countText) || !/grid \d+ (m|cm)/.test(countText)) throw new Error("map caption: " + countText);
+  step("map drawn: " + JSON.stringify(mapInfo) + "; " + countText);
   await sleep(1500);
   if (screenshot) await page.screenshot({ path: screenshot, fullPage: true });
   const text = await page.$eval('[data-room="arena"]', (e) => e.textContent);
