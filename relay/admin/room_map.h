@@ -12,12 +12,17 @@
 //
 // Size: at most `limit` entities are listed (`truncated` says when more exist); hands and
 // avatars come first, then the rest, each by increasing id, so a crowded room still shows
-// its players. `bounds` covers every entity, listed or not. O(entities log limit).
+// its players. `bounds` covers every entity, listed or not.
 //
-// Thread-safety: reads the Room, so the relay's thread only (RelayAdmin runs it as a command).
+// Two steps, so that the relay's thread only copies: TakeRoomMap reads the Room (the relay's
+// thread only; RelayAdmin runs it as a command), O(entities log limit) and one allocation of
+// `limit` small records; RoomMapJson turns the copy into JSON on any thread (the HTTP one).
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -25,15 +30,35 @@
 
 namespace edgephys::admin {
 
-// Entities listed per map at most by default (about 130 bytes of JSON each).
+// Entities listed per map at most (about 130 bytes of JSON each).
 inline constexpr size_t kMaxMapEntities = 2000;
 
-// {"room", "entities": [{"id", "owner", "creator", "kind", "x", "y", "z", "simulated"}...],
-//  "listed", "total", "truncated", "limit", "players": [member ids],
-//  "bounds": {"min": [x,y,z], "max": [x,y,z]} or null when the room has no entity}.
-nlohmann::json RoomMapJson(const Room& room, size_t limit = kMaxMapEntities);
+enum class MapKind : uint8_t { kObject, kAvatar, kHand, kPhysicsBody, kSoftBody };
+const char* MapKindName(MapKind kind);
+MapKind MapKindOf(const Entity& e);
 
-// The map kind of one entity (the list above).
-const char* MapKindOf(const Entity& e);
+struct RoomMapSnapshot {
+  struct Item {
+    uint32_t id = 0, owner = 0, creator = 0;
+    MapKind kind = MapKind::kObject;
+    bool simulated = false;
+    Vec3f position;  // metres, room frame
+  };
+  std::string room;
+  std::vector<Item> entities;     // the listed ones, in listing order
+  size_t total = 0;               // entities in the room
+  size_t limit = kMaxMapEntities;
+  std::vector<uint32_t> players;  // member ids, increasing
+  bool has_bounds = false;        // false: no entity
+  Vec3f min, max;                 // over every entity
+};
+
+// Relay thread: copies what the map shows of `room`, at most `limit` entities.
+RoomMapSnapshot TakeRoomMap(const Room& room, size_t limit = kMaxMapEntities);
+
+// Any thread: {"room", "entities": [{"id", "owner", "creator", "kind", "x", "y", "z",
+// "simulated"}...], "listed", "total", "truncated", "limit", "players": [member ids],
+// "bounds": {"min": [x,y,z], "max": [x,y,z]} or null when the room has no entity}.
+nlohmann::json RoomMapJson(const RoomMapSnapshot& map);
 
 }  // namespace edgephys::admin

@@ -96,7 +96,14 @@ TEST_F(AdminRoomMap, ShowsWhatThePlayersPublishedWithKindsOwnersAndPhysics) {
   box.colliders.push_back(BoxCollider({0.1f, 0.1f, 0.1f}));
   auto body = a.Spawn(box);
   auto chair = b.Spawn({.position = {-2, 0.5f, 5}});
-  ASSERT_TRUE(head.ok() && hand.ok() && body.ok() && chair.ok());
+  SpawnDesc jelly{.position = {0.5f, 1, 0.5f}, .flags = flags::kOffloaded};
+  jelly.soft_body = SoftBodySpec{.particles = {0.5f, 1, 0.5f, 0.7f, 1, 0.5f, 0.5f, 1.2f, 0.5f, 0.5f, 1, 0.7f},
+                                 .masses = {0.1f, 0.1f, 0.1f, 0.1f},
+                                 .springs = {0, 1, 0, 2, 0, 3, 1, 2, 1, 3, 2, 3},
+                                 .stiffness = 200,
+                                 .damping = 0.1f};
+  auto soft = b.Spawn(jelly);
+  ASSERT_TRUE(head.ok() && hand.ok() && body.ok() && chair.ok() && soft.ok());
 
   // Moves published after the spawns: the map must show them, not the spawn positions.
   const Vec3f head_at{3.25f, 1.625f, -4.5f}, chair_at{-2.5f, 0.75f, 6.125f};
@@ -111,13 +118,13 @@ TEST_F(AdminRoomMap, ShowsWhatThePlayersPublishedWithKindsOwnersAndPhysics) {
     map = got;
     const json* h = Find(map, *head);
     const json* c = Find(map, *chair);
-    seen = map["entities"].size() == 4 && h != nullptr && c != nullptr && At(*h, head_at) &&
+    seen = map["entities"].size() == 5 && h != nullptr && c != nullptr && At(*h, head_at) &&
            At(*c, chair_at);
   }
   ASSERT_TRUE(seen) << map.dump();
   EXPECT_EQ(map["room"], "yard");
-  EXPECT_EQ(map["total"], 4);
-  EXPECT_EQ(map["listed"], 4);
+  EXPECT_EQ(map["total"], 5);
+  EXPECT_EQ(map["listed"], 5);
   EXPECT_EQ(map["truncated"], false);
   EXPECT_EQ(map["limit"], kMaxMapEntities);
   EXPECT_EQ(map["players"], json::array({11, 12}));
@@ -139,6 +146,11 @@ TEST_F(AdminRoomMap, ShowsWhatThePlayersPublishedWithKindsOwnersAndPhysics) {
   EXPECT_EQ(p["owner"], 0);  // PhyS owns what it simulates
   EXPECT_EQ(p["creator"], 11);
   EXPECT_EQ(p["simulated"], true);
+  const json& sb = *Find(map, *soft);
+  EXPECT_EQ(sb["kind"], "soft_body");
+  EXPECT_EQ(sb["owner"], 0);
+  EXPECT_EQ(sb["creator"], 12);
+  EXPECT_EQ(sb["simulated"], true);
 
   // PhyS moves its body (it falls under gravity, nothing below it).
   bool fell = false;
@@ -168,7 +180,7 @@ TEST_F(AdminRoomMap, ShowsWhatThePlayersPublishedWithKindsOwnersAndPhysics) {
   auto [capped_status, capped] = Get("/v1/rooms/yard/map?limit=2");
   ASSERT_EQ(capped_status, 200);
   EXPECT_EQ(capped["listed"], 2);
-  EXPECT_EQ(capped["total"], 4);
+  EXPECT_EQ(capped["total"], 5);
   EXPECT_EQ(capped["truncated"], true);
   EXPECT_EQ(capped["limit"], 2);
   ASSERT_EQ(capped["entities"].size(), 2u);
