@@ -100,6 +100,17 @@ try {
   await page.evaluate(() => { window.__noReload = true; window.__noConfirm = true; });
   await page.waitForFunction(() => document.getElementById("state").textContent === "ready", { timeout: 10000 });
 
+  // A real mouse click on `sel`. The poll rebuilds the cards every second: puppeteer finds the
+  // button, then scrolls to it, then clicks, and a card replaced in between detaches the node
+  // it found; then it looks the button up again (at most 5 tries).
+  const press = async (sel) => {
+    for (let i = 0; ; ++i) {
+      try { return await page.click(sel); } catch (e) {
+        if (i >= 4 || !/detached|not clickable|No element/i.test(String(e.message))) throw e;
+        await sleep(50);
+      }
+    }
+  };
   const roomShown = (id) => page.waitForSelector(`[data-room="${id}"]`, { timeout: 10000 });
   const roomGone = (id) => page.waitForFunction((id) => !document.querySelector(`[data-room="${id}"]`),
                                                 { timeout: 10000 }, id);
@@ -148,9 +159,6 @@ try {
   step("search and sort");
   // The map: arena (first by id) is mapped until another room is chosen; its canvas shows what
   // GET /v1/rooms/arena/map lists, each player's entities in that player's colour.
-  // Clicked inside the page: the poll rebuilds the cards every second, so a puppeteer click
-  // (find, then move the mouse, then press) can land on a card just replaced.
-  const press = (sel) => page.$eval(sel, (b) => b.click());
   await press('[data-room="lobby"] button.map-toggle');
   await page.waitForSelector('[data-room="lobby"] canvas.room-map', { timeout: 5000 });
   if (await page.$('[data-room="arena"] canvas.room-map')) throw new Error("two rooms mapped at once");
@@ -197,20 +205,27 @@ try {
   // Leaves: player 32 by himself, player 12 kicked.
   await playerGone("lobby", 32);
   // The kick button of player 12's row.
-  await page.click('[data-room="arena"] tr[data-player="12"] button.kick');
+  // Held over a poll: while the mouse button is down the page keeps the card, so the release
+  // lands on the button pressed and the click counts.
+  const kickAt = await until("the kick button's box", async () =>
+    (await page.$('[data-room="arena"] tr[data-player="12"] button.kick'))?.boundingBox(), 5000);
+  await page.mouse.move(kickAt.x + kickAt.width / 2, kickAt.y + kickAt.height / 2);
+  await page.mouse.down();
+  await sleep(1600);
+  await page.mouse.up();
   await playerGone("arena", 12);
   await until("player 12 disconnected kicked", async () => /disconnected 4 /.test(readLog(children.find((c) => c.log.endsWith("client-12.log")))));
   await playerShown("arena", 11);
   step("players 32 (left) and 12 (kicked) gone");
   // The close button of room lobby.
-  await page.click('[data-room="lobby"] button.close');
+  await press('[data-room="lobby"] button.close');
   await roomGone("lobby");
   await roomShown("arena");
   const rooms = await api("GET", "/v1/rooms");
   if (rooms.rooms.some((r) => r.id === "lobby")) throw new Error("lobby still open after close");
   step("room lobby closed by its button");
   // The drain button: the relay drains.
-  await page.click("#drain");
+  await press("#drain");
   await page.waitForFunction(() => document.getElementById("state").textContent === "draining", { timeout: 10000 });
   if ((await api("GET", "/v1/rooms")).draining !== true) throw new Error("drain button: relay not draining");
   step("relay draining after the drain button");
