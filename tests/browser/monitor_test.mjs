@@ -1,7 +1,8 @@
 // The relay's monitor page (GET /monitor) in a real headless Chromium, driven by
 // puppeteer-core: a real edgephys-relay process, rooms created and closed over the admin
 // API, real SDK clients (admin_test_client) joining and leaving. The page must show every
-// room and player the test makes, and follow each change without a reload.
+// room and player the test makes, and follow each change without a reload; its room map must
+// list what GET /v1/rooms/{id}/map lists and draw each player's entities in its colour.
 //
 //   node monitor_test.mjs RELAY_BIN CLIENT_BIN [SCREENSHOT.png]
 //
