@@ -9,6 +9,7 @@
 // once; implementations must be safe for that (RelayAdmin marshals onto the relay's thread).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -38,6 +39,9 @@ class AdminBackend {
   virtual AdminReply ListRooms() = 0;
   // GET /v1/rooms/{id}: one room with its members and entity counts (404 room_not_found).
   virtual AdminReply GetRoom(const std::string& id) = 0;
+  // GET /v1/rooms/{id}/map: the room's entities with positions and kinds, at most `limit`
+  // (relay/admin/room_map.h; 404 room_not_found).
+  virtual AdminReply GetRoomMap(const std::string& id, size_t limit) = 0;
   // POST /v1/rooms: `request` is the parsed JSON body (validated here: 400 invalid_request).
   virtual AdminReply CreateRoom(const nlohmann::json& request) = 0;
   // DELETE /v1/rooms/{id}: members are disconnected with `reason`.

@@ -139,6 +139,7 @@ Result<std::unique_ptr<AdminHttpServer>> AdminHttpServer::Start(const AdminHttpO
       }
       AdminRequest request;
       for (size_t i = 1; i < req.matches.size(); ++i) request.params.push_back(req.matches[i]);
+      request.query.insert(req.params.begin(), req.params.end());
       if (req.body.empty()) {
         request.body = json::object();
       } else {

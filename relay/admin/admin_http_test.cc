@@ -21,6 +21,9 @@ class RecordingBackend final : public AdminBackend {
  public:
   AdminReply ListRooms() override { return Note("list", {{"rooms", json::array()}}); }
   AdminReply GetRoom(const std::string& id) override { return Note("get " + id, {}); }
+  AdminReply GetRoomMap(const std::string& id, size_t limit) override {
+    return Note("map " + id + " " + std::to_string(limit), {});
+  }
   AdminReply CreateRoom(const json& request) override { return Note("create " + request.dump(), {}); }
   AdminReply CloseRoom(const std::string& id, const std::string& reason) override {
     return Note("close " + id + " " + reason, {});
@@ -218,6 +221,66 @@ TEST_F(AdminHttpTest, WrongMethodGets405WithAllow) {
   EXPECT_EQ(post_health->status, 405);
   EXPECT_EQ(post_health->get_header_value("Allow"), "GET");
   EXPECT_EQ(client_->Put("/v1/none", Auth(), "{}", "application/json")->status, 404);
+}
+
+// The map route (GET /v1/rooms/{id}/map): the key, the method, the room id and the limit are
+// checked before the backend is asked; each refusal is a JSON error naming its cause.
+TEST_F(AdminHttpTest, MapRouteRefusesBadInputWithJsonErrors) {
+  auto no_key = client_->Get("/v1/rooms/x/map");
+  ASSERT_TRUE(no_key);
+  EXPECT_EQ(no_key->status, 401);
+  EXPECT_EQ(Code(no_key), "unauthorized");
+  EXPECT_EQ(client_->Get("/v1/rooms/x/map", Auth("wrong"))->status, 401);
+  EXPECT_EQ(backend_.last(), "");
+  for (auto* call : {+[](httplib::Client& c, const httplib::Headers& h) {
+                       return c.Post("/v1/rooms/x/map", h, "{}", "application/json");
+                     },
+                     +[](httplib::Client& c, const httplib::Headers& h) {
+                       return c.Delete("/v1/rooms/x/map", h);
+                     }}) {
+    auto r = call(*client_, Auth());
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 405);
+    EXPECT_EQ(Code(r), "method_not_allowed");
+    EXPECT_EQ(r->get_header_value("Allow"), "GET");
+  }
+  EXPECT_EQ(backend_.last(), "");
+
+  auto ok = client_->Get("/v1/rooms/x/map", Auth());
+  EXPECT_EQ(ok->status, 200);
+  EXPECT_EQ(backend_.last(), "map x 2000");
+  EXPECT_EQ(client_->Get("/v1/rooms/x/map?limit=5", Auth())->status, 200);
+  EXPECT_EQ(backend_.last(), "map x 5");
+
+  // A 65-byte id is refused on every room route; 64 bytes is a room id.
+  const std::string long_id(65, 'r');
+  for (const std::string& path : {"/v1/rooms/" + long_id + "/map", "/v1/rooms/" + long_id}) {
+    auto r = client_->Get(path, Auth());
+    EXPECT_EQ(r->status, 400) << path;
+    EXPECT_EQ(Code(r), "invalid_request") << path;
+    EXPECT_NE(r->body.find("1..64 bytes"), std::string::npos) << r->body;
+  }
+  EXPECT_EQ(client_->Delete("/v1/rooms/" + long_id, Auth())->status, 400);
+  EXPECT_EQ(client_->Post("/v1/rooms/" + long_id + "/members/7/kick", Auth(), "{}",
+                          "application/json")->status, 400);
+  EXPECT_EQ(backend_.last(), "map x 5");
+  EXPECT_EQ(client_->Get("/v1/rooms/" + std::string(64, 'r') + "/map", Auth())->status, 200);
+  EXPECT_EQ(backend_.last(), "map " + std::string(64, 'r') + " 2000");
+
+  // Odd bytes reach the backend decoded (join tokens may name rooms with any bytes), and the
+  // answer stays JSON.
+  auto odd = client_->Get("/v1/rooms/a%20%C3%A9%FF%01b/map", Auth());
+  EXPECT_EQ(odd->status, 200);
+  EXPECT_EQ(backend_.last(), std::string("map a \xC3\xA9\xFF\x01") + "b 2000");
+
+  for (const char* query : {"limit=0", "limit=-1", "limit=abc", "limit=2001", "limit=1e3",
+                            "limit=", "limit=99999999999", "limit=5&limit=6", "level=3"}) {
+    auto r = client_->Get(std::string("/v1/rooms/x/map?") + query, Auth());
+    ASSERT_TRUE(r) << query;
+    EXPECT_EQ(r->status, 400) << query;
+    EXPECT_EQ(Code(r), "invalid_request") << query;
+  }
+  EXPECT_EQ(backend_.last(), std::string("map a \xC3\xA9\xFF\x01") + "b 2000");
 }
 
 TEST(AdminHttpStartTest, RefusesAnOpenAddressWithoutAKey) {

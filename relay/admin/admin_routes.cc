@@ -5,7 +5,9 @@
 #include <cstdlib>
 #include <set>
 
+#include "protocol/join_token.h"
 #include "relay/admin/monitor_page.h"
+#include "relay/admin/room_map.h"
 
 namespace edgephys::admin {
 namespace {
@@ -52,6 +54,42 @@ bool ParsePlayerId(const std::string& text, uint32_t* out) {
   return true;
 }
 
+// A room id from the path (admin_routes.h): 1..kMaxRoomNameSize bytes.
+bool CheckRoomId(const std::string& id, AdminReply* error) {
+  if (!id.empty() && id.size() <= kMaxRoomNameSize) return true;
+  *error = AdminError(400, "invalid_request",
+                      "the room id must be 1.." + std::to_string(kMaxRoomNameSize) +
+                          " bytes (it has " + std::to_string(id.size()) + ")");
+  return false;
+}
+
+// GET /v1/rooms/{id}/map?limit=N: N an integer in 1..kMaxMapEntities; no other parameter.
+bool ReadMapLimit(const std::multimap<std::string, std::string>& query, size_t* limit,
+                  AdminReply* error) {
+  const std::string range = "1.." + std::to_string(kMaxMapEntities);
+  *limit = kMaxMapEntities;
+  for (const auto& [name, value] : query) {
+    if (name != "limit") {
+      *error = AdminError(400, "invalid_request",
+                          "unknown query parameter '" + name + "' (allowed: limit)");
+      return false;
+    }
+    if (query.count("limit") > 1) {
+      *error = AdminError(400, "invalid_request", "'limit' given more than once");
+      return false;
+    }
+    bool digits = !value.empty() && value.size() <= 6;
+    for (char c : value) digits = digits && c >= '0' && c <= '9';
+    const unsigned long v = digits ? std::strtoul(value.c_str(), nullptr, 10) : 0;
+    if (v < 1 || v > kMaxMapEntities) {
+      *error = AdminError(400, "invalid_request", "'limit' must be an integer in " + range);
+      return false;
+    }
+    *limit = v;
+  }
+  return true;
+}
+
 }  // namespace
 
 std::vector<AdminRoute> AdminRoutes(AdminBackend& b) {
@@ -67,21 +105,32 @@ std::vector<AdminRoute> AdminRoutes(AdminBackend& b) {
 
   add(Method::kGet, "/v1/rooms", true, [&b](const AdminRequest&) { return b.ListRooms(); });
   add(Method::kPost, "/v1/rooms", true, [&b](const AdminRequest& r) { return b.CreateRoom(r.body); });
-  add(Method::kGet, "/v1/rooms/([^/]+)", true,
-      [&b](const AdminRequest& r) { return b.GetRoom(r.params[0]); });
+  add(Method::kGet, "/v1/rooms/([^/]+)", true, [&b](const AdminRequest& r) {
+    AdminReply error;
+    if (!CheckRoomId(r.params[0], &error)) return error;
+    return b.GetRoom(r.params[0]);
+  });
+  add(Method::kGet, "/v1/rooms/([^/]+)/map", true, [&b](const AdminRequest& r) {
+    AdminReply error;
+    size_t limit = 0;
+    if (!CheckRoomId(r.params[0], &error) || !ReadMapLimit(r.query, &limit, &error)) return error;
+    return b.GetRoomMap(r.params[0], limit);
+  });
   add(Method::kDelete, "/v1/rooms/([^/]+)", true, [&b](const AdminRequest& r) {
     std::string reason;
     AdminReply error;
+    if (!CheckRoomId(r.params[0], &error)) return error;
     if (!ReadReason(r.body, "the room was closed by the operator", &reason, &error)) return error;
     return b.CloseRoom(r.params[0], reason);
   });
   add(Method::kPost, "/v1/rooms/([^/]+)/members/([^/]+)/kick", true, [&b](const AdminRequest& r) {
+    AdminReply error;
+    if (!CheckRoomId(r.params[0], &error)) return error;
     uint32_t player = 0;
     if (!ParsePlayerId(r.params[1], &player)) {
       return AdminError(400, "invalid_request", "the player id must be an integer in 1..4294967295");
     }
     std::string reason;
-    AdminReply error;
     if (!ReadReason(r.body, "kicked by the operator", &reason, &error)) return error;
     return b.Kick(r.params[0], player, reason);
   });

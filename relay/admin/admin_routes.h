@@ -9,6 +9,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,7 @@ namespace edgephys::admin {
 struct AdminRequest {
   std::vector<std::string> params;  // the pattern's capture groups, URL-decoded
   nlohmann::json body;              // the parsed body (an object; {} when the body is empty)
+  std::multimap<std::string, std::string> query;  // the URL's query parameters, decoded
 };
 
 struct AdminRoute {
@@ -37,6 +39,10 @@ struct AdminRoute {
 
 // The table; the handlers call `backend`, which must outlive them.
 std::vector<AdminRoute> AdminRoutes(AdminBackend& backend);
+
+// A room id in a path is checked before the relay is asked: 1..kMaxRoomNameSize (64) bytes
+// once URL-decoded, else 400 invalid_request. Any byte is allowed otherwise (join tokens may
+// name rooms with any bytes); an id no room has gets 404 room_not_found.
 
 // Largest operator text (kick and close reasons), bytes; the relay sends it to clients.
 inline constexpr size_t kMaxReasonBytes = 256;

@@ -3,7 +3,9 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <memory>
 
+#include "relay/admin/room_map.h"
 #include "relay/admin/room_request.h"
 
 namespace edgephys::admin {
@@ -72,6 +74,21 @@ AdminReply RelayAdmin::GetRoom(const std::string& id) {
     r.body = std::move(*view);
     return r;
   });
+}
+
+AdminReply RelayAdmin::GetRoomMap(const std::string& id, size_t limit) {
+  // The relay's thread copies the entities; the JSON is built here, on the HTTP thread.
+  auto snapshot = std::make_shared<RoomMapSnapshot>();
+  AdminReply reply = OnRelay([this, id, limit, snapshot](double) {
+    auto it = relay_->rooms().find(id);
+    if (it == relay_->rooms().end()) {
+      return AdminError(404, "room_not_found", "no room '" + id + "' on this relay");
+    }
+    *snapshot = TakeRoomMap(it->second->room(), limit);
+    return AdminReply{};
+  });
+  if (reply.status == 200) reply.body = RoomMapJson(*snapshot);
+  return reply;
 }
 
 AdminReply RelayAdmin::CreateRoom(const json& request) {

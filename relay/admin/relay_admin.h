@@ -42,6 +42,7 @@ class RelayAdmin final : public AdminBackend {
   // --- AdminBackend (any thread) ---
   AdminReply ListRooms() override;
   AdminReply GetRoom(const std::string& id) override;
+  AdminReply GetRoomMap(const std::string& id, size_t limit) override;
   AdminReply CreateRoom(const nlohmann::json& request) override;
   AdminReply CloseRoom(const std::string& id, const std::string& reason) override;
   AdminReply Kick(const std::string& room, uint32_t player_id, const std::string& reason) override;

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # End-to-end test of the admin HTTP API (docs/admin-api.md) against a real edgephys-relay
 # process on loopback, with real SDK clients (admin_test_client) joined over UDP: every
-# endpoint, 401 on a missing or wrong key, bad JSON, unknown rooms, an oversized body (413),
+# endpoint (the room map with the clients' published positions), 401 on a missing or wrong
+# key, bad JSON, unknown rooms, an oversized body (413),
 # a kicked client seeing the operator's reason, /readyz 503 while draining, and the relay
 # exiting after the drain (at its deadline with a client left; at once when empty).
 # Usage: admin_api_test.sh path/to/edgephys-relay path/to/admin_test_client
@@ -128,6 +129,20 @@ expect 200 - GET /v1/rooms
 jq -e '.rooms[] | select(.id == "arena") | .players == 3 and .entities == 3 and .bytes_in_per_s > 0' \
   "$work/body" >/dev/null || fail "list with players: $(cat "$work/body")"
 jq -e '.clients == 3' "$work/body" >/dev/null || fail "clients count: $(cat "$work/body")"
+# The map: each client's entity where it publishes it (a unit circle at 1 m height).
+expect 200 - GET /v1/rooms/arena/map
+jq -e '.total == 3 and .listed == 3 and .truncated == false and .players == [11, 12, 13]
+       and ([.entities[].owner] | sort) == [11, 12, 13]
+       and all(.entities[]; .kind == "object" and .simulated == false and .y > 0.99 and .y < 1.01
+                            and (.x * .x + .z * .z) > 0.98 and (.x * .x + .z * .z) < 1.02)' \
+  "$work/body" >/dev/null || fail "map: $(cat "$work/body")"
+expect 200 - GET "/v1/rooms/arena/map?limit=1"
+jq -e '.listed == 1 and .total == 3 and .truncated == true' "$work/body" >/dev/null || fail "capped map: $(cat "$work/body")"
+expect 400 invalid_request GET "/v1/rooms/arena/map?limit=0"
+expect 404 room_not_found GET /v1/rooms/nowhere/map
+expect 400 invalid_request GET "/v1/rooms/$(printf 'x%.0s' $(seq 1 65))/map"
+expect 405 method_not_allowed POST /v1/rooms/arena/map '{}'
+expect 401 unauthorized GET /v1/rooms/arena/map "" ""
 
 # A room named by a join token with bytes that are not UTF-8: the JSON stays valid.
 start_client $'odd\xffname' 14

@@ -83,7 +83,8 @@ int main(int argc, char** argv) {
       if (id.ok()) entity = *id;
     }
     if (entity) {
-      float t = static_cast<float>(now());
+      // Round a unit circle at 1 m height; each player at its own phase, so players apart.
+      float t = static_cast<float>(now()) + 0.9f * static_cast<float>(player % 7);
       (void)client.PublishTransform(*entity, {std::sin(t), 1.0f, std::cos(t)}, {0, 0, 0, 1});
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));

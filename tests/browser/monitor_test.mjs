@@ -1,7 +1,8 @@
 // The relay's monitor page (GET /monitor) in a real headless Chromium, driven by
 // puppeteer-core: a real edgephys-relay process, rooms created and closed over the admin
 // API, real SDK clients (admin_test_client) joining and leaving. The page must show every
-// room and player the test makes, and follow each change without a reload.
+// room and player the test makes, and follow each change without a reload; its room map must
+// list what GET /v1/rooms/{id}/map lists and draw each player's entities in its colour.
 //
 //   node monitor_test.mjs RELAY_BIN CLIENT_BIN [SCREENSHOT.png]
 //
@@ -100,6 +101,17 @@ try {
   await page.evaluate(() => { window.__noReload = true; window.__noConfirm = true; });
   await page.waitForFunction(() => document.getElementById("state").textContent === "ready", { timeout: 10000 });
 
+  // A real mouse click on `sel`. The poll rebuilds the cards every second: puppeteer finds the
+  // button, then scrolls to it, then clicks, and a card replaced in between detaches the node
+  // it found; then it looks the button up again (at most 5 tries).
+  const press = async (sel) => {
+    for (let i = 0; ; ++i) {
+      try { return await page.click(sel); } catch (e) {
+        if (i >= 4 || !/detached|not clickable|No element/i.test(String(e.message))) throw e;
+        await sleep(50);
+      }
+    }
+  };
   const roomShown = (id) => page.waitForSelector(`[data-room="${id}"]`, { timeout: 10000 });
   const roomGone = (id) => page.waitForFunction((id) => !document.querySelector(`[data-room="${id}"]`),
                                                 { timeout: 10000 }, id);
@@ -146,6 +158,44 @@ try {
   await page.waitForFunction(() => [...document.querySelectorAll("[data-room]")].map((e) => e.dataset.room).join() === "arena,lobby",
                              { timeout: 5000 });
   step("search and sort");
+  // The map: arena (first by id) is mapped until another room is chosen; its canvas shows what
+  // GET /v1/rooms/arena/map lists, each player's entities in that player's colour.
+  await press('[data-room="lobby"] button.map-toggle');
+  await page.waitForSelector('[data-room="lobby"] canvas.room-map', { timeout: 5000 });
+  if (await page.$('[data-room="arena"] canvas.room-map')) throw new Error("two rooms mapped at once");
+  await press('[data-room="arena"] button.map-toggle');
+  await page.waitForSelector('[data-room="arena"] canvas.room-map[data-drawn]', { timeout: 5000 });
+  const apiMap = await api("GET", "/v1/rooms/arena/map");
+  if (apiMap.total !== 2 || apiMap.entities.some((e) => e.owner !== 11 && e.owner !== 12)) {
+    throw new Error("arena map from the API: " + JSON.stringify(apiMap));
+  }
+  const drawn = await page.waitForFunction((n) => {
+    const card = document.querySelector('[data-room="arena"]');
+    const c = card && card.querySelector("canvas.room-map");
+    if (!c || Number(c.dataset.drawn) !== n || Number(c.dataset.listed) !== n) return false;
+    // Each player's colour (its legend swatch) must cover a marker's worth of pixels; the
+    // grid, background and the room's and PhyS's marks are grey.
+    const { data } = c.getContext("2d").getImageData(0, 0, c.width, c.height);
+    const perPlayer = {};
+    for (const item of card.querySelectorAll("[data-legend-player]")) {
+      const rgb = getComputedStyle(item.querySelector("i")).backgroundColor.match(/\d+/g).map(Number);
+      let count = 0;
+      for (let i = 0; i < data.length; i += 4) {
+        if (Math.abs(data[i] - rgb[0]) + Math.abs(data[i + 1] - rgb[1]) + Math.abs(data[i + 2] - rgb[2]) < 24) ++count;
+      }
+      perPlayer[item.dataset.legendPlayer] = count;
+    }
+    const counts = Object.values(perPlayer);
+    return counts.length === 2 && counts.every((k) => k >= 40) ? perPlayer : false;
+  }, { timeout: 10000 }, apiMap.total);
+  const mapInfo = await drawn.jsonValue();
+  const legend = await page.$$eval('[data-room="arena"] [data-legend-player]', (els) => els.map((e) => e.textContent));
+  if (legend.length !== 2 || !/player 11 \(1\)/.test(legend[0]) || !/player 12 \(1\)/.test(legend[1])) {
+    throw new Error("map legend: " + JSON.stringify(legend));
+  }
+  const countText = await page.$eval('[data-room="arena"] .map-count', (e) => e.textContent);
+  if (!/2 entities/.test(countText) || !/grid \d+ (m|cm)/.test(countText)) throw new Error("map caption: " + countText);
+  step("map drawn: " + JSON.stringify(mapInfo) + "; " + countText);
   await sleep(1500);
   if (screenshot) await page.screenshot({ path: screenshot, fullPage: true });
   const text = await page.$eval('[data-room="arena"]', (e) => e.textContent);
@@ -156,20 +206,27 @@ try {
   // Leaves: player 32 by himself, player 12 kicked.
   await playerGone("lobby", 32);
   // The kick button of player 12's row.
-  await page.click('[data-room="arena"] tr[data-player="12"] button.kick');
+  // Held over a poll: while the mouse button is down the page keeps the card, so the release
+  // lands on the button pressed and the click counts.
+  const kickAt = await until("the kick button's box", async () =>
+    (await page.$('[data-room="arena"] tr[data-player="12"] button.kick'))?.boundingBox(), 5000);
+  await page.mouse.move(kickAt.x + kickAt.width / 2, kickAt.y + kickAt.height / 2);
+  await page.mouse.down();
+  await sleep(1600);
+  await page.mouse.up();
   await playerGone("arena", 12);
   await until("player 12 disconnected kicked", async () => /disconnected 4 /.test(readLog(children.find((c) => c.log.endsWith("client-12.log")))));
   await playerShown("arena", 11);
   step("players 32 (left) and 12 (kicked) gone");
   // The close button of room lobby.
-  await page.click('[data-room="lobby"] button.close');
+  await press('[data-room="lobby"] button.close');
   await roomGone("lobby");
   await roomShown("arena");
   const rooms = await api("GET", "/v1/rooms");
   if (rooms.rooms.some((r) => r.id === "lobby")) throw new Error("lobby still open after close");
   step("room lobby closed by its button");
   // The drain button: the relay drains.
-  await page.click("#drain");
+  await press("#drain");
   await page.waitForFunction(() => document.getElementById("state").textContent === "draining", { timeout: 10000 });
   if ((await api("GET", "/v1/rooms")).draining !== true) throw new Error("drain button: relay not draining");
   step("relay draining after the drain button");
