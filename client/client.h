@@ -313,14 +313,28 @@ class Client final {
   // kResourceExhausted when the reliable queue is full.
   //
   // Asks for `entity_id` (known to this client): granted at once when the room owns it or its
-  // owner allows takeover. kNotFound for an entity this client does not know.
+  // owner allows takeover; an entity PhyS simulates is reclaimed (see ReleaseOwnership) unless
+  // a hand holds it or it is a soft body (TakeoverRefused). kNotFound for an entity this client
+  // does not know.
   Status RequestOwnership(uint32_t entity_id);
   // Gives an entity this client owns to `player_id`, a member of the room. kNotFound if not
   // owned; kInvalidArgument for player 0 or this player.
   Status HandOver(uint32_t entity_id, uint32_t player_id);
   // Gives an entity this client owns to the room (owner 0); anyone may then request it. It
-  // stays in the room when this player leaves. kNotFound if not owned.
-  Status ReleaseOwnership(uint32_t entity_id);
+  // stays in the room when this player leaves. A body this client simulates locally with a
+  // dynamic rigid body (spawned without the Offloaded flag, so PhyS mirrors it) is offloaded:
+  // PhyS simulates it from then on, starting from its latest state with `linear` (m/s) and
+  // `angular` (rad/s, room frame) velocity, without a despawn; OnOwnershipChanged reports owner
+  // 0, and its states come from PhyS. Requesting it back (RequestOwnership) reclaims it: the
+  // requester's local physics starts from PhyS's pose and velocities (OwnedMotion).
+  // kNotFound if not owned; kInvalidArgument for a non-finite velocity (the relay refuses
+  // speeds over 1,000 with InvalidMessage).
+  Status ReleaseOwnership(uint32_t entity_id, const Vec3f& linear = {}, const Vec3f& angular = {});
+  // An owned entity's pose as last published and, for an entity just gained from PhyS, the
+  // pose and velocities PhyS had at the change (m/s, rad/s; 0 for others): where the game's
+  // local physics continues from. Null outputs are skipped. kNotFound if not owned.
+  Status OwnedMotion(uint32_t entity_id, EntityState* state, Vec3f* linear = nullptr,
+                     Vec3f* angular = nullptr) const;
   // Lets others take an entity this client owns by RequestOwnership (true) or not (false, the
   // default at spawn). The setting stays with the entity across changes of owner. kNotFound if
   // not owned.

@@ -141,11 +141,16 @@ class RoomHost {
   // authority_seq, rewrites the owner in its stored spawn (late joiners) and sends
   // OwnershipChanged to every member; from then on the previous owner's states are dropped and
   // counted (ApplyStates). A Request by the current owner is answered with OwnershipChanged to
-  // it alone. Refused (Error on `link`, counted in requests_rejected and
+  // it alone. Physics switches without a despawn (SwitchPhysics): a Release of a body its owner
+  // simulates locally (mirrored, dynamic rigid body) hands it to PhyS at its pose and the
+  // request's velocities; a Request of a PhyS-simulated body (not held, not soft) makes it the
+  // requester's, kinematic in PhyS, and the OwnershipChanged carries PhyS's pose and velocities. Refused (Error on `link`, counted in requests_rejected and
   // ownership_stats().refused): over the player's request rate (RateLimited); an unknown action
   // (InvalidMessage); a join token without kPermissionSpawn, the sender's or a HandOver
   // receiver's (NotPermitted); an entity the room does not hold (UnknownEntity); a Request of
-  // an entity PhyS simulates or whose owner forbids takeover (TakeoverRefused); HandOver,
+  // an entity PhyS simulates that a hand holds or that is a soft body, or whose owner forbids
+  // takeover (TakeoverRefused); a Release with velocities not finite or over 1,000
+  // (InvalidMessage); HandOver,
   // Release or SetTakeover by another than the owner (NotOwner); a HandOver to a player not
   // in the room (UnknownPlayer) or to the owner itself (InvalidMessage). O(members).
   void Ownership(MemberLink& link, const schema::OwnershipRequest& request, double now);
@@ -206,8 +211,15 @@ class RoomHost {
   void SendJoinOwnership(uint32_t player_id);
   // Makes `owner` (0: the room) the owner of `e`: bumps its authority_seq, records the former
   // owner, rewrites its stored spawn and tells every member.
-  // `except_player` (0: none) is not told (a leaving owner).
-  void ChangeOwner(Entity& e, uint32_t owner, uint32_t except_player = 0);
+  // `except_player` (0: none) is not told (a leaving owner). With `motion`, the message carries
+  // the entity's velocities (a switch between local physics and PhyS).
+  void ChangeOwner(Entity& e, uint32_t owner, uint32_t except_player = 0, bool motion = false);
+  // Rebuilds `e` in PhyS in `role` at its pose without a despawn: kSimulated (offload: PhyS
+  // simulates it from `linear`/`angular`, m/s and rad/s) or kMirrored (reclaim: kinematic,
+  // driven by its new owner). Records the velocities in the entity. False (nothing changed)
+  // without PhyS, in that role already, or when PhyS refuses the body.
+  bool SwitchPhysics(Entity& e, PhysicsRole role, const Vec3f& linear, const Vec3f& angular,
+                     double now);
   // Sends what fits of the join streams (all members, or `only`); drops finished ones.
   void PumpJoinStreams(uint32_t only = 0);
 

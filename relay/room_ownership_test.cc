@@ -186,16 +186,81 @@ TEST_F(RoomOwnershipTest, HostileRequestsAreRefusedAndCounted) {
   EXPECT_EQ(Find(id)->authority_seq, 0u);
   EXPECT_TRUE(b.Of(Body::OwnershipChanged).empty());
   EXPECT_EQ(host_->ownership_stats().refused, 10u);
+}
 
-  // PhyS-simulated entities are taken by grabbing, not by request.
-  EntitySpec ball = DynamicBox(Base(a) + 2, {0, 1, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
-  ball.owner = 1;
-  ball.flags = kOffloaded;
-  Spawn(a, ball);
-  ASSERT_NE(Find(ball.id), nullptr);
-  ASSERT_EQ(Find(ball.id)->owner, 0u);
-  Ask(b, ball.id, OwnershipAction::Request);
-  EXPECT_TRUE(b.HasError(RejectReason::TakeoverRefused, ball.id));
+// A body its owner simulates locally (mirrored in PhyS) is offloaded on release, at its pose and
+// the owner's velocities, and reclaimed by a request, at PhyS's pose and velocities; no despawn.
+TEST_F(RoomOwnershipTest, ReleaseOffloadsADynamicBodyToPhySAndARequestReclaimsIt) {
+  RecordingMember a(1), b(2);
+  ASSERT_TRUE(host_->Join(a, 0));
+  ASSERT_TRUE(host_->Join(b, 0));
+  EntitySpec box = DynamicBox(Base(a) + 1, {0, 1, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
+  box.owner = 1;  // not Offloaded: A simulates it, PhyS mirrors it
+  Spawn(a, box);
+  const uint32_t id = box.id;
+  ASSERT_EQ(Find(id)->physics, PhysicsRole::kMirrored);
+  ScriptedPhysics& phys = *placement_.links.at(0);
+  Move(a, id, 2);
+  const auto release = [&](RecordingMember& m, Vec3f linear, Vec3f angular) {
+    flatbuffers::FlatBufferBuilder fbb(96);
+    const schema::Vec3 lin(linear.x, linear.y, linear.z), ang(angular.x, angular.y, angular.z);
+    FinishControl(fbb, schema::CreateOwnershipRequest(fbb, id, OwnershipAction::Release, 0, false,
+                                                      &lin, &ang));
+    host_->Ownership(m, *schema::GetControlMessage(fbb.GetBufferPointer())->body_as_OwnershipRequest(),
+                     3.0);
+  };
+  release(a, {std::nanf(""), 0, 0}, {});
+  EXPECT_TRUE(a.HasError(RejectReason::InvalidMessage, id));
+  release(a, {1e6f, 0, 0}, {});
+  EXPECT_EQ(a.errors.size(), 2u);
+  EXPECT_EQ(Find(id)->owner, 1u);
+  release(a, {1, 0, 0.5f}, {0, 2, 0});
+  ASSERT_EQ(a.errors.size(), 2u);
+  EXPECT_EQ(Find(id)->owner, 0u);
+  EXPECT_EQ(Find(id)->physics, PhysicsRole::kSimulated);
+  EXPECT_EQ(phys.removed, std::vector<uint32_t>{id});
+  ASSERT_FALSE(phys.added.empty());
+  EXPECT_EQ(phys.added.back(), std::make_pair(id, PhysicsRole::kSimulated));
+  EXPECT_EQ(phys.restored_state.at(id).position.x, 2.f);
+  EXPECT_EQ(phys.restored_linear.at(id).z, 0.5f);
+  const auto* off = LastChange(b);
+  ASSERT_NE(off, nullptr);
+  EXPECT_TRUE(off->simulated());
+  EXPECT_EQ(off->owner(), 0u);
+  EXPECT_EQ(off->pose()->position().x(), 2.f);
+  EXPECT_EQ(off->linear_velocity()->x(), 1.f);
+  EXPECT_EQ(off->angular_velocity()->y(), 2.f);
+  EXPECT_TRUE(b.Of(Body::Despawn).empty());
+  // PhyS moves it; B reclaims it where PhyS has it, with PhyS's velocities.
+  PhysicsLink::StepOutput out;
+  out.moved.push_back({{id, {2.5f, 1, 1}, {0, 0, 0, 1}}, {1, 0, 0.5f}, {0, 2, 0}});
+  host_->ApplyPhysics(out, 3.5);
+  EXPECT_EQ(Find(id)->state.position.x, 2.5f);
+  Ask(b, id, OwnershipAction::Request, 0, false, 4.0);
+  ASSERT_TRUE(b.errors.empty());
+  EXPECT_EQ(Find(id)->owner, 2u);
+  EXPECT_EQ(Find(id)->physics, PhysicsRole::kMirrored);
+  EXPECT_EQ(phys.added.back(), std::make_pair(id, PhysicsRole::kMirrored));
+  EXPECT_EQ(phys.driven.at(id).position.x, 2.5f);
+  const auto* back = LastChange(a);
+  EXPECT_FALSE(back->simulated());
+  EXPECT_EQ(back->owner(), 2u);
+  EXPECT_EQ(back->authority_seq(), 2u);
+  EXPECT_EQ(back->pose()->position().x(), 2.5f);
+  EXPECT_EQ(back->linear_velocity()->z(), 0.5f);
+  // PhyS's output for it no longer counts; B's states drive it.
+  out.moved[0].state.position.x = 9;
+  host_->ApplyPhysics(out, 4.5);
+  EXPECT_EQ(Find(id)->state.position.x, 2.5f);
+  Move(b, id, 3);
+  EXPECT_EQ(Find(id)->state.position.x, 3.f);
+  EXPECT_EQ(phys.driven.at(id).position.x, 3.f);
+  // A body PhyS does not simulate with physics of its own is released as before.
+  const uint32_t plain = Base(b) + 1;
+  Spawn(b, LocalBox(plain, 2));
+  Ask(b, plain, OwnershipAction::Release);
+  EXPECT_EQ(Find(plain)->physics, PhysicsRole::kNone);
+  EXPECT_FALSE(LastChange(a)->simulated());
 }
 
 TEST_F(RoomOwnershipTest, RequestsOverTheRateAreRefused) {
