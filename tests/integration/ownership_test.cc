@@ -5,12 +5,14 @@
 // duplication and reordering; hostile requests are refused and counted.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
 
 #include "client/client_testing.h"
+#include "protocol/container_builder.h"
 #include "relay/room_host.h"
 #include "tests/integration/property_inbox.h"
 #include "tests/integration/sim_world.h"
@@ -210,6 +212,103 @@ TEST(Ownership, RequestsTakeoverReleaseAndLateJoinersUnderLoss) {
            Near(d.FindEntity(*tool)->state.position.x, 0.25f);
   }, 10.0));
   EXPECT_EQ(world.relay().rooms().at("own2")->ownership_stats().changes, 4u);
+}
+
+Quatf AboutY(float angle) { return {0, std::sin(angle / 2), 0, std::cos(angle / 2)}; }
+Quatf Mul(const Quatf& a, const Quatf& b) {
+  return {a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y, a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+          a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w, a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z};
+}
+double AngleDeg(const Quatf& a, const Quatf& b) {
+  const double dot = std::fabs(double(a.x) * b.x + double(a.y) * b.y + double(a.z) * b.z +
+                               double(a.w) * b.w);
+  return 2 * std::acos(std::min(1.0, dot)) * 180 / 3.14159265358979;
+}
+// Whether `s` lies on the uniform motion from `from` at `v` (m/s) turning at `w_y` (rad/s about
+// y): within 1 mm of the line and 0.1 degree of the rotation, at some time 0 < t < 2 s.
+::testing::AssertionResult OnMotion(const EntityState& from, const Vec3f& v, float w_y,
+                                    const EntityState& s) {
+  const Vec3f d{s.position.x - from.position.x, s.position.y - from.position.y,
+                s.position.z - from.position.z};
+  const double vv = double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
+  const double t = (d.x * v.x + d.y * v.y + d.z * v.z) / vv;
+  const double rx = d.x - v.x * t, ry = d.y - v.y * t, rz = d.z - v.z * t;
+  const double off = std::sqrt(rx * rx + ry * ry + rz * rz);
+  const double angle = AngleDeg(Mul(AboutY(static_cast<float>(w_y * t)), from.rotation), s.rotation);
+  if (t <= 0 || t > 2 || off > 0.001 || angle > 0.1) {
+    return ::testing::AssertionFailure() << "t " << t << " s, " << off * 1000
+                                         << " mm off the line, " << angle << " deg off the turn";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// Real Bullet (embedded PhyS): a body A simulates locally (mirrored in PhyS) is released to the
+// room and PhyS carries on with it from A's last pose at A's velocities; B then requests it
+// and gets PhyS's pose and velocities to carry on locally. No despawn; within 1 mm and
+// 0.1 degree of the motion at both switches.
+TEST(Ownership, ReleaseOffloadsToPhySAndARequestReclaimsKeepingPoseAndVelocity) {
+  SimWorld world;
+  OwnershipInbox ia, ib;
+  Client& a = world.AddClient(MintToken("switch", 1), &ia);
+  Client& b = world.AddClient(MintToken("switch", 2), &ib);
+  JoinAll(world, {&a, &b}, "switch");
+  EntitySpec box = DynamicBox(0, {0, 5, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
+  box.rigid_body->use_gravity = false;
+  Result<uint32_t> id = a.Spawn(box);
+  ASSERT_TRUE(id.ok());
+  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*id) != nullptr; }, 5.0));
+  ASSERT_EQ(RelayEntity(world, "switch", *id)->physics, PhysicsRole::kMirrored);
+  const Vec3f v{1, 0, 0.5f};
+  const float w_y = 1.0f;
+  // A's local physics: uniform motion, published every step.
+  Vec3f p{0, 5, 0};
+  Quatf q = AboutY(0);
+  for (int i = 1; i <= 60; ++i) {
+    p = {p.x + v.x * 0.005f, p.y, p.z + v.z * 0.005f};
+    q = AboutY(w_y * 0.005f * i);
+    ASSERT_TRUE(a.PublishTransform(*id, p, q).ok());
+    world.Step();
+  }
+  ASSERT_TRUE(world.RunUntil([&] { return RelayEntity(world, "switch", *id)->state.position.x == p.x; }, 2.0));
+  const EntityState released = RelayEntity(world, "switch", *id)->state;
+  ASSERT_TRUE(a.ReleaseOwnership(*id, v, {0, w_y, 0}).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    const Entity* e = RelayEntity(world, "switch", *id);
+    return e->physics == PhysicsRole::kSimulated && e->state.position.x != released.position.x;
+  }, 5.0));
+  const Entity* e = RelayEntity(world, "switch", *id);
+  EXPECT_EQ(e->owner, 0u);
+  EXPECT_TRUE(OnMotion(released, v, w_y, e->state));
+  EXPECT_NEAR(e->linear_velocity.x, v.x, 0.001);
+  EXPECT_NEAR(e->linear_velocity.y, 0, 0.001);
+  EXPECT_NEAR(e->linear_velocity.z, v.z, 0.001);
+  EXPECT_NEAR(e->angular_velocity.y, w_y, 0.1 * 3.14159265 / 180);
+  EXPECT_FALSE(a.Owns(*id));
+  ASSERT_TRUE(world.RunUntil([&] { return ia.owner_changes.size() == 1 && ib.owner_changes.size() == 1; }, 2.0));
+  EXPECT_EQ(ib.owner_changes[0].owner, 0u);
+  // Let PhyS carry it a while; then B takes it back.
+  world.RunFor(0.3);
+  ASSERT_TRUE(b.RequestOwnership(*id).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return b.Owns(*id); }, 5.0));
+  EntityState gained;
+  Vec3f linear, angular;
+  ASSERT_TRUE(b.OwnedMotion(*id, &gained, &linear, &angular).ok());
+  e = RelayEntity(world, "switch", *id);
+  EXPECT_EQ(e->physics, PhysicsRole::kMirrored);
+  EXPECT_EQ(e->owner, 2u);
+  EXPECT_TRUE(OnMotion(released, v, w_y, gained));  // where PhyS had carried it
+  EXPECT_EQ(gained.position.x, e->state.position.x);  // exactly the relay's pose at the change
+  EXPECT_NEAR(linear.x, v.x, 0.001);
+  EXPECT_NEAR(linear.z, v.z, 0.001);
+  EXPECT_NEAR(angular.y, w_y, 0.1 * 3.14159265 / 180);
+  EXPECT_TRUE(ia.errors.empty() && ib.errors.empty());
+  EXPECT_TRUE(ib.spawned.size() == 1);  // never despawned and spawned again
+  // B's local physics moves it on; the relay takes B's states.
+  ASSERT_TRUE(b.PublishTransform(*id, {gained.position.x + 0.01f, gained.position.y, gained.position.z},
+                                 gained.rotation).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    return RelayEntity(world, "switch", *id)->state.position.x == gained.position.x + 0.01f;
+  }, 2.0));
 }
 
 TEST(Ownership, HostileRequestsAreRefusedAndCounted) {
