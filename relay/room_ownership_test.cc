@@ -261,6 +261,12 @@ TEST_F(RoomOwnershipTest, ReleaseOffloadsADynamicBodyToPhySAndARequestReclaimsIt
   Ask(b, plain, OwnershipAction::Release);
   EXPECT_EQ(Find(plain)->physics, PhysicsRole::kNone);
   EXPECT_FALSE(LastChange(a)->simulated());
+  // Offloaded again, it is the room's: it stays when its creator leaves.
+  Ask(b, id, OwnershipAction::Release, 0, false, 5.0);
+  EXPECT_EQ(Find(id)->physics, PhysicsRole::kSimulated);
+  host_->Leave(a, 6.0);
+  ASSERT_NE(Find(id), nullptr);
+  EXPECT_EQ(Find(id)->owner, 0u);
 }
 
 TEST_F(RoomOwnershipTest, RequestsOverTheRateAreRefused) {

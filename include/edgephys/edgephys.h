@@ -562,8 +562,10 @@ EDGEPHYS_API edgephys_status edgephys_client_request_ownership(edgephys_client* 
  * if not owned; EDGEPHYS_E_INVALID_ARGUMENT for player 0 or this player. */
 EDGEPHYS_API edgephys_status edgephys_client_hand_over(edgephys_client* client, uint32_t entity_id,
                                                        uint32_t player_id);
-/* Gives an entity this client owns to the room (owner 0; it stays when this player leaves).
- * EDGEPHYS_E_NOT_FOUND if not owned. */
+/* Gives an entity this client owns to the room (owner 0; it stays when this player leaves). A
+ * dynamic body this client simulates locally (spawned without EDGEPHYS_FLAG_OFFLOADED) is handed
+ * to PhyS at its last published pose, at rest, without a despawn. EDGEPHYS_E_NOT_FOUND if not
+ * owned. */
 EDGEPHYS_API edgephys_status edgephys_client_release_ownership(edgephys_client* client,
                                                                uint32_t entity_id);
 /* Lets others take an entity this client owns by request (allowed 1) or not (0, the default);
