@@ -46,6 +46,33 @@ edgephys_status edgephys_client_release_ownership(edgephys_client* client, uint3
   return Call(client, entity_id, [&](edgephys::Client& c) { return c.ReleaseOwnership(entity_id); });
 }
 
+edgephys_status edgephys_client_offload(edgephys_client* client, uint32_t entity_id,
+                                        const edgephys_vec3* linear, const edgephys_vec3* angular) {
+  return Call(client, entity_id, [&](edgephys::Client& c) {
+    const edgephys::Vec3f lin = linear ? edgephys::Vec3f{linear->x, linear->y, linear->z}
+                                       : edgephys::Vec3f{};
+    const edgephys::Vec3f ang = angular ? edgephys::Vec3f{angular->x, angular->y, angular->z}
+                                        : edgephys::Vec3f{};
+    return c.ReleaseOwnership(entity_id, lin, ang);
+  });
+}
+
+edgephys_status edgephys_client_get_owned_motion(edgephys_client* client, uint32_t entity_id,
+                                                 edgephys_transform* out_pose,
+                                                 edgephys_vec3* out_linear,
+                                                 edgephys_vec3* out_angular) {
+  return Call(client, entity_id, [&](edgephys::Client& c) {
+    edgephys::EntityState state;
+    edgephys::Vec3f lin, ang;
+    edgephys::Status st = c.OwnedMotion(entity_id, &state, &lin, &ang);
+    if (!st.ok()) return st;
+    if (out_pose != nullptr) *out_pose = edgephys::capi::ToC(state);
+    if (out_linear != nullptr) *out_linear = {lin.x, lin.y, lin.z};
+    if (out_angular != nullptr) *out_angular = {ang.x, ang.y, ang.z};
+    return edgephys::Status::Ok();
+  });
+}
+
 edgephys_status edgephys_client_set_takeover_allowed(edgephys_client* client, uint32_t entity_id,
                                                      uint32_t allowed) {
   return Call(client, entity_id, [&](edgephys::Client& c) {

@@ -568,6 +568,21 @@ EDGEPHYS_API edgephys_status edgephys_client_hand_over(edgephys_client* client, 
  * owned. */
 EDGEPHYS_API edgephys_status edgephys_client_release_ownership(edgephys_client* client,
                                                                uint32_t entity_id);
+/* As edgephys_client_release_ownership, for a body this client simulates locally: PhyS carries
+ * on from its last published pose with these velocities (m/s and rad/s, room frame; NULL: 0).
+ * EDGEPHYS_E_INVALID_ARGUMENT for a non-finite one. */
+EDGEPHYS_API edgephys_status edgephys_client_offload(edgephys_client* client, uint32_t entity_id,
+                                                     const edgephys_vec3* linear,
+                                                     const edgephys_vec3* angular);
+/* An entity this client owns: its pose as last published or, just gained from PhyS (a request
+ * reclaims a PhyS-simulated body), PhyS's pose and velocities at the change, where this
+ * client's physics carries on (velocities 0 otherwise). NULL outputs are skipped.
+ * EDGEPHYS_E_NOT_FOUND if not owned. */
+EDGEPHYS_API edgephys_status edgephys_client_get_owned_motion(edgephys_client* client,
+                                                              uint32_t entity_id,
+                                                              edgephys_transform* out_pose,
+                                                              edgephys_vec3* out_linear,
+                                                              edgephys_vec3* out_angular);
 /* Lets others take an entity this client owns by request (allowed 1) or not (0, the default);
  * the setting stays with the entity across owners. EDGEPHYS_E_NOT_FOUND if not owned. */
 EDGEPHYS_API edgephys_status edgephys_client_set_takeover_allowed(edgephys_client* client,

@@ -135,6 +135,9 @@ class Client {
   edgephys_status ReleaseOwnership(uint32_t entity) {
     return edgephys_client_release_ownership(handle_, entity);
   }
+  edgephys_status Offload(uint32_t entity, const edgephys_vec3& linear, const edgephys_vec3& angular) {
+    return edgephys_client_offload(handle_, entity, &linear, &angular);
+  }
   edgephys_status SetTakeoverAllowed(uint32_t entity, bool allowed) {
     return edgephys_client_set_takeover_allowed(handle_, entity, allowed ? 1 : 0);
   }

@@ -1,8 +1,9 @@
 // Ownership through the C API and its C++ wrapper against a real relay on loopback UDP: a hand
 // over (OWNERSHIP_CHANGED to every member; the old owner can no longer publish, the new one
 // can, and others see its states), a refused request (ERROR with TakeoverRefused), a granted
-// one after takeover is allowed, release to the room, and bad arguments refused before
-// anything is sent.
+// one after takeover is allowed, release to the room, a locally simulated body offloaded to
+// PhyS with its velocity and reclaimed with PhyS's (edgephys_client_offload,
+// edgephys_client_get_owned_motion), and bad arguments refused before anything is sent.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -106,6 +107,41 @@ TEST(CApiOwnership, HandOverRequestTakeoverAndRelease) {
   EXPECT_EQ(mc.changes.back().code, 3u);
   EXPECT_EQ(mc.changes.back().player_id, 0u);
 
+  // A dynamic body A simulates locally (PhyS mirrors it): offloaded with its velocity, PhyS
+  // carries it on; C reclaims it and gets PhyS's pose and velocity.
+  edgephys_rigid_body body;
+  ASSERT_EQ(edgephys_rigid_body_init(&body), EDGEPHYS_OK);
+  body.use_gravity = 0;
+  edgephys_collider box;
+  ASSERT_EQ(edgephys_collider_init(&box), EDGEPHYS_OK);
+  box.half_extents = {0.1f, 0.1f, 0.1f};
+  edgephys_spawn_desc moving;
+  ASSERT_EQ(edgephys_spawn_desc_init(&moving), EDGEPHYS_OK);
+  moving.transform.position = {0, 5, 0};
+  moving.rigid_body = &body;
+  moving.colliders = &box;
+  moving.collider_count = 1;
+  const uint32_t ball = a.Spawn(moving);
+  ASSERT_NE(ball, 0u) << sdk::Client::LastError();
+  ASSERT_TRUE(pump([&] { return c.Owner(ball) == 1; }));
+  const edgephys_vec3 v{2.f, 0.f, 0.f};
+  const edgephys_vec3 bad{std::nanf(""), 0.f, 0.f};
+  EXPECT_EQ(edgephys_client_offload(a.handle(), ball, &bad, nullptr), EDGEPHYS_E_INVALID_ARGUMENT);
+  ASSERT_EQ(edgephys_client_offload(a.handle(), ball, &v, nullptr), EDGEPHYS_OK);
+  ASSERT_TRUE(pump([&] { return c.Owner(ball) == 0 && a.Owner(ball) == 0; }));
+  world.RunFor(0.2);
+  ASSERT_EQ(c.RequestOwnership(ball), EDGEPHYS_OK);
+  ASSERT_TRUE(pump([&] { return c.Owner(ball) == 3; }));
+  edgephys_transform pose;
+  edgephys_vec3 linear, angular;
+  ASSERT_EQ(edgephys_client_get_owned_motion(c.handle(), ball, &pose, &linear, &angular), EDGEPHYS_OK);
+  EXPECT_NEAR(linear.x, 2.f, 0.001f);
+  EXPECT_NEAR(linear.y, 0.f, 0.001f);
+  EXPECT_GT(pose.position.x, 0.1f);  // PhyS carried it along x
+  EXPECT_NEAR(pose.position.y, 5.f, 0.001f);
+  EXPECT_EQ(edgephys_client_get_owned_motion(a.handle(), ball, &pose, nullptr, nullptr),
+            EDGEPHYS_E_NOT_FOUND);
+
   // Bad arguments: refused before anything is sent.
   EXPECT_EQ(a.RequestOwnership(0), EDGEPHYS_E_INVALID_ARGUMENT);
   EXPECT_EQ(a.RequestOwnership(0xdeadbeef), EDGEPHYS_E_NOT_FOUND);
@@ -113,7 +149,7 @@ TEST(CApiOwnership, HandOverRequestTakeoverAndRelease) {
   EXPECT_EQ(edgephys_client_get_owner(a.handle(), id, nullptr), EDGEPHYS_E_INVALID_ARGUMENT);
   EXPECT_EQ(edgephys_client_hand_over(nullptr, id, 2), EDGEPHYS_E_INVALID_HANDLE);
   EXPECT_EQ(ma.errors.size(), 0u);
-  EXPECT_EQ(world.counters().ownership_changes.load(), 3u);
+  EXPECT_EQ(world.counters().ownership_changes.load(), 5u);
 }
 
 }  // namespace
