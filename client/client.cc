@@ -312,7 +312,11 @@ Result<uint32_t> Client::Impl::Spawn(const SpawnDesc& desc) {
     return id;
   }
   // The spawn carries the initial transform: version 1 needs no state packet.
-  owned_[id] = OwnedEntity{st, 1};
+  OwnedEntity owned;
+  owned.state = st;
+  owned.parent = desc.parent_id;
+  owned.flags = desc.flags;
+  owned_[id] = owned;
   tracker_.MarkAcked(id, 1);
   return id;
 }
@@ -591,6 +595,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
     }
     case schema::Body::PropertyChanged:
     case schema::Body::PropertyConflict: return OnPropertyMessage(*msg);
+    case schema::Body::OwnershipChanged: return OnOwnershipChanged(*msg->body_as_OwnershipChanged());
     case schema::Body::Disconnecting: {
       const auto* d = msg->body_as_Disconnecting();
       disconnect_detail_ = d->detail() ? d->detail()->str() : std::string();
@@ -679,7 +684,8 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     if (id - entity_id_base_ < kEntityIdBlock && owned_.count(id) != 0) continue;
     auto it = entities_.find(id);
     if (it == entities_.end()) {
-      if (despawned_.count(id) != 0) continue;
+      // Late states of an entity this client gained (outside its own block) are its own now.
+      if (despawned_.count(id) != 0 || owned_.count(id) != 0) continue;
       it = entities_.try_emplace(id).first;
       it->second.id = id;
     }

@@ -148,6 +148,10 @@ struct RemoteEntity {
   // ClientConfig::record_arrival_times (see there for the fallback when the OS gives none).
   double arrival_unix_s = 0;
   std::vector<Vec3f> nodes;    // soft body particles (PhyS-simulated soft bodies)
+  // Ownership: the authority sequence of the latest ownership change this client knows (0:
+  // none since the spawn), and whether its owner lets others take it (RequestOwnership).
+  uint32_t authority_seq = 0;
+  bool takeover_allowed = false;
 };
 
 // Callbacks, all optional. Called from Update() (or the call that caused them).
@@ -191,6 +195,16 @@ class ClientListener {
   // is now (version 0 and type kNone when it does not exist). Its PropertyChanged arrived
   // before, so properties() already holds it.
   virtual void OnPropertyConflict(const PropertyRecord& current) { (void)current; }
+  // Entity `entity_id` changed owner: `new_owner` is the player who owns it now (0: the room;
+  // this client's player_id(): it is this client's to publish from now on, and entities() no
+  // longer lists it; another player: this client no longer publishes it, and it is listed in
+  // entities() with its last published state). `authority_seq` rises by one per change of owner.
+  // Also called, once per such entity, for the changes a room made before this client joined
+  // (after the entity's spawn, whose owner is the current one already). In the order the relay
+  // made the changes; only for entities this client knows.
+  virtual void OnOwnershipChanged(uint32_t entity_id, uint32_t new_owner, uint32_t authority_seq) {
+    (void)entity_id, (void)new_owner, (void)authority_seq;
+  }
 };
 
 // A property's place: (entity id, 0 for the room; key).
@@ -286,6 +300,50 @@ class Client final {
   // Every property of the joined room, room properties first. An entity's properties go when it
   // is despawned; all go on leaving the room.
   const std::map<PropertyKey, PropertyRecord>& properties() const;
+
+  // Ownership (docs/protocol.md, "Ownership"). Every entity has one owner, whose transforms the
+  // relay accepts: a player, or the room (0). Changes take effect when the relay announces them
+  // (ClientListener::OnOwnershipChanged, to every member, this client included): a client
+  // keeps publishing an entity it hands over or releases until then, and the relay drops (and
+  // counts, edgephys_stale_owner_states_total) what it sends after. Refusals arrive as
+  // OnError(reason, entity_id, detail): TakeoverRefused (the owner forbids takeover, or PhyS
+  // simulates the entity: grab it instead), NotOwner, UnknownEntity, UnknownPlayer,
+  // NotPermitted (a join token without the Spawn permission, this player's or the receiver's),
+  // RateLimited. Each call sends one reliable message: kNotConnected before OnJoined,
+  // kResourceExhausted when the reliable queue is full.
+  //
+  // Asks for `entity_id` (known to this client): granted at once when the room owns it or its
+  // owner allows takeover; an entity PhyS simulates is reclaimed (see ReleaseOwnership) unless
+  // a hand holds it or it is a soft body (TakeoverRefused). kNotFound for an entity this client
+  // does not know.
+  Status RequestOwnership(uint32_t entity_id);
+  // Gives an entity this client owns to `player_id`, a member of the room. kNotFound if not
+  // owned; kInvalidArgument for player 0 or this player.
+  Status HandOver(uint32_t entity_id, uint32_t player_id);
+  // Gives an entity this client owns to the room (owner 0); anyone may then request it. It
+  // stays in the room when this player leaves. A body this client simulates locally with a
+  // dynamic rigid body (spawned without the Offloaded flag, so PhyS mirrors it) is offloaded:
+  // PhyS simulates it from then on, starting from its latest state with `linear` (m/s) and
+  // `angular` (rad/s, room frame) velocity, without a despawn; OnOwnershipChanged reports owner
+  // 0, and its states come from PhyS. Requesting it back (RequestOwnership) reclaims it: the
+  // requester's local physics starts from PhyS's pose and velocities (OwnedMotion).
+  // kNotFound if not owned; kInvalidArgument for a non-finite velocity (the relay refuses
+  // speeds over 1,000 with InvalidMessage).
+  Status ReleaseOwnership(uint32_t entity_id, const Vec3f& linear = {}, const Vec3f& angular = {});
+  // An owned entity's pose as last published and, for an entity just gained from PhyS, the
+  // pose and velocities PhyS had at the change (m/s, rad/s; 0 for others): where the game's
+  // local physics continues from. Null outputs are skipped. kNotFound if not owned.
+  Status OwnedMotion(uint32_t entity_id, EntityState* state, Vec3f* linear = nullptr,
+                     Vec3f* angular = nullptr) const;
+  // Lets others take an entity this client owns by RequestOwnership (true) or not (false, the
+  // default at spawn). The setting stays with the entity across changes of owner. kNotFound if
+  // not owned.
+  Status SetTakeoverAllowed(uint32_t entity_id, bool allowed);
+  // Whether this client owns (publishes) `entity_id`: its own spawns and entities it gained.
+  bool Owns(uint32_t entity_id) const;
+  // The owner of `entity_id` as this client knows it: player_id() for owned entities, 0 for the
+  // room's and for entities this client does not know.
+  uint32_t OwnerOf(uint32_t entity_id) const;
 
   // Records the latest transform of an owned entity; it goes out at the publish rate.
   // kNotFound if not owned, kInvalidArgument if not finite / not unit.

@@ -50,6 +50,16 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
                                  bool check_version, uint32_t expected_version);
   void OnPropertyMessage(const schema::ControlMessage& msg);
   void ForgetEntityProperties(uint32_t entity_id);
+  // Ownership (client/client_ownership.cc).
+  Status RequestOwnership(uint32_t entity_id);
+  Status HandOver(uint32_t entity_id, uint32_t player_id);
+  Status ReleaseOwnership(uint32_t entity_id, const Vec3f& linear, const Vec3f& angular);
+  Status SetTakeoverAllowed(uint32_t entity_id, bool allowed);
+  uint32_t OwnerOf(uint32_t entity_id) const;
+  Status SendOwnership(uint32_t entity_id, uint8_t action, uint32_t to_player,
+                       bool takeover_allowed, const Vec3f& linear = {},
+                       const Vec3f& angular = {});
+  void OnOwnershipChanged(const schema::OwnershipChanged& change);
   void Disconnect();
   const ConnectionStats* stats() const;
   const RemoteEntity* FindEntity(uint32_t id) const;
@@ -61,6 +71,13 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   struct OwnedEntity {
     EntityState state;
     uint32_t version = 1;
+    // As its Spawn said (kept for when the entity is handed to another player).
+    uint32_t parent = 0;
+    uint32_t flags = 0;
+    uint32_t authority_seq = 0;    // of the latest ownership change known
+    bool takeover_allowed = false;
+    // Velocities it had when this client gained it from PhyS (OwnedMotion); 0 otherwise.
+    Vec3f linear_velocity, angular_velocity;
   };
   void OnReliableMessage(std::span<const uint8_t> message) override;
   void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override;

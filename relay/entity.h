@@ -22,6 +22,12 @@ class MemberLink;
 struct Entity {
   uint32_t id = 0;
   uint32_t owner = 0;            // player id; 0 = the room or PhyS (see physics)
+  // Ownership changes (relay/room_ownership.cc): +1 per change of owner (0 at spawn); the
+  // owner before the latest change (0: none or the room), whose later states are stale; whether
+  // the owner lets other players take the entity at once (OwnershipAction::Request).
+  uint32_t authority_seq = 0;
+  uint32_t former_owner = 0;
+  bool takeover_allowed = false;
   uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones;
                                  // the room's budgets charge it `cost` until it is removed)
   uint32_t parent = 0;           // parent entity (Container.parent_id), 0: none

@@ -18,8 +18,8 @@
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. NotPermitted).
-inline constexpr size_t kRejectReasonCount = 21;
+// Number of RejectReason values in schema/control.fbs (None .. TakeoverRefused).
+inline constexpr size_t kRejectReasonCount = 22;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.
@@ -101,6 +101,12 @@ struct RelayCounters {
   // that lost (answered with PropertyConflict). Refused ones count in requests_rejected.
   Counter property_writes{0};
   Counter property_conflicts{0};
+  // Ownership (relay/room_ownership.cc): changes of an entity's owner (requests granted, hand
+  // overs, releases, a leaving owner's persistent entities passing to the room), and states
+  // dropped because their sender owned the entity before its latest change (late states of a
+  // previous owner; also counted in updates_rejected as not_owner).
+  Counter ownership_changes{0};
+  Counter stale_owner_states{0};
 
   // PhyS (embedded worlds, all rooms).
   Counter physics_steps{0};

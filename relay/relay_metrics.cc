@@ -227,6 +227,14 @@ const FamilySpec kFamilies[] = {
      "Property compare-and-set writes that expected another version (answered with the current "
      "value).",
      CounterSource{&C::property_conflicts}},
+    {"edgephys_ownership_changes_total",
+     "Changes of an entity's owner: requests granted, hand overs, releases, and a leaving "
+     "owner's persistent entities passing to the room.",
+     CounterSource{&C::ownership_changes}},
+    {"edgephys_stale_owner_states_total",
+     "Entity states dropped because their sender was the entity's owner before its latest "
+     "ownership change (also in edgephys_entity_updates_rejected_total{reason=\"not_owner\"}).",
+     CounterSource{&C::stale_owner_states}},
     {"edgephys_disconnects_total", "Connections ended, by reason.",
      ReasonCountersSource{CountersOf<&C::disconnects>, DisconnectLabels}},
     {"edgephys_rtt_seconds", "Connection round-trip time samples, in seconds.",

@@ -46,7 +46,9 @@ class Room {
   // Spawn sequence numbers continue after `seq` (restored entities keep theirs).
   void AdvanceSpawnSeq(uint64_t seq) { spawn_seq_ = std::max(spawn_seq_, seq); }
   // Removes a player. Its entities (those it owns, and PhyS-owned ones it created) are
-  // despawned (ids appended to `despawned`) unless Persistent, which pass to the room.
+  // despawned (ids appended to `despawned`) unless Persistent, which pass to the room. An
+  // entity released to the room by an ownership change (owner 0, authority_seq > 0; PhyS may
+  // simulate it) stays, whoever created it.
   void RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned);
   Member* FindMember(uint32_t player_id);
   const std::map<uint32_t, Member>& members() const { return members_; }

@@ -43,6 +43,9 @@ struct RoomBudgets {
   size_t max_property_bytes = 1u << 20;
   size_t max_property_value_bytes = 16u << 10;
   double property_writes_per_s_per_player = 120;
+  // Ownership requests (RoomHost::Ownership: requests, hand overs, releases, takeover
+  // settings) per second per player (sustained; bursts of 2 s allowed).
+  double ownership_requests_per_s_per_player = 60;
 
   // Every limit off (benchmarks that build large scenes on purpose).
   static RoomBudgets Unlimited() {
@@ -55,6 +58,7 @@ struct RoomBudgets {
     b.max_properties = 0;
     b.max_property_bytes = b.max_property_value_bytes = 0;
     b.property_writes_per_s_per_player = 0;
+    b.ownership_requests_per_s_per_player = 0;
     return b;
   }
 };

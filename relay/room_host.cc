@@ -93,6 +93,7 @@ bool RoomHost::Join(MemberLink& link, double now) {
   }
   SendJoinState(link, slot);
   SendJoinProperties(link.player_id());
+  SendJoinOwnership(link.player_id());
   flatbuffers::FlatBufferBuilder fbb(64);
   FinishControl(fbb, schema::CreatePlayerJoined(fbb, link.player_id()));
   BroadcastReliable({fbb.GetBufferPointer(), fbb.GetSize()}, link.player_id());
@@ -158,6 +159,16 @@ void RoomHost::Leave(MemberLink& link, double now) {
   const auto it = room_.members().find(link.player_id());
   if (it == room_.members().end() || it->second.link != &link) return;
   join_streams_.erase(link.player_id());
+  // Its Persistent entities pass to the room: an ownership change the others are told of (so
+  // the leaver's late states count as stale); the rest go below.
+  constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
+  std::vector<Entity*> to_room;
+  for (const auto& [id, e] : room_.entities()) {
+    if (e.owner == link.player_id() && (e.flags & kPersistent) != 0) {
+      to_room.push_back(room_.FindEntity(id));
+    }
+  }
+  for (Entity* e : to_room) ChangeOwner(*e, 0, link.player_id());
   std::vector<uint32_t> despawned;
   room_.RemoveMember(link.player_id(), &despawned);
   env_.counters->entities.fetch_sub(static_cast<int64_t>(despawned.size()),
@@ -340,6 +351,10 @@ void RoomHost::ApplyStates(MemberLink& link, std::span<const uint8_t> payload, d
       reject = DropReason::kUnknownEntity;
     } else if (e->owner != player) {
       reject = DropReason::kNotOwner;
+      if (e->former_owner == player && e->authority_seq != 0) {
+        ++ownership_stats_.stale;
+        RelayCounters::Inc(env_.counters->stale_owner_states);
+      }
     } else if (!IsValidState(st)) {
       reject = DropReason::kInvalidValue;
     }

@@ -133,9 +133,38 @@ class RoomHost {
   // join. O(properties).
   size_t RestoreProperties(std::vector<std::pair<PropertyTable::Key, StoredProperty>> properties);
 
+  // An ownership request from the member (docs/protocol.md, "Ownership";
+  // relay/room_ownership.cc). Request: granted at once (the sender becomes the owner) when the
+  // room owns the entity (owner 0) or its owner allows takeover. HandOver: the owner gives it to
+  // another member; Release: the owner gives it to the room; SetTakeover: the owner allows or
+  // forbids takeover (kept across changes of owner). Each change of owner bumps the entity's
+  // authority_seq, rewrites the owner in its stored spawn (late joiners) and sends
+  // OwnershipChanged to every member; from then on the previous owner's states are dropped and
+  // counted (ApplyStates). A Request by the current owner is answered with OwnershipChanged to
+  // it alone. Physics switches without a despawn (SwitchPhysics): a Release of a body its owner
+  // simulates locally (mirrored, dynamic rigid body) hands it to PhyS at its pose and the
+  // request's velocities; a Request of a PhyS-simulated body (not held, not soft) makes it the
+  // requester's, kinematic in PhyS, and the OwnershipChanged carries PhyS's pose and velocities. Refused (Error on `link`, counted in requests_rejected and
+  // ownership_stats().refused): over the player's request rate (RateLimited); an unknown action
+  // (InvalidMessage); a join token without kPermissionSpawn, the sender's or a HandOver
+  // receiver's (NotPermitted); an entity the room does not hold (UnknownEntity); a Request of
+  // an entity PhyS simulates that a hand holds or that is a soft body, or whose owner forbids
+  // takeover (TakeoverRefused); a Release with velocities not finite or over 1,000
+  // (InvalidMessage); HandOver,
+  // Release or SetTakeover by another than the owner (NotOwner); a HandOver to a player not
+  // in the room (UnknownPlayer) or to the owner itself (InvalidMessage). O(members).
+  void Ownership(MemberLink& link, const schema::OwnershipRequest& request, double now);
+  struct OwnershipStats {
+    uint64_t changes = 0;  // changes of owner
+    uint64_t refused = 0;  // requests refused (any reason)
+    uint64_t stale = 0;    // states of a previous owner dropped
+  };
+  const OwnershipStats& ownership_stats() const { return ownership_stats_; }
+
   // An unreliable state payload from the member: each state is applied if the member owns the
   // entity and it is valid (early states of its own unspawned entities are held, bounded).
-  // O(states).
+  // States of the entity's owner before its latest change are also counted as stale
+  // (ownership_stats().stale, RelayCounters::stale_owner_states). O(states).
   void ApplyStates(MemberLink& link, std::span<const uint8_t> payload, double now);
 
   // --- PhyS -------------------------------------------------------------------------------
@@ -177,6 +206,20 @@ class RoomHost {
   // Queues PropertyChanged for every property the room holds to a joining member (after its
   // join stream's spawns).
   void SendJoinProperties(uint32_t player_id);
+  // Queues OwnershipChanged to a joining member for every entity whose owner changed or that
+  // allows takeover (after its join stream's spawns).
+  void SendJoinOwnership(uint32_t player_id);
+  // Makes `owner` (0: the room) the owner of `e`: bumps its authority_seq, records the former
+  // owner, rewrites its stored spawn and tells every member.
+  // `except_player` (0: none) is not told (a leaving owner). With `motion`, the message carries
+  // the entity's velocities (a switch between local physics and PhyS).
+  void ChangeOwner(Entity& e, uint32_t owner, uint32_t except_player = 0, bool motion = false);
+  // Rebuilds `e` in PhyS in `role` at its pose without a despawn: kSimulated (offload: PhyS
+  // simulates it from `linear`/`angular`, m/s and rad/s) or kMirrored (reclaim: kinematic,
+  // driven by its new owner). Records the velocities in the entity. False (nothing changed)
+  // without PhyS, in that role already, or when PhyS refuses the body.
+  bool SwitchPhysics(Entity& e, PhysicsRole role, const Vec3f& linear, const Vec3f& angular,
+                     double now);
   // Sends what fits of the join streams (all members, or `only`); drops finished ones.
   void PumpJoinStreams(uint32_t only = 0);
 
@@ -196,6 +239,8 @@ class RoomHost {
   PropertyTable properties_;
   PropertyStats property_stats_;
   std::unordered_map<uint32_t, TokenBucket> property_rates_;  // per player identity
+  OwnershipStats ownership_stats_;
+  std::unordered_map<uint32_t, TokenBucket> ownership_rates_;  // per player identity
 };
 
 }  // namespace edgephys

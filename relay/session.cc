@@ -46,7 +46,8 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case Body::Grab:
     case Body::Release:
     case Body::AppMessage:
-    case Body::PropertySet: break;
+    case Body::PropertySet:
+    case Body::OwnershipRequest: break;
     default: return SendError(RejectReason::InvalidMessage, 0, "unexpected message type");
   }
   // Requests about the joined room's entities.
@@ -55,6 +56,9 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
   if (msg->body_type() == Body::Grab) entity = msg->body_as_Grab()->entity_id();
   if (msg->body_type() == Body::Release) entity = msg->body_as_Release()->entity_id();
   if (msg->body_type() == Body::PropertySet) entity = msg->body_as_PropertySet()->entity_id();
+  if (msg->body_type() == Body::OwnershipRequest) {
+    entity = msg->body_as_OwnershipRequest()->entity_id();
+  }
   if (room_ == nullptr) return SendError(RejectReason::NotJoined, entity, "join a room first");
   switch (msg->body_type()) {
     case Body::Spawn: return room_->Spawn(*this, message, *msg->body_as_Spawn(), now_);
@@ -63,6 +67,8 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
     case Body::Release: return room_->Release(*this, entity, now_);
     case Body::AppMessage: return room_->Message(*this, *msg->body_as_AppMessage(), now_);
     case Body::PropertySet: return room_->SetProperty(*this, *msg->body_as_PropertySet(), now_);
+    case Body::OwnershipRequest:
+      return room_->Ownership(*this, *msg->body_as_OwnershipRequest(), now_);
     default: return;
   }
 }

@@ -244,6 +244,13 @@ struct edgephys_client final : edgephys::ClientListener {
   void OnPropertyConflict(const edgephys::PropertyRecord& p) override {
     QueueProperty(EDGEPHYS_EVENT_PROPERTY_CONFLICT, p);
   }
+  void OnOwnershipChanged(uint32_t entity_id, uint32_t new_owner, uint32_t seq) override {
+    if (auto* ev = Push(EDGEPHYS_EVENT_OWNERSHIP_CHANGED)) {
+      ev->entity_id = entity_id;
+      ev->player_id = new_owner;
+      ev->code = seq;
+    }
+  }
   void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) override {
     if (auto* ev = Push(EDGEPHYS_EVENT_ERROR)) {
       ev->code = reason;

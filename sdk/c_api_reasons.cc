@@ -15,7 +15,7 @@ struct Reason {
   const char* text;
 };
 
-constexpr std::array<Reason, 21> kReject = {{
+constexpr std::array<Reason, 22> kReject = {{
     {"None", "no reason given"},
     {"BadToken", "the join token's MAC does not match, or it does not parse"},
     {"ExpiredToken", "the join token has expired"},
@@ -37,6 +37,7 @@ constexpr std::array<Reason, 21> kReject = {{
     {"AuthRequired", "packet authentication is required and was not offered"},
     {"UnknownPlayer", "no player with this id is in the room"},
     {"NotPermitted", "the join token does not grant this"},
+    {"TakeoverRefused", "the entity's owner does not allow taking it over"},
 }};
 
 constexpr std::array<Reason, 7> kDisconnect = {{
@@ -57,6 +58,8 @@ static_assert(EDGEPHYS_REJECT_AUTH_REQUIRED ==
               static_cast<int>(schema::RejectReason::AuthRequired));
 static_assert(EDGEPHYS_REJECT_NOT_PERMITTED ==
               static_cast<int>(schema::RejectReason::NotPermitted));
+static_assert(EDGEPHYS_REJECT_TAKEOVER_REFUSED ==
+              static_cast<int>(schema::RejectReason::TakeoverRefused));
 static_assert(EDGEPHYS_REJECT_OVER_BUDGET == static_cast<int>(schema::RejectReason::OverBudget));
 static_assert(EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW ==
               static_cast<int>(schema::DisconnectReason::ReliableOverflow));

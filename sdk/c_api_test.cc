@@ -104,13 +104,13 @@ TEST(CApi, ReasonNamesCoverTheTableAndSeparateTheFamilies) {
                                     EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW),
                "ReliableOverflow");
   // Every code of both families has a name; the first past each family's end has none.
-  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_NOT_PERMITTED; ++code) {
+  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_TAKEOVER_REFUSED; ++code) {
     EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, code), "unknown") << code;
   }
   for (uint32_t code = 0; code <= EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW; ++code) {
     EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED, code), "unknown") << code;
   }
-  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_NOT_PERMITTED + 1),
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_TAKEOVER_REFUSED + 1),
                "unknown");
   EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED,
                                     EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW + 1),

@@ -31,6 +31,7 @@ public enum EventType : uint {
   None = 0, Connected, Rejected, Disconnected, Joined, PlayerJoined, PlayerLeft, Spawned,
   Despawned, State, SoftBody, CollisionEnter, CollisionExit, TriggerEnter, TriggerExit,
   GuardReset, Grabbed, Released, Error, Message, PropertyChanged, PropertyConflict,
+  OwnershipChanged,
 }
 
 // Properties (edgephys.h, "properties"): value types, and who may write a property.
@@ -46,6 +47,7 @@ public enum RejectReason : uint {
   None = 0, BadToken, ExpiredToken, ReplayedToken, RoomFull, ServerFull, WrongRoom, NotOwner,
   UnknownEntity, DuplicateEntity, InvalidMessage, NotJoined, EntityLimit, BadCookie,
   InvalidContainer, GrabRefused, RateLimited, OverBudget, AuthRequired, UnknownPlayer, NotPermitted,
+  TakeoverRefused,
 }
 public enum DisconnectReason : uint {
   None = 0, Timeout, ClientLeft, ServerShutdown, Kicked, ProtocolError, ReliableOverflow,
@@ -269,6 +271,11 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_publish_transform(IntPtr client, uint id, ref Transform t);
   [DllImport(Lib)] public static extern Status edgephys_client_grab(IntPtr client, uint entity, uint hand);
   [DllImport(Lib)] public static extern Status edgephys_client_release(IntPtr client, uint entity);
+  [DllImport(Lib)] public static extern Status edgephys_client_request_ownership(IntPtr client, uint entity);
+  [DllImport(Lib)] public static extern Status edgephys_client_hand_over(IntPtr client, uint entity, uint player);
+  [DllImport(Lib)] public static extern Status edgephys_client_release_ownership(IntPtr client, uint entity);
+  [DllImport(Lib)] public static extern Status edgephys_client_set_takeover_allowed(IntPtr client, uint entity, uint allowed);
+  [DllImport(Lib)] public static extern Status edgephys_client_get_owner(IntPtr client, uint entity, out uint owner);
   [DllImport(Lib)] public static extern Status edgephys_client_poll_event(IntPtr client, ref Event e);
   [DllImport(Lib)] public static extern Status edgephys_client_get_info(IntPtr client, ref ClientInfo info);
   [DllImport(Lib)] public static extern Status edgephys_client_get_connection_status(IntPtr client, ref ConnectionStatus s);
@@ -314,6 +321,7 @@ public sealed class Client : IDisposable {
   public event Action<RejectReason, uint, string> Error;  // reason, entity, detail
   public event Action<uint, byte[]> MessageReceived;     // sender, payload (allocates per message)
   public event Action<Property> PropertyChanged;         // the property now (writer, version, ...)
+  public event Action<uint, uint, uint> OwnershipChanged;  // entity, new owner (0: the room), authority sequence
   public event Action<uint, Property> PropertyConflict;  // the refused request id, the property now
 
   IntPtr handle_;
@@ -404,6 +412,9 @@ public sealed class Client : IDisposable {
         break;
       case EventType.PropertyChanged:
         if (PropertyChanged != null) PropertyChanged(EventProperty());
+        break;
+      case EventType.OwnershipChanged:
+        if (OwnershipChanged != null) OwnershipChanged(event_.EntityId, event_.PlayerId, event_.Code);
         break;
       case EventType.PropertyConflict:
         if (PropertyConflict != null) PropertyConflict(event_.OtherId, EventProperty());
@@ -519,6 +530,27 @@ public sealed class Client : IDisposable {
   public void Publish(uint id, Transform t) { Native.Check(Native.edgephys_client_publish_transform(handle_, id, ref t), "publish"); }
   public void Grab(uint entity, uint hand) { Native.Check(Native.edgephys_client_grab(handle_, entity, hand), "grab"); }
   public void Release(uint entity) { Native.Check(Native.edgephys_client_release(handle_, entity), "release"); }
+
+  // Ownership (edgephys.h, "ownership"): OwnershipChanged tells the outcome; refusals come as
+  // Error (e.g. RejectReason.TakeoverRefused).
+  public void RequestOwnership(uint entity) {
+    Native.Check(Native.edgephys_client_request_ownership(handle_, entity), "request ownership");
+  }
+  public void HandOver(uint entity, uint player) {
+    Native.Check(Native.edgephys_client_hand_over(handle_, entity, player), "hand over");
+  }
+  public void ReleaseOwnership(uint entity) {
+    Native.Check(Native.edgephys_client_release_ownership(handle_, entity), "release ownership");
+  }
+  public void SetTakeoverAllowed(uint entity, bool allowed) {
+    Native.Check(Native.edgephys_client_set_takeover_allowed(handle_, entity, allowed ? 1u : 0u), "set takeover");
+  }
+  // The entity's owner as this client knows it (0: the room).
+  public uint Owner(uint entity) {
+    uint owner;
+    Native.Check(Native.edgephys_client_get_owner(handle_, entity, out owner), "owner");
+    return owner;
+  }
 
   public bool TryGetEntity(uint id, out Entity e) { return Native.edgephys_client_get_entity(handle_, id, out e) == Status.Ok; }
   public bool TrySamplePose(uint id, Interpolator method, out Transform t) {

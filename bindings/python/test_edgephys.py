@@ -73,7 +73,7 @@ class BindingTest(unittest.TestCase):
         self.assertEqual(ep.reason_name(ep.EVENT_DISCONNECTED, ep.DISCONNECT_RELIABLE_OVERFLOW),
                          "ReliableOverflow")
         self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_AUTH_REQUIRED), "AuthRequired")
-        self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_NOT_PERMITTED + 1), "unknown")
+        self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_TAKEOVER_REFUSED + 1), "unknown")
         self.assertEqual(ep.reason_name(ep.EVENT_JOINED, 1), "unknown")
         ev = ep.Event()
         ev.type, ev.code = ep.EVENT_DISCONNECTED, ep.DISCONNECT_TIMEOUT
@@ -219,6 +219,63 @@ class BindingTest(unittest.TestCase):
             self.assertEqual(errors[b][0][0], ep.REJECT_NOT_OWNER)
             self.assertIn("py.mine", errors[b][0][1])
             self.assertEqual(a.get_property("py.flag").value, False)
+
+    @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
+    def test_ownership_hand_over_and_refused_request(self):
+        relay, room = os.environ["EDGEPHYS_RELAY"], os.environ["EDGEPHYS_ROOM"]
+        with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
+            a.connect(relay, os.environ["EDGEPHYS_TOKEN_7"])
+            b.connect(relay, os.environ["EDGEPHYS_TOKEN_8"])
+            changes = {a: [], b: []}
+            errors = {a: [], b: []}
+            spawned = {a: set(), b: set()}
+            joined = set()
+            deadline = time.monotonic() + 10
+
+            def pump():
+                for c in (a, b):
+                    c.update()
+                    for ev in c.events():
+                        if ev.type == ep.EVENT_CONNECTED:
+                            c.join(room)
+                        elif ev.type == ep.EVENT_JOINED:
+                            joined.add(c)
+                        elif ev.type == ep.EVENT_SPAWNED:
+                            spawned[c].add(ev.entity_id)
+                        elif ev.type == ep.EVENT_OWNERSHIP_CHANGED:
+                            changes[c].append((ev.entity_id, ev.player_id, ev.code))
+                        elif ev.type == ep.EVENT_ERROR:
+                            errors[c].append((ev.code, ev.entity_id))
+                time.sleep(0.005)
+
+            while len(joined) < 2 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(len(joined), 2, "both clients joined")
+            box = a.spawn(position=(0, 1, 0))
+            while box not in spawned[b] and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(b.owner(box), 7)
+            # Refused while A forbids takeover (the default).
+            b.request_ownership(box)
+            while not errors[b] and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(errors[b], [(ep.REJECT_TAKEOVER_REFUSED, box)])
+            self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_TAKEOVER_REFUSED), "TakeoverRefused")
+            # Handed over: both hear it; B publishes it now, A no longer may.
+            a.hand_over(box, 8)
+            while not (changes[a] and changes[b]) and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(changes[a], [(box, 8, 1)])
+            self.assertEqual(changes[b], [(box, 8, 1)])
+            self.assertEqual((a.owner(box), b.owner(box)), (8, 8))
+            b.publish(box, (0.5, 1, 0))
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.publish(box, (0.5, 1, 0))
+            self.assertEqual(e.exception.status, ep.E_NOT_FOUND)
+            b.release_ownership(box)
+            while len(changes[a]) < 2 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(changes[a][-1], (box, 0, 2))
 
 
 if __name__ == "__main__":

@@ -342,6 +342,8 @@ EDGEPHYS_API edgephys_status edgephys_client_release(edgephys_client* client, ui
  *                        19  UnknownPlayer     a message addressed to a player not in the room
  *                        20  NotPermitted      the join token lacks the permission needed (e.g.
  *                                              to send messages)
+ *                        21  TakeoverRefused   an ownership request for an entity whose owner
+ *                                              does not allow takeover, or PhyS simulates
  *  DISCONNECTED           0  None              the handshake timed out (detail says so)
  *                         1  Timeout           the relay stopped answering
  *                         2  ClientLeft        this client disconnected
@@ -379,7 +381,8 @@ typedef enum edgephys_reject_reason {
   EDGEPHYS_REJECT_OVER_BUDGET = 17,
   EDGEPHYS_REJECT_AUTH_REQUIRED = 18,
   EDGEPHYS_REJECT_UNKNOWN_PLAYER = 19,
-  EDGEPHYS_REJECT_NOT_PERMITTED = 20
+  EDGEPHYS_REJECT_NOT_PERMITTED = 20,
+  EDGEPHYS_REJECT_TAKEOVER_REFUSED = 21
 } edgephys_reject_reason;
 
 typedef enum edgephys_disconnect_reason {
@@ -538,6 +541,58 @@ EDGEPHYS_API edgephys_status edgephys_client_get_event_property(edgephys_client*
                                                                 edgephys_property* out,
                                                                 void* buffer, size_t capacity);
 
+/* ---- ownership ---------------------------------------------------------------------------
+ * Every entity has one owner whose transforms the relay accepts: a player, or the room (0).
+ * A change takes effect when the relay announces it with EDGEPHYS_EVENT_OWNERSHIP_CHANGED (to
+ * every member, this client included): from then on the new owner publishes the entity
+ * (edgephys_client_publish_transform) and the old one gets NOT_FOUND doing so; states the old
+ * owner sent after the change are dropped by the relay and counted
+ * (edgephys_stale_owner_states_total). The relay refuses a request with EDGEPHYS_EVENT_ERROR:
+ * TakeoverRefused (21: the owner forbids takeover, or PhyS simulates the entity), NotOwner (7),
+ * UnknownEntity (8), UnknownPlayer (19), NotPermitted (20: a join token without the spawn
+ * permission, this player's or the receiver's), RateLimited (16). Each call: EDGEPHYS_E_INVALID_ARGUMENT
+ * for entity id 0; EDGEPHYS_E_NOT_CONNECTED before EDGEPHYS_EVENT_JOINED;
+ * EDGEPHYS_E_RESOURCE_EXHAUSTED when the reliable queue is full. */
+
+/* Asks for an entity this client knows: granted at once when the room owns it or its owner
+ * allows takeover. EDGEPHYS_E_NOT_FOUND for an entity this client does not know. */
+EDGEPHYS_API edgephys_status edgephys_client_request_ownership(edgephys_client* client,
+                                                               uint32_t entity_id);
+/* Gives an entity this client owns to `player_id`, a member of the room. EDGEPHYS_E_NOT_FOUND
+ * if not owned; EDGEPHYS_E_INVALID_ARGUMENT for player 0 or this player. */
+EDGEPHYS_API edgephys_status edgephys_client_hand_over(edgephys_client* client, uint32_t entity_id,
+                                                       uint32_t player_id);
+/* Gives an entity this client owns to the room (owner 0; it stays when this player leaves). A
+ * dynamic body this client simulates locally (spawned without EDGEPHYS_FLAG_OFFLOADED) is handed
+ * to PhyS at its last published pose, at rest, without a despawn. EDGEPHYS_E_NOT_FOUND if not
+ * owned. */
+EDGEPHYS_API edgephys_status edgephys_client_release_ownership(edgephys_client* client,
+                                                               uint32_t entity_id);
+/* As edgephys_client_release_ownership, for a body this client simulates locally: PhyS carries
+ * on from its last published pose with these velocities (m/s and rad/s, room frame; NULL: 0).
+ * EDGEPHYS_E_INVALID_ARGUMENT for a non-finite one. */
+EDGEPHYS_API edgephys_status edgephys_client_offload(edgephys_client* client, uint32_t entity_id,
+                                                     const edgephys_vec3* linear,
+                                                     const edgephys_vec3* angular);
+/* An entity this client owns: its pose as last published or, just gained from PhyS (a request
+ * reclaims a PhyS-simulated body), PhyS's pose and velocities at the change, where this
+ * client's physics carries on (velocities 0 otherwise). NULL outputs are skipped.
+ * EDGEPHYS_E_NOT_FOUND if not owned. */
+EDGEPHYS_API edgephys_status edgephys_client_get_owned_motion(edgephys_client* client,
+                                                              uint32_t entity_id,
+                                                              edgephys_transform* out_pose,
+                                                              edgephys_vec3* out_linear,
+                                                              edgephys_vec3* out_angular);
+/* Lets others take an entity this client owns by request (allowed 1) or not (0, the default);
+ * the setting stays with the entity across owners. EDGEPHYS_E_NOT_FOUND if not owned. */
+EDGEPHYS_API edgephys_status edgephys_client_set_takeover_allowed(edgephys_client* client,
+                                                                  uint32_t entity_id,
+                                                                  uint32_t allowed);
+/* The entity's owner as this client knows it (this player's id for its own). EDGEPHYS_E_NOT_FOUND
+ * for an entity it does not know; EDGEPHYS_E_INVALID_ARGUMENT for a NULL out_owner. */
+EDGEPHYS_API edgephys_status edgephys_client_get_owner(edgephys_client* client, uint32_t entity_id,
+                                                       uint32_t* out_owner);
+
 /* ---- events ------------------------------------------------------------------------------ */
 
 typedef enum edgephys_event_type {
@@ -572,11 +627,15 @@ typedef enum edgephys_event_type {
                                          request id, flags: the value's type; read the value
                                          with edgephys_client_get_event_property. Also one per
                                          property the room holds when this client joins */
-  EDGEPHYS_EVENT_PROPERTY_CONFLICT = 21 /* this client's compare-and-set lost: other_id: its
+  EDGEPHYS_EVENT_PROPERTY_CONFLICT = 21, /* this client's compare-and-set lost: other_id: its
                                          request id, entity_id, detail: key, code: the current
                                          version (0: none), player_id: its writer, flags: its
                                          type; the current value with
                                          edgephys_client_get_event_property */
+  EDGEPHYS_EVENT_OWNERSHIP_CHANGED = 22 /* entity_id, player_id: its new owner (0: the room),
+                                         code: the authority sequence (+1 per change). Also one
+                                         per entity whose owner changed before this client
+                                         joined (after its SPAWNED) */
 } edgephys_event_type;
 
 #define EDGEPHYS_EVENT_DETAIL_BYTES 128u

@@ -125,6 +125,28 @@ class Client {
   edgephys_status Grab(uint32_t entity, uint32_t hand) { return edgephys_client_grab(handle_, entity, hand); }
   edgephys_status Release(uint32_t entity) { return edgephys_client_release(handle_, entity); }
 
+  // Ownership (edgephys.h, "ownership"); OWNERSHIP_CHANGED events tell the outcome.
+  edgephys_status RequestOwnership(uint32_t entity) {
+    return edgephys_client_request_ownership(handle_, entity);
+  }
+  edgephys_status HandOver(uint32_t entity, uint32_t player) {
+    return edgephys_client_hand_over(handle_, entity, player);
+  }
+  edgephys_status ReleaseOwnership(uint32_t entity) {
+    return edgephys_client_release_ownership(handle_, entity);
+  }
+  edgephys_status Offload(uint32_t entity, const edgephys_vec3& linear, const edgephys_vec3& angular) {
+    return edgephys_client_offload(handle_, entity, &linear, &angular);
+  }
+  edgephys_status SetTakeoverAllowed(uint32_t entity, bool allowed) {
+    return edgephys_client_set_takeover_allowed(handle_, entity, allowed ? 1 : 0);
+  }
+  // The entity's owner as this client knows it; 0 also when unknown (LastError() says so).
+  uint32_t Owner(uint32_t entity) const {
+    uint32_t owner = 0;
+    return edgephys_client_get_owner(handle_, entity, &owner) == EDGEPHYS_OK ? owner : 0;
+  }
+
   // An application message to the room, the others or one player
   // (edgephys_client_send_message).
   edgephys_status SendMessage(edgephys_message_target target, uint32_t to_player,

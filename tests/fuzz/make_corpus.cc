@@ -457,6 +457,22 @@ void MessageCorpus() {
             .Add(0, set(0, std::string(65, 'k'), PropertyValue::Bool(true), false, 0, 0))
             .Add(0, set(65537, "tip", PropertyValue::Double(1), false, 0, 0)).bytes);
 
+  // Relay: ownership requests (docs/protocol.md §4c): refused while takeover is forbidden,
+  // allowed, granted, handed back, handed to a player not in the room, an unknown action, a
+  // stale state of the previous owner, a release.
+  auto own = [](uint32_t entity, schema::OwnershipAction action, uint32_t to, bool takeover) {
+    return Msg([&](auto& fbb) {
+      return schema::CreateOwnershipRequest(fbb, entity, action, to, takeover);
+    });
+  };
+  using O = schema::OwnershipAction;
+  Write("message_fuzz", "relay_ownership",
+        Input(0).Add(0, SpawnMsg(Plain(1, 1))).Add(1, own(65537, O::Request, 0, false))
+            .Add(0, own(65537, O::SetTakeover, 0, true)).Add(1, own(65537, O::Request, 0, false))
+            .Add(2, FloatStates({St(65537, 1, 1, 1)})).Add(1, own(65537, O::HandOver, 1, false))
+            .Add(0, own(65537, O::HandOver, 99, false)).Add(0, own(65537, static_cast<O>(9), 0, false))
+            .Add(0, own(70000, O::Request, 0, false)).Add(0, own(65537, O::Release, 0, false)).bytes);
+
   // Relay, remote PhyS: room handle 1 is on worker W.
   Write("message_fuzz", "relay_worker",
         Input(1).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
@@ -521,6 +537,15 @@ void MessageCorpus() {
             .Add(0, changed(65537, "tip", PropertyValue::Vec3({1, 2, 3}), 1))
             .Add(0, changed(0, "nan", PropertyValue::Vec3({std::nanf(""), 0, 0}), 1))
             .Add(0, conflict).bytes);
+  // Client side: ownership changes (gained, lost, an older sequence, an unknown entity).
+  auto changed_owner = [](uint32_t entity, uint32_t owner, uint32_t seq) {
+    return Msg([&](auto& fbb) {
+      return schema::CreateOwnershipChanged(fbb, entity, owner, seq, 7, seq % 2 == 0);
+    });
+  };
+  Write("message_fuzz", "client_ownership",
+        Input(2 | 4).Add(0, changed_owner(65537, 1, 1)).Add(0, changed_owner(65537, 7, 2))
+            .Add(0, changed_owner(65537, 1, 1)).Add(0, changed_owner(99999, 1, 5)).bytes);
   // Client side as a PhyS worker: relay -> worker messages.
   EntitySpec cube = Cube(1, 0);
   Bytes assign = Msg([](auto& fbb) { return schema::CreateWorkerAssign(fbb, 1, 1.0f / 60); });

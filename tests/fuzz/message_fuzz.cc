@@ -6,7 +6,8 @@
 //      "fuzz". By tag % 4 the bytes are sent as a reliable message by A / by C (so the relay's
 //      JoinRoom, LeaveRoom, Spawn -> PhyS validation and Bullet world, Despawn, Grab, Release,
 //      AppMessage (room messages, their budgets and forwarding), PropertySet (properties:
-//      compare-and-set, authority, budgets, value checks), Worker* handlers run on
+//      compare-and-set, authority, budgets, value checks), OwnershipRequest (requests, hand
+//      overs, releases, takeover, refusals), Worker* handlers run on
 //      them), as an unreliable state payload by A, or pump bytes[0] % 16 extra steps.
 //   1: relay, remote PhyS. A real PhyS worker W (Client + PhysicsWorker, worker token) is
 //      attached before A joins, so A's physics spawns go to W. By tag % 4: a reliable message
@@ -14,7 +15,8 @@
 //      states, format 6 / 8 soft chunks) / from A.
 //   2: client SDK. A fake relay completes the handshake by hand and then sends, on a real
 //      server-side Connection, the records: tag % 2 == 0 a reliable message (Joined, Spawn,
-//      Despawn, PhysicsEvent, Error, AppMessage, PropertyChanged, PropertyConflict, Worker* ->
+//      Despawn, PhysicsEvent, Error, AppMessage, PropertyChanged, PropertyConflict,
+//      OwnershipChanged, Worker* ->
 //      the PhysicsWorker listener, ...),
 //      else an unreliable state payload (formats 1..5). mode bit 2: a valid Joined with state format
 //      1 + (mode >> 3) % 4 is sent first.

@@ -252,6 +252,49 @@ static class ClientTests {
     }
   }
 
+  // A (player 7) spawns a box; B's (player 8) request is refused while A forbids takeover; A
+  // hands it to B: both hear it, B may publish it and A may not; B releases it to the room.
+  static void OwnershipHandOverAndRefusedRequest() {
+    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
+    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
+    using (var a = new Client(false))
+    using (var b = new Client(false)) {
+      int joined = 0;
+      var spawnedAtB = new System.Collections.Generic.List<uint>();
+      var changes = new System.Collections.Generic.List<string>();
+      var errors = new System.Collections.Generic.List<RejectReason>();
+      a.Connected += id => a.Join(room);
+      b.Connected += id => b.Join(room);
+      a.Joined += (r, x) => ++joined;
+      b.Joined += (r, x) => ++joined;
+      b.Spawned += e => spawnedAtB.Add(e.EntityId);
+      a.OwnershipChanged += (entity, owner, seq) => changes.Add("a:" + owner + ":" + seq);
+      b.OwnershipChanged += (entity, owner, seq) => changes.Add("b:" + owner + ":" + seq);
+      b.Error += (reason, entity, detail) => errors.Add(reason);
+      a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_7"));
+      b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_8"));
+      double end = Native.Now() + 10;
+      Action pump = () => { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); };
+      while (joined < 2 && Native.Now() < end) pump();
+      Expect(joined == 2, "both joined");
+      uint box = a.Spawn(new Transform(0, 1, 0), EntityFlags.None);
+      while (!spawnedAtB.Contains(box) && Native.Now() < end) pump();
+      Expect(b.Owner(box) == 7, "B sees A's box");
+      b.RequestOwnership(box);
+      while (errors.Count < 1 && Native.Now() < end) pump();
+      Expect(errors.Count == 1 && errors[0] == RejectReason.TakeoverRefused, "TakeoverRefused");
+      a.HandOver(box, 8);
+      while (changes.Count < 2 && Native.Now() < end) pump();
+      changes.Sort();
+      Expect(string.Join("|", changes) == "a:8:1|b:8:1", "both told: " + string.Join("|", changes));
+      b.Publish(box, new Transform(0.5f, 1, 0));
+      ExpectStatus(Status.NotFound, () => a.Publish(box, new Transform(0.5f, 1, 0)), "A no longer owns it");
+      b.ReleaseOwnership(box);
+      while (changes.Count < 4 && Native.Now() < end) pump();
+      Expect(a.Owner(box) == 0 && b.Owner(box) == 0, "released to the room");
+    }
+  }
+
   static int Main(string[] args) {
     Console.WriteLine("edgephys " + Native.Version() + " (C# binding, Mono)");
     if (args.Length == 2 && args[0] == "--bench") {
@@ -264,6 +307,7 @@ static class ClientTests {
     }
     var tests = new Action[] { BadArgumentsThrowWithTheirStatus, RejectionCarriesReasonAndDetail,
                                MessagesReachTheAddressedPlayers, PropertiesConvergeAndOneCompareAndSetWins,
+                               OwnershipHandOverAndRefusedRequest,
                                NoAllocationPerReceivedState };
     foreach (var t in tests) {
       Console.WriteLine("[ RUN  ] " + t.Method.Name);

@@ -40,7 +40,7 @@ INTERP_LERP_SLERP, INTERP_DQ_DLB, INTERP_DQ_SCLERP, INTERP_HERMITE, INTERP_NONE,
  EVENT_PLAYER_LEFT, EVENT_SPAWNED, EVENT_DESPAWNED, EVENT_STATE, EVENT_SOFT_BODY,
  EVENT_COLLISION_ENTER, EVENT_COLLISION_EXIT, EVENT_TRIGGER_ENTER, EVENT_TRIGGER_EXIT,
  EVENT_GUARD_RESET, EVENT_GRABBED, EVENT_RELEASED, EVENT_ERROR, EVENT_MESSAGE,
- EVENT_PROPERTY_CHANGED, EVENT_PROPERTY_CONFLICT) = range(22)
+ EVENT_PROPERTY_CHANGED, EVENT_PROPERTY_CONFLICT, EVENT_OWNERSHIP_CHANGED) = range(23)
 
 # Properties (edgephys.h, "properties"): value types and who may write a property.
 (PROPERTY_NONE, PROPERTY_BOOL, PROPERTY_INT64, PROPERTY_DOUBLE, PROPERTY_STRING, PROPERTY_BYTES,
@@ -59,7 +59,7 @@ MAX_MESSAGE_BYTES = 65536
  REJECT_SERVER_FULL, REJECT_WRONG_ROOM, REJECT_NOT_OWNER, REJECT_UNKNOWN_ENTITY, REJECT_DUPLICATE_ENTITY,
  REJECT_INVALID_MESSAGE, REJECT_NOT_JOINED, REJECT_ENTITY_LIMIT, REJECT_BAD_COOKIE, REJECT_INVALID_CONTAINER,
  REJECT_GRAB_REFUSED, REJECT_RATE_LIMITED, REJECT_OVER_BUDGET, REJECT_AUTH_REQUIRED, REJECT_UNKNOWN_PLAYER,
- REJECT_NOT_PERMITTED) = range(21)
+ REJECT_NOT_PERMITTED, REJECT_TAKEOVER_REFUSED) = range(22)
 (DISCONNECT_NONE, DISCONNECT_TIMEOUT, DISCONNECT_CLIENT_LEFT, DISCONNECT_SERVER_SHUTDOWN, DISCONNECT_KICKED,
  DISCONNECT_PROTOCOL_ERROR, DISCONNECT_RELIABLE_OVERFLOW) = range(7)
 
@@ -287,6 +287,11 @@ def _load():
         "edgephys_client_publish_transform": ([c, u32, P(Transform)], ctypes.c_int),
         "edgephys_client_grab": ([c, u32, u32], ctypes.c_int),
         "edgephys_client_release": ([c, u32], ctypes.c_int),
+        "edgephys_client_request_ownership": ([c, u32], ctypes.c_int),
+        "edgephys_client_hand_over": ([c, u32, u32], ctypes.c_int),
+        "edgephys_client_release_ownership": ([c, u32], ctypes.c_int),
+        "edgephys_client_set_takeover_allowed": ([c, u32, u32], ctypes.c_int),
+        "edgephys_client_get_owner": ([c, u32, P(u32)], ctypes.c_int),
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
         "edgephys_client_send_message": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
         "edgephys_client_get_message": ([c, ctypes.c_char_p, sz, P(sz)], ctypes.c_int),
@@ -460,6 +465,28 @@ class Client:
 
     def release(self, entity_id):
         _check(lib.edgephys_client_release(self._h, entity_id), "release")
+
+    # Ownership (edgephys.h, "ownership"): OWNERSHIP_CHANGED events (ev.entity_id, ev.player_id:
+    # the new owner, 0 the room; ev.code: the authority sequence) tell the outcome; refusals
+    # come as ERROR events (e.g. REJECT_TAKEOVER_REFUSED).
+    def request_ownership(self, entity_id):
+        _check(lib.edgephys_client_request_ownership(self._h, entity_id), "request_ownership")
+
+    def hand_over(self, entity_id, player_id):
+        _check(lib.edgephys_client_hand_over(self._h, entity_id, player_id), "hand_over")
+
+    def release_ownership(self, entity_id):
+        _check(lib.edgephys_client_release_ownership(self._h, entity_id), "release_ownership")
+
+    def set_takeover_allowed(self, entity_id, allowed):
+        _check(lib.edgephys_client_set_takeover_allowed(self._h, entity_id, 1 if allowed else 0),
+               "set_takeover_allowed")
+
+    def owner(self, entity_id):
+        """The entity's owner as this client knows it (0: the room)."""
+        out = ctypes.c_uint32(0)
+        _check(lib.edgephys_client_get_owner(self._h, entity_id, ctypes.byref(out)), "owner")
+        return out.value
 
     def events(self):
         """Yields queued events (copies) until the queue is empty. A MESSAGE event carries its
