@@ -68,9 +68,11 @@ pc=(podman-compose -p "$project" -f "$root/deploy/compose.yaml")
 client_pid=""
 cleanup() {
   local rc=$?
+  set +e
   [ -n "$client_pid" ] && kill "$client_pid" 2>/dev/null
   if [ "$rc" -ne 0 ] && [ -d "$log" ]; then
     for c in redis relay-a relay-b phys prometheus; do
+      podman container exists "${project}_${c}_1" 2>/dev/null || continue
       echo "--- podman logs ${project}_${c}_1 (last lines)"
       timeout 10 podman logs "${project}_${c}_1" 2>&1 | tail -n 15 || true
     done
@@ -88,11 +90,21 @@ cleanup() {
   exit "$rc"
 }
 trap cleanup EXIT
+trap 'exit 143' TERM INT HUP
+
+# Stacks an earlier run left behind when it was killed outright (SIGKILL skips the cleanup).
+for p in $(podman ps -a --format '{{index .Labels "io.podman.compose.project"}}' 2>/dev/null | grep '^edgephys-ctest-' | sort -u); do
+  kill -0 "${p#edgephys-ctest-}" 2>/dev/null && continue
+  echo "removing the leftover stack $p"
+  ids=$(podman ps -aq --filter "label=io.podman.compose.project=$p")
+  [ -n "$ids" ] && timeout 60 podman rm -f -t 0 $ids >/dev/null 2>&1
+  timeout 30 podman network rm -f "${p}_edgephys" >/dev/null 2>&1 || true
+done
 
 step "images (scripts/container.sh stack-images, build tree $build)"
-EDGEPHYS_BUILD_DIR="$build" timeout 900 bash "$root/scripts/container.sh" stack-images >"$log/images.out" 2>&1 \
+EDGEPHYS_BUILD_DIR="$build" timeout 600 bash "$root/scripts/container.sh" stack-images >"$log/images.out" 2>&1 \
   || { tail -n 40 "$log/images.out"; echo "FAIL: images"; exit 1; }
-grep -E 'took|present|current|reusing' "$log/images.out" | sed 's/^/  /'
+grep -E 'took|present|current|reusing' "$log/images.out" | sed 's/^/  /' || true
 
 # Can podman run a container at all here (namespaces, cgroups)?
 if ! timeout 60 podman run --rm --network none localhost/debian:bookworm true >"$log/probe.out" 2>&1; then
@@ -123,19 +135,23 @@ for url in "$a_admin/healthz" "$b_admin/healthz"; do
 done
 step "both relays healthy"
 
-# A client joins room "arena" through relay-a, spawns an entity and stays.
+# Room "arena" is made on relay-a (admin API; registered in Redis as relay-a's), so the join
+# below is served there rather than placed on the less loaded relay.
+code=$(api -o "$log/create.out" -w '%{http_code}' -d '{"id":"arena","capacity":8}' "$a_admin/v1/rooms" || true)
+[ "$code" = 201 ] || { cat "$log/create.out" 2>/dev/null; echo "FAIL: POST /v1/rooms on relay-a answered $code"; exit 1; }
+# A client joins arena through relay-a, spawns an entity and stays.
 "$client" --relay "127.0.0.1:$EDGEPHYS_RELAY_A_PORT" --secret "$EDGEPHYS_SECRET" --room arena --player 7 \
   --run-for 120 >"$log/client.out" 2>&1 &
 client_pid=$!
 for _ in $(seq 1 50); do grep -q '^joined arena' "$log/client.out" && break; sleep 0.2; done
 grep -q '^joined arena' "$log/client.out" || { cat "$log/client.out"; echo "FAIL: the client did not join through relay-a"; exit 1; }
+grep -q 'redirect' "$log/client.out" && { cat "$log/client.out"; echo "FAIL: the client was redirected away from relay-a"; exit 1; }
 [ -n "$(arena_entities "$a_admin")" ] || { echo "FAIL: relay-a does not list arena"; exit 1; }
 step "client joined arena on relay-a"
 
-for _ in $(seq 1 30); do
-  curl -fsS -m 2 "$a_metrics/metrics" | grep -q '^edgephys_physics_workers 1' && break; sleep 1
-done
-curl -fsS -m 2 "$a_metrics/metrics" | grep -q '^edgephys_physics_workers 1' || { echo "FAIL: the PhyS worker did not attach to relay-a"; exit 1; }
+workers() { curl -fsS -m 2 "$a_metrics/metrics" 2>/dev/null | awk '$1 == "edgephys_physics_workers" {print $2}'; }
+for _ in $(seq 1 30); do [ "$(workers)" = 1 ] && break; sleep 1; done
+[ "$(workers)" = 1 ] || { echo "FAIL: the PhyS worker did not attach to relay-a"; exit 1; }
 step "PhyS worker attached to relay-a"
 
 for _ in $(seq 1 60); do
