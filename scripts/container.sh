@@ -16,7 +16,8 @@
 #                 (`--build-context deb=...`). Skipped when the image was made from the same
 #                 binaries (label org.edgephys.binaries).
 #   stack-images  base, then localhost/edgephys-redis:0.1.0 and localhost/edgephys-prometheus:0.1.0
-#                 from deploy/images/* when missing, then relay-image
+#                 from deploy/images/* when missing, then relay-image (no deps step: the
+#                 packages come from scripts/setup.sh)
 #
 # Quirks of this host that the flags below work around:
 #   - crun fails on the hybrid (v1 + v2) cgroup setup: every podman call uses --runtime runc.
@@ -251,7 +252,11 @@ case "$STEP" in
   run) run ;;
   all) deps; base; build; run ;;
   relay-image) relay_image ;;
-  stack-images) deps; base; stack_images ;;
+  stack-images)  # packages from scripts/setup.sh (CI installs nothing during its tests)
+    for tool in podman debootstrap cpack; do
+      command -v "$tool" >/dev/null || { echo "container.sh: $tool missing (scripts/setup.sh)" >&2; exit 1; }
+    done
+    base; stack_images ;;
   *) echo "usage: $0 [all|deps|base|build|run|relay-image|stack-images]" >&2; exit 2 ;;
 esac
 log "total $(( $(date +%s) - t_start ))s"
