@@ -10,8 +10,8 @@
 #  3. `podman kill -s KILL` of relay-a (and it stays down): arena comes back on relay-b with the
 #     client's entity (Redis snapshot), and a client joins arena through relay-b;
 #  4. down: containers, network (and a pod, if the compose tool made one), also on failure.
-# Cold (no images, no cached base): about 5 minutes on 2 cores, mostly debootstrap and apt
-# downloads; with the images present about 1 minute. Every wait is bounded.
+# Cold (no images, no cached base): about 3 minutes on 2 cores, half of it debootstrap; with
+# the images present about 30 seconds. Every wait is bounded.
 # Usage: compose_test.sh BUILD_DIR CLIENT_BIN   (CMAKE_BINARY_DIR, tests/admin/admin_test_client)
 # Prints SKIPPED (ctest skips) without root, podman or podman-compose, or when podman cannot
 # run a container here (the reason is printed).
