@@ -1,5 +1,5 @@
 # edgephys relay image (the relay and the PhyS worker), the one definition of the runtime image.
-# From source (compiles the tree in a container; ~15-25 minutes on 2 cores the first time):
+# From source (compiles in a container; about 11 minutes on 2 busy cores with the base cached):
 #   podman build -t localhost/edgephys-relay:0.1.0 .
 # From a .deb already built (`cpack -G DEB` in a build tree; no compile, about a minute):
 #   podman build --build-context deb=DIR_WITH_THE_DEB -t localhost/edgephys-relay:0.1.0 .
