@@ -10,6 +10,14 @@
 #      scripts/setup.sh, i.e. apt-get, against the mirror)
 #   4. `podman run` of the image on a free loopback port, `curl /metrics`, check the
 #      edgephys_ series, stop and remove the container
+# and, for deploy/compose.yaml (all tagged as the compose file names them):
+#   relay-image   localhost/edgephys-relay:0.1.0 from a build tree, no compile: `cpack -G DEB`
+#                 in $EDGEPHYS_BUILD_DIR, then the Dockerfile's run stage installs that .deb
+#                 (`--build-context deb=...`). Skipped when the image was made from the same
+#                 binaries (label org.edgephys.binaries).
+#   stack-images  base, then localhost/edgephys-redis:0.1.0 and localhost/edgephys-prometheus:0.1.0
+#                 from deploy/images/* when missing, then relay-image (no deps step: the
+#                 packages come from scripts/setup.sh)
 #
 # Quirks of this host that the flags below work around:
 #   - crun fails on the hybrid (v1 + v2) cgroup setup: every podman call uses --runtime runc.
@@ -17,12 +25,13 @@
 #     then refuses to start the container: build and run pass --ulimit at or under them.
 #   - no systemd as PID 1: --cgroup-manager cgroupfs and --events-backend file.
 #
-# Usage: scripts/container.sh [all|deps|base|build|run]   (default: all)
+# Usage: scripts/container.sh [all|deps|base|build|run|relay-image|stack-images]   (default: all)
 # Environment:
 #   EDGEPHYS_IMAGE   image tag (default edgephys-relay:dev)
 #   EDGEPHYS_CACHE   where rootfs.tar is kept (default /var/cache/edgephys)
 #   EDGEPHYS_REBUILD_BASE=1   rebuild rootfs.tar even if it is cached
 #   EDGEPHYS_MIRROR  Debian mirror (default http://deb.debian.org/debian)
+#   EDGEPHYS_BUILD_DIR  build tree for relay-image (default build/default)
 #   EDGEPHYS_BRIDGE_CHECK=1   also run the default CMD behind -p mappings (podman bridge network)
 set -euo pipefail
 
@@ -122,10 +131,53 @@ EOF
 
 build() {
   log "podman build -t $IMAGE (compiles the relay inside, -j2)"
-  "${PODMAN[@]}" build --pull=never --network host "${ULIMITS[@]}" --jobs 1 \
-    --layers -t "$IMAGE" -f "$ROOT/Dockerfile" "$ROOT"
+  image_build -t "$IMAGE" -f "$ROOT/Dockerfile" "$ROOT"
   podman image ls "$IMAGE"
   done_step build
+}
+
+# Builds with the host's network (apt-get against the mirror) and ulimits it allows.
+image_build() {
+  "${PODMAN[@]}" build --pull=never --network host "${ULIMITS[@]}" --jobs 1 --layers "$@"
+}
+
+relay_image() {
+  local bdir=${EDGEPHYS_BUILD_DIR:-$ROOT/build/default} tag=localhost/edgephys-relay:0.1.0 sum have pkg
+  local bins=("$bdir/relay/edgephys-relay" "$bdir/physics_backend/edgephys-phys")
+  [ -f "$bdir/CPackConfig.cmake" ] || { echo "container.sh: $bdir is not a configured build tree" >&2; exit 1; }
+  for b in "${bins[@]}"; do [ -x "$b" ] || { echo "container.sh: $b not built" >&2; exit 1; }; done
+  sum=$(cat "${bins[@]}" "$ROOT/Dockerfile" | sha256sum | cut -c1-16)
+  have=$(podman image inspect --format '{{index .Labels "org.edgephys.binaries"}}' "$tag" 2>/dev/null || true)
+  if [ "$have" = "$sum" ]; then log "$tag is current (binaries $sum)"; done_step relay-image; return; fi
+  pkg="$CACHE/relay-deb"   # the package and logs of the last relay-image build (replaced each time)
+  rm -rf "$pkg"; mkdir -p "$pkg"
+  log "cpack -G DEB in $bdir"
+  cpack --config "$bdir/CPackConfig.cmake" -G DEB -B "$pkg/out" >"$pkg/cpack.log" 2>&1 \
+    || { tail -n 30 "$pkg/cpack.log"; exit 1; }
+  mkdir "$pkg/deb"
+  mv "$pkg"/out/edgephys_*_amd64.deb "$pkg/deb/" || { tail -n 30 "$pkg/cpack.log"; exit 1; }
+  log "podman build $tag from $(basename "$pkg"/deb/*.deb)"
+  image_build --build-context "deb=$pkg/deb" --label "org.edgephys.binaries=$sum" \
+    -t "$tag" -f "$ROOT/Dockerfile" "$ROOT" >"$pkg/build.log" 2>&1 \
+    || { tail -n 40 "$pkg/build.log"; exit 1; }
+  rm -rf "$pkg/out" "$pkg/deb"
+  done_step relay-image
+}
+
+stack_images() {
+  local name
+  mkdir -p "$CACHE"
+  for name in redis prometheus; do
+    if podman image exists "localhost/edgephys-$name:0.1.0"; then
+      log "localhost/edgephys-$name:0.1.0 present"
+    else
+      log "podman build localhost/edgephys-$name:0.1.0 (deploy/images/$name)"
+      image_build -t "localhost/edgephys-$name:0.1.0" "$ROOT/deploy/images/$name" >"$CACHE/$name-image.log" 2>&1 \
+        || { tail -n 40 "$CACHE/$name-image.log"; exit 1; }
+    fi
+    done_step "$name image"
+  done
+  relay_image
 }
 
 free_port() {
@@ -199,6 +251,12 @@ case "$STEP" in
   build) deps; base; build ;;
   run) run ;;
   all) deps; base; build; run ;;
-  *) echo "usage: $0 [all|deps|base|build|run]" >&2; exit 2 ;;
+  relay-image) relay_image ;;
+  stack-images)  # packages from scripts/setup.sh (CI installs nothing during its tests)
+    for tool in podman debootstrap cpack; do
+      command -v "$tool" >/dev/null || { echo "container.sh: $tool missing (scripts/setup.sh)" >&2; exit 1; }
+    done
+    base; stack_images ;;
+  *) echo "usage: $0 [all|deps|base|build|run|relay-image|stack-images]" >&2; exit 2 ;;
 esac
 log "total $(( $(date +%s) - t_start ))s"

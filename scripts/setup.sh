@@ -12,7 +12,7 @@ PACKAGES=(
   libcpp-httplib-dev chromium
   libhiredis-dev redis-server
   linux-perf
-  python3 python3-venv python3-setuptools python3-wheel mono-mcs mono-runtime dpkg-dev debootstrap
+  python3 python3-venv python3-setuptools python3-wheel mono-mcs mono-runtime dpkg-dev file debootstrap
   ccache  # optional: developers build with -DCMAKE_CXX_COMPILER_LAUNCHER=ccache
 )
 # deploy/: the compose stack (podman-compose 1.0.3; netavark + aardvark-dns so services find
