@@ -1,12 +1,15 @@
 /* The edgephys SDK example, in C (the same program exists in C++, C# and Python):
- * join a room, say hello to the others with a chat line (an application message), spawn a
+ * join a room, say hello to the others with a chat line (an application message), agree with
+ * the others on a shared "current step" (a room property, compare-and-set), spawn a
  * local-physics head and two hands, offload a stack of three boxes to
  * PhyS, wait until they fall and settle, grab the top one with the right hand, carry it aside,
- * release it, and print every physics event. Ends with the settled poses of the boxes.
+ * release it, and print every physics event. Prints the settled poses of the boxes, then hands
+ * a local-physics baton to another player and waits until that player's state of it arrives.
  *
  *   stack_and_grab <relay host:port> <join token> <room>
  *
- * Output lines: "event <name> <a> <b>", "pose <id> <x> <y> <z> <qx> <qy> <qz> <qw>", and a
+ * Output lines: "agreed step: <v> (written by player <id>)", "event <name> <a> <b>",
+ * "handoff: entity <id> to player <id>, ...", "pose <id> <x> <y> <z> <qx> <qy> <qz> <qw>", and a
  * final "ok" (exit 0) or "FAIL: <why>" (exit 1). Checked by tests/sdk_examples_test.sh. */
 #include <edgephys/edgephys.h>
 
@@ -24,6 +27,7 @@ static uint32_t box_ids[BOXES], ground_id, head_id, hand_ids[2];
 static edgephys_event events[MAX_EVENTS];
 static int event_count;
 static int connected, joined;
+static uint32_t other_player; /* the latest other player who joined */
 
 static const char* EventName(uint32_t type) {
   switch (type) {
@@ -64,6 +68,7 @@ static void Pump(void) {
     if (ev.type == EDGEPHYS_EVENT_NONE) break;
     if (ev.type == EDGEPHYS_EVENT_CONNECTED) connected = 1;
     if (ev.type == EDGEPHYS_EVENT_JOINED) joined = 1;
+    if (ev.type == EDGEPHYS_EVENT_PLAYER_JOINED) other_player = ev.player_id;
     if (ev.type == EDGEPHYS_EVENT_REJECTED) Fail("rejected by the relay");
     if (ev.type == EDGEPHYS_EVENT_DISCONNECTED) Fail("disconnected");
     if (ev.type == EDGEPHYS_EVENT_ERROR) printf("error reason %u entity %u: %s\n", ev.code, ev.entity_id, ev.detail);
@@ -147,6 +152,25 @@ int main(int argc, char** argv) {
   /* A chat line to everyone else in the room (reliable; they get it with our player id). */
   static const char chat[] = "hello from the C example";
   Check(edgephys_client_send_message(client, EDGEPHYS_TO_OTHERS, 0, chat, sizeof chat - 1), "chat");
+
+  /* A shared "current step" (a room property anyone may write), proposed with compare-and-set,
+   * expected version 0 (only if nobody set it yet). Another player may propose at the same
+   * time: the relay takes exactly one proposal, the other writer gets PROPERTY_CONFLICT with
+   * the winner's value, and both end on the same step. */
+  edgephys_property_value proposal;
+  memset(&proposal, 0, sizeof proposal);
+  proposal.type = EDGEPHYS_PROPERTY_INT64;
+  proposal.int_value = 1;
+  Check(edgephys_client_compare_and_set_property(client, 0, "step", &proposal, 0, EDGEPHYS_AUTHORITY_ANYONE, NULL),
+        "step");
+  edgephys_property step;
+  memset(&step, 0, sizeof step);
+  step.struct_size = sizeof step;
+  for (double end = edgephys_now_s() + 5;
+       edgephys_client_get_property(client, 0, "step", &step, NULL, 0) != EDGEPHYS_OK || step.version < 1; Pump()) {
+    if (edgephys_now_s() > end) Fail("no agreed step");
+  }
+  printf("agreed step: %lld (written by player %u)\n", (long long)step.value.int_value, step.writer);
 
   /* The scene, dissected: a static ground handed to PhyS... */
   edgephys_collider ground_box;
@@ -276,6 +300,32 @@ int main(int argc, char** argv) {
     printf("pose %u %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n", box_ids[i], t.position.x, t.position.y,
            t.position.z, t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w);
   }
+  fflush(stdout);
+
+  /* An ownership handoff of a local-physics object: a baton this client simulates itself (not
+   * offloaded) goes to another player; once the relay announces it, the new owner's states are
+   * the ones everyone gets. */
+  edgephys_spawn_desc_init(&d);
+  d.transform.position = (edgephys_vec3){2, 0.1f, 0};
+  d.name = "baton";
+  d.rigid_body = &dynamic;
+  d.colliders = &box;
+  d.collider_count = 1;
+  const uint32_t baton = Spawn(&d);
+  RunFor(0.2);
+  if (other_player == 0) Fail("nobody to hand the baton to");
+  Check(edgephys_client_hand_over(client, baton, other_player), "hand over");
+  uint32_t owner = 0;
+  for (double end = edgephys_now_s() + 5; edgephys_client_get_owner(client, baton, &owner) != EDGEPHYS_OK || owner != other_player; Pump()) {
+    if (edgephys_now_s() > end) Fail("the handoff was not announced");
+  }
+  for (double end = edgephys_now_s() + 5;; Pump()) {
+    edgephys_entity e;
+    if (edgephys_client_get_entity(client, baton, &e) == EDGEPHYS_OK && e.has_state &&
+        fabsf(e.transform.position.y - 0.5f) < 0.01f) break;
+    if (edgephys_now_s() > end) Fail("no state of the baton from its new owner");
+  }
+  printf("handoff: entity %u to player %u, its state now comes from player %u\n", baton, other_player, other_player);
   fflush(stdout);
   RunFor(1.0); /* let a watcher in the room see the same settled poses before we leave */
   Check(edgephys_client_disconnect(client), "disconnect");

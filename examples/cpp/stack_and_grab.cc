@@ -7,7 +7,10 @@
 // --watch joins the same room, keeps the latest received transform of every entity, and when
 // another player leaves prints "pose <id> x y z qx qy qz qw" for each (as the example does for
 // its boxes), so tests/sdk_examples_test.sh can check both saw the same poses; it prints each
-// chat line (application message) it receives as "chat from <player>: <text>".
+// chat line (application message) it receives as "chat from <player>: <text>". It proposes
+// its own "current step" when another player joins (both race with compare-and-set; the relay
+// takes one) and prints "agreed step: <value> (written by player <id>)"; when an entity is
+// handed to it, it prints "handoff: got entity <id>" and publishes that entity at y = 0.5.
 #include <edgephys/edgephys.hpp>
 
 #include <chrono>
@@ -62,6 +65,7 @@ class Example {
       if (on_event) on_event(ev);
       if (ev.type == EDGEPHYS_EVENT_CONNECTED) connected_ = true;
       if (ev.type == EDGEPHYS_EVENT_JOINED) joined_ = true;
+      if (ev.type == EDGEPHYS_EVENT_PLAYER_JOINED) other_player = ev.player_id;
       if (ev.type == EDGEPHYS_EVENT_REJECTED) Fail("rejected");
       if (ev.type == EDGEPHYS_EVENT_DISCONNECTED) Fail("disconnected");
       if (ev.type == EDGEPHYS_EVENT_ERROR) std::printf("error reason %u entity %u: %s\n", ev.code, ev.entity_id, ev.detail);
@@ -124,6 +128,9 @@ class Example {
   }
   void Publish(uint32_t id, float x, float y, float z) { Check(c_.Publish(id, {{x, y, z}, {0, 0, 0, 1}}), "publish"); }
 
+  uint32_t other_player = 0;  // the latest other player who joined (0: none yet)
+
+ private:
   Client& c_;
   bool connected_ = false, joined_ = false;
   std::vector<edgephys_event> events_;
@@ -132,7 +139,8 @@ class Example {
 int Watch(Client& client, const char* relay, const char* token, const char* room) {
   Example ex(&client);
   std::map<uint32_t, edgephys_transform> latest;
-  bool someone_left = false;
+  bool someone_left = false, proposed = false, agreed = false;
+  uint32_t self = 0, baton = 0;
   ex.ConnectAndJoin(relay, token, room);
   std::printf("watching\n");
   std::fflush(stdout);
@@ -141,11 +149,27 @@ int Watch(Client& client, const char* relay, const char* token, const char* room
     ex.Pump([&](const edgephys_event& ev) {
       if (ev.type == EDGEPHYS_EVENT_SPAWNED || ev.type == EDGEPHYS_EVENT_STATE) latest[ev.entity_id] = ev.transform;
       if (ev.type == EDGEPHYS_EVENT_PLAYER_LEFT) someone_left = true;
+      if (ev.type == EDGEPHYS_EVENT_CONNECTED) self = ev.player_id;
+      if (ev.type == EDGEPHYS_EVENT_PLAYER_JOINED && ev.player_id != self && !proposed) {
+        proposed = client.CompareAndSetProperty(0, "step", Int64Value(2), 0, EDGEPHYS_AUTHORITY_ANYONE) != 0;
+      }
+      Property p;
+      if ((ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED || ev.type == EDGEPHYS_EVENT_PROPERTY_CONFLICT) &&
+          std::string(ev.detail) == "step" && !agreed && client.EventProperty(&p) && p.info.version >= 1) {
+        agreed = true;
+        std::printf("agreed step: %lld (written by player %u)\n",
+                    static_cast<long long>(p.info.value.int_value), p.info.writer);
+      }
+      if (ev.type == EDGEPHYS_EVENT_OWNERSHIP_CHANGED && ev.player_id == self && self != 0) {
+        baton = ev.entity_id;
+        std::printf("handoff: got entity %u\n", baton);
+      }
       std::string text;
       if (ev.type == EDGEPHYS_EVENT_MESSAGE && client.Message(&text)) {
         std::printf("chat from %u: %s\n", ev.player_id, text.c_str());
       }
     });
+    if (baton != 0) (void)client.Publish(baton, {{2, 0.5f, 0}, {0, 0, 0, 1}});
   }
   if (!someone_left) Fail("nobody left the room within 60 s");
   for (const auto& [id, t] : latest) PrintPose(id, t);
@@ -158,6 +182,15 @@ int Run(Client& client, const char* relay, const char* token, const char* room) 
   ex.ConnectAndJoin(relay, token, room);
   // A chat line to everyone else in the room (reliable; they get it with our player id).
   Check(client.SendMessage(EDGEPHYS_TO_OTHERS, "hello from the C++ example"), "chat");
+  // A shared "current step" (a room property anyone may write): proposed with compare-and-set,
+  // expected version 0 (only if nobody set it yet). Another player may propose at the same
+  // time; the relay takes exactly one proposal and the other writer gets a PROPERTY_CONFLICT
+  // with the winner's value, so both end on the same step.
+  if (client.CompareAndSetProperty(0, "step", Int64Value(1), 0, EDGEPHYS_AUTHORITY_ANYONE) == 0) Fail("step");
+  Property step;
+  ex.WaitFor([&] { return client.GetProperty(0, "step", &step) && step.info.version >= 1; }, 5, "no agreed step");
+  std::printf("agreed step: %lld (written by player %u)\n", static_cast<long long>(step.info.value.int_value),
+              step.info.writer);
 
   edgephys_collider ground_box, head_sphere, trigger, box;
   edgephys_collider_init(&ground_box);
@@ -261,6 +294,25 @@ int Run(Client& client, const char* relay, const char* token, const char* room) 
     ex.State(id, &t);
     PrintPose(id, t);
   }
+  std::fflush(stdout);
+  // An ownership handoff of a local-physics object: a baton this client simulates itself (not
+  // offloaded) goes to another player; once the relay announces it, the new owner's states are
+  // the ones everyone gets.
+  edgephys_spawn_desc_init(&d);
+  d.transform.position = {2, 0.1f, 0};
+  d.rigid_body = &dynamic;
+  d.colliders = &box;
+  d.collider_count = 1;
+  const uint32_t baton = ex.Spawn(d);
+  ex.RunFor(0.2);
+  const uint32_t other = ex.other_player;
+  if (other == 0) Fail("nobody to hand the baton to");
+  Check(client.HandOver(baton, other), "hand over");
+  ex.WaitFor([&] { return client.Owner(baton) == other; }, 5, "the handoff was not announced");
+  edgephys_transform held{};
+  ex.WaitFor([&] { return ex.State(baton, &held) && std::fabs(held.position.y - 0.5f) < 0.01f; }, 5,
+             "no state of the baton from its new owner");
+  std::printf("handoff: entity %u to player %u, its state now comes from player %u\n", baton, other, other);
   std::fflush(stdout);
   ex.RunFor(1.0);  // let a watcher see the same settled poses before we leave
   Check(client.Disconnect(), "disconnect");

@@ -13,6 +13,7 @@ static class StackAndGrab {
   static Client c;
   static readonly List<Ev> log = new List<Ev>();
   static bool connected, joined;
+  static uint otherPlayer;  // the latest other player who joined
 
   static void Fail(string why) { Console.WriteLine("FAIL: " + why); Environment.Exit(1); }
 
@@ -56,6 +57,7 @@ static class StackAndGrab {
     c = new Client(false);
     c.Connected += id => connected = true;
     c.Joined += (room, b) => joined = true;
+    c.PlayerJoined += id => otherPlayer = id;
     c.Rejected += (r, detail) => Fail("rejected " + r + ": " + detail);
     c.Disconnected += (r, detail) => Fail("disconnected " + r + ": " + detail);
     c.Error += (reason, id, detail) => Console.WriteLine("error reason " + reason + " entity " + id + ": " + detail);
@@ -69,6 +71,14 @@ static class StackAndGrab {
     WaitFor(() => joined, 5, "no join");
     // A chat line to everyone else in the room (reliable; they get it with our player id).
     c.SendMessage(System.Text.Encoding.UTF8.GetBytes("hello from the C# example"), MessageTarget.Others);
+    // A shared "current step" (a room property anyone may write), proposed with compare-and-set,
+    // expected version 0 (only if nobody set it yet). Another player may propose at the same
+    // time: the relay takes exactly one proposal, the other writer gets PropertyConflict with the
+    // winner's value, and both end on the same step.
+    c.CompareAndSetProperty(0, "step", PropertyValue.Int64(1), 0, PropertyAuthority.Anyone);
+    WaitFor(() => { var p = c.GetProperty(0, "step"); return p != null && p.Version >= 1; }, 5, "no agreed step");
+    Property step = c.GetProperty(0, "step");
+    Console.WriteLine("agreed step: " + step.IntValue + " (written by player " + step.Writer + ")");
 
     uint ground = c.Spawn(new Transform(0, -0.5f, 0), EntityFlags.Offloaded, null, new[] { Collider.Box(5, 0.5f, 5) }, name: "ground");
     RigidBody kinematic = RigidBody.KinematicBody();
@@ -132,6 +142,18 @@ static class StackAndGrab {
           "pose {0} {1:F6} {2:F6} {3:F6} {4:F6} {5:F6} {6:F6} {7:F6}", id, t.Position.X, t.Position.Y,
           t.Position.Z, t.Rotation.X, t.Rotation.Y, t.Rotation.Z, t.Rotation.W));
     }
+    // An ownership handoff of a local-physics object: a baton this client simulates itself (not
+    // offloaded) goes to another player; once the relay announces it, the new owner's states
+    // are the ones everyone gets.
+    uint baton = c.Spawn(new Transform(2, 0.1f, 0), 0, RigidBody.Dynamic(1), new[] { Collider.Box(0.1f, 0.1f, 0.1f) }, name: "baton");
+    RunFor(0.2);
+    uint other = otherPlayer;
+    if (other == 0) Fail("nobody to hand the baton to");
+    c.HandOver(baton, other);
+    WaitFor(() => c.Owner(baton) == other, 5, "the handoff was not announced");
+    WaitFor(() => { Transform b; return State(baton, out b) && Math.Abs(b.Position.Y - 0.5f) < 0.01f; }, 5,
+            "no state of the baton from its new owner");
+    Console.WriteLine("handoff: entity " + baton + " to player " + other + ", its state now comes from player " + other);
     RunFor(1.0);  // let a watcher see the same settled poses before we leave
     c.Disconnect();
     c.Dispose();

@@ -17,7 +17,7 @@ def main(relay, token, room):
     print(f"edgephys {ep.version()}, ABI {ep.lib.edgephys_abi_version()}")
     c = ep.Client()
     log = []  # physics events, in order
-    state = {"connected": False, "joined": False}
+    state = {"connected": False, "joined": False, "other": 0}
 
     def pump():
         c.update()
@@ -26,6 +26,8 @@ def main(relay, token, room):
                 state["connected"] = True
             elif ev.type == ep.EVENT_JOINED:
                 state["joined"] = True
+            elif ev.type == ep.EVENT_PLAYER_JOINED:
+                state["other"] = ev.player_id  # the latest other player who joined
             elif ev.type in (ep.EVENT_REJECTED, ep.EVENT_DISCONNECTED):
                 fail(f"connection ended (event {ev.type}, code {ev.code})")
             elif ev.type == ep.EVENT_ERROR:
@@ -78,6 +80,14 @@ def main(relay, token, room):
     wait_for(lambda: state["joined"], 5, "no join")
     # A chat line to everyone else in the room (reliable; they get it with our player id).
     c.send_message(b"hello from the Python example", ep.TO_OTHERS)
+    # A shared "current step" (a room property anyone may write), proposed with compare-and-set,
+    # expected version 0 (only if nobody set it yet). Another player may propose at the same
+    # time: the relay takes exactly one proposal, the other writer gets EVENT_PROPERTY_CONFLICT
+    # with the winner's value, and both end on the same step.
+    c.compare_and_set_property("step", 1, 0, authority=ep.AUTHORITY_ANYONE)
+    wait_for(lambda: (c.get_property("step") or 0) and c.get_property("step").version >= 1, 5, "no agreed step")
+    step = c.get_property("step")
+    print(f"agreed step: {step.value} (written by player {step.writer})")
 
     ground = c.spawn(position=(0, -0.5, 0), flags=ep.FLAG_OFFLOADED, name="ground",
                      colliders=[ep.collider(ep.SHAPE_BOX, half_extents=(5, 0.5, 5))])
@@ -132,6 +142,20 @@ def main(relay, token, room):
         t = pos(b)
         p, q = t.position, t.rotation
         print(f"pose {b} {p.x:.6f} {p.y:.6f} {p.z:.6f} {q.x:.6f} {q.y:.6f} {q.z:.6f} {q.w:.6f}", flush=True)
+    # An ownership handoff of a local-physics object: a baton this client simulates itself (not
+    # offloaded) goes to another player; once the relay announces it, the new owner's states
+    # are the ones everyone gets.
+    baton = c.spawn(position=(2, 0.1, 0), name="baton", rigid_body=ep.rigid_body(),
+                    colliders=[ep.collider(ep.SHAPE_BOX, half_extents=(0.1, 0.1, 0.1))])
+    run_for(0.2)
+    other = state["other"]
+    if other == 0:
+        fail("nobody to hand the baton to")
+    c.hand_over(baton, other)
+    wait_for(lambda: c.owner(baton) == other, 5, "the handoff was not announced")
+    wait_for(lambda: pos(baton) is not None and abs(pos(baton).position.y - 0.5) < 0.01, 5,
+             "no state of the baton from its new owner")
+    print(f"handoff: entity {baton} to player {other}, its state now comes from player {other}", flush=True)
     run_for(1.0)  # let a watcher see the same settled poses before we leave
     c.disconnect()
     c.close()
