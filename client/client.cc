@@ -494,6 +494,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       entity_id_base_ = j->entity_id_base();
       state_format_ = j->state_format();
       if (!resumed) next_local_id_ = 1;
+      if (!resumed) players_.clear();  // a new room: its members are announced afresh
       delta_decoder_.reset();
       shared_decoder_.reset();
       soft_decoder_.reset();
@@ -523,8 +524,16 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
     }
     case schema::Body::RoomState: {
       const auto* rs = msg->body_as_RoomState();
+      // The members already in the room are announced like later joiners (once: a resume
+      // that repeats the RoomState announces only the members new to this client).
+      std::vector<uint32_t> known = std::move(players_);
       players_.clear();
       if (rs->players()) players_.assign(rs->players()->begin(), rs->players()->end());
+      for (uint32_t p : players_) {
+        if (p != player_id_ && std::find(known.begin(), known.end(), p) == known.end()) {
+          listener_->OnPlayerJoined(p);
+        }
+      }
       // The spawns follow: size the table once rather than rehashing as they arrive (capped,
       // the count is only a hint from the network).
       entities_.reserve(std::min<size_t>(rs->entity_count(), kMaxReservedEntities));

@@ -164,6 +164,7 @@ class ClientListener {
   virtual void OnJoined(std::string_view room, uint32_t entity_id_base) {
     (void)room, (void)entity_id_base;
   }
+  // Another player joined the room; also once per member already there when this client joins.
   virtual void OnPlayerJoined(uint32_t player_id) { (void)player_id; }
   virtual void OnPlayerLeft(uint32_t player_id) { (void)player_id; }
   virtual void OnEntitySpawned(const RemoteEntity& entity) { (void)entity; }

@@ -26,6 +26,8 @@
 namespace {
 
 using edgephys::sdk::Client;
+using edgephys::sdk::Int64Value;
+using edgephys::sdk::Property;
 
 [[noreturn]] void Fail(const std::string& why) {
   std::printf("FAIL: %s (%s)\n", why.c_str(), Client::LastError().c_str());
@@ -129,8 +131,6 @@ class Example {
   void Publish(uint32_t id, float x, float y, float z) { Check(c_.Publish(id, {{x, y, z}, {0, 0, 0, 1}}), "publish"); }
 
   uint32_t other_player = 0;  // the latest other player who joined (0: none yet)
-
- private:
   Client& c_;
   bool connected_ = false, joined_ = false;
   std::vector<edgephys_event> events_;
@@ -142,6 +142,7 @@ int Watch(Client& client, const char* relay, const char* token, const char* room
   bool someone_left = false, proposed = false, agreed = false;
   uint32_t self = 0, baton = 0;
   ex.ConnectAndJoin(relay, token, room);
+  self = client.Info().player_id;
   std::printf("watching\n");
   std::fflush(stdout);
   const double end = edgephys_now_s() + 60;
@@ -149,7 +150,6 @@ int Watch(Client& client, const char* relay, const char* token, const char* room
     ex.Pump([&](const edgephys_event& ev) {
       if (ev.type == EDGEPHYS_EVENT_SPAWNED || ev.type == EDGEPHYS_EVENT_STATE) latest[ev.entity_id] = ev.transform;
       if (ev.type == EDGEPHYS_EVENT_PLAYER_LEFT) someone_left = true;
-      if (ev.type == EDGEPHYS_EVENT_CONNECTED) self = ev.player_id;
       if (ev.type == EDGEPHYS_EVENT_PLAYER_JOINED && ev.player_id != self && !proposed) {
         proposed = client.CompareAndSetProperty(0, "step", Int64Value(2), 0, EDGEPHYS_AUTHORITY_ANYONE) != 0;
       }

@@ -601,7 +601,8 @@ typedef enum edgephys_event_type {
   EDGEPHYS_EVENT_REJECTED = 2,        /* code: reject reason, detail (see "reasons") */
   EDGEPHYS_EVENT_DISCONNECTED = 3,    /* code: disconnect reason, detail (see "reasons") */
   EDGEPHYS_EVENT_JOINED = 4,          /* detail: room; entity_id: this player's id block base */
-  EDGEPHYS_EVENT_PLAYER_JOINED = 5,   /* player_id */
+  EDGEPHYS_EVENT_PLAYER_JOINED = 5,   /* player_id; also one per member already in the room
+                                         when this client joins */
   EDGEPHYS_EVENT_PLAYER_LEFT = 6,     /* player_id */
   EDGEPHYS_EVENT_SPAWNED = 7,         /* entity_id, player_id (owner, 0: PhyS), parent_id, flags,
                                          transform */
