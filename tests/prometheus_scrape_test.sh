@@ -43,7 +43,13 @@ for _ in 1 2 3 4 5; do
   stop "$relay_pid"; relay_pid=""
 done
 [ -n "$metrics_port" ] || fail "the relay never served /metrics"
-udp=$(sed -n 's/.*listening on udp 127\.0\.0\.1:\([0-9]*\).*/\1/p' "$work/relay.log" | head -n 1)
+# /metrics can answer before the relay has logged its UDP port: wait for the line (5 s at most).
+udp=""
+for _ in $(seq 1 50); do
+  udp=$(sed -n 's/.*listening on udp 127\.0\.0\.1:\([0-9]*\).*/\1/p' "$work/relay.log" | head -n 1)
+  [ -n "$udp" ] && break
+  sleep 0.1
+done
 [ -n "$udp" ] || fail "no UDP port in the relay log"
 instance="127.0.0.1:$metrics_port"
 
