@@ -33,6 +33,7 @@
 
 using edgephys::Status;
 using edgephys::capi::CopyDetail;
+using edgephys::capi::Guarded;
 using edgephys::capi::ToC;
 
 namespace {
@@ -53,20 +54,6 @@ edgephys_status Ok() {
 }
 static_assert(static_cast<int>(edgephys::StatusCode::kResourceExhausted) == EDGEPHYS_E_RESOURCE_EXHAUSTED);
 static_assert(static_cast<int>(edgephys::StatusCode::kNotFound) == EDGEPHYS_E_NOT_FOUND);
-
-// Runs `body`, turning a C++ exception into EDGEPHYS_E_INTERNAL.
-template <typename F>
-edgephys_status Guarded(F&& body) {
-  try {
-    return body();
-  } catch (const std::bad_alloc&) {
-    return Fail(EDGEPHYS_E_INTERNAL, "out of memory");
-  } catch (const std::exception& e) {
-    return Fail(EDGEPHYS_E_INTERNAL, std::string("internal error: ") + e.what());
-  } catch (...) {
-    return Fail(EDGEPHYS_E_INTERNAL, "internal error");
-  }
-}
 
 }  // namespace
 

@@ -7,6 +7,9 @@
 #include <cmath>
 #include <cstring>
 #include <deque>
+#include <exception>
+#include <new>
+#include <string>
 #include <span>
 #include <memory>
 #include <string_view>
@@ -45,6 +48,21 @@ inline edgephys_transform ToC(const EntityState& s) {
 edgephys_status CheckHandle(const edgephys_client* c);
 edgephys_status SetError(edgephys_status code, std::string_view message);
 edgephys_status SetStatus(const Status& st);  // Ok, or the error st names
+
+// Runs `body` (returning edgephys_status), turning a C++ exception into EDGEPHYS_E_INTERNAL
+// with its message recorded: no exception crosses the C boundary.
+template <typename F>
+edgephys_status Guarded(F&& body) {
+  try {
+    return body();
+  } catch (const std::bad_alloc&) {
+    return SetError(EDGEPHYS_E_INTERNAL, "out of memory");
+  } catch (const std::exception& e) {
+    return SetError(EDGEPHYS_E_INTERNAL, std::string("internal error: ") + e.what());
+  } catch (...) {
+    return SetError(EDGEPHYS_E_INTERNAL, "internal error");
+  }
+}
 
 }  // namespace edgephys::capi
 

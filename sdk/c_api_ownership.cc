@@ -16,16 +16,10 @@ namespace {
 template <typename F>
 edgephys_status Call(edgephys_client* client, uint32_t entity_id, F&& body) {
   if (edgephys_status s = CheckHandle(client); s != EDGEPHYS_OK) return s;
-  try {
+  return edgephys::capi::Guarded([&]() -> edgephys_status {
     if (entity_id == 0) return SetError(EDGEPHYS_E_INVALID_ARGUMENT, "entity id must be non-zero");
     return SetStatus(body(*client->client));
-  } catch (const std::bad_alloc&) {
-    return SetError(EDGEPHYS_E_INTERNAL, "out of memory");
-  } catch (const std::exception& e) {
-    return SetError(EDGEPHYS_E_INTERNAL, std::string("internal error: ") + e.what());
-  } catch (...) {
-    return SetError(EDGEPHYS_E_INTERNAL, "internal error");
-  }
+  });
 }
 
 }  // namespace

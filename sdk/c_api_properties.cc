@@ -15,23 +15,11 @@ using edgephys::PropertyRecord;
 using edgephys::PropertyType;
 using edgephys::PropertyValue;
 using edgephys::capi::CheckHandle;
+using edgephys::capi::Guarded;
 using edgephys::capi::SetError;
 using edgephys::capi::SetStatus;
 
 namespace {
-
-template <typename F>
-edgephys_status Guarded(F&& body) {
-  try {
-    return body();
-  } catch (const std::bad_alloc&) {
-    return SetError(EDGEPHYS_E_INTERNAL, "out of memory");
-  } catch (const std::exception& e) {
-    return SetError(EDGEPHYS_E_INTERNAL, std::string("internal error: ") + e.what());
-  } catch (...) {
-    return SetError(EDGEPHYS_E_INTERNAL, "internal error");
-  }
-}
 
 // The C value as a PropertyValue; EDGEPHYS_OK or the error (recorded).
 edgephys_status FromC(const edgephys_property_value* in, PropertyValue* out) {

@@ -20,16 +20,6 @@
 namespace edgephys::testing {
 namespace {
 
-NetworkConditions Bad() {
-  NetworkConditions c;
-  c.loss = 0.20;
-  c.duplicate = 0.05;
-  c.reorder = 0.10;
-  c.latency_s = 0.030;
-  c.jitter_s = 0.020;
-  return c;
-}
-
 // Payload: u8 tag (which stream), u32 sequence, then filler up to the wanted size.
 std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
   std::vector<uint8_t> p(std::max<size_t>(size, 5));
@@ -92,7 +82,7 @@ void JoinAll(World& world, std::vector<Client*> clients, const char* room) {
 constexpr uint8_t kToRoom = 1, kToOthers = 2, kToPlayer = 3, kBig = 4;
 
 TEST(Messages, ArriveOnceInOrderAtExactlyTheAddressedPlayersUnderLossReorderingDuplication) {
-  SimWorld world(Bad());
+  SimWorld world(LossyLink());
   Inbox ia, ib, ic;
   Client& a = world.AddClient(MintToken("chat", 1), &ia);
   Client& b = world.AddClient(MintToken("chat", 2), &ib);

@@ -36,16 +36,6 @@ struct OwnershipInbox : PropertyInbox {
   }
 };
 
-NetworkConditions Bad() {
-  NetworkConditions c;
-  c.loss = 0.20;
-  c.duplicate = 0.05;
-  c.reorder = 0.10;
-  c.latency_s = 0.030;
-  c.jitter_s = 0.020;
-  return c;
-}
-
 // Received states are quantised (1 mm steps by default).
 bool Near(float got, float want) { return std::fabs(got - want) < 0.002f; }
 
@@ -129,7 +119,7 @@ TEST(Ownership, HandOverAcceptsTheNewOwnerWithinOneRoundTripAndDropsTheOldOwners
 }
 
 TEST(Ownership, RequestsTakeoverReleaseAndLateJoinersUnderLoss) {
-  SimWorld world(Bad());
+  SimWorld world(LossyLink());
   OwnershipInbox ia, ib, ic, id_in;
   Client& a = world.AddClient(MintToken("own2", 1), &ia);
   Client& b = world.AddClient(MintToken("own2", 2), &ib);

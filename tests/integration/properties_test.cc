@@ -19,16 +19,6 @@
 namespace edgephys::testing {
 namespace {
 
-NetworkConditions Bad() {
-  NetworkConditions c;
-  c.loss = 0.20;
-  c.duplicate = 0.05;
-  c.reorder = 0.10;
-  c.latency_s = 0.030;
-  c.jitter_s = 0.020;
-  return c;
-}
-
 // Whether `c` holds exactly the properties of `want` (values, versions, writers).
 ::testing::AssertionResult SameProperties(const Client& c,
                                           const std::map<PropertyKey, PropertyRecord>& want) {
@@ -49,7 +39,7 @@ NetworkConditions Bad() {
 }
 
 TEST(Properties, ConvergeInOrderUnderLossAndLateJoinersGetThemAll) {
-  SimWorld world(Bad());
+  SimWorld world(LossyLink());
   PropertyInbox ia, ib, ic, id;
   Client& a = world.AddClient(MintToken("props", 1), &ia);
   Client& b = world.AddClient(MintToken("props", 2), &ib);
@@ -127,7 +117,7 @@ TEST(Properties, ConvergeInOrderUnderLossAndLateJoinersGetThemAll) {
 }
 
 TEST(Properties, OfTwoCompareAndSetWritersExactlyOneWinsAndTheOtherSeesTheCurrentValue) {
-  SimWorld world(Bad());
+  SimWorld world(LossyLink());
   PropertyInbox ia, ib, ic;
   Client& a = world.AddClient(MintToken("cas", 1), &ia);
   Client& b = world.AddClient(MintToken("cas", 2), &ib);

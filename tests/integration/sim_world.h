@@ -13,6 +13,18 @@
 
 namespace edgephys::testing {
 
+// The hostile link the application-state tests run over: 20 % loss, 5 % duplication, 10 %
+// reordering, 30 ms +- 20 ms one way.
+inline NetworkConditions LossyLink() {
+  NetworkConditions c;
+  c.loss = 0.20;
+  c.duplicate = 0.05;
+  c.reorder = 0.10;
+  c.latency_s = 0.030;
+  c.jitter_s = 0.020;
+  return c;
+}
+
 class SimWorld {
  public:
   explicit SimWorld(const NetworkConditions& conditions = {},
