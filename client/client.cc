@@ -268,6 +268,7 @@ void Client::Impl::ResetRoom() {
   entities_.clear();
   despawned_.clear();
   owned_.clear();
+  respawned_.clear();
   properties_.clear();
   players_.clear();
   tracker_ = ReplicationTracker();
@@ -312,7 +313,9 @@ Result<uint32_t> Client::Impl::Spawn(const SpawnDesc& desc) {
   owned.state = st;
   owned.parent = desc.parent_id;
   owned.flags = desc.flags;
-  owned_[id] = owned;
+  // Kept for a resume: a spawn queued into a connection that then died is sent again.
+  owned.spawn.assign(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  owned_[id] = std::move(owned);
   tracker_.MarkAcked(id, 1);
   return id;
 }
