@@ -134,7 +134,9 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
   }
   Player& observer = players.back();
   bool spawning = false;
+  double kill_s = 1e9;
   uint64_t spawn_refused = 0;  // Spawn() errors (kNotConnected while resuming): not spawned
+  uint64_t into_dead = 0;      // spawns after the kill, before the SDK noticed it
   auto pump = [&] {
     const double t = now_s();
     for (Player& p : players) {
@@ -151,6 +153,7 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
         auto id = p.client->Spawn(d);
         if (id.ok()) {
           p.spawned.push_back(*id);
+          into_dead += t > kill_s && p.client->resumes() == 0;
         } else {
           ++spawn_refused;
         }
@@ -189,7 +192,7 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
   kill(pids[victim], SIGKILL);
   waitpid(pids[victim], nullptr, 0);
   pids[victim] = -1;
-  const double kill_s = now_s();
+  kill_s = now_s();
   size_t spawned_before_kill = 0;
   for (const Player& p : players) spawned_before_kill += p.spawned.size();
   // 3. Spawns go on until every player has resumed (or the deadline), and a little after.
@@ -242,6 +245,7 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
   out["spawners"] = o.spawners;
   out["spawned"] = spawned;
   out["spawned_before_kill"] = spawned_before_kill;
+  out["spawned_into_the_dead_connection"] = into_dead;
   out["spawn_calls_refused_while_resuming"] = spawn_refused;
   out["present_at_observer"] = present;
   // Of the re-spawns sent after the resume: the ones the restored room held (its snapshot had
@@ -255,6 +259,7 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
   if (silently_lost != 0) fail("entities lost silently");
   if (other_errors != 0) fail("errors not about lost entities");
   if (spawned_before_kill == 0) fail("nothing was spawned before the kill");
+  if (into_dead == 0) fail("nothing was spawned into the dead connection");
   out["ok"] = ok;
   std::printf("%s\n", out.dump(2).c_str());
   if (!o.json_path.empty()) std::ofstream(o.json_path) << out.dump(2) << "\n";

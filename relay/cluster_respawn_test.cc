@@ -199,7 +199,11 @@ TEST_P(ClusterRespawnTest, SpawnsTheSnapshotLacksComeBackOrAreReportedLost) {
 
 INSTANTIATE_TEST_SUITE_P(Budgets, ClusterRespawnTest,
                          ::testing::Values(Case{1024, 0},  // both spawned again
-                                           Case{3, 2}));   // the new relay refuses both
+                                           Case{3, 2}),    // the new relay refuses both
+                         [](const ::testing::TestParamInfo<Case>& info) {
+                           return std::string(info.param.expect_lost == 0 ? "TakenBack"
+                                                                          : "RefusedAndReported");
+                         });
 
 }  // namespace
 }  // namespace edgephys
