@@ -28,6 +28,8 @@ constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Pers
 struct LossListener : ClientListener {
   std::set<uint32_t> lost;  // OnError "lost in failover: ..."
   std::vector<std::string> other_errors;
+  int joined = 0;
+  void OnJoined(std::string_view, uint32_t) override { ++joined; }
   void OnError(uint16_t, uint32_t entity_id, std::string_view detail) override {
     if (detail.rfind("lost in failover: ", 0) == 0) {
       lost.insert(entity_id);
@@ -47,8 +49,9 @@ class RespawnWorld {
     }
   }
 
-  // Starts relay `i`, its rooms allowing `max_entities_per_player` per player.
-  void StartRelay(int i, uint32_t max_entities_per_player) {
+  // Starts relay `i`, its rooms allowing `max_entities_per_player` per player, writing
+  // snapshots every `snapshot_s`.
+  void StartRelay(int i, uint32_t max_entities_per_player, double snapshot_s = 0.1) {
     Node* node = nodes_[i].get();
     RelayConfig config;
     config.secret = kSecret;
@@ -64,7 +67,7 @@ class RespawnWorld {
     o.directory.ttl_s = 0.4;
     o.directory.refresh_s = 0.05;
     o.directory.redis_timeout_s = 0.3;
-    o.snapshot_interval_s = 0.1;
+    o.snapshot_interval_s = snapshot_s;
     EXPECT_TRUE(node->relay->EnableCluster(o).ok());
   }
 
@@ -195,6 +198,37 @@ TEST_P(ClusterRespawnTest, SpawnsTheSnapshotLacksComeBackOrAreReportedLost) {
     EXPECT_NEAR(b.entities().at(ids[4]).state.position.x, 4.0f, 0.01f);  // quantised states
   }
   EXPECT_EQ(b.entities().size(), 5u - param.expect_lost);
+}
+
+// The room comes back without a snapshot (the lost relay never wrote one), so the resuming
+// player gets another id block: each entity it owned is reported lost before its second
+// OnJoined, and none is left listed as owned.
+TEST(ClusterRespawnNoSnapshotTest, AnotherIdBlockReportsEveryOwnedEntityLost) {
+  cluster::testing::RedisServer redis;
+  ASSERT_TRUE(redis.Start()) << "redis-server did not start";
+  RespawnWorld world(redis.port(), 2);
+  world.StartRelay(0, 1024, /*snapshot_s=*/1000.0);  // one (empty) write at start, then none
+  world.RunUntil([] { return false; }, 0.2);
+  // X takes the first id block and goes; A, in the second block, spawns two entities.
+  LossListener lx, la;
+  Client& x = world.AddClient(9, &lx);
+  ASSERT_TRUE(world.RunUntil([&] { return x.joined(); }, 10.0));
+  Client& a = world.AddClient(1, &la);
+  ASSERT_TRUE(world.RunUntil([&] { return a.joined(); }, 10.0));
+  const uint32_t first_base = a.entity_id_base();
+  x.Disconnect();
+  std::vector<uint32_t> ids = {*SpawnAt(a, 0), *SpawnAt(a, 1)};
+  world.RunUntil([] { return false; }, 0.3);  // the relay holds them (no snapshot)
+  world.StartRelay(1, 1024);
+  world.RunUntil([] { return false; }, 0.3);
+  world.Kill(0);
+  ASSERT_TRUE(world.RunUntil([&] { return la.joined == 2 && a.joined(); }, 15.0));
+  EXPECT_NE(a.entity_id_base(), first_base);
+  EXPECT_EQ(la.lost, std::set<uint32_t>(ids.begin(), ids.end()));
+  EXPECT_EQ(a.entities_lost(), 2u);
+  for (uint32_t id : ids) EXPECT_NE(a.OwnerOf(id), a.player_id()) << id;
+  EXPECT_EQ(a.respawns_sent(), 0u);
+  EXPECT_TRUE(la.other_errors.empty());
 }
 
 INSTANTIATE_TEST_SUITE_P(Budgets, ClusterRespawnTest,
