@@ -166,6 +166,7 @@ void Client::Impl::Update(double now) {
   if (state_ != ClientState::kConnected) return;
   // Reliable traffic (spawns) first, so a new entity's spawn leaves before its first state.
   connection_->Update(now, *this);
+  if (!respawned_.empty()) ExpireRespawns(now);
   if (joined_ && connection_->connected() && now >= next_publish_) {
     Publish(now);
     next_publish_ = now + 1.0 / std::max(1.0, config_.publish_rate_hz);

@@ -103,6 +103,10 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   void RespawnAfterResume();
   // true if `error` answered a re-spawn (and was handled here; the game saw it if it was a loss).
   bool RespawnRefused(uint16_t reason, uint32_t entity_id, std::string_view detail);
+  // An accepted re-spawn gets no answer: once the relay has acknowledged every re-spawn and
+  // kRespawnAnswerS (or 4 round trips, if longer) has passed for its answers to arrive,
+  // respawned_ is cleared, so that later errors about those entities reach the game as such.
+  void ExpireRespawns(double now);
   // Drops owned entity `id` and tells the game it is gone: OnError(reason, id, "lost in
   // failover: <why>").
   void ReportLost(uint16_t reason, uint32_t id, std::string_view why);
@@ -176,6 +180,8 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   // Resume re-spawns awaiting the relay's answer (an Error, or none when it was accepted);
   // cleared when a room is left or joined afresh.
   std::unordered_set<uint32_t> respawned_;
+  uint64_t respawn_end_ = 0;        // reliable stream position after the last re-spawn
+  double respawn_answers_by_ = 0;   // when respawned_ is cleared (0: not acknowledged yet)
   uint64_t respawns_sent_ = 0;       // re-spawns sent after resumes
   uint64_t respawns_duplicate_ = 0;  // ... that the restored room already held
   uint64_t entities_lost_ = 0;       // owned entities reported lost after a resume

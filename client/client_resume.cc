@@ -10,6 +10,10 @@
 namespace edgephys {
 namespace {
 
+// How long after the relay acknowledged the re-spawns their refusals may still arrive (a lost
+// Error is resent; 4 round trips if that is longer).
+constexpr double kRespawnAnswerS = 1.0;
+
 // Error reasons a relay answers a Spawn with (relay/room_host.cc RoomHost::Spawn). Any other
 // Error naming a re-spawned entity answers something else and reaches the game unchanged.
 bool IsSpawnRefusal(schema::RejectReason r) {
@@ -61,6 +65,15 @@ void Client::Impl::RespawnAfterResume() {
     respawned_.insert(id);
     ++respawns_sent_;
   }
+  respawn_end_ = connection_->reliable_queued_end();
+  respawn_answers_by_ = 0;
+}
+
+void Client::Impl::ExpireRespawns(double now) {
+  if (respawn_answers_by_ == 0 && connection_->reliable_acked_end() >= respawn_end_) {
+    respawn_answers_by_ = now + std::max(kRespawnAnswerS, 4 * connection_->stats().rtt_s);
+  }
+  if (respawn_answers_by_ > 0 && now >= respawn_answers_by_) respawned_.clear();
 }
 
 bool Client::Impl::RespawnRefused(uint16_t reason, uint32_t entity_id, std::string_view detail) {

@@ -198,6 +198,15 @@ TEST_P(ClusterRespawnTest, SpawnsTheSnapshotLacksComeBackOrAreReportedLost) {
     EXPECT_NEAR(b.entities().at(ids[4]).state.position.x, 4.0f, 0.01f);  // quantised states
   }
   EXPECT_EQ(b.entities().size(), 5u - param.expect_lost);
+  if (param.expect_lost == 0) {
+    // Once the re-spawns' answers are due, an error about a re-spawned entity is the game's:
+    // a Release of an entity no hand holds is refused (NotOwner) and the entity stays.
+    world.RunUntil([] { return false; }, 1.5);
+    ASSERT_TRUE(a.Release(ids[3]).ok());
+    EXPECT_TRUE(world.RunUntil([&] { return !la.other_errors.empty(); }, 5.0));
+    EXPECT_TRUE(la.lost.empty());
+    EXPECT_EQ(a.OwnerOf(ids[3]), a.player_id());
+  }
 }
 
 // The room comes back without a snapshot (the lost relay never wrote one), so the resuming
