@@ -166,6 +166,7 @@ void Client::Impl::Update(double now) {
   if (state_ != ClientState::kConnected) return;
   // Reliable traffic (spawns) first, so a new entity's spawn leaves before its first state.
   connection_->Update(now, *this);
+  if (!respawned_.empty()) ExpireRespawns(now);
   if (joined_ && connection_->connected() && now >= next_publish_) {
     Publish(now);
     next_publish_ = now + 1.0 / std::max(1.0, config_.publish_rate_hz);
@@ -268,6 +269,7 @@ void Client::Impl::ResetRoom() {
   entities_.clear();
   despawned_.clear();
   owned_.clear();
+  respawned_.clear();
   properties_.clear();
   players_.clear();
   tracker_ = ReplicationTracker();
@@ -312,7 +314,9 @@ Result<uint32_t> Client::Impl::Spawn(const SpawnDesc& desc) {
   owned.state = st;
   owned.parent = desc.parent_id;
   owned.flags = desc.flags;
-  owned_[id] = owned;
+  // Kept for a resume: a spawn queued into a connection that then died is sent again.
+  owned.spawn.assign(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  owned_[id] = std::move(owned);
   tracker_.MarkAcked(id, 1);
   return id;
 }

@@ -109,8 +109,17 @@ struct ClientConfig {
   // the room and keep this player's entities and id block, without OnDisconnected or a second
   // OnJoined. Tried at the last relay, then the first relay and `relays` in turn, each for
   // resume_attempt_s, for at most resume_timeout_s (then kDisconnected, reason kTimeout).
-  // If the room comes back with another id block, the owned entities are dropped and the game
-  // gets OnJoined again.
+  // After the resume, the Spawn of every entity this player spawned and still owns is sent
+  // again (at its latest transform): the restored room comes from the last snapshot the lost
+  // relay wrote, so spawns made after it (or queued into the dead connection before the SDK
+  // noticed) are not in it. Those the room holds already are not duplicated; one the relay
+  // refuses (budget, rate, a parent that is gone) is dropped from the owned set and reported
+  // with OnError(the relay's reason, its id, "lost in failover: ..."). If the room comes back
+  // with another id block, every owned entity is reported the same way (reason NotOwner), then
+  // dropped, and the game gets OnJoined again. While resuming (resuming()), Spawn() fails with
+  // kNotConnected.
+  // Not covered: a despawn sent into the dead connection (the restored room may still hold the
+  // entity), and entities spawned with PhyS authority (not owned by this client).
   bool resume = false;
   std::vector<RelayAddress> relays;  // Connect() fails with kInvalidArgument on a bad one
   double resume_attempt_s = 1.0;
@@ -177,7 +186,10 @@ class ClientListener {
   }
   // A soft body's particles changed (entity.nodes).
   virtual void OnSoftBodyUpdated(const RemoteEntity& entity) { (void)entity; }
-  // The relay refused a request (RejectReason code, schema/control.fbs).
+  // The relay refused a request (RejectReason code, schema/control.fbs). Also: an owned entity
+  // lost in a failover (ClientConfig::resume): `entity_id` names it, `detail` starts with "lost
+  // in failover: " and says why; the entity is no longer owned (OwnerOf is no longer this
+  // player).
   virtual void OnError(uint16_t reason, uint32_t entity_id, std::string_view detail) {
     (void)reason, (void)entity_id, (void)detail;
   }
@@ -397,6 +409,12 @@ class Client final {
   uint64_t redirects_followed() const;
   uint64_t redirects_refused() const;
   uint64_t resumes() const;
+  // After resumes: owned entities whose Spawn was sent again (RespawnAfterResume in
+  // client/client_resume.cc), those of them the restored room already held, and owned
+  // entities reported lost (OnError "lost in failover: ...").
+  uint64_t respawns_sent() const;
+  uint64_t respawns_duplicate() const;
+  uint64_t entities_lost() const;
   bool resuming() const;
   RelayAddress server() const;
   // Datagrams from the relay's address that failed authentication or were replays (dropped).

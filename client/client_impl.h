@@ -78,6 +78,9 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
     bool takeover_allowed = false;
     // Velocities it had when this client gained it from PhyS (OwnedMotion); 0 otherwise.
     Vec3f linear_velocity, angular_velocity;
+    // The ControlMessage{Spawn} this client sent for it (empty for an entity gained from
+    // another player or PhyS): sent again after a resume (RespawnAfterResume).
+    std::vector<uint8_t> spawn;
   };
   void OnReliableMessage(std::span<const uint8_t> message) override;
   void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override;
@@ -92,6 +95,21 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   void HandleRedirect(const schema::ControlMessage& msg, double now);
   void RestartHandshake(const Endpoint& server, double now);
   void StartResume(double now);
+  // After a resumed Joined: sends the stored Spawn of every owned entity of this player's id
+  // block again (at its current pose), in id order, and remembers them in respawned_. The
+  // relay answers a re-spawn the restored room already holds with Error{DuplicateEntity}
+  // (swallowed: the entity is there) and one it refuses otherwise with another Error (the
+  // entity is dropped from owned_ and reported lost: RespawnRefused).
+  void RespawnAfterResume();
+  // true if `error` answered a re-spawn (and was handled here; the game saw it if it was a loss).
+  bool RespawnRefused(uint16_t reason, uint32_t entity_id, std::string_view detail);
+  // An accepted re-spawn gets no answer: once the relay has acknowledged every re-spawn and
+  // kRespawnAnswerS (or 4 round trips, if longer) has passed for its answers to arrive,
+  // respawned_ is cleared, so that later errors about those entities reach the game as such.
+  void ExpireRespawns(double now);
+  // Drops owned entity `id` and tells the game it is gone: OnError(reason, id, "lost in
+  // failover: <why>").
+  void ReportLost(uint16_t reason, uint32_t id, std::string_view why);
 
   ClientConfig config_;
   std::vector<Endpoint> relays_;  // config_.relays, parsed by Connect()
@@ -159,6 +177,14 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   double resume_started_ = 0;
   size_t resume_index_ = 0;
   uint64_t resumes_ = 0;
+  // Resume re-spawns awaiting the relay's answer (an Error, or none when it was accepted);
+  // cleared when a room is left or joined afresh.
+  std::unordered_set<uint32_t> respawned_;
+  uint64_t respawn_end_ = 0;        // reliable stream position after the last re-spawn
+  double respawn_answers_by_ = 0;   // when respawned_ is cleared (0: not acknowledged yet)
+  uint64_t respawns_sent_ = 0;       // re-spawns sent after resumes
+  uint64_t respawns_duplicate_ = 0;  // ... that the restored room already held
+  uint64_t entities_lost_ = 0;       // owned entities reported lost after a resume
 };
 
 }  // namespace edgephys

@@ -83,6 +83,9 @@ uint64_t Client::arrival_time_fallbacks() const { return impl_->arrival_time_fal
 uint64_t Client::redirects_followed() const { return impl_->redirects_followed_; }
 uint64_t Client::redirects_refused() const { return impl_->redirects_refused_; }
 uint64_t Client::resumes() const { return impl_->resumes_; }
+uint64_t Client::respawns_sent() const { return impl_->respawns_sent_; }
+uint64_t Client::respawns_duplicate() const { return impl_->respawns_duplicate_; }
+uint64_t Client::entities_lost() const { return impl_->entities_lost_; }
 bool Client::resuming() const { return impl_->resuming_; }
 RelayAddress Client::server() const { return ToRelayAddress(impl_->server_); }
 uint64_t Client::packets_refused() const { return impl_->packets_refused_; }

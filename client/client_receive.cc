@@ -35,6 +35,17 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
         for (auto& [id, e] : owned_) ++e.version;
         next_local_id_ = next_local;
       } else {
+        if (resuming_) {
+          // Back in another room or with another id block: the entities this player owned
+          // are gone from its view; each is reported, none vanishes silently.
+          std::vector<uint32_t> lost;
+          for (const auto& [id, e] : owned_) lost.push_back(id);
+          std::sort(lost.begin(), lost.end());
+          for (uint32_t id : lost) {
+            ReportLost(static_cast<uint16_t>(schema::RejectReason::NotOwner), id,
+                       "the room came back without this player's id block");
+          }
+        }
         ResetRoom();
       }
       resuming_ = false;
@@ -66,6 +77,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       }
       if (resumed) {
         ++resumes_;
+        RespawnAfterResume();  // whatever the restored room lacks is spawned again
       } else {
         listener_->OnJoined(room_, entity_id_base_);
       }
@@ -140,8 +152,12 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
     }
     case schema::Body::Error: {
       const auto* e = msg->body_as_Error();
-      listener_->OnError(static_cast<uint16_t>(e->reason()), e->entity_id(),
-                         e->detail() ? e->detail()->string_view() : std::string_view());
+      const std::string_view detail = e->detail() ? e->detail()->string_view() : std::string_view();
+      if (!respawned_.empty() &&
+          RespawnRefused(static_cast<uint16_t>(e->reason()), e->entity_id(), detail)) {
+        break;  // a resume's re-spawn: already in place, or reported lost
+      }
+      listener_->OnError(static_cast<uint16_t>(e->reason()), e->entity_id(), detail);
       break;
     }
     case schema::Body::AppMessage: {

@@ -24,6 +24,8 @@
 // stop (through another relay at once, through the holder 0.3 s later) and the same fencing
 // checks apply from one second after the anomaly; the rooms need not move, so no resume is
 // required, but every member must end joined at the relay Redis names the room's owner.
+// --fault kill-during-spawns: players spawn a Persistent entity every 40 ms while the owner is
+// killed; nothing may be lost silently (loadgen/cluster_spawn_burst.h).
 // Bounded: every phase has a deadline; the processes it started are killed by PID at exit.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -47,6 +49,7 @@
 #include "client/client_endpoint.h"
 #include "cluster/redis_client.h"
 #include "cluster/testing/redis_server.h"
+#include "loadgen/cluster_spawn_burst.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -113,9 +116,22 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the results as JSON here");
   app.add_option("--fault", fault,
                  "kill (SIGKILL), stop:SECONDS (SIGSTOP, then SIGCONT) or redis:ANOMALY (set-missing, "
-                 "entry-garbage, owner-unknown, owner-wrong-type, set-wrong-type)")
+                 "entry-garbage, owner-unknown, owner-wrong-type, set-wrong-type) or "
+                 "kill-during-spawns")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (fault == "kill-during-spawns") {
+    spdlog::set_level(spdlog::level::warn);
+    SpawnBurstOptions o;
+    o.relay_binary = relay_binary;
+    o.relays = relays;
+    o.relay_timeout_s = relay_timeout_s;
+    o.ttl_ms = ttl_ms;
+    o.heartbeat_ms = heartbeat_ms;
+    o.snapshot_ms = snapshot_ms;
+    o.json_path = json_path;
+    return RunKillDuringSpawns(o);
+  }
   double stop_s = 0;  // > 0: --fault stop:S
   if (fault.rfind("stop:", 0) == 0) {
     stop_s = std::atof(fault.c_str() + 5);

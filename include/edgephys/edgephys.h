@@ -273,7 +273,13 @@ EDGEPHYS_API edgephys_status edgephys_client_disconnect(edgephys_client* client)
  * that follow edgephys_client_publish_transform (local physics pushes PhyS objects).
  * EDGEPHYS_E_NOT_CONNECTED before EDGEPHYS_EVENT_JOINED; EDGEPHYS_E_INVALID_ARGUMENT on any
  * non-finite or out-of-range field; EDGEPHYS_E_TOO_LARGE over the message size limit. PhyS may
- * still refuse the components later (EDGEPHYS_EVENT_ERROR, reason 14 InvalidContainer). */
+ * still refuse the components later (EDGEPHYS_EVENT_ERROR, reason 14 InvalidContainer).
+ * A spawn is queued on the reliable channel: if the relay is lost before it arrives, this
+ * client ends in EDGEPHYS_EVENT_DISCONNECTED (the C API does not resume sessions) and the
+ * entity is gone with the connection. (The C++ SDK's session resume, ClientConfig::resume,
+ * spawns such entities again on the relay that restores the room, or reports each one it
+ * cannot as an ERROR whose detail starts "lost in failover: "; docs/protocol.md, "Failover
+ * and resume".) */
 EDGEPHYS_API edgephys_status edgephys_client_spawn(edgephys_client* client,
                                                    const edgephys_spawn_desc* desc,
                                                    uint32_t* out_id);
