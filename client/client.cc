@@ -269,6 +269,7 @@ void Client::Impl::ResetRoom() {
   despawned_.clear();
   owned_.clear();
   properties_.clear();
+  unreliable_.last.clear();
   players_.clear();
   tracker_ = ReplicationTracker();
 }
