@@ -323,9 +323,7 @@ public sealed class Client : IDisposable {
   public event PhysicsHandler Physics;                // collision / trigger / grab / guard events
   public event Action<RejectReason, uint, string> Error;  // reason, entity, detail
   public event Action<uint, byte[]> MessageReceived;     // sender, payload (allocates per message)
-  // Unreliable messages (SendMessageUnreliable): sender, payload. Without a handler here they
-  // are raised on MessageReceived.
-  public event Action<uint, byte[]> UnreliableMessageReceived;
+  public event Action<uint, byte[]> UnreliableMessageReceived;  // SendMessageUnreliable's; else MessageReceived
   public event Action<Property> PropertyChanged;         // the property now (writer, version, ...)
   public event Action<uint, uint, uint> OwnershipChanged;  // entity, new owner (0: the room), authority sequence
   public event Action<uint, Property> PropertyConflict;  // the refused request id, the property now
@@ -387,10 +385,8 @@ public sealed class Client : IDisposable {
   // (edgephys_client_send_message_unreliable). Status.TooLarge over the limit.
   public void SendMessageUnreliable(byte[] data, MessageTarget target = MessageTarget.Room, uint toPlayer = 0) {
     if (data == null) throw new EdgephysException(Status.InvalidArgument, "data is null");
-    Native.Check(Native.edgephys_client_send_message_unreliable(handle_, (uint)target, toPlayer, data, (UIntPtr)data.Length),
-                 "send_message_unreliable");
+    Native.Check(Native.edgephys_client_send_message_unreliable(handle_, (uint)target, toPlayer, data, (UIntPtr)data.Length), "send_message_unreliable");
   }
-
   // Receives, then raises the events of everything that arrived. Call every frame.
   public void Update() { Update(Native.Now()); }
   public void Update(double now) {
@@ -419,10 +415,8 @@ public sealed class Client : IDisposable {
       case EventType.Despawned: if (Despawned != null) Despawned(event_.EntityId); break;
       case EventType.Message:
         {
-          Action<uint, byte[]> handler = MessageReceived;
-          if ((event_.Flags & Native.MessageUnreliableFlag) != 0 && UnreliableMessageReceived != null) {
-            handler = UnreliableMessageReceived;
-          }
+          bool unreliable = (event_.Flags & Native.MessageUnreliableFlag) != 0 && UnreliableMessageReceived != null;
+          Action<uint, byte[]> handler = unreliable ? UnreliableMessageReceived : MessageReceived;
           if (handler == null) break;
           byte[] payload = new byte[event_.Code];
           UIntPtr n;
