@@ -271,6 +271,7 @@ void Client::Impl::ResetRoom() {
   owned_.clear();
   respawned_.clear();
   properties_.clear();
+  unreliable_.last.clear();
   players_.clear();
   tracker_ = ReplicationTracker();
 }

@@ -198,6 +198,13 @@ class ClientListener {
   virtual void OnMessage(uint32_t sender, std::span<const uint8_t> payload) {
     (void)sender, (void)payload;
   }
+  // An unreliable application message (SendMessageUnreliable) from player `sender`: at most
+  // once, never older than one already delivered from that sender (those are dropped and
+  // counted, Client::unreliable_messages_stale()); some may be lost. By default it is handed
+  // to OnMessage. `payload` is valid during the call only.
+  virtual void OnUnreliableMessage(uint32_t sender, std::span<const uint8_t> payload) {
+    OnMessage(sender, payload);
+  }
   // A property of the room (entity_id 0) or of an entity changed: `property` is it now, with
   // the player who wrote it, its new version and (for this client's own writes) the request id
   // SetProperty returned. Also called, once per property, for the properties a room holds when
@@ -231,6 +238,9 @@ enum class MessageTarget : uint8_t {
 };
 // Largest application message payload (bytes); the room's budget may allow less.
 inline constexpr size_t kMaxMessagePayload = 64 * 1024;
+// Largest unreliable application message payload (bytes): one datagram less its headers
+// (protocol/app_message_codec.h kMaxUnreliableMessagePayload).
+inline constexpr size_t kMaxUnreliableMessageBytes = 1165;
 
 // What Spawn() sends: an EntitySpec (protocol/entity_spec.h) — the entity's transform,
 // hierarchy (parent_id) and flags (entity_flags::kPersistent, kOffloaded, kHand, ...) and,
@@ -286,6 +296,14 @@ class Client final {
   // over kMaxMessagePayload, an unknown target or a kPlayer target of 0, kResourceExhausted when
   // the reliable queue is full. The payload is copied.
   Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
+  // As SendMessage, but unreliable: the payload (at most kMaxUnreliableMessageBytes) leaves at
+  // once in one datagram of its own and may be lost; each addressed member gets it at most
+  // once and never after a later one of this client's unreliable messages
+  // (ClientListener::OnUnreliableMessage). Same permission, budgets (shared with SendMessage)
+  // and refusals (OnError). kTooLarge over kMaxUnreliableMessageBytes; kNotConnected,
+  // kInvalidArgument as SendMessage. The payload is copied.
+  Status SendMessageUnreliable(MessageTarget target, uint32_t to_player,
+                               std::span<const uint8_t> payload);
   // Properties (docs/protocol.md, "Properties"). Writes `value` under `key` (1..64 bytes) of
   // the room (`entity_id` 0) or of an entity; the relay stores it and sends every member,
   // this client included, OnPropertyChanged with the new version. `authority` applies when
@@ -419,6 +437,12 @@ class Client final {
   RelayAddress server() const;
   // Datagrams from the relay's address that failed authentication or were replays (dropped).
   uint64_t packets_refused() const;
+  // Unreliable application messages received and handed to the listener, and those dropped:
+  // older than (or the same as) one already delivered from their sender (`stale`), or
+  // malformed (shorter than their header, unknown target, no sender).
+  uint64_t unreliable_messages_received() const;
+  uint64_t unreliable_messages_stale() const;
+  uint64_t unreliable_messages_malformed() const;
 
  private:
   // Raw senders and the control-message hook for tests, fuzzers and the PhyS worker:

@@ -43,6 +43,10 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status Grab(uint32_t entity_id, uint32_t hand_id);
   Status Release(uint32_t entity_id);
   Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
+  // Unreliable messages (client/client_messages.cc): send, and a format-15 payload received.
+  Status SendMessageUnreliable(MessageTarget target, uint32_t to_player,
+                               std::span<const uint8_t> payload);
+  void OnUnreliableMessage(std::span<const uint8_t> payload);
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);
   // Properties (client/client_properties.cc).
   Result<uint32_t> WriteProperty(uint32_t entity_id, std::string_view key,
@@ -147,6 +151,12 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   std::unordered_map<uint32_t, OwnedEntity> owned_;
   std::map<PropertyKey, PropertyRecord> properties_;
   uint32_t last_property_request_ = 0;
+  // Unreliable messages: the newest sequence delivered per sender (this room; cleared by
+  // ResetRoom) and what was received and dropped.
+  struct UnreliableMessages {
+    std::unordered_map<uint32_t, uint32_t> last;
+    uint64_t received = 0, stale = 0, malformed = 0;
+  } unreliable_;
   ReplicationTracker tracker_;
   double next_publish_ = 0;
   double now_ = 0;

@@ -54,6 +54,13 @@ Status Client::SendMessage(MessageTarget target, uint32_t to_player,
                            std::span<const uint8_t> payload) {
   return impl_->SendMessage(target, to_player, payload);
 }
+Status Client::SendMessageUnreliable(MessageTarget target, uint32_t to_player,
+                                     std::span<const uint8_t> payload) {
+  return impl_->SendMessageUnreliable(target, to_player, payload);
+}
+uint64_t Client::unreliable_messages_received() const { return impl_->unreliable_.received; }
+uint64_t Client::unreliable_messages_stale() const { return impl_->unreliable_.stale; }
+uint64_t Client::unreliable_messages_malformed() const { return impl_->unreliable_.malformed; }
 Status Client::PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation) {
   return impl_->PublishTransform(entity_id, position, rotation);
 }
@@ -92,6 +99,9 @@ uint64_t Client::packets_refused() const { return impl_->packets_refused_; }
 
 Status ClientTesting::SendStateUnchecked(Client& client, const EntityState& state, double now) {
   return client.impl_->SendStateUnchecked(state, now);
+}
+void ClientTesting::DeliverUnreliable(Client& client, std::span<const uint8_t> payload) {
+  client.impl_->OnUnreliablePayload(0, payload);
 }
 Status ProtocolPeer::SendReliable(Client& client, std::span<const uint8_t> message) {
   return client.impl_->SendReliableUnchecked(message);

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 
+#include "protocol/app_message_codec.h"
 #include "protocol/emulation_codec.h"
 #include "protocol/handshake.h"
 
@@ -213,6 +214,7 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     ++state_payloads_outside_room_;
     return;
   }
+  if (!payload.empty() && payload[0] == kAppMessageFormat) return OnUnreliableMessage(payload);
   bytes_state_received_ += payload.size();
   if (!config_.decode_states) return;  // acknowledged by the connection all the same
   if (!payload.empty() && payload[0] == kSoftBodyFormat) {

@@ -28,6 +28,8 @@ class ClientTesting {
   static Status SendUnreliableRaw(Client& client, std::span<const uint8_t> payload, double now) {
     return ProtocolPeer::SendUnreliable(client, payload, now);
   }
+  // Hands `payload` to the client as if the relay had sent it as an unreliable payload now.
+  static void DeliverUnreliable(Client& client, std::span<const uint8_t> payload);
   static void SetControlMessageListener(Client& client, ControlMessageListener* listener) {
     ProtocolPeer::SetControlMessageListener(client, listener);
   }

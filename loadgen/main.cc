@@ -10,6 +10,7 @@
 //   edgephys-loadgen ceiling --io-threads 1,2 --repeat 3 --json ceiling.json
 //   edgephys-loadgen isolation --users 50 --boxes 10000 --phase 10
 //   edgephys-loadgen hostile --attacks physics,names,churn,flood,forged,invalid --phase 4
+//   edgephys-loadgen messages --users 25 --rate 40 --seconds 10
 //   edgephys-loadgen ccu --users 100 --relay 127.0.0.1:7777 --secret S --relay-pid PID
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>

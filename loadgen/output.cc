@@ -49,6 +49,7 @@ std::vector<std::unique_ptr<Scenario>> AllScenarios() {
   all.push_back(MakeIsolationScenario());
   all.push_back(MakePhysicsBurnScenario());
   all.push_back(MakeHostileScenario());
+  all.push_back(MakeMessagesScenario());
   return all;
 }
 

@@ -128,6 +128,7 @@ std::unique_ptr<Scenario> MakeCeilingScenario();
 std::unique_ptr<Scenario> MakeIsolationScenario();
 std::unique_ptr<Scenario> MakePhysicsBurnScenario();  // isolation's control (physics_burn.h)
 std::unique_ptr<Scenario> MakeHostileScenario();
+std::unique_ptr<Scenario> MakeMessagesScenario();
 
 // "1,2,3" -> {1, 2, 3}. False if an item does not parse as T or the list is empty.
 template <typename T>

@@ -29,6 +29,14 @@ class MemberLink {
   // Queues a reliable-ordered message. False when the member's reliable queue overflowed: the
   // link has then disconnected the member (kReliableOverflow) and will be removed by its owner.
   virtual bool SendReliable(std::span<const uint8_t> message) = 0;
+  // Sends `payload` (1 .. kMaxUnreliablePayload bytes) to the member as one unreliable
+  // datagram now (an unreliable application message; it may be lost, and a receiver drops it
+  // if a later unreliable datagram arrived first). False, nothing sent, when the member is not
+  // ready for states (ReadyForStates) or the connection refused it. `now`: the relay's clock.
+  virtual bool SendUnreliable(std::span<const uint8_t> payload, double now) {
+    (void)payload, (void)now;
+    return false;
+  }
   // The member's reliable queue: bytes queued or unacknowledged, and the most it may hold
   // (SendReliable beyond it overflows). Used to pace a late join (relay/join_stream.h).
   virtual size_t ReliablePending() const = 0;

@@ -97,10 +97,18 @@ class RoomHost {
   // the per-player or the room's message or byte rate (RateLimited), for a Player target not
   // in the room (UnknownPlayer) or an unknown target (InvalidMessage). O(members).
   void Message(MemberLink& link, const schema::AppMessage& message, double now);
+  // An unreliable application message (`payload`: the whole format-15 unreliable payload,
+  // protocol/app_message_codec.h): the same rules, permission and budgets as Message (one
+  // budget for both kinds), forwarded as one datagram to each addressed member that is ready
+  // for states (MemberLink::SendUnreliable) with the sender's id and the next of the sender's
+  // unreliable sequence numbers (per player identity). A payload shorter than the header is
+  // dropped as malformed (DropPayload) and refused. O(members).
+  void MessageUnreliable(MemberLink& link, std::span<const uint8_t> payload, double now);
   struct MessageStats {
-    uint64_t forwarded = 0;  // messages accepted
-    uint64_t delivered = 0;  // copies queued to members
-    uint64_t refused = 0;    // messages refused (any reason)
+    uint64_t forwarded = 0;  // messages accepted (both kinds)
+    uint64_t delivered = 0;  // copies queued or sent to members
+    uint64_t refused = 0;    // messages refused (any reason, both kinds)
+    uint64_t unreliable = 0;  // of `forwarded`, unreliable ones
   };
   const MessageStats& message_stats() const { return message_stats_; }
 
@@ -231,7 +239,12 @@ class RoomHost {
   // one entry per player that ever sent) and for the room.
   struct MessageRates {
     TokenBucket count, bytes;
+    uint32_t unreliable_sequence = 0;  // the last unreliable message's number
   };
+  // Message/MessageUnreliable's checks in the order docs/protocol.md lists them; false when
+  // refused (Error on `link`, counted). `*to`: the addressed member with kPlayer.
+  bool AdmitMessage(MemberLink& link, uint8_t target, uint32_t to_player, size_t size,
+                    const Member** to, MessageRates** rates, double now);
   std::unordered_map<uint32_t, MessageRates> message_rates_;
   MessageRates room_message_rates_;
   bool message_rates_ready_ = false;

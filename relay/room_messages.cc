@@ -1,41 +1,43 @@
-// RoomHost::Message: application messages from a member to the room, to the others or to one
-// player, with their budgets (relay/room_host.h, docs/protocol.md "Application messages").
+// RoomHost::Message and MessageUnreliable: application messages from a member to the room, to
+// the others or to one player, with their budgets (relay/room_host.h, docs/protocol.md
+// "Application messages").
 #include <flatbuffers/flatbuffers.h>
 
+#include <array>
+
+#include "protocol/app_message_codec.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "relay/room_host.h"
 
 namespace edgephys {
 
-void RoomHost::Message(MemberLink& link, const schema::AppMessage& message, double now) {
-  using schema::MessageTarget;
+bool RoomHost::AdmitMessage(MemberLink& link, uint8_t target, uint32_t to_player, size_t size,
+                            const Member** to, MessageRates** rates_out, double now) {
   using schema::RejectReason;
   const uint32_t sender = link.player_id();
   const auto refuse = [&](RejectReason reason, std::string_view detail) {
     ++message_stats_.refused;
     link.SendError(reason, 0, detail);
+    return false;
   };
   if ((link.permissions() & kPermissionMessage) == 0) {
     return refuse(RejectReason::NotPermitted, "the join token does not allow messages");
   }
-  const MessageTarget target = message.target();
-  if (target != MessageTarget::Room && target != MessageTarget::Others &&
-      target != MessageTarget::Player) {
+  if (target > static_cast<uint8_t>(schema::MessageTarget::Player)) {
     return refuse(RejectReason::InvalidMessage, "unknown message target");
   }
-  const size_t size = message.payload() != nullptr ? message.payload()->size() : 0;
   const RoomBudgets& budgets = room_.config().budgets;
   if (size > budgets.max_message_bytes) {
     return refuse(RejectReason::OverBudget, "message larger than the room allows");
   }
-  const Member* to = nullptr;
-  if (target == MessageTarget::Player) {
-    auto it = room_.members().find(message.to_player());
-    if (message.to_player() == 0 || it == room_.members().end()) {
+  *to = nullptr;
+  if (target == static_cast<uint8_t>(schema::MessageTarget::Player)) {
+    auto it = room_.members().find(to_player);
+    if (to_player == 0 || it == room_.members().end()) {
       return refuse(RejectReason::UnknownPlayer, "no such player in the room");
     }
-    to = &it->second;
+    *to = &it->second;
   }
   if (!message_rates_ready_) {
     room_message_rates_ = {TokenBucket(budgets.messages_per_s, 2 * budgets.messages_per_s),
@@ -57,22 +59,63 @@ void RoomHost::Message(MemberLink& link, const schema::AppMessage& message, doub
   if (!room_message_rates_.count.Take(now) || !room_message_rates_.bytes.Take(now, cost)) {
     return refuse(RejectReason::RateLimited, "too many messages in this room; slow down");
   }
+  *rates_out = &rates->second;
+  ++message_stats_.forwarded;
+  return true;
+}
+
+void RoomHost::Message(MemberLink& link, const schema::AppMessage& message, double now) {
+  const uint32_t sender = link.player_id();
+  const auto target = static_cast<uint8_t>(message.target());
+  const size_t size = message.payload() != nullptr ? message.payload()->size() : 0;
+  const Member* to = nullptr;
+  MessageRates* rates = nullptr;
+  if (!AdmitMessage(link, target, message.to_player(), size, &to, &rates, now)) return;
   flatbuffers::FlatBufferBuilder fbb(64 + size);
   const auto payload = fbb.CreateVector(message.payload() != nullptr ? message.payload()->data()
                                                                      : nullptr,
                                         size);
-  FinishControl(fbb, schema::CreateAppMessage(fbb, target, message.to_player(), sender, payload));
+  FinishControl(fbb, schema::CreateAppMessage(fbb, message.target(), message.to_player(), sender,
+                                              payload));
   const std::span<const uint8_t> out(fbb.GetBufferPointer(), fbb.GetSize());
-  ++message_stats_.forwarded;
   if (to != nullptr) {
     SendToMember(message.to_player(), *to, out);
     ++message_stats_.delivered;
     return;
   }
   for (const auto& [pid, m] : room_.members()) {
-    if (target == MessageTarget::Others && pid == sender) continue;
+    if (message.target() == schema::MessageTarget::Others && pid == sender) continue;
     SendToMember(pid, m, out);
     ++message_stats_.delivered;
+  }
+}
+
+void RoomHost::MessageUnreliable(MemberLink& link, std::span<const uint8_t> payload, double now) {
+  AppMessageHeader h;
+  std::span<const uint8_t> body;
+  if (!DecodeAppMessage(payload, &h, &body)) {
+    ++message_stats_.refused;
+    return link.DropPayload(DropReason::kMalformed);
+  }
+  const uint32_t sender = link.player_id();
+  const Member* to = nullptr;
+  MessageRates* rates = nullptr;
+  if (!AdmitMessage(link, h.target, h.to_player, body.size(), &to, &rates, now)) return;
+  ++message_stats_.unreliable;
+  h.sender = sender;
+  h.sequence = ++rates->unreliable_sequence;
+  if (h.target != static_cast<uint8_t>(schema::MessageTarget::Player)) h.to_player = 0;
+  std::array<uint8_t, kMaxUnreliablePayload> buffer;
+  const size_t n = EncodeAppMessage(h, body, buffer);
+  const std::span<const uint8_t> out(buffer.data(), n);
+  if (to != nullptr) {
+    if (to->link->SendUnreliable(out, now)) ++message_stats_.delivered;
+    return;
+  }
+  const bool others = h.target == static_cast<uint8_t>(schema::MessageTarget::Others);
+  for (const auto& [pid, m] : room_.members()) {
+    if (others && pid == sender) continue;
+    if (m.link->SendUnreliable(out, now)) ++message_stats_.delivered;
   }
 }
 

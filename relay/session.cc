@@ -1,5 +1,6 @@
 #include "relay/session.h"
 
+#include "protocol/app_message_codec.h"
 #include "protocol/handshake.h"
 #include "relay/drop_log.h"
 #include "relay/room_host.h"
@@ -77,6 +78,9 @@ void Session::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t
   if (closing_) return;
   if (is_worker_) return host_->OnWorkerStates(*this, payload);
   if (room_ == nullptr) return counters_->RejectUpdate(DropReason::kNotJoined);
+  if (!payload.empty() && payload[0] == kAppMessageFormat) {
+    return room_->MessageUnreliable(*this, payload, now_);
+  }
   room_->ApplyStates(*this, payload, now_);
 }
 
@@ -112,6 +116,12 @@ bool Session::SendReliable(std::span<const uint8_t> message) {
   if (connection_.SendReliable(message).ok()) return true;
   connection_.Disconnect(DisconnectReason::kReliableOverflow, *this);
   return false;
+}
+
+bool Session::SendUnreliable(std::span<const uint8_t> payload, double now) {
+  if (!ReadyForStates()) return false;
+  ServiceSoon();
+  return connection_.SendUnreliable(payload, now, *this).ok();
 }
 
 void Session::SendError(schema::RejectReason reason, uint32_t entity_id, std::string_view detail) {

@@ -70,6 +70,7 @@ class Session final : public ConnectionHandler,
   uint32_t permissions() const override { return permissions_; }
   bool AllowSpawn(double now) override { return spawns_.Take(now); }
   bool SendReliable(std::span<const uint8_t> message) override;
+  bool SendUnreliable(std::span<const uint8_t> payload, double now) override;
   size_t ReliablePending() const override { return connection_.stats().pending_reliable_bytes; }
   size_t ReliableCapacity() const override { return reliable_capacity_; }
   void Overflow() override { connection_.Disconnect(DisconnectReason::kReliableOverflow, *this); }

@@ -229,12 +229,19 @@ struct edgephys_client final : edgephys::ClientListener {
     }
   }
   void OnMessage(uint32_t sender, std::span<const uint8_t> payload) override {
+    QueueMessage(sender, payload, 0);
+  }
+  void OnUnreliableMessage(uint32_t sender, std::span<const uint8_t> payload) override {
+    QueueMessage(sender, payload, EDGEPHYS_MESSAGE_UNRELIABLE);
+  }
+  void QueueMessage(uint32_t sender, std::span<const uint8_t> payload, uint32_t flags) {
     if (message_bytes + payload.size() > kMaxQueuedMessageBytes) {
       ++dropped;
       return;
     }
     if (auto* ev = Push(EDGEPHYS_EVENT_MESSAGE)) {
       ev->player_id = sender;
+      ev->flags = flags;
       ev->code = static_cast<uint32_t>(payload.size());
       message_payloads.emplace_back(payload.begin(), payload.end());
       message_bytes += payload.size();

@@ -47,4 +47,22 @@ edgephys_status edgephys_client_send_message(edgephys_client* client, uint32_t t
   });
 }
 
+edgephys_status edgephys_client_send_message_unreliable(edgephys_client* client, uint32_t target,
+                                                        uint32_t to_player, const void* data,
+                                                        size_t size) {
+  if (edgephys_status s = CheckHandle(client); s != EDGEPHYS_OK) return s;
+  return edgephys::capi::Guarded([&]() -> edgephys_status {
+    if (data == nullptr && size > 0) return SetError(EDGEPHYS_E_INVALID_ARGUMENT, "data is NULL");
+    if (target > EDGEPHYS_TO_PLAYER) return SetError(EDGEPHYS_E_INVALID_ARGUMENT, "unknown target");
+    if (size > EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES) {
+      return SetError(EDGEPHYS_E_TOO_LARGE,
+                      "unreliable message payload over EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES "
+                      "(1165 bytes, one datagram)");
+    }
+    const auto* bytes = static_cast<const uint8_t*>(data);
+    return SetStatus(client->client->SendMessageUnreliable(
+        static_cast<edgephys::MessageTarget>(target), to_player, {bytes, size}));
+  });
+}
+
 }  // extern "C"

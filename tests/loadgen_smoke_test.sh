@@ -133,6 +133,25 @@ set +e; "$lg" physics-burn --seconds 0 >/dev/null 2>&1; rc=$?; set -e
 [ "$rc" = 2 ] || fail "physics-burn --seconds 0: exit $rc, not 2"
 echo "isolation ok"
 
+# messages: a small room sends reliable messages; every copy arrives once, the relay's CPU and
+# the bytes per property update are reported (no speed checked).
+"$lg" messages --users 5 --rate 20 --warmup 0.5 --seconds 1.5 --property-hz 20 \
+  --property-seconds 0.5 --no-progress --json msg.json >/dev/null
+[ "$(num '.summary.joined' msg.json)" = "5" ] || fail "messages: not every bot joined"
+[ "$(num '.summary.duplicates' msg.json)" = "0" ] || fail "messages: duplicated messages"
+[ "$(num '.summary.received_total' msg.json)" = "$(num '.summary.expected_total' msg.json)" ] ||
+  fail "messages: $(num '.summary.received_total' msg.json) of $(num '.summary.expected_total' msg.json) copies arrived"
+le 1 "$(num '.summary.delivered_per_s' msg.json)" || fail "messages: nothing delivered"
+[ "$(num '.summary.relay_cpu' msg.json)" != null ] || fail "messages: no relay CPU"
+le 5 "$(num '.summary.property_writes' msg.json)" || fail "messages: property writes not announced"
+le "$(num '.summary.property_message_bytes' msg.json)" "$(num '.summary.property_sent_bytes' msg.json)" ||
+  fail "messages: a property update cost less than its message"
+"$lg" messages --users 3 --rate 20 --unreliable --warmup 0.3 --seconds 1 --property-seconds 0.3 \
+  --no-progress --json msgu.json >/dev/null
+le 1 "$(num '.summary.delivered_per_s' msgu.json)" || fail "messages --unreliable: nothing delivered"
+[ "$(num '.summary.duplicates' msgu.json)" = "0" ] || fail "messages --unreliable: duplicated messages"
+echo "messages ok"
+
 # An external relay: edgephys-relay on free loopback ports with a secret, ccu against it with
 # server-side figures from its /metrics; the relay stopped by PID (and bounded by --run-for).
 if [ -n "$relay_bin" ]; then

@@ -262,8 +262,11 @@ public static class Native {
   [DllImport(Lib)] public static extern Status edgephys_client_despawn(IntPtr client, uint id);
   [DllImport(Lib)] public static extern Status edgephys_client_spawn_static(IntPtr client, ref Transform t, Collider[] colliders, uint count, byte[] name, out uint id);
   [DllImport(Lib)] public static extern Status edgephys_client_send_message(IntPtr client, uint target, uint toPlayer, byte[] data, UIntPtr size);
+  [DllImport(Lib)] public static extern Status edgephys_client_send_message_unreliable(IntPtr client, uint target, uint toPlayer, byte[] data, UIntPtr size);
   [DllImport(Lib)] public static extern Status edgephys_client_get_message(IntPtr client, byte[] buffer, UIntPtr capacity, out UIntPtr size);
   public const int MaxMessageBytes = 65536;
+  public const int MaxUnreliableMessageBytes = 1165;  // EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES
+  public const uint MessageUnreliableFlag = 1;         // EDGEPHYS_MESSAGE_UNRELIABLE
   [DllImport(Lib)] public static extern Status edgephys_client_set_property(IntPtr client, uint entity, byte[] key, ref PropertyValue v, uint authority, out uint requestId);
   [DllImport(Lib)] public static extern Status edgephys_client_compare_and_set_property(IntPtr client, uint entity, byte[] key, ref PropertyValue v, uint expectedVersion, uint authority, out uint requestId);
   [DllImport(Lib)] public static extern Status edgephys_client_get_property(IntPtr client, uint entity, byte[] key, ref NativeProperty p, byte[] buffer, UIntPtr capacity);
@@ -320,6 +323,7 @@ public sealed class Client : IDisposable {
   public event PhysicsHandler Physics;                // collision / trigger / grab / guard events
   public event Action<RejectReason, uint, string> Error;  // reason, entity, detail
   public event Action<uint, byte[]> MessageReceived;     // sender, payload (allocates per message)
+  public event Action<uint, byte[]> UnreliableMessageReceived;  // SendMessageUnreliable's; else MessageReceived
   public event Action<Property> PropertyChanged;         // the property now (writer, version, ...)
   public event Action<uint, uint, uint> OwnershipChanged;  // entity, new owner (0: the room), authority sequence
   public event Action<uint, Property> PropertyConflict;  // the refused request id, the property now
@@ -376,6 +380,13 @@ public sealed class Client : IDisposable {
     Native.Check(Native.edgephys_client_send_message(handle_, (uint)target, toPlayer, data, (UIntPtr)data.Length), "send_message");
   }
 
+  // Sends `data` (at most Native.MaxUnreliableMessageBytes) unreliably in one datagram: it may be
+  // lost, never arrives twice nor after a later one of this player's unreliable messages
+  // (edgephys_client_send_message_unreliable). Status.TooLarge over the limit.
+  public void SendMessageUnreliable(byte[] data, MessageTarget target = MessageTarget.Room, uint toPlayer = 0) {
+    if (data == null) throw new EdgephysException(Status.InvalidArgument, "data is null");
+    Native.Check(Native.edgephys_client_send_message_unreliable(handle_, (uint)target, toPlayer, data, (UIntPtr)data.Length), "send_message_unreliable");
+  }
   // Receives, then raises the events of everything that arrived. Call every frame.
   public void Update() { Update(Native.Now()); }
   public void Update(double now) {
@@ -403,11 +414,14 @@ public sealed class Client : IDisposable {
       case EventType.Spawned: if (Spawned != null) Spawned(event_); break;
       case EventType.Despawned: if (Despawned != null) Despawned(event_.EntityId); break;
       case EventType.Message:
-        if (MessageReceived != null) {
+        {
+          bool unreliable = (event_.Flags & Native.MessageUnreliableFlag) != 0 && UnreliableMessageReceived != null;
+          Action<uint, byte[]> handler = unreliable ? UnreliableMessageReceived : MessageReceived;
+          if (handler == null) break;
           byte[] payload = new byte[event_.Code];
           UIntPtr n;
           Native.Check(Native.edgephys_client_get_message(handle_, payload, (UIntPtr)payload.Length, out n), "get_message");
-          MessageReceived(event_.PlayerId, payload);
+          handler(event_.PlayerId, payload);
         }
         break;
       case EventType.PropertyChanged:

@@ -106,6 +106,7 @@ class BindingTest(unittest.TestCase):
             a.connect(relay, os.environ["EDGEPHYS_TOKEN_3"])
             b.connect(relay, os.environ["EDGEPHYS_TOKEN_4"])
             got = {a: [], b: []}
+            unreliable = {a: [], b: []}
             joined = set()
             deadline = time.monotonic() + 10
 
@@ -117,6 +118,8 @@ class BindingTest(unittest.TestCase):
                             c.join(room)
                         elif ev.type == ep.EVENT_JOINED:
                             joined.add(c)
+                        elif ev.type == ep.EVENT_MESSAGE and ev.flags & ep.MESSAGE_UNRELIABLE:
+                            unreliable[c].append((ev.player_id, ev.payload))
                         elif ev.type == ep.EVENT_MESSAGE:
                             got[c].append((ev.player_id, ev.payload))
                 time.sleep(0.005)
@@ -124,6 +127,13 @@ class BindingTest(unittest.TestCase):
             while len(joined) < 2 and time.monotonic() < deadline:
                 pump()
             self.assertEqual(len(joined), 2, "both clients joined")
+            settle = time.monotonic() + 0.3  # both acknowledge their Joined (unreliable sends)
+            while time.monotonic() < settle:
+                pump()
+            a.send_message_unreliable(b"ray", ep.TO_OTHERS)
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.send_message_unreliable(bytes(ep.MAX_UNRELIABLE_MESSAGE_BYTES + 1))
+            self.assertEqual(e.exception.status, ep.E_TOO_LARGE)
             big = bytes(range(256)) * 200  # 51,200 bytes: fragmented
             a.send_message(b"hello, room", ep.TO_ROOM)
             a.send_message(big, ep.TO_OTHERS)
@@ -138,6 +148,7 @@ class BindingTest(unittest.TestCase):
             by_sender = lambda msgs: sorted(msgs, key=lambda m: m[0])  # stable
             self.assertEqual(by_sender(got[a]), [(3, b"hello, room"), (4, b"just for 3"), (4, b"")])
             self.assertEqual(by_sender(got[b]), [(3, b"hello, room"), (3, big), (4, b"")])
+            self.assertEqual(unreliable, {a: [], b: [(3, b"ray")]})  # loopback: nothing lost
 
     def test_property_values_are_checked_before_sending(self):
         with ep.Client(bind_address="127.0.0.1:0") as c:

@@ -341,8 +341,9 @@ typedef enum edgephys_event_type {
   EDGEPHYS_EVENT_RELEASED = 17,       /* entity_id, other_id: the hand */
   EDGEPHYS_EVENT_ERROR = 18,          /* code: reject reason, entity_id (0: none), detail
                                          (edgephys_reasons.h) */
-  EDGEPHYS_EVENT_MESSAGE = 19,        /* player_id: the sender, code: payload size; read the
-                                         payload with edgephys_client_get_message */
+  EDGEPHYS_EVENT_MESSAGE = 19,        /* player_id: the sender, code: payload size, flags:
+                                         EDGEPHYS_MESSAGE_UNRELIABLE if sent unreliably; read
+                                         the payload with edgephys_client_get_message */
   EDGEPHYS_EVENT_PROPERTY_CHANGED = 20, /* entity_id (0: the room), detail: key, player_id: the
                                          writer, code: the new version, other_id: the write's
                                          request id, flags: the value's type; read the value

@@ -157,6 +157,16 @@ class Client {
                               uint32_t to_player = 0) {
     return SendMessage(target, to_player, text.data(), text.size());
   }
+  // An unreliable message, one datagram (edgephys_client_send_message_unreliable); the
+  // receiver's MESSAGE event has EDGEPHYS_MESSAGE_UNRELIABLE in its flags.
+  edgephys_status SendMessageUnreliable(edgephys_message_target target, uint32_t to_player,
+                                        const void* data, size_t size) {
+    return edgephys_client_send_message_unreliable(handle_, target, to_player, data, size);
+  }
+  edgephys_status SendMessageUnreliable(edgephys_message_target target, const std::string& text,
+                                        uint32_t to_player = 0) {
+    return SendMessageUnreliable(target, to_player, text.data(), text.size());
+  }
   // The payload of the MESSAGE event Poll returned last (edgephys_client_get_message); false
   // if that event was not a MESSAGE.
   bool Message(std::string* out) {

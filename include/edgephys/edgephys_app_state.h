@@ -38,6 +38,27 @@ typedef enum edgephys_message_target {
 EDGEPHYS_API edgephys_status edgephys_client_send_message(edgephys_client* client,
                                                           uint32_t target, uint32_t to_player,
                                                           const void* data, size_t size);
+/* Largest unreliable message payload (bytes): what fits one datagram beside its headers. */
+#define EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES 1165u
+/* Bit of a MESSAGE event's `flags`: the message came unreliably
+ * (edgephys_client_send_message_unreliable). */
+#define EDGEPHYS_MESSAGE_UNRELIABLE 1u
+
+/* As edgephys_client_send_message, but unreliable: the payload (at most
+ * EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES) leaves at once in one datagram and may be lost; each
+ * addressed member gets it at most once, as EDGEPHYS_EVENT_MESSAGE with flags
+ * EDGEPHYS_MESSAGE_UNRELIABLE, and never after a later unreliable message of this client
+ * (older ones are dropped by the receiving SDK). For frequent, superseding data (a pointer
+ * ray, a cursor); use the reliable call for anything that must arrive. Same permission,
+ * budgets (one budget for both kinds) and refusals (EDGEPHYS_EVENT_ERROR) as the reliable
+ * call. EDGEPHYS_E_TOO_LARGE over EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES;
+ * EDGEPHYS_E_NOT_CONNECTED before EDGEPHYS_EVENT_JOINED; EDGEPHYS_E_INVALID_ARGUMENT as the
+ * reliable call. */
+EDGEPHYS_API edgephys_status edgephys_client_send_message_unreliable(edgephys_client* client,
+                                                                     uint32_t target,
+                                                                     uint32_t to_player,
+                                                                     const void* data,
+                                                                     size_t size);
 /* Copies the payload of the EDGEPHYS_EVENT_MESSAGE that edgephys_client_poll_event returned
  * last into `buffer` (`capacity` bytes) and sets *out_size to its size (also when the buffer is
  * too small: EDGEPHYS_E_BUFFER_TOO_SMALL, nothing copied; the event's `code` holds the size as

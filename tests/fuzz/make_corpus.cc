@@ -11,6 +11,7 @@
 
 #include "client/client.h"
 #include "physics_backend/worker_protocol.h"
+#include "protocol/app_message_codec.h"
 #include "protocol/byte_io.h"
 #include "protocol/container_builder.h"
 #include "protocol/delta_codec.h"
@@ -430,6 +431,27 @@ void MessageCorpus() {
             .Add(0, app(T::Player, 2, 3)).Add(0, app(T::Player, 99, 1))
             .Add(1, app(static_cast<T>(7), 0, 2)).Add(0, app(T::Room, 0, 0)).Add(3, {4}).bytes);
 
+  // Relay: unreliable messages (format 15, docs/protocol.md §4a) from A: to the room, the
+  // others, player 2, a player not in the room, an unknown target, a full datagram, a header
+  // cut short, an empty payload.
+  auto unreliable = [](uint8_t target, uint32_t to, uint32_t sender, uint32_t seq, size_t size) {
+    AppMessageHeader h;
+    h.target = target;
+    h.to_player = to;
+    h.sender = sender;
+    h.sequence = seq;
+    Bytes payload(size, 0x3c), out(kAppMessageHeaderSize + size);
+    out.resize(EncodeAppMessage(h, payload, out));
+    return out;
+  };
+  Write("message_fuzz", "relay_app_message_unreliable",
+        Input(0).Add(2, unreliable(0, 0, 0, 0, 5)).Add(2, unreliable(1, 0, 0, 0, 40))
+            .Add(2, unreliable(2, 2, 0, 0, 3)).Add(2, unreliable(2, 99, 0, 0, 1))
+            .Add(2, unreliable(7, 0, 0, 0, 2))
+            .Add(2, unreliable(1, 0, 0, 0, kMaxUnreliableMessagePayload))
+            .Add(2, Bytes{kAppMessageFormat, 1, 0}).Add(2, unreliable(0, 0, 5, 9, 0))
+            .Add(0, app(T::Room, 0, 5)).Add(3, {4}).bytes);
+
   // Relay: property writes (docs/protocol.md §4b): set, compare-and-set won and lost, owner-only
   // refused, and malformed (unknown type, NaN, long key, unknown entity).
   auto set = [](uint32_t entity, const std::string& key, PropertyValue v, bool check,
@@ -517,6 +539,14 @@ void MessageCorpus() {
   Write("message_fuzz", "client_app_message",
         Input(2 | 4).Add(0, app(T::Others, 0, 2)).Add(0, app(T::Player, 1, 0))
             .Add(0, app(T::Room, 0, 1024)).bytes);
+  // Client side: unreliable messages (format 15) from the relay: in order, a duplicate, an older
+  // one, another sender, no sender (malformed), a header cut short, a full datagram.
+  Write("message_fuzz", "client_app_message_unreliable",
+        Input(2 | 4).Add(1, unreliable(1, 0, 7, 1, 4)).Add(1, unreliable(0, 0, 7, 2, 0))
+            .Add(1, unreliable(0, 0, 7, 2, 3)).Add(1, unreliable(0, 0, 7, 1, 3))
+            .Add(1, unreliable(2, 1, 8, 5, 10)).Add(1, unreliable(0, 0, 0, 3, 1))
+            .Add(1, Bytes{kAppMessageFormat, 0, 0, 0, 0})
+            .Add(1, unreliable(0, 0, 8, 6, kMaxUnreliableMessagePayload)).bytes);
   // Client side: property announcements and a conflict (and one with a NaN the SDK ignores).
   auto changed = [](uint32_t entity, const std::string& key, PropertyValue v, uint32_t version) {
     return Msg([&](auto& fbb) {

@@ -8,7 +8,8 @@
 //      AppMessage (room messages, their budgets and forwarding), PropertySet (properties:
 //      compare-and-set, authority, budgets, value checks), OwnershipRequest (requests, hand
 //      overs, releases, takeover, refusals), Worker* handlers run on
-//      them), as an unreliable state payload by A, or pump bytes[0] % 16 extra steps.
+//      them), as an unreliable payload by A (states; format 15: unreliable messages, their
+//      budgets and forwarding), or pump bytes[0] % 16 extra steps.
 //   1: relay, remote PhyS. A real PhyS worker W (Client + PhysicsWorker, worker token) is
 //      attached before A joins, so A's physics spawns go to W. By tag % 4: a reliable message
 //      from A / from W (WorkerResult, WorkerHello, ...), an unreliable payload from W (worker
@@ -18,7 +19,7 @@
 //      Despawn, PhysicsEvent, Error, AppMessage, PropertyChanged, PropertyConflict,
 //      OwnershipChanged, Worker* ->
 //      the PhysicsWorker listener, ...),
-//      else an unreliable state payload (formats 1..5). mode bit 2: a valid Joined with state format
+//      else an unreliable payload (state formats 1..5; format 15 unreliable messages). mode bit 2: a valid Joined with state format
 //      1 + (mode >> 3) % 4 is sent first.
 // Everything is pumped with a fake clock after each record.
 #include <cstddef>

@@ -4,7 +4,8 @@
 // meaning; a refused command as ERROR with the relay's detail. edgephys_reason_name (and the
 // C++ wrapper's ReasonName) names each code.
 // Messages: edgephys_client_send_message to the room, the others and one player arrive as
-// MESSAGE events with the sender's id and the payload (edgephys_client_get_message).
+// MESSAGE events with the sender's id and the payload (edgephys_client_get_message); unreliable
+// ones (edgephys_client_send_message_unreliable) carry EDGEPHYS_MESSAGE_UNRELIABLE.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -225,6 +226,38 @@ TEST(CApiMessages, ReachTheAddressedPlayersWithTheSendersIdAndPayload) {
   // After a non-MESSAGE poll there is no payload to read.
   size_t n = 0;
   EXPECT_EQ(edgephys_client_get_message(a.c_, nullptr, 0, &n), EDGEPHYS_E_NOT_FOUND);
+}
+
+// Unreliable messages: edgephys_client_send_message_unreliable arrives as a MESSAGE event with
+// EDGEPHYS_MESSAGE_UNRELIABLE in its flags; over one datagram it is refused naming the limit.
+TEST(CApiMessages, UnreliableArriveFlaggedAndTheOversizedAreRefused) {
+  LoopbackWorld world;
+  CClient a(world, MintToken("chat", 1)), b(world, MintToken("chat", 2));
+  ASSERT_TRUE(Pump(world, {&a, &b}, "chat", [&] { return a.joined && b.joined; }, 5.0));
+  world.RunFor(0.3);  // both have acknowledged their Joined
+  const std::string ray(EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES, 'r');
+  ASSERT_EQ(edgephys_client_send_message_unreliable(a.c_, EDGEPHYS_TO_OTHERS, 0, ray.data(),
+                                                    ray.size()),
+            EDGEPHYS_OK);
+  std::vector<char> huge(EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES + 1);
+  EXPECT_EQ(edgephys_client_send_message_unreliable(a.c_, EDGEPHYS_TO_ROOM, 0, huge.data(),
+                                                    huge.size()),
+            EDGEPHYS_E_TOO_LARGE);
+  EXPECT_NE(std::string(edgephys_last_error()).find("EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES"),
+            std::string::npos);
+  EXPECT_EQ(edgephys_client_send_message_unreliable(a.c_, 3, 0, "x", 1),
+            EDGEPHYS_E_INVALID_ARGUMENT);
+  ASSERT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_OTHERS, 0, "reliable", 8), EDGEPHYS_OK);
+  ASSERT_TRUE(Pump(world, {&a, &b}, nullptr, [&] { return b.messages.size() >= 2; }, 5.0));
+  world.RunFor(0.2);
+  ASSERT_EQ(b.messages.size(), 2u);
+  EXPECT_TRUE(a.messages.empty());
+  for (const edgephys_event& e : b.events) {
+    if (e.type != EDGEPHYS_EVENT_MESSAGE) continue;
+    const bool unreliable = (e.flags & EDGEPHYS_MESSAGE_UNRELIABLE) != 0;
+    EXPECT_EQ(e.player_id, 1u);
+    EXPECT_EQ(unreliable, e.code == ray.size()) << e.code;
+  }
 }
 
 // Scenery: a box offloaded to PhyS above a static ground made with edgephys_client_spawn_static

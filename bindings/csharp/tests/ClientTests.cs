@@ -180,11 +180,18 @@ static class ClientTests {
       b.Joined += (r, x) => ++joined;
       a.MessageReceived += (from, p) => gotA.Add(from + ":" + System.Text.Encoding.UTF8.GetString(p));
       b.MessageReceived += (from, p) => gotB.Add(from + ":" + (p.Length > 1000 ? "big" + p.Length : System.Text.Encoding.UTF8.GetString(p)));
+      var unreliableB = new System.Collections.Generic.List<string>();
+      b.UnreliableMessageReceived += (from, p) => unreliableB.Add(from + ":" + System.Text.Encoding.UTF8.GetString(p));
       a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_3"));
       b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_4"));
       double end = Native.Now() + 10;
       while (joined < 2 && Native.Now() < end) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
       Expect(joined == 2, "both joined");
+      double settle = Native.Now() + 0.3;  // both acknowledge their Joined (unreliable sends)
+      while (Native.Now() < settle) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+      a.SendMessageUnreliable(System.Text.Encoding.UTF8.GetBytes("ray"), MessageTarget.Others);
+      ExpectStatus(Status.TooLarge, () => a.SendMessageUnreliable(new byte[Native.MaxUnreliableMessageBytes + 1]),
+                   "oversized unreliable message");
       a.SendMessage(System.Text.Encoding.UTF8.GetBytes("hello, room"));
       a.SendMessage(new byte[40000], MessageTarget.Others);
       b.SendMessage(System.Text.Encoding.UTF8.GetBytes("just for 3"), MessageTarget.Player, 3);
@@ -193,6 +200,7 @@ static class ClientTests {
       gotA.Sort();  // in order per sender; different senders' messages may interleave
       Expect(string.Join("|", gotA) == "3:hello, room|4:just for 3", "A got: " + string.Join("|", gotA));
       Expect(string.Join("|", gotB) == "3:hello, room|3:big40000", "B got: " + string.Join("|", gotB));
+      Expect(string.Join("|", unreliableB) == "3:ray", "B got unreliably: " + string.Join("|", unreliableB));
     }
   }
 

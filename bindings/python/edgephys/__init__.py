@@ -83,6 +83,7 @@ def _load():
         "edgephys_client_get_owner": ([c, u32, P(u32)], ctypes.c_int),
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
         "edgephys_client_send_message": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
+        "edgephys_client_send_message_unreliable": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
         "edgephys_client_get_message": ([c, ctypes.c_char_p, sz, P(sz)], ctypes.c_int),
         "edgephys_client_set_property": ([c, u32, ctypes.c_char_p, P(PropertyValue), u32, P(u32)], ctypes.c_int),
         "edgephys_client_compare_and_set_property": ([c, u32, ctypes.c_char_p, P(PropertyValue), u32, u32, P(u32)],
@@ -279,7 +280,8 @@ class Client:
 
     def events(self):
         """Yields queued events (copies) until the queue is empty. A MESSAGE event carries its
-        payload as ev.payload (bytes) and its sender as ev.player_id."""
+        payload as ev.payload (bytes), its sender as ev.player_id and, if it came unreliably,
+        MESSAGE_UNRELIABLE in ev.flags."""
         while True:
             _check(lib.edgephys_client_poll_event(self._h, ctypes.byref(self._event)), "poll")
             if self._event.type == EVENT_NONE:
@@ -343,6 +345,15 @@ class Client:
         (TO_OTHERS) or one player (TO_PLAYER, to_player); edgephys_client_send_message."""
         data = bytes(data)
         _check(lib.edgephys_client_send_message(self._h, target, to_player, data, len(data)), "send_message")
+
+    def send_message_unreliable(self, data, target=TO_ROOM, to_player=0):
+        """Sends `data` (bytes, up to MAX_UNRELIABLE_MESSAGE_BYTES) in one datagram: it may be lost,
+        never arrives twice nor after a later one of this player's unreliable messages; received
+        as a MESSAGE event with MESSAGE_UNRELIABLE in ev.flags. edgephys_client_send_message_unreliable
+        (E_TOO_LARGE over the limit)."""
+        data = bytes(data)
+        _check(lib.edgephys_client_send_message_unreliable(self._h, target, to_player, data, len(data)),
+               "send_message_unreliable")
 
     def entity(self, entity_id):
         """The latest Entity, or None if unknown."""

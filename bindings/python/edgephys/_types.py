@@ -33,6 +33,8 @@ MAX_PROPERTY_VALUE_BYTES = 65536
 # Application messages (edgephys_client_send_message): whom a message is for.
 TO_ROOM, TO_OTHERS, TO_PLAYER = 0, 1, 2
 MAX_MESSAGE_BYTES = 65536
+MAX_UNRELIABLE_MESSAGE_BYTES = 1165  # send_message_unreliable: one datagram
+MESSAGE_UNRELIABLE = 1  # bit of a MESSAGE event's flags: it came unreliably
 
 # Reason codes (edgephys_reasons.h): REJECTED and ERROR events carry a reject reason,
 # DISCONNECTED events a disconnect reason; reason_name(event) names either.
