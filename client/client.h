@@ -340,6 +340,13 @@ class Client final {
   // default at spawn). The setting stays with the entity across changes of owner. kNotFound if
   // not owned.
   Status SetTakeoverAllowed(uint32_t entity_id, bool allowed);
+  // Chooses what the relay does with an entity this client owns when its owner leaves or times
+  // out (schema::OwnerLeave, EntitySpec::on_owner_leave): 0 default (Persistent: stay, else
+  // despawn), 1 stay with the room at rest, 2 PhyS simulates it on from its last pose and
+  // velocity (a dynamic body this client simulates; else stay), 3 despawn. Kept across owners;
+  // announced to every member with OnOwnershipChanged (authority_seq unchanged).
+  // kInvalidArgument for another value, kNotFound if not owned.
+  Status SetOwnerLeave(uint32_t entity_id, uint8_t choice);
   // Whether this client owns (publishes) `entity_id`: its own spawns and entities it gained.
   bool Owns(uint32_t entity_id) const;
   // The owner of `entity_id` as this client knows it: player_id() for owned entities, 0 for the

@@ -56,9 +56,10 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status ReleaseOwnership(uint32_t entity_id, const Vec3f& linear, const Vec3f& angular);
   Status SetTakeoverAllowed(uint32_t entity_id, bool allowed);
   uint32_t OwnerOf(uint32_t entity_id) const;
+  Status SetOwnerLeave(uint32_t entity_id, uint8_t choice);
   Status SendOwnership(uint32_t entity_id, uint8_t action, uint32_t to_player,
                        bool takeover_allowed, const Vec3f& linear = {},
-                       const Vec3f& angular = {});
+                       const Vec3f& angular = {}, uint8_t on_owner_leave = 0);
   void OnOwnershipChanged(const schema::OwnershipChanged& change);
   void Disconnect();
   const ConnectionStats* stats() const;

@@ -158,6 +158,9 @@ class RoomHost {
     uint64_t changes = 0;  // changes of owner
     uint64_t refused = 0;  // requests refused (any reason)
     uint64_t stale = 0;    // states of a previous owner dropped
+    // A leaver's entities (LeaveChoiceOf): given to the room at rest, or offloaded to PhyS.
+    uint64_t left_to_room = 0;
+    uint64_t left_to_phys = 0;
   };
   const OwnershipStats& ownership_stats() const { return ownership_stats_; }
 
@@ -209,6 +212,11 @@ class RoomHost {
   // Queues OwnershipChanged to a joining member for every entity whose owner changed or that
   // allows takeover (after its join stream's spawns).
   void SendJoinOwnership(uint32_t player_id);
+  // Before `leaver` leaves: each entity it owns goes where its LeaveChoiceOf says. Stay: the
+  // room's at rest; PhyS: offloaded from its pose and the velocities its owner's states implied
+  // (TrackOwnerMotion) when it is a dynamic body the leaver simulated, else Stay; Despawn: left
+  // for Room::RemoveMember. Ownership changes are told to everyone but the leaver.
+  void HandOffLeaversEntities(uint32_t leaver, double now);
   // Makes `owner` (0: the room) the owner of `e`: bumps its authority_seq, records the former
   // owner, rewrites its stored spawn and tells every member.
   // `except_player` (0: none) is not told (a leaving owner). With `motion`, the message carries

@@ -203,6 +203,9 @@ typedef struct edgephys_spawn_desc {
   const edgephys_joint* joints;
   uint32_t joint_count;               /* <= EDGEPHYS_MAX_JOINTS */
   const edgephys_soft_body* soft_body;
+  /* EDGEPHYS_OWNER_LEAVE_* (edgephys_app_state.h): what happens to it when its owner leaves.
+   * Appended: a desc whose struct_size ends before it (older callers) spawns with DEFAULT. */
+  uint32_t on_owner_leave;
 } edgephys_spawn_desc;
 
 /* Defaults for the component structs (a box collider of half extents 0.5 m; a 1 kg dynamic

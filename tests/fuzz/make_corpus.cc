@@ -472,6 +472,22 @@ void MessageCorpus() {
             .Add(2, FloatStates({St(65537, 1, 1, 1)})).Add(1, own(65537, O::HandOver, 1, false))
             .Add(0, own(65537, O::HandOver, 99, false)).Add(0, own(65537, static_cast<O>(9), 0, false))
             .Add(0, own(70000, O::Request, 0, false)).Add(0, own(65537, O::Release, 0, false)).bytes);
+  // Relay: leave choices (SetOwnerLeave): PhyS, an unknown value, by a non-owner, of an unknown
+  // entity; then the owner leaves; and a spawn carrying an unknown choice.
+  auto leave_choice = [](uint32_t entity, uint8_t choice) {
+    return Msg([&](auto& fbb) {
+      return schema::CreateOwnershipRequest(fbb, entity, O::SetOwnerLeave, 0, false, nullptr,
+                                            nullptr, static_cast<schema::OwnerLeave>(choice));
+    });
+  };
+  EntitySpec bad_choice = Plain(1, 1);
+  bad_choice.id += 1;
+  bad_choice.on_owner_leave = 7;
+  Write("message_fuzz", "relay_owner_leave",
+        Input(0).Add(0, SpawnMsg(Plain(1, 1))).Add(0, leave_choice(65540, 2))
+            .Add(0, leave_choice(65540, 9)).Add(1, leave_choice(65540, 3))
+            .Add(0, leave_choice(70000, 1)).Add(0, SpawnMsg(bad_choice))
+            .Add(0, Msg([](auto& fbb) { return schema::CreateLeaveRoom(fbb); })).bytes);
 
   // Relay, remote PhyS: room handle 1 is on worker W.
   Write("message_fuzz", "relay_worker",
