@@ -141,6 +141,10 @@ class Client {
   edgephys_status SetTakeoverAllowed(uint32_t entity, bool allowed) {
     return edgephys_client_set_takeover_allowed(handle_, entity, allowed ? 1 : 0);
   }
+  // choice: EDGEPHYS_OWNER_LEAVE_* (what the relay does with it when its owner leaves).
+  edgephys_status SetOwnerLeave(uint32_t entity, uint32_t choice) {
+    return edgephys_client_set_owner_leave(handle_, entity, choice);
+  }
   // The entity's owner as this client knows it; 0 also when unknown (LastError() says so).
   uint32_t Owner(uint32_t entity) const {
     uint32_t owner = 0;
