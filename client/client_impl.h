@@ -40,7 +40,7 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status LeaveRoom();
   Result<uint32_t> Spawn(const SpawnDesc& desc);
   Status Despawn(uint32_t entity_id);
-  Status Grab(uint32_t entity_id, uint32_t hand_id);
+  Status Grab(uint32_t entity_id, uint32_t hand_id, const EntityState* hand_pose = nullptr);
   Status Release(uint32_t entity_id);
   Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
   Status PublishTransform(uint32_t entity_id, const Vec3f& position, const Quatf& rotation);

@@ -417,6 +417,7 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
       e->resumed_nodes = {};
     }
   }
+  IssuePosedGrabs(out.steps);
   for (const RoomPhysics::GrabResult& g : out.grabs) {
     Entity* e = room_.FindEntity(g.entity);
     if (e == nullptr) continue;
