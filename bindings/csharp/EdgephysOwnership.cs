@@ -18,6 +18,7 @@ internal static class OwnershipNative {
   [DllImport(Lib)] public static extern Status edgephys_client_offload(IntPtr client, uint entity, ref Vec3 linear, ref Vec3 angular);
   [DllImport(Lib)] public static extern Status edgephys_client_get_owned_motion(IntPtr client, uint entity, out Transform pose, out Vec3 linear, out Vec3 angular);
   [DllImport(Lib)] public static extern Status edgephys_client_set_owner_leave(IntPtr client, uint entity, uint choice);
+  [DllImport(Lib)] public static extern Status edgephys_client_grab_at(IntPtr client, uint entity, uint hand, ref Transform handPose);
 }
 
 public sealed partial class Client {
@@ -32,6 +33,11 @@ public sealed partial class Client {
   public void GetOwnedMotion(uint entity, out Transform pose, out Vec3 linear, out Vec3 angular) {
     Native.Check(OwnershipNative.edgephys_client_get_owned_motion(handle_, entity, out pose, out linear, out angular),
                  "get owned motion");
+  }
+  // Grab with the hand's pose now: published as the hand's transform and judged there by the
+  // relay (a pose over 0.5 m from the hand's last transform is refused: Error GrabRefused).
+  public void GrabAt(uint entity, uint hand, Transform handPose) {
+    Native.Check(OwnershipNative.edgephys_client_grab_at(handle_, entity, hand, ref handPose), "grab at");
   }
   // What the relay does with an owned entity when its owner leaves or times out.
   public void SetOwnerLeave(uint entity, OwnerLeave choice) {

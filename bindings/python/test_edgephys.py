@@ -307,6 +307,13 @@ class BindingTest(unittest.TestCase):
             self.assertEqual(b.owner(box), 8)
             pose, lin, ang = b.owned_motion(box)
             self.assertEqual(pose.position.x, 0.25)
+            # grab_at: a hand this client does not own, and a non-finite pose, are refused here.
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.grab_at(box, box, (0, 1, 0))
+            self.assertEqual(e.exception.status, ep.E_NOT_FOUND)
+            with self.assertRaises(ep.EdgephysError) as e:
+                b.grab_at(box, box, (float("nan"), 1, 0))
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
 
 
 if __name__ == "__main__":

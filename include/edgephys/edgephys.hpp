@@ -123,6 +123,10 @@ class Client {
     return edgephys_client_publish_transform(handle_, id, &t);
   }
   edgephys_status Grab(uint32_t entity, uint32_t hand) { return edgephys_client_grab(handle_, entity, hand); }
+  // Grab with the hand's pose now (edgephys_client_grab_at).
+  edgephys_status GrabAt(uint32_t entity, uint32_t hand, const edgephys_transform& hand_pose) {
+    return edgephys_client_grab_at(handle_, entity, hand, &hand_pose);
+  }
   edgephys_status Release(uint32_t entity) { return edgephys_client_release(handle_, entity); }
 
   // Ownership (edgephys_app_state.h, "ownership"); OWNERSHIP_CHANGED events tell the outcome.

@@ -408,6 +408,19 @@ void MessageCorpus() {
         Input(0).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
             .Add(0, SpawnMsg(HandSpec(1, 1))).Add(3, {10}).Add(0, grab).Add(3, {5})
             .Add(0, release).Add(2, FloatStates({St(65539, 0, 0.4f, 0)})).Add(0, despawn).bytes);
+  // Grabs carrying the hand's pose: near (applied), far (refused), NaN, naming another entity.
+  auto grab_at = [](float x, float y, uint32_t pose_entity) {
+    return Msg([&](auto& fbb) {
+      const schema::Pose pose(pose_entity, schema::Vec3(x, y, 0), schema::Quat(0, 0, 0, 1));
+      return schema::CreateGrab(fbb, 65538, 65539, &pose);
+    });
+  };
+  Write("message_fuzz", "relay_grab_pose",
+        Input(0).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
+            .Add(0, SpawnMsg(HandSpec(1, 1))).Add(3, {10}).Add(0, grab_at(0, 0.4f, 65539))
+            .Add(3, {5}).Add(0, release).Add(0, grab_at(9, 0.4f, 65539))
+            .Add(0, grab_at(std::nanf(""), 0.4f, 65539)).Add(0, grab_at(0, 0.4f, 65538))
+            .Add(3, {5}).bytes);
   Write("message_fuzz", "relay_soft_joint",
         Input(0).Add(0, SpawnMsg(Cube(1, 1))).Add(0, SpawnMsg(Jointed(1, 1)))
             .Add(0, SpawnMsg(Soft(1, 1))).Add(3, {15}).Add(1, SpawnMsg(Plain(2, 2))).bytes);

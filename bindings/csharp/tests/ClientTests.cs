@@ -315,6 +315,8 @@ static class ClientTests {
       Expect(b.Owner(box) == 8, "B owns it");
       b.GetOwnedMotion(box, out pose, out lin, out ang);
       Expect(pose.Position.X == 0.25f, "B starts where A left it: " + pose.Position);
+      ExpectStatus(Status.NotFound, () => a.GrabAt(box, box, new Transform(0, 1, 0)), "grab at with another's hand");
+      ExpectStatus(Status.InvalidArgument, () => b.GrabAt(box, box, new Transform(float.NaN, 1, 0)), "grab at a NaN pose");
     }
   }
 

@@ -84,6 +84,7 @@ def _load():
         "edgephys_client_offload": ([c, u32, P(Vec3), P(Vec3)], ctypes.c_int),
         "edgephys_client_get_owned_motion": ([c, u32, P(Transform), P(Vec3), P(Vec3)], ctypes.c_int),
         "edgephys_client_set_owner_leave": ([c, u32, u32], ctypes.c_int),
+        "edgephys_client_grab_at": ([c, u32, u32, P(Transform)], ctypes.c_int),
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
         "edgephys_client_send_message": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
         "edgephys_client_get_message": ([c, ctypes.c_char_p, sz, P(sz)], ctypes.c_int),
@@ -254,6 +255,12 @@ class Client:
 
     def grab(self, entity_id, hand_id):
         _check(lib.edgephys_client_grab(self._h, entity_id, hand_id), "grab")
+
+    def grab_at(self, entity_id, hand_id, position, rotation=(0, 0, 0, 1)):
+        """Grab with the hand's pose now: published as the hand's transform and judged there by
+        the relay (a pose over 0.5 m from the hand's last transform: ERROR GrabRefused)."""
+        t = transform(*position, rotation=rotation)
+        _check(lib.edgephys_client_grab_at(self._h, entity_id, hand_id, ctypes.byref(t)), "grab_at")
 
     def release(self, entity_id):
         _check(lib.edgephys_client_release(self._h, entity_id), "release")
