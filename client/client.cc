@@ -331,10 +331,17 @@ Status Client::Impl::Despawn(uint32_t entity_id) {
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
-Status Client::Impl::Grab(uint32_t entity_id, uint32_t hand_id) {
+Status Client::Impl::Grab(uint32_t entity_id, uint32_t hand_id, const EntityState* hand_pose) {
   if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
-  flatbuffers::FlatBufferBuilder fbb(64);
-  FinishControl(fbb, schema::CreateGrab(fbb, entity_id, hand_id));
+  flatbuffers::FlatBufferBuilder fbb(96);
+  if (hand_pose == nullptr) {
+    FinishControl(fbb, schema::CreateGrab(fbb, entity_id, hand_id));
+  } else {
+    const EntityState& h = *hand_pose;
+    const schema::Pose pose(hand_id, schema::Vec3(h.position.x, h.position.y, h.position.z),
+                            schema::Quat(h.rotation.x, h.rotation.y, h.rotation.z, h.rotation.w));
+    FinishControl(fbb, schema::CreateGrab(fbb, entity_id, hand_id, &pose));
+  }
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 

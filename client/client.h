@@ -285,6 +285,12 @@ class Client final {
   // Asks PhyS to attach entity `entity_id` to this client's hand `hand_id` (the hand's trigger
   // must hover it); OnPhysicsEvent(Grabbed) or OnError(GrabRefused) follows.
   Status Grab(uint32_t entity_id, uint32_t hand_id);
+  // Grab with the hand's pose now (metres, unit quaternion; room frame): publishes it as the
+  // hand's transform and sends it with the grab, so the relay judges the hover where the hand
+  // is even if its move has not reached the relay yet (it refuses, GrabRefused, a pose more
+  // than 0.5 m from the hand's last state it holds). kNotFound if this client does not own
+  // `hand_id`; kInvalidArgument for a non-finite pose or a rotation that is not unit.
+  Status GrabAt(uint32_t entity_id, uint32_t hand_id, const Vec3f& position, const Quatf& rotation);
   // Lets go: the entity leaves at the velocity the hand showed over its last ~0.1 s of published
   // transforms, spinning as the hand turned (throwing), then falls. kNotConnected before
   // OnJoined; OnError(NotOwner) follows if none of this client's hands holds it.
@@ -370,6 +376,13 @@ class Client final {
   // default at spawn). The setting stays with the entity across changes of owner. kNotFound if
   // not owned.
   Status SetTakeoverAllowed(uint32_t entity_id, bool allowed);
+  // Chooses what the relay does with an entity this client owns when its owner leaves or times
+  // out (schema::OwnerLeave, EntitySpec::on_owner_leave): 0 default (Persistent: stay, else
+  // despawn), 1 stay with the room at rest, 2 PhyS simulates it on from its last pose and
+  // velocity (a dynamic body this client simulates; else stay), 3 despawn. Kept across owners;
+  // announced to every member with OnOwnershipChanged (authority_seq unchanged).
+  // kInvalidArgument for another value, kNotFound if not owned.
+  Status SetOwnerLeave(uint32_t entity_id, uint8_t choice);
   // Whether this client owns (publishes) `entity_id`: its own spawns and entities it gained.
   bool Owns(uint32_t entity_id) const;
   // The owner of `entity_id` as this client knows it: player_id() for owned entities, 0 for the

@@ -40,7 +40,7 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status LeaveRoom();
   Result<uint32_t> Spawn(const SpawnDesc& desc);
   Status Despawn(uint32_t entity_id);
-  Status Grab(uint32_t entity_id, uint32_t hand_id);
+  Status Grab(uint32_t entity_id, uint32_t hand_id, const EntityState* hand_pose = nullptr);
   Status Release(uint32_t entity_id);
   Status SendMessage(MessageTarget target, uint32_t to_player, std::span<const uint8_t> payload);
   // Unreliable messages (client/client_messages.cc): send, and a format-15 payload received.
@@ -60,9 +60,10 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   Status ReleaseOwnership(uint32_t entity_id, const Vec3f& linear, const Vec3f& angular);
   Status SetTakeoverAllowed(uint32_t entity_id, bool allowed);
   uint32_t OwnerOf(uint32_t entity_id) const;
+  Status SetOwnerLeave(uint32_t entity_id, uint8_t choice);
   Status SendOwnership(uint32_t entity_id, uint8_t action, uint32_t to_player,
                        bool takeover_allowed, const Vec3f& linear = {},
-                       const Vec3f& angular = {});
+                       const Vec3f& angular = {}, uint8_t on_owner_leave = 0);
   void OnOwnershipChanged(const schema::OwnershipChanged& change);
   void Disconnect();
   const ConnectionStats* stats() const;

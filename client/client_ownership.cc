@@ -12,7 +12,7 @@ namespace edgephys {
 
 Status Client::Impl::SendOwnership(uint32_t entity_id, uint8_t action, uint32_t to_player,
                                    bool takeover_allowed, const Vec3f& linear,
-                                   const Vec3f& angular) {
+                                   const Vec3f& angular, uint8_t on_owner_leave) {
   flatbuffers::FlatBufferBuilder fbb(96);
   const schema::Vec3 lin(linear.x, linear.y, linear.z), ang(angular.x, angular.y, angular.z);
   // Velocities only when there are some (a Release of a moving body).
@@ -22,7 +22,8 @@ Status Client::Impl::SendOwnership(uint32_t entity_id, uint8_t action, uint32_t 
                                                     static_cast<schema::OwnershipAction>(action),
                                                     to_player, takeover_allowed,
                                                     moving ? &lin : nullptr,
-                                                    moving ? &ang : nullptr));
+                                                    moving ? &ang : nullptr,
+                                                    static_cast<schema::OwnerLeave>(on_owner_leave)));
   return connection_->SendReliable({fbb.GetBufferPointer(), fbb.GetSize()});
 }
 
@@ -60,6 +61,16 @@ Status Client::Impl::SetTakeoverAllowed(uint32_t entity_id, bool allowed) {
   if (owned_.count(entity_id) == 0) return Status::NotFound("not an owned entity");
   return SendOwnership(entity_id, static_cast<uint8_t>(schema::OwnershipAction::SetTakeover), 0,
                        allowed);
+}
+
+Status Client::Impl::SetOwnerLeave(uint32_t entity_id, uint8_t choice) {
+  if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
+  if (choice > static_cast<uint8_t>(schema::OwnerLeave::MAX)) {
+    return Status::InvalidArgument("unknown owner-leave choice (0 default, 1 stay, 2 PhyS, 3 despawn)");
+  }
+  if (owned_.count(entity_id) == 0) return Status::NotFound("not an owned entity");
+  return SendOwnership(entity_id, static_cast<uint8_t>(schema::OwnershipAction::SetOwnerLeave), 0,
+                       false, {}, {}, choice);
 }
 
 uint32_t Client::Impl::OwnerOf(uint32_t entity_id) const {
@@ -155,6 +166,9 @@ Status Client::SetTakeoverAllowed(uint32_t entity_id, bool allowed) {
   return impl_->SetTakeoverAllowed(entity_id, allowed);
 }
 uint32_t Client::OwnerOf(uint32_t entity_id) const { return impl_->OwnerOf(entity_id); }
+Status Client::SetOwnerLeave(uint32_t entity_id, uint8_t choice) {
+  return impl_->SetOwnerLeave(entity_id, choice);
+}
 bool Client::Owns(uint32_t entity_id) const { return impl_->owned_.count(entity_id) != 0; }
 
 }  // namespace edgephys

@@ -49,6 +49,13 @@ Status Client::LeaveRoom() { return impl_->LeaveRoom(); }
 Result<uint32_t> Client::Spawn(const SpawnDesc& desc) { return impl_->Spawn(desc); }
 Status Client::Despawn(uint32_t entity_id) { return impl_->Despawn(entity_id); }
 Status Client::Grab(uint32_t entity_id, uint32_t hand_id) { return impl_->Grab(entity_id, hand_id); }
+Status Client::GrabAt(uint32_t entity_id, uint32_t hand_id, const Vec3f& position,
+                      const Quatf& rotation) {
+  if (!impl_->joined_) return Status::NotConnected("not joined");
+  if (Status st = impl_->PublishTransform(hand_id, position, rotation); !st.ok()) return st;
+  const EntityState pose{hand_id, position, rotation};
+  return impl_->Grab(entity_id, hand_id, &pose);
+}
 Status Client::Release(uint32_t entity_id) { return impl_->Release(entity_id); }
 Status Client::SendMessage(MessageTarget target, uint32_t to_player,
                            std::span<const uint8_t> payload) {

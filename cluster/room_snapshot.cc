@@ -8,7 +8,7 @@
 namespace edgephys::cluster {
 namespace {
 
-constexpr uint8_t kVersion = 2;  // 1: no property section
+constexpr uint8_t kVersion = 3;  // 1: no property section; 2: no ownership section
 constexpr char kMagic[4] = {'E', 'P', 'R', 'S'};
 
 class Writer {
@@ -195,6 +195,11 @@ std::vector<uint8_t> EncodeRoomSnapshot(const RoomSnapshot& s) {
   }
   w.U32(static_cast<uint32_t>(s.properties.size()));
   for (const PropertySnapshot& p : s.properties) WriteProperty(w, p);
+  w.U32(static_cast<uint32_t>(s.entities.size()));
+  for (const EntitySnapshot& e : s.entities) {
+    w.U32(e.id), w.U32(e.authority_seq), w.U32(e.former_owner);
+    w.U8(e.takeover_allowed ? 1 : 0), w.U8(e.on_owner_leave);
+  }
   return out;
 }
 
@@ -204,7 +209,7 @@ Result<RoomSnapshot> DecodeRoomSnapshot(std::span<const uint8_t> bytes) {
   auto magic = r.Bytes(4);
   if (!r.ok() || std::memcmp(magic.data(), kMagic, 4) != 0) return bad;
   const uint8_t version = r.U8();
-  if (version != 1 && version != kVersion) return bad;
+  if (version < 1 || version > kVersion) return bad;
   RoomSnapshot s;
   uint8_t room_len = r.U8();
   auto room = r.Bytes(room_len);
@@ -256,6 +261,18 @@ Result<RoomSnapshot> DecodeRoomSnapshot(std::span<const uint8_t> bytes) {
     s.properties.resize(properties);
     for (PropertySnapshot& p : s.properties) {
       if (!ReadProperty(r, &p)) return bad;
+    }
+  }
+  if (version >= 3) {
+    // One ownership record per entity, in the entities' order.
+    if (r.U32() != s.entities.size() || !r.ok()) return bad;
+    for (EntitySnapshot& e : s.entities) {
+      const uint32_t id = r.U32();
+      e.authority_seq = r.U32(), e.former_owner = r.U32();
+      const uint8_t takeover = r.U8();
+      e.on_owner_leave = r.U8();
+      if (!r.ok() || id != e.id || takeover > 1 || e.on_owner_leave > kMaxOwnerLeave) return bad;
+      e.takeover_allowed = takeover != 0;
     }
   }
   if (!r.ok() || r.left() != 0) return bad;

@@ -4,8 +4,8 @@
 // containers: colliders, bodies, soft bodies), latest state, PhyS velocities and soft-body
 // nodes; and the room's properties (room and entity properties, protocol/property_value.h).
 //
-// Binary layout (little-endian), "EPRS" version 2 (version 1, without the property section,
-// is still read):
+// Binary layout (little-endian), "EPRS" version 3 (versions 1, without the property section,
+// and 2, without the ownership section, are still read; their entities get the defaults):
 //   "EPRS" | u8 version | u8 room length | room | u64 written (unix ms)
 //   | u32 slot count | { u32 player | u32 slot }*
 //   | u32 entity count | { u32 id | u32 owner | u32 creator | u32 flags | u32 held_by
@@ -16,6 +16,9 @@
 //       | u8 authority | u32 version | u32 writer | u32 owner | u32 request id
 //       | value: i64 (bool, int64) | f64 (double) | f32 x3 (vec3) | f32 x4 (quat)
 //              | u32 length, bytes (string, bytes) }*
+//   | u32 ownership count (= entity count) | { u32 entity id (the entity's at that index)
+//       | u32 authority_seq | u32 former owner | u8 takeover allowed (0/1)
+//       | u8 on_owner_leave (schema::OwnerLeave, <= kMaxOwnerLeave) }*
 // Decode treats its input as untrusted (anything may sit in a Redis key): every length is
 // checked against the bytes left and the limits below, floats must be finite, property keys
 // and values must pass ValidatePropertyKey/Value, versions be non-zero; any violation
@@ -38,6 +41,7 @@ inline constexpr uint32_t kMaxSnapshotNodes = 1u << 16;      // per soft body
 inline constexpr uint32_t kMaxSnapshotSpawnBytes = 1u << 20;  // per entity
 inline constexpr uint32_t kMaxSnapshotSlots = 1u << 16;
 inline constexpr uint32_t kMaxSnapshotProperties = 1u << 20;
+inline constexpr uint8_t kMaxOwnerLeave = 3;  // schema::OwnerLeave::Despawn
 
 struct EntitySnapshot {
   uint32_t id = 0;
@@ -52,6 +56,11 @@ struct EntitySnapshot {
   Vec3f angular_velocity;
   std::vector<Vec3f> nodes;
   std::vector<uint8_t> spawn;  // ControlMessage{Spawn} as the relay stores it
+  // Ownership (relay/entity.h): states of `former_owner` after the last change stay stale.
+  uint32_t authority_seq = 0;
+  uint32_t former_owner = 0;
+  bool takeover_allowed = false;
+  uint8_t on_owner_leave = 0;  // schema::OwnerLeave
 };
 
 struct PropertySnapshot {

@@ -25,6 +25,10 @@ RoomSnapshot Sample() {
   a.angular_velocity = {0, 1, 0};
   a.nodes = {{1, 1, 1}, {2, 2, 2}};
   a.spawn = {1, 2, 3, 4, 5};
+  a.authority_seq = 4;
+  a.former_owner = 9;
+  a.takeover_allowed = true;
+  a.on_owner_leave = 2;
   s.entities.push_back(a);
   EntitySnapshot b;
   b.id = 2 * kEntityIdBlock + 5;
@@ -108,12 +112,49 @@ TEST(RoomSnapshot, BadPropertiesAreRefused) {
   EXPECT_FALSE(refused([](PropertySnapshot&) {}));
 }
 
+// Each entity's ownership record: u32 id, u32 authority_seq, u32 former owner, u8, u8.
+constexpr size_t kOwnershipRecord = 14;
+
+TEST(RoomSnapshot, OwnershipRoundTripsAndBadValuesAreRefused) {
+  auto back = DecodeRoomSnapshot(EncodeRoomSnapshot(Sample()));
+  ASSERT_TRUE(back.ok());
+  const EntitySnapshot& a = back->entities[0];
+  EXPECT_EQ(a.authority_seq, 4u);
+  EXPECT_EQ(a.former_owner, 9u);
+  EXPECT_TRUE(a.takeover_allowed);
+  EXPECT_EQ(a.on_owner_leave, 2);
+  const EntitySnapshot& b = back->entities[1];
+  EXPECT_EQ(b.authority_seq, 0u);
+  EXPECT_FALSE(b.takeover_allowed);
+  EXPECT_EQ(b.on_owner_leave, 0);
+  RoomSnapshot s = Sample();
+  s.entities[1].on_owner_leave = kMaxOwnerLeave + 1;  // an unknown choice
+  EXPECT_FALSE(DecodeRoomSnapshot(EncodeRoomSnapshot(s)).ok());
+  std::vector<uint8_t> bytes = EncodeRoomSnapshot(Sample());
+  bytes[bytes.size() - 2] = 2;  // the last entity's takeover byte: neither 0 nor 1
+  EXPECT_FALSE(DecodeRoomSnapshot(bytes).ok());
+  bytes = EncodeRoomSnapshot(Sample());
+  bytes[bytes.size() - kOwnershipRecord] ^= 1;  // the record names another entity
+  EXPECT_FALSE(DecodeRoomSnapshot(bytes).ok());
+}
+
+TEST(RoomSnapshot, VersionTwoWithoutOwnershipIsStillRead) {
+  std::vector<uint8_t> bytes = EncodeRoomSnapshot(Sample());
+  bytes[4] = 2;
+  bytes.resize(bytes.size() - 4 - 2 * kOwnershipRecord);
+  auto back = DecodeRoomSnapshot(bytes);
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->properties.size(), Sample().properties.size());
+  EXPECT_EQ(back->entities[0].authority_seq, 0u);
+  EXPECT_EQ(back->entities[0].on_owner_leave, 0);
+}
+
 TEST(RoomSnapshot, VersionOneWithoutPropertiesIsStillRead) {
   RoomSnapshot s = Sample();
   s.properties.clear();
   std::vector<uint8_t> bytes = EncodeRoomSnapshot(s);
   bytes[4] = 1;                           // version
-  bytes.resize(bytes.size() - 4);         // no property count
+  bytes.resize(bytes.size() - 4 - 4 - 2 * kOwnershipRecord);  // no property count, no ownership
   auto back = DecodeRoomSnapshot(bytes);
   ASSERT_TRUE(back.ok());
   EXPECT_EQ(back->entities.size(), 2u);

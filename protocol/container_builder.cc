@@ -96,7 +96,8 @@ flatbuffers::Offset<schema::Container> AddContainer(flatbuffers::FlatBufferBuild
   return schema::CreateContainerDirect(
       fbb, spec.id, spec.parent_id, spec.owner, spec.flags, &transform,
       spec.name.empty() ? nullptr : spec.name.c_str(), rigid_body,
-      colliders.empty() ? nullptr : &colliders, joints.empty() ? nullptr : &joints, soft_body);
+      colliders.empty() ? nullptr : &colliders, joints.empty() ? nullptr : &joints, soft_body,
+      static_cast<schema::OwnerLeave>(spec.on_owner_leave));
 }
 
 ColliderSpec BoxCollider(Vec3f half_extents) {

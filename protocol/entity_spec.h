@@ -113,6 +113,9 @@ struct EntitySpec {
   std::vector<ColliderSpec> colliders;
   std::vector<JointSpec> joints;
   std::optional<SoftBodySpec> soft_body;
+  // When its owner leaves (schema::OwnerLeave): 0 Default (Persistent: stay, else despawn),
+  // 1 Stay (the room's, at rest), 2 PhyS (PhyS simulates a dynamic body on), 3 Despawn.
+  uint8_t on_owner_leave = 0;
 };
 
 }  // namespace edgephys

@@ -25,6 +25,10 @@ cluster::EntitySnapshot ToSnapshot(const Entity& e) {
   s.angular_velocity = e.angular_velocity;
   s.nodes = e.nodes;
   s.spawn = e.spawn;
+  s.authority_seq = e.authority_seq;
+  s.former_owner = e.former_owner;
+  s.takeover_allowed = e.takeover_allowed;
+  s.on_owner_leave = e.on_owner_leave;
   return s;
 }
 
@@ -43,6 +47,10 @@ Entity FromSnapshot(cluster::EntitySnapshot s) {
   e.angular_velocity = s.angular_velocity;
   e.nodes = std::move(s.nodes);
   e.spawn = std::move(s.spawn);
+  e.authority_seq = s.authority_seq;
+  e.former_owner = s.former_owner;
+  e.takeover_allowed = s.takeover_allowed;
+  e.on_owner_leave = s.on_owner_leave;
   return e;
 }
 
@@ -51,7 +59,8 @@ uint64_t Signature(const Room& room) {
   uint64_t sig = room.entities().size() * 1000003ull + room.size();
   for (const auto& [id, e] : room.entities()) {
     sig += (uint64_t{id} * 2654435761ull) ^ (uint64_t{e.version} << 20) ^ e.nodes_version ^
-           (uint64_t{e.owner} << 40);
+           (uint64_t{e.owner} << 40) ^ (uint64_t{e.authority_seq} << 8) ^
+           (uint64_t{e.on_owner_leave} << 4) ^ (e.takeover_allowed ? 1ull << 36 : 0);
   }
   for (const auto& [pid, m] : room.members()) sig += uint64_t{pid} * 40503ull + m.slot;
   return sig;

@@ -13,6 +13,7 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
+#include "client/client_testing.h"
 #include "cluster/redis_client.h"
 #include "cluster/testing/redis_server.h"
 #include "protocol/container_builder.h"
@@ -378,6 +379,57 @@ TEST_F(ClusterTest, PropertiesComeBackWithTheRoomAfterItsRelayDies) {
   }, 5.0));
   EXPECT_EQ(b.FindProperty(0, "step")->value, PropertyValue::Int64(3));
   EXPECT_EQ(host.property_stats().conflicts, 1u);
+}
+
+// Ownership survives the death of the room's relay: the restored entity keeps its owner,
+// authority sequence, former owner, takeover setting and leave choice, so the former owner's
+// late states are still dropped and counted as stale, and the owner's are taken.
+TEST_F(ClusterTest, OwnershipComesBackWithTheRoomAndStaleStatesStayStale) {
+  ClusterWorld world(redis_.port(), 3);
+  world.RunUntil([] { return false; }, 0.3);
+  CountingListener la, lb;
+  Client& a = world.AddClient(0, Token("ow", 311), &la);
+  Client& b = world.AddClient(1, Token("ow", 312), &lb);
+  world.set_room(a, "ow");
+  world.set_room(b, "ow");
+  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 15.0));
+  SpawnDesc d;
+  d.flags = kPersistent;
+  auto tool = a.Spawn(d);
+  ASSERT_TRUE(tool.ok());
+  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) != nullptr; }, 5.0));
+  ASSERT_TRUE(a.HandOver(*tool, 312).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return b.Owns(*tool); }, 5.0));
+  ASSERT_TRUE(b.SetTakeoverAllowed(*tool, true).ok());
+  ASSERT_TRUE(b.SetOwnerLeave(*tool, 2).ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    const auto& entities = world.relay(world.Holder("ow"))->FindRoom("ow")->entities();
+    const auto it = entities.find(*tool);
+    return it != entities.end() && it->second.takeover_allowed && it->second.on_owner_leave == 2;
+  }, 5.0));
+  world.RunUntil([] { return false; }, 0.4);  // a snapshot interval or more
+  const int victim = world.Holder("ow");
+  ASSERT_GE(victim, 0);
+  world.Kill(victim);
+  ASSERT_TRUE(world.RunUntil([&] {
+    const int h = world.Holder("ow");
+    return h >= 0 && world.relay(h)->rooms().count("ow") != 0;
+  }, 5.0));
+  const RoomHost& host = *world.relay(world.Holder("ow"))->rooms().at("ow");
+  const Entity* e = host.room().entities().count(*tool) ? &host.room().entities().at(*tool) : nullptr;
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->owner, 312u);
+  EXPECT_EQ(e->authority_seq, 1u);
+  EXPECT_EQ(e->former_owner, 311u);
+  EXPECT_TRUE(e->takeover_allowed);
+  EXPECT_EQ(e->on_owner_leave, 2);
+  ASSERT_TRUE(world.RunUntil([&] { return a.resumes() + b.resumes() >= 2 && a.joined() && b.joined(); }, 10.0));
+  // A, the former owner, sends a late state: dropped and counted; B's next one is taken.
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {*tool, {42, 1, 0}, {0, 0, 0, 1}}, world.Now()).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return host.ownership_stats().stale == 1; }, 5.0));
+  EXPECT_NE(e->state.position.x, 42.f);
+  ASSERT_TRUE(b.PublishTransform(*tool, {-3, 1, 0}, {0, 0, 0, 1}).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return e->state.position.x == -3.f; }, 5.0));
 }
 
 // The room's owner key is overwritten with an unknown relay id while its holder is healthy:

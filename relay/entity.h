@@ -28,6 +28,13 @@ struct Entity {
   uint32_t authority_seq = 0;
   uint32_t former_owner = 0;
   bool takeover_allowed = false;
+  // What happens to it when its owner leaves (schema::OwnerLeave: 0 Default, 1 Stay, 2 PhyS,
+  // 3 Despawn; see LeaveChoiceOf): from its spawn, changed by its owner (SetOwnerLeave).
+  uint8_t on_owner_leave = 0;
+  // TrackOwnerMotion's reference: an earlier accepted state of its owner and its relay time
+  // (< 0: none yet).
+  EntityState motion_from;
+  double motion_from_time = -1;
   uint32_t creator = 0;          // the player who spawned it (may despawn PhyS-owned ones;
                                  // the room's budgets charge it `cost` until it is removed)
   uint32_t parent = 0;           // parent entity (Container.parent_id), 0: none
@@ -92,6 +99,22 @@ struct Entity {
 };
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;
+
+// The effective choice for `e` when its owner leaves: its on_owner_leave, with Default resolved
+// by the Persistent flag (Stay) or its absence (Despawn). Values as schema::OwnerLeave.
+inline constexpr uint8_t kOwnerLeaveStay = 1, kOwnerLeavePhyS = 2, kOwnerLeaveDespawn = 3;
+inline uint8_t LeaveChoiceOf(const Entity& e) {
+  if (e.on_owner_leave != 0) return e.on_owner_leave;
+  return (e.flags & 1u) != 0 ? kOwnerLeaveStay : kOwnerLeaveDespawn;  // 1: EntityFlags::Persistent
+}
+
+// Records in `e` (mirrored in PhyS, simulated by its owner) the velocities its owner's states
+// imply: from the reference state (e.motion_from, at least kMotionWindowS old) to `next`,
+// arriving at `now` (relay time, s), which becomes the reference. Arrival times jitter by up to
+// a tick, so this is an estimate (a few % over the window); a reference older than 0.5 s
+// gives velocities 0. Used when its owner leaves and it goes to PhyS.
+inline constexpr double kMotionWindowS = 0.1;
+void TrackOwnerMotion(Entity& e, const EntityState& next, double now);
 
 // What one room tick offers each of its receivers (Room::BuildFrame, once per room tick, so
 // that no receiver walks or sorts the room's entity table itself). Built on the room's thread

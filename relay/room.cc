@@ -50,8 +50,7 @@ void Room::RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned) {
     // Released to the room by an ownership change (offloaded to PhyS or not): the room's,
     // whoever leaves.
     if (e.owner == 0 && e.authority_seq != 0) continue;
-    constexpr uint32_t kPersistent = 1u << 0;  // schema::EntityFlags::Persistent
-    if (e.flags & kPersistent) {
+    if (LeaveChoiceOf(e) != kOwnerLeaveDespawn) {
       e.owner = 0;  // the room's now; still charged to its creator
     } else {
       despawned->push_back(id);

@@ -3,8 +3,8 @@
 // schedule. The rules that change it (admission to the room, authority, physics output,
 // fan-out) live in RoomHost (relay/room_host.h), which owns the Room.
 // Thread-safety: one thread (the relay's); no locking. Entities of players who leave are
-// despawned unless flagged Persistent, in which case the room takes them over (owner 0), so a
-// session outlives its users.
+// despawned or taken over by the room (owner 0), as each entity's leave choice says
+// (LeaveChoiceOf: by default Persistent ones stay), so a session outlives its users.
 #pragma once
 
 #include <algorithm>
@@ -46,7 +46,8 @@ class Room {
   // Spawn sequence numbers continue after `seq` (restored entities keep theirs).
   void AdvanceSpawnSeq(uint64_t seq) { spawn_seq_ = std::max(spawn_seq_, seq); }
   // Removes a player. Its entities (those it owns, and PhyS-owned ones it created) are
-  // despawned (ids appended to `despawned`) unless Persistent, which pass to the room. An
+  // despawned (ids appended to `despawned`) when LeaveChoiceOf says Despawn (by default: not
+  // Persistent), else pass to the room. An
   // entity released to the room by an ownership change (owner 0, authority_seq > 0; PhyS may
   // simulate it) stays, whoever created it.
   void RemoveMember(uint32_t player_id, std::vector<uint32_t>* despawned);

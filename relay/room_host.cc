@@ -159,16 +159,9 @@ void RoomHost::Leave(MemberLink& link, double now) {
   const auto it = room_.members().find(link.player_id());
   if (it == room_.members().end() || it->second.link != &link) return;
   join_streams_.erase(link.player_id());
-  // Its Persistent entities pass to the room: an ownership change the others are told of (so
-  // the leaver's late states count as stale); the rest go below.
-  constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
-  std::vector<Entity*> to_room;
-  for (const auto& [id, e] : room_.entities()) {
-    if (e.owner == link.player_id() && (e.flags & kPersistent) != 0) {
-      to_room.push_back(room_.FindEntity(id));
-    }
-  }
-  for (Entity* e : to_room) ChangeOwner(*e, 0, link.player_id());
+  // Its entities go to the room, to PhyS (ownership changes the others are told of, so the
+  // leaver's late states count as stale) or, below, away (LeaveChoiceOf).
+  HandOffLeaversEntities(link.player_id(), now);
   std::vector<uint32_t> despawned;
   room_.RemoveMember(link.player_id(), &despawned);
   env_.counters->entities.fetch_sub(static_cast<int64_t>(despawned.size()),
@@ -230,6 +223,10 @@ void RoomHost::Spawn(MemberLink& link, std::span<const uint8_t> message,
   e.id = id;
   e.owner = player;
   e.flags = c->flags();
+  if (c->on_owner_leave() > schema::OwnerLeave::MAX) {
+    return link.SendError(RejectReason::InvalidMessage, id, "unknown on_owner_leave value");
+  }
+  e.on_owner_leave = static_cast<uint8_t>(c->on_owner_leave());
   e.state.entity_id = id;
   e.state.position = {t->position().x(), t->position().y(), t->position().z()};
   e.state.rotation = {t->rotation().x(), t->rotation().y(), t->rotation().z(), t->rotation().w()};
@@ -362,6 +359,7 @@ void RoomHost::ApplyStates(MemberLink& link, std::span<const uint8_t> payload, d
       link.DropUpdate(reject);
       continue;
     }
+    if (e->physics == PhysicsRole::kMirrored) TrackOwnerMotion(*e, st, now);
     e->state = st;
     ++e->version;
     e->changed_at = now;
@@ -419,6 +417,7 @@ void RoomHost::ApplyPhysics(const PhysicsLink::StepOutput& out, double now) {
       e->resumed_nodes = {};
     }
   }
+  IssuePosedGrabs(out.steps);
   for (const RoomPhysics::GrabResult& g : out.grabs) {
     Entity* e = room_.FindEntity(g.entity);
     if (e == nullptr) continue;

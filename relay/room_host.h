@@ -87,6 +87,19 @@ class RoomHost {
   // A grab of a PhyS-simulated entity by the member's hand; answered after a physics step
   // (Grabbed to all, or Error{GrabRefused} to the requester).
   void Grab(MemberLink& link, uint32_t entity_id, uint32_t hand_id);
+  // A grab with the hand's pose now (relay/room_grab.cc): refused with GrabRefused (and counted
+  // in grab_pose_stats().refused) when the pose names another entity, is not finite or not a
+  // unit rotation, or lies more than kMaxGrabPoseOffsetM from the hand's last accepted state;
+  // else applied as the hand's state (as ApplyStates would) and the grab is asked of PhyS once
+  // it has stepped twice with it (the hover is judged there), answered as Grab's.
+  static constexpr float kMaxGrabPoseOffsetM = 0.5f;
+  void GrabAt(MemberLink& link, uint32_t entity_id, uint32_t hand_id, const schema::Pose& pose,
+              double now);
+  struct GrabPoseStats {
+    uint64_t applied = 0;  // grabs whose pose was applied
+    uint64_t refused = 0;  // refused for their pose
+  };
+  const GrabPoseStats& grab_pose_stats() const { return grab_pose_stats_; }
   // Releases what the member's hand holds; Released to all.
   void Release(MemberLink& link, uint32_t entity_id, double now);
   // An application message from the member (docs/protocol.md, "Application messages"),
@@ -166,6 +179,9 @@ class RoomHost {
     uint64_t changes = 0;  // changes of owner
     uint64_t refused = 0;  // requests refused (any reason)
     uint64_t stale = 0;    // states of a previous owner dropped
+    // A leaver's entities (LeaveChoiceOf): given to the room at rest, or offloaded to PhyS.
+    uint64_t left_to_room = 0;
+    uint64_t left_to_phys = 0;
   };
   const OwnershipStats& ownership_stats() const { return ownership_stats_; }
 
@@ -217,6 +233,11 @@ class RoomHost {
   // Queues OwnershipChanged to a joining member for every entity whose owner changed or that
   // allows takeover (after its join stream's spawns).
   void SendJoinOwnership(uint32_t player_id);
+  // Before `leaver` leaves: each entity it owns goes where its LeaveChoiceOf says. Stay: the
+  // room's at rest; PhyS: offloaded from its pose and the velocities its owner's states implied
+  // (TrackOwnerMotion) when it is a dynamic body the leaver simulated, else Stay; Despawn: left
+  // for Room::RemoveMember. Ownership changes are told to everyone but the leaver.
+  void HandOffLeaversEntities(uint32_t leaver, double now);
   // Makes `owner` (0: the room) the owner of `e`: bumps its authority_seq, records the former
   // owner, rewrites its stored spawn and tells every member.
   // `except_player` (0: none) is not told (a leaving owner). With `motion`, the message carries
@@ -253,6 +274,14 @@ class RoomHost {
   PropertyStats property_stats_;
   std::unordered_map<uint32_t, TokenBucket> property_rates_;  // per player identity
   OwnershipStats ownership_stats_;
+  // Grabs waiting for PhyS to step with their hand's pose (GrabAt): steps still to wait.
+  struct PosedGrab {
+    uint32_t entity = 0, hand = 0;
+    int steps_left = 2;
+  };
+  std::vector<PosedGrab> posed_grabs_;
+  GrabPoseStats grab_pose_stats_;
+  void IssuePosedGrabs(int steps);
   std::unordered_map<uint32_t, TokenBucket> ownership_rates_;  // per player identity
 };
 

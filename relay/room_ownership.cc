@@ -26,7 +26,8 @@ void BuildOwnershipChanged(flatbuffers::FlatBufferBuilder& fbb, const Entity& e,
   FinishControl(fbb, schema::CreateOwnershipChanged(
                          fbb, e.id, e.owner, e.authority_seq, e.former_owner, e.takeover_allowed,
                          &pose, motion ? &linear : nullptr, motion ? &angular : nullptr,
-                         e.physics == PhysicsRole::kSimulated));
+                         e.physics == PhysicsRole::kSimulated,
+                         static_cast<schema::OwnerLeave>(e.on_owner_leave)));
 }
 
 const schema::Container* ContainerOf(const Entity& e) {
@@ -135,9 +136,19 @@ void RoomHost::Ownership(MemberLink& link, const schema::OwnershipRequest& reque
                                                             angular, now);
       return ChangeOwner(*e, 0, 0, offload);
     }
-    case OwnershipAction::SetTakeover: {
-      if (e->takeover_allowed == request.takeover_allowed()) return;
-      e->takeover_allowed = request.takeover_allowed();
+    case OwnershipAction::SetTakeover:
+    case OwnershipAction::SetOwnerLeave: {
+      if (action == OwnershipAction::SetOwnerLeave) {
+        const auto choice = request.on_owner_leave();
+        if (choice > schema::OwnerLeave::MAX) {
+          return refuse(RejectReason::InvalidMessage, "unknown on_owner_leave value");
+        }
+        if (e->on_owner_leave == static_cast<uint8_t>(choice)) return;
+        e->on_owner_leave = static_cast<uint8_t>(choice);
+      } else {
+        if (e->takeover_allowed == request.takeover_allowed()) return;
+        e->takeover_allowed = request.takeover_allowed();
+      }
       flatbuffers::FlatBufferBuilder fbb(64);
       BuildOwnershipChanged(fbb, *e);
       BroadcastReliable({fbb.GetBufferPointer(), fbb.GetSize()}, 0);
@@ -184,12 +195,69 @@ void RoomHost::ChangeOwner(Entity& e, uint32_t owner, uint32_t except_player, bo
   BroadcastReliable({fbb.GetBufferPointer(), fbb.GetSize()}, except_player);
 }
 
+void RoomHost::HandOffLeaversEntities(uint32_t leaver, double now) {
+  std::vector<Entity*> owned;
+  for (auto& [id, e] : room_.entities()) {
+    if (e.owner == leaver) owned.push_back(room_.FindEntity(id));
+  }
+  for (Entity* e : owned) {
+    const uint8_t choice = LeaveChoiceOf(*e);
+    if (choice == kOwnerLeaveDespawn) continue;  // Room::RemoveMember despawns it
+    // PhyS: a dynamic body the leaver simulated carries on in PhyS from its last pose and the
+    // velocities its states implied; anything else stays with the room at rest.
+    const bool offload = choice == kOwnerLeavePhyS && Offloadable(*e) &&
+                         Finite(e->linear_velocity) && Finite(e->angular_velocity) &&
+                         SwitchPhysics(*e, PhysicsRole::kSimulated, e->linear_velocity,
+                                       e->angular_velocity, now);
+    if (!offload) e->linear_velocity = e->angular_velocity = Vec3f{};
+    ChangeOwner(*e, 0, leaver, offload);
+    ++(offload ? ownership_stats_.left_to_phys : ownership_stats_.left_to_room);
+  }
+}
+
+void TrackOwnerMotion(Entity& e, const EntityState& next, double now) {
+  const double dt = now - e.motion_from_time;
+  if (e.motion_from_time >= 0 && dt < kMotionWindowS) return;
+  const EntityState from = e.motion_from;
+  e.motion_from = next;
+  e.motion_from_time = now;
+  if (!(dt > 0 && dt <= 0.5)) {
+    e.linear_velocity = e.angular_velocity = Vec3f{};
+    return;
+  }
+  const float inv = static_cast<float>(1.0 / dt);
+  const Vec3f& a = from.position;
+  const Vec3f& b = next.position;
+  e.linear_velocity = {(b.x - a.x) * inv, (b.y - a.y) * inv, (b.z - a.z) * inv};
+  // Rotation from the reference to the next: d = next * conj(reference), the short way round.
+  const Quatf& p = from.rotation;
+  const Quatf& q = next.rotation;
+  float dw = q.w * p.w + q.x * p.x + q.y * p.y + q.z * p.z;
+  float dx = -q.w * p.x + q.x * p.w - q.y * p.z + q.z * p.y;
+  float dy = -q.w * p.y + q.x * p.z + q.y * p.w - q.z * p.x;
+  float dz = -q.w * p.z - q.x * p.y + q.y * p.x + q.z * p.w;
+  if (dw < 0) dw = -dw, dx = -dx, dy = -dy, dz = -dz;
+  const float sin_half = std::sqrt(dx * dx + dy * dy + dz * dz);
+  if (sin_half < 1e-7f) {
+    e.angular_velocity = Vec3f{};
+    return;
+  }
+  const float angle = 2.f * std::atan2(sin_half, dw);
+  const float k = angle / sin_half * inv;
+  e.angular_velocity = {dx * k, dy * k, dz * k};
+  if (!Finite(e.linear_velocity) || !Finite(e.angular_velocity)) {
+    e.linear_velocity = e.angular_velocity = Vec3f{};
+  }
+}
+
 void RoomHost::SendJoinOwnership(uint32_t player_id) {
   auto member = room_.members().find(player_id);
   if (member == room_.members().end()) return;
   flatbuffers::FlatBufferBuilder fbb(64);
   for (const auto& [id, e] : room_.entities()) {
-    if (e.authority_seq == 0 && !e.takeover_allowed) continue;
+    const schema::Container* c = ContainerOf(e);
+    const uint8_t spawned_choice = c != nullptr ? static_cast<uint8_t>(c->on_owner_leave()) : 0;
+    if (e.authority_seq == 0 && !e.takeover_allowed && e.on_owner_leave == spawned_choice) continue;
     BuildOwnershipChanged(fbb, e);
     SendToMember(player_id, member->second, {fbb.GetBufferPointer(), fbb.GetSize()});
   }

@@ -64,7 +64,13 @@ void Session::OnReliableMessage(std::span<const uint8_t> message) {
   switch (msg->body_type()) {
     case Body::Spawn: return room_->Spawn(*this, message, *msg->body_as_Spawn(), now_);
     case Body::Despawn: return room_->Despawn(*this, entity);
-    case Body::Grab: return room_->Grab(*this, entity, msg->body_as_Grab()->hand_id());
+    case Body::Grab: {
+      const schema::Grab& grab = *msg->body_as_Grab();
+      if (grab.hand_pose() != nullptr) {
+        return room_->GrabAt(*this, entity, grab.hand_id(), *grab.hand_pose(), now_);
+      }
+      return room_->Grab(*this, entity, grab.hand_id());
+    }
     case Body::Release: return room_->Release(*this, entity, now_);
     case Body::AppMessage: return room_->Message(*this, *msg->body_as_AppMessage(), now_);
     case Body::PropertySet: return room_->SetProperty(*this, *msg->body_as_PropertySet(), now_);

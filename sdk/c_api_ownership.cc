@@ -1,5 +1,6 @@
 // The C API's ownership calls (include/edgephys/edgephys_app_state.h, "ownership") over
-// Client::RequestOwnership, HandOver, ReleaseOwnership, SetTakeoverAllowed and OwnerOf.
+// Client::RequestOwnership, HandOver, ReleaseOwnership, SetTakeoverAllowed, SetOwnerLeave and
+// OwnerOf.
 #include <new>
 #include <string>
 
@@ -72,6 +73,16 @@ edgephys_status edgephys_client_set_takeover_allowed(edgephys_client* client, ui
   return Call(client, entity_id, [&](edgephys::Client& c) {
     if (allowed > 1) return edgephys::Status::InvalidArgument("allowed must be 0 or 1");
     return c.SetTakeoverAllowed(entity_id, allowed == 1);
+  });
+}
+
+edgephys_status edgephys_client_set_owner_leave(edgephys_client* client, uint32_t entity_id,
+                                               uint32_t choice) {
+  return Call(client, entity_id, [&](edgephys::Client& c) {
+    if (choice > EDGEPHYS_OWNER_LEAVE_DESPAWN) {
+      return edgephys::Status::InvalidArgument("choice must be an EDGEPHYS_OWNER_LEAVE_* value");
+    }
+    return c.SetOwnerLeave(entity_id, static_cast<uint8_t>(choice));
   });
 }
 

@@ -53,6 +53,7 @@ std::vector<std::pair<std::string, std::function<edgephys_status(edgephys_client
       {"despawn", [](edgephys_client* c) { return edgephys_client_despawn(c, 65537); }},
       {"publish", [](edgephys_client* c) { return edgephys_client_publish_transform(c, 65537, &kIdentity); }},
       {"grab", [](edgephys_client* c) { return edgephys_client_grab(c, 65537, 65538); }},
+      {"grab_at", [](edgephys_client* c) { return edgephys_client_grab_at(c, 65537, 65538, &kIdentity); }},
       {"release", [](edgephys_client* c) { return edgephys_client_release(c, 65537); }},
       {"poll_event", [](edgephys_client* c) { edgephys_event e; return edgephys_client_poll_event(c, &e); }},
       {"get_info", [](edgephys_client* c) {
@@ -240,6 +241,8 @@ TEST_F(CApiClient, RoomCallsNeedAConnectionAndAValidName) {
   EXPECT_STATUS(EDGEPHYS_E_NOT_CONNECTED, edgephys_client_despawn(c_, 65537));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_grab(c_, 0, 65537));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_grab(c_, 65537, 0));
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_grab_at(c_, 65537, 65538, nullptr));
+  EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_grab_at(c_, 0, 65538, &kIdentity));
   EXPECT_STATUS(EDGEPHYS_E_NOT_CONNECTED, edgephys_client_grab(c_, 65537, 65538));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_release(c_, 0));
   EXPECT_STATUS(EDGEPHYS_E_NOT_CONNECTED, edgephys_client_release(c_, 65537));

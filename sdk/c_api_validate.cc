@@ -1,6 +1,7 @@
 #include "sdk/c_api_validate.h"
 
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 
 namespace edgephys::capi {
@@ -154,7 +155,8 @@ Status CheckTransform(const edgephys_transform& t, const char* what) {
 }
 
 Status ToEntitySpec(const edgephys_spawn_desc& desc, EntitySpec* spec) {
-  if (desc.struct_size != sizeof(edgephys_spawn_desc)) {
+  constexpr size_t kBeforeOwnerLeave = offsetof(edgephys_spawn_desc, on_owner_leave);
+  if (desc.struct_size != sizeof(edgephys_spawn_desc) && desc.struct_size != kBeforeOwnerLeave) {
     return Bad("bad spawn desc", "struct_size is not sizeof(edgephys_spawn_desc): call edgephys_spawn_desc_init");
   }
   if (Status st = CheckTransform(desc.transform, "bad spawn transform"); !st.ok()) return st;
@@ -178,6 +180,12 @@ Status ToEntitySpec(const edgephys_spawn_desc& desc, EntitySpec* spec) {
   s.scale = V(desc.scale);
   s.parent_id = desc.parent_id;
   s.flags = desc.flags;
+  if (desc.struct_size == sizeof(edgephys_spawn_desc)) {
+    if (desc.on_owner_leave > EDGEPHYS_OWNER_LEAVE_DESPAWN) {
+      return Bad("bad spawn desc", "on_owner_leave is not an EDGEPHYS_OWNER_LEAVE_* value");
+    }
+    s.on_owner_leave = static_cast<uint8_t>(desc.on_owner_leave);
+  }
   if (desc.rigid_body != nullptr) {
     RigidBodySpec body;
     if (Status st = CheckRigidBody(*desc.rigid_body, &body); !st.ok()) return st;

@@ -307,7 +307,7 @@ public static class Native {
 }
 
 // One connection to a relay. Dispose() destroys it.
-public sealed class Client : IDisposable {
+public sealed partial class Client : IDisposable {
   public delegate void StateHandler(uint entityId, ref Transform transform);
   public delegate void PhysicsHandler(EventType type, uint entityA, uint entityB);
 

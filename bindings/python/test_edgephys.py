@@ -287,6 +287,44 @@ class BindingTest(unittest.TestCase):
             while len(changes[a]) < 2 and time.monotonic() < deadline:
                 pump()
             self.assertEqual(changes[a][-1], (box, 0, 2))
+            # A takes it back, moves it and reads its motion; bad values are refused; A offloads
+            # it; B takes it and starts from A's pose.
+            a.request_ownership(box)
+            while len(changes[b]) < 3 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(a.owner(box), 7)
+            a.publish(box, (0.25, 1, 0))
+            pose, lin, ang = a.owned_motion(box)
+            self.assertEqual((pose.position.x, lin.x, ang.y), (0.25, 0, 0))
+            with self.assertRaises(ep.EdgephysError) as e:
+                b.owned_motion(box)
+            self.assertEqual(e.exception.status, ep.E_NOT_FOUND)
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.set_owner_leave(box, 9)
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            a.set_owner_leave(box, ep.OWNER_LEAVE_STAY)
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.offload(box, (float("nan"), 0, 0))
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
+            for _ in range(10):
+                pump()  # A's pose reaches the relay
+            a.offload(box, (1, 0, 0))
+            while len(changes[b]) < 4 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual((a.owner(box), b.owner(box)), (0, 0))
+            b.request_ownership(box)
+            while len(changes[b]) < 5 and time.monotonic() < deadline:
+                pump()
+            self.assertEqual(b.owner(box), 8)
+            pose, lin, ang = b.owned_motion(box)
+            self.assertEqual(pose.position.x, 0.25)
+            # grab_at: a hand this client does not own, and a non-finite pose, are refused here.
+            with self.assertRaises(ep.EdgephysError) as e:
+                a.grab_at(box, box, (0, 1, 0))
+            self.assertEqual(e.exception.status, ep.E_NOT_FOUND)
+            with self.assertRaises(ep.EdgephysError) as e:
+                b.grab_at(box, box, (float("nan"), 1, 0))
+            self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
 
 
 if __name__ == "__main__":

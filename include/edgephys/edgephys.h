@@ -203,6 +203,9 @@ typedef struct edgephys_spawn_desc {
   const edgephys_joint* joints;
   uint32_t joint_count;               /* <= EDGEPHYS_MAX_JOINTS */
   const edgephys_soft_body* soft_body;
+  /* EDGEPHYS_OWNER_LEAVE_* (edgephys_app_state.h): what happens to it when its owner leaves.
+   * Appended: a desc whose struct_size ends before it (older callers) spawns with DEFAULT. */
+  uint32_t on_owner_leave;
 } edgephys_spawn_desc;
 
 /* Defaults for the component structs (a box collider of half extents 0.5 m; a 1 kg dynamic
@@ -308,6 +311,17 @@ EDGEPHYS_API edgephys_status edgephys_client_publish_transform(edgephys_client* 
  * follows. */
 EDGEPHYS_API edgephys_status edgephys_client_grab(edgephys_client* client, uint32_t entity_id,
                                                   uint32_t hand_id);
+/* As edgephys_client_grab, with the hand's pose now (metres, unit quaternion, room frame): it is
+ * published as the hand's transform and sent with the grab, so the relay judges the hover where
+ * the hand is, even when this frame's move has not reached it yet. The relay refuses
+ * (EDGEPHYS_EVENT_ERROR, reason 15 GrabRefused, counted) a pose more than
+ * EDGEPHYS_MAX_GRAB_POSE_OFFSET_M from the hand's last transform it holds. EDGEPHYS_E_NOT_FOUND
+ * if this client does not own `hand_id`; EDGEPHYS_E_INVALID_ARGUMENT for a NULL, non-finite or
+ * non-unit pose. */
+#define EDGEPHYS_MAX_GRAB_POSE_OFFSET_M 0.5f
+EDGEPHYS_API edgephys_status edgephys_client_grab_at(edgephys_client* client, uint32_t entity_id,
+                                                     uint32_t hand_id,
+                                                     const edgephys_transform* hand_pose);
 /* Lets go of `entity_id`: it leaves at the velocity the hand showed over its last ~0.1 s of
  * published transforms (so publish the hand's transform every frame while it carries, to throw),
  * spinning as the hand turned. EDGEPHYS_EVENT_RELEASED follows. */

@@ -123,6 +123,10 @@ class Client {
     return edgephys_client_publish_transform(handle_, id, &t);
   }
   edgephys_status Grab(uint32_t entity, uint32_t hand) { return edgephys_client_grab(handle_, entity, hand); }
+  // Grab with the hand's pose now (edgephys_client_grab_at).
+  edgephys_status GrabAt(uint32_t entity, uint32_t hand, const edgephys_transform& hand_pose) {
+    return edgephys_client_grab_at(handle_, entity, hand, &hand_pose);
+  }
   edgephys_status Release(uint32_t entity) { return edgephys_client_release(handle_, entity); }
 
   // Ownership (edgephys_app_state.h, "ownership"); OWNERSHIP_CHANGED events tell the outcome.
@@ -140,6 +144,10 @@ class Client {
   }
   edgephys_status SetTakeoverAllowed(uint32_t entity, bool allowed) {
     return edgephys_client_set_takeover_allowed(handle_, entity, allowed ? 1 : 0);
+  }
+  // choice: EDGEPHYS_OWNER_LEAVE_* (what the relay does with it when its owner leaves).
+  edgephys_status SetOwnerLeave(uint32_t entity, uint32_t choice) {
+    return edgephys_client_set_owner_leave(handle_, entity, choice);
   }
   // The entity's owner as this client knows it; 0 also when unknown (LastError() says so).
   uint32_t Owner(uint32_t entity) const {

@@ -219,6 +219,21 @@ EDGEPHYS_API edgephys_status edgephys_client_get_owned_motion(edgephys_client* c
 EDGEPHYS_API edgephys_status edgephys_client_set_takeover_allowed(edgephys_client* client,
                                                                   uint32_t entity_id,
                                                                   uint32_t allowed);
+/* What the relay does with an entity when its owner leaves the room or its connection times out
+ * (the values of edgephys_spawn_desc.on_owner_leave and edgephys_client_set_owner_leave). */
+#define EDGEPHYS_OWNER_LEAVE_DEFAULT 0u /* PERSISTENT flag: as STAY; without it: as DESPAWN */
+#define EDGEPHYS_OWNER_LEAVE_STAY 1u    /* the room (owner 0) takes it over, at rest where it is */
+#define EDGEPHYS_OWNER_LEAVE_PHYS 2u    /* a dynamic body the owner simulates locally (spawned
+                                           without OFFLOADED): PhyS simulates it on from its last
+                                           pose and the velocity its last states implied (owner
+                                           0); any other entity: as STAY */
+#define EDGEPHYS_OWNER_LEAVE_DESPAWN 3u /* despawned */
+/* Sets the choice for an entity this client owns; it stays with the entity across owners and
+ * every member hears of it (EDGEPHYS_EVENT_OWNERSHIP_CHANGED, authority sequence unchanged).
+ * EDGEPHYS_E_INVALID_ARGUMENT for a value above EDGEPHYS_OWNER_LEAVE_DESPAWN (the relay refuses
+ * one with InvalidMessage, counted); EDGEPHYS_E_NOT_FOUND if not owned. */
+EDGEPHYS_API edgephys_status edgephys_client_set_owner_leave(edgephys_client* client,
+                                                             uint32_t entity_id, uint32_t choice);
 /* The entity's owner as this client knows it (this player's id for its own). EDGEPHYS_E_NOT_FOUND
  * for an entity it does not know; EDGEPHYS_E_INVALID_ARGUMENT for a NULL out_owner. */
 EDGEPHYS_API edgephys_status edgephys_client_get_owner(edgephys_client* client, uint32_t entity_id,

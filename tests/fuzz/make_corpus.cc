@@ -409,6 +409,19 @@ void MessageCorpus() {
         Input(0).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
             .Add(0, SpawnMsg(HandSpec(1, 1))).Add(3, {10}).Add(0, grab).Add(3, {5})
             .Add(0, release).Add(2, FloatStates({St(65539, 0, 0.4f, 0)})).Add(0, despawn).bytes);
+  // Grabs carrying the hand's pose: near (applied), far (refused), NaN, naming another entity.
+  auto grab_at = [](float x, float y, uint32_t pose_entity) {
+    return Msg([&](auto& fbb) {
+      const schema::Pose pose(pose_entity, schema::Vec3(x, y, 0), schema::Quat(0, 0, 0, 1));
+      return schema::CreateGrab(fbb, 65538, 65539, &pose);
+    });
+  };
+  Write("message_fuzz", "relay_grab_pose",
+        Input(0).Add(0, SpawnMsg(Ground(1, 1))).Add(0, SpawnMsg(Cube(1, 1)))
+            .Add(0, SpawnMsg(HandSpec(1, 1))).Add(3, {10}).Add(0, grab_at(0, 0.4f, 65539))
+            .Add(3, {5}).Add(0, release).Add(0, grab_at(9, 0.4f, 65539))
+            .Add(0, grab_at(std::nanf(""), 0.4f, 65539)).Add(0, grab_at(0, 0.4f, 65538))
+            .Add(3, {5}).bytes);
   Write("message_fuzz", "relay_soft_joint",
         Input(0).Add(0, SpawnMsg(Cube(1, 1))).Add(0, SpawnMsg(Jointed(1, 1)))
             .Add(0, SpawnMsg(Soft(1, 1))).Add(3, {15}).Add(1, SpawnMsg(Plain(2, 2))).bytes);
@@ -494,6 +507,22 @@ void MessageCorpus() {
             .Add(2, FloatStates({St(65537, 1, 1, 1)})).Add(1, own(65537, O::HandOver, 1, false))
             .Add(0, own(65537, O::HandOver, 99, false)).Add(0, own(65537, static_cast<O>(9), 0, false))
             .Add(0, own(70000, O::Request, 0, false)).Add(0, own(65537, O::Release, 0, false)).bytes);
+  // Relay: leave choices (SetOwnerLeave): PhyS, an unknown value, by a non-owner, of an unknown
+  // entity; then the owner leaves; and a spawn carrying an unknown choice.
+  auto leave_choice = [](uint32_t entity, uint8_t choice) {
+    return Msg([&](auto& fbb) {
+      return schema::CreateOwnershipRequest(fbb, entity, O::SetOwnerLeave, 0, false, nullptr,
+                                            nullptr, static_cast<schema::OwnerLeave>(choice));
+    });
+  };
+  EntitySpec bad_choice = Plain(1, 1);
+  bad_choice.id += 1;
+  bad_choice.on_owner_leave = 7;
+  Write("message_fuzz", "relay_owner_leave",
+        Input(0).Add(0, SpawnMsg(Plain(1, 1))).Add(0, leave_choice(65540, 2))
+            .Add(0, leave_choice(65540, 9)).Add(1, leave_choice(65540, 3))
+            .Add(0, leave_choice(70000, 1)).Add(0, SpawnMsg(bad_choice))
+            .Add(0, Msg([](auto& fbb) { return schema::CreateLeaveRoom(fbb); })).bytes);
 
   // Relay, remote PhyS: room handle 1 is on worker W.
   Write("message_fuzz", "relay_worker",

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstddef>
 #include <functional>
 #include <string>
 #include <vector>
@@ -150,6 +151,32 @@ TEST(CApiOwnership, HandOverRequestTakeoverAndRelease) {
   EXPECT_EQ(edgephys_client_hand_over(nullptr, id, 2), EDGEPHYS_E_INVALID_HANDLE);
   EXPECT_EQ(ma.errors.size(), 0u);
   EXPECT_EQ(world.counters().ownership_changes.load(), 5u);
+
+  // Leave choices: one chosen at spawn (stay), one changed by its owner (despawn), one from a
+  // caller built against the header before on_owner_leave (its struct_size: default, despawn).
+  edgephys_spawn_desc stays_desc;
+  ASSERT_EQ(edgephys_spawn_desc_init(&stays_desc), EDGEPHYS_OK);
+  stays_desc.on_owner_leave = 7;
+  EXPECT_EQ(c.Spawn(stays_desc), 0u);  // an unknown choice
+  stays_desc.on_owner_leave = EDGEPHYS_OWNER_LEAVE_STAY;
+  const uint32_t stays = c.Spawn(stays_desc);
+  edgephys_spawn_desc old_desc;
+  ASSERT_EQ(edgephys_spawn_desc_init(&old_desc), EDGEPHYS_OK);
+  old_desc.struct_size = offsetof(edgephys_spawn_desc, on_owner_leave);
+  const uint32_t old = c.Spawn(old_desc);
+  const uint32_t goes = c.Spawn(desc);
+  ASSERT_TRUE(stays != 0 && old != 0 && goes != 0) << sdk::Client::LastError();
+  EXPECT_EQ(c.SetOwnerLeave(goes, 9), EDGEPHYS_E_INVALID_ARGUMENT);
+  EXPECT_EQ(a.SetOwnerLeave(goes, EDGEPHYS_OWNER_LEAVE_STAY), EDGEPHYS_E_NOT_FOUND);  // not A's
+  ASSERT_EQ(c.SetOwnerLeave(goes, EDGEPHYS_OWNER_LEAVE_DESPAWN), EDGEPHYS_OK);
+  ASSERT_TRUE(pump([&] { return a.Owner(stays) == 3 && a.Owner(old) == 3 && a.Owner(goes) == 3; }));
+  ASSERT_EQ(c.Leave(), EDGEPHYS_OK);
+  uint32_t owner = 99;
+  ASSERT_TRUE(pump([&] {
+    return a.Owner(stays) == 0 && b.Owner(stays) == 0 &&
+           edgephys_client_get_owner(a.handle(), goes, &owner) == EDGEPHYS_E_NOT_FOUND &&
+           edgephys_client_get_owner(a.handle(), old, &owner) == EDGEPHYS_E_NOT_FOUND;
+  }));
 }
 
 }  // namespace

@@ -300,6 +300,31 @@ static class ClientTests {
       b.ReleaseOwnership(box);
       while (changes.Count < 4 && Native.Now() < end) pump();
       Expect(a.Owner(box) == 0 && b.Owner(box) == 0, "released to the room");
+      // A takes it back (the room's: granted), moves it and reads its motion; a bad leave choice
+      // and a NaN velocity are refused; A offloads it; B takes it and starts from A's pose.
+      a.RequestOwnership(box);
+      while (changes.Count < 6 && Native.Now() < end) pump();
+      Expect(a.Owner(box) == 7, "A owns it again");
+      a.Publish(box, new Transform(0.25f, 1, 0));
+      Transform pose;
+      Vec3 lin, ang;
+      a.GetOwnedMotion(box, out pose, out lin, out ang);
+      Expect(pose.Position.X == 0.25f && lin.X == 0 && ang.Y == 0, "A's owned motion: " + pose.Position);
+      ExpectStatus(Status.NotFound, () => b.GetOwnedMotion(box, out pose, out lin, out ang), "B does not own it");
+      ExpectStatus(Status.InvalidArgument, () => a.SetOwnerLeave(box, (OwnerLeave)9), "unknown leave choice");
+      a.SetOwnerLeave(box, OwnerLeave.Stay);
+      ExpectStatus(Status.InvalidArgument, () => a.Offload(box, new Vec3(float.NaN, 0, 0), new Vec3(0, 0, 0)), "NaN velocity");
+      for (int i = 0; i < 10; ++i) pump();  // A's pose reaches the relay
+      a.Offload(box, new Vec3(1, 0, 0), new Vec3(0, 0, 0));
+      while (changes.Count < 8 && Native.Now() < end) pump();
+      Expect(a.Owner(box) == 0 && b.Owner(box) == 0, "offloaded to the room");
+      b.RequestOwnership(box);
+      while (changes.Count < 10 && Native.Now() < end) pump();
+      Expect(b.Owner(box) == 8, "B owns it");
+      b.GetOwnedMotion(box, out pose, out lin, out ang);
+      Expect(pose.Position.X == 0.25f, "B starts where A left it: " + pose.Position);
+      ExpectStatus(Status.NotFound, () => a.GrabAt(box, box, new Transform(0, 1, 0)), "grab at with another's hand");
+      ExpectStatus(Status.InvalidArgument, () => b.GrabAt(box, box, new Transform(float.NaN, 1, 0)), "grab at a NaN pose");
     }
   }
 

@@ -81,6 +81,10 @@ def _load():
         "edgephys_client_release_ownership": ([c, u32], ctypes.c_int),
         "edgephys_client_set_takeover_allowed": ([c, u32, u32], ctypes.c_int),
         "edgephys_client_get_owner": ([c, u32, P(u32)], ctypes.c_int),
+        "edgephys_client_offload": ([c, u32, P(Vec3), P(Vec3)], ctypes.c_int),
+        "edgephys_client_get_owned_motion": ([c, u32, P(Transform), P(Vec3), P(Vec3)], ctypes.c_int),
+        "edgephys_client_set_owner_leave": ([c, u32, u32], ctypes.c_int),
+        "edgephys_client_grab_at": ([c, u32, u32, P(Transform)], ctypes.c_int),
         "edgephys_client_poll_event": ([c, P(Event)], ctypes.c_int),
         "edgephys_client_send_message": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
         "edgephys_client_send_message_unreliable": ([c, u32, u32, ctypes.c_char_p, sz], ctypes.c_int),
@@ -253,6 +257,12 @@ class Client:
     def grab(self, entity_id, hand_id):
         _check(lib.edgephys_client_grab(self._h, entity_id, hand_id), "grab")
 
+    def grab_at(self, entity_id, hand_id, position, rotation=(0, 0, 0, 1)):
+        """Grab with the hand's pose now: published as the hand's transform and judged there by
+        the relay (a pose over 0.5 m from the hand's last transform: ERROR GrabRefused)."""
+        t = transform(*position, rotation=rotation)
+        _check(lib.edgephys_client_grab_at(self._h, entity_id, hand_id, ctypes.byref(t)), "grab_at")
+
     def release(self, entity_id):
         _check(lib.edgephys_client_release(self._h, entity_id), "release")
 
@@ -271,6 +281,25 @@ class Client:
     def set_takeover_allowed(self, entity_id, allowed):
         _check(lib.edgephys_client_set_takeover_allowed(self._h, entity_id, 1 if allowed else 0),
                "set_takeover_allowed")
+
+    def offload(self, entity_id, linear=(0, 0, 0), angular=(0, 0, 0)):
+        """Gives a body this client simulates locally to the room; PhyS carries it on from its last
+        published pose with these velocities (m/s, rad/s, room frame)."""
+        lin, ang = Vec3(*linear), Vec3(*angular)
+        _check(lib.edgephys_client_offload(self._h, entity_id, ctypes.byref(lin), ctypes.byref(ang)),
+               "offload")
+
+    def owned_motion(self, entity_id):
+        """An owned entity's (Transform, linear Vec3, angular Vec3): after a reclaim from PhyS, where
+        PhyS had it and its velocities, for this client's physics to carry on from."""
+        pose, lin, ang = Transform(), Vec3(), Vec3()
+        _check(lib.edgephys_client_get_owned_motion(self._h, entity_id, ctypes.byref(pose),
+                                                    ctypes.byref(lin), ctypes.byref(ang)), "owned_motion")
+        return pose, lin, ang
+
+    def set_owner_leave(self, entity_id, choice):
+        """What the relay does with an owned entity when its owner leaves (OWNER_LEAVE_*)."""
+        _check(lib.edgephys_client_set_owner_leave(self._h, entity_id, choice), "set_owner_leave")
 
     def owner(self, entity_id):
         """The entity's owner as this client knows it (0: the room)."""
