@@ -321,10 +321,11 @@ TEST(RelayShards, RoutesSessionsByConnectionIdAndConnectsByRoom) {
   for (int k = 0; k < 12; ++k) {
     const std::string room = "r" + std::to_string(k);
     flatbuffers::FlatBufferBuilder fbb(256);
-    auto token = MintToken(room, 5);
+    const auto client_token = MintToken(room, 5);
+    const auto relay_part = SplitClientToken(client_token)->relay_token;  // what Connect carries
     std::array<uint8_t, kCookieSize> cookie{};
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie.data(), cookie.size()),
-                                             fbb.CreateVector(token), 1));
+                                             fbb.CreateVector(relay_part.data(), relay_part.size()), 1));
     auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
     for (const char* address : {"127.0.0.1", "127.0.0.2", "127.0.0.3"}) {
       EXPECT_EQ(shards.Route(At(address, 5000), packet), shards.ShardOfRoom(room));
