@@ -359,7 +359,7 @@ TEST_F(MetricsExporterTest, ProcessFamiliesFollowTheProcess) {
   for (int i = 0; i < 10; ++i) files.push_back(std::fopen("/dev/null", "r"));
   std::vector<char> block(64u << 20, 1);
   volatile uint64_t spin = 0;
-  for (uint64_t i = 0; i < 200000000u; ++i) spin += i;  // CPU time
+  for (uint64_t i = 0; i < 200000000u; ++i) spin = spin + i;  // CPU time
   auto after = ParseSamples(Scrape(*exporter_));
   EXPECT_GE(after["process_open_fds"], before["process_open_fds"] + 10);
   EXPECT_GE(after["process_resident_memory_bytes"],

@@ -437,39 +437,6 @@ edgephys_status edgephys_client_poll_event(edgephys_client* client, edgephys_eve
   return Ok();
 }
 
-edgephys_status edgephys_client_get_message(edgephys_client* client, void* buffer,
-                                            size_t capacity, size_t* out_size) {
-  EDGEPHYS_CHECK(client);
-  if (out_size == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out_size is NULL");
-  if (!client->has_polled_message) {
-    return Fail(EDGEPHYS_E_NOT_FOUND, "the event polled last is not a MESSAGE");
-  }
-  const std::vector<uint8_t>& m = client->polled_message;
-  *out_size = m.size();
-  if (capacity < m.size()) return Fail(EDGEPHYS_E_BUFFER_TOO_SMALL, "buffer smaller than the message");
-  if (!m.empty()) {
-    if (buffer == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "buffer is NULL");
-    std::memcpy(buffer, m.data(), m.size());
-  }
-  return Ok();
-}
-
-edgephys_status edgephys_client_send_message(edgephys_client* client, uint32_t target,
-                                             uint32_t to_player, const void* data, size_t size) {
-  EDGEPHYS_CHECK(client);
-  return Guarded([&]() -> edgephys_status {
-    if (data == nullptr && size > 0) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "data is NULL");
-    if (target > EDGEPHYS_TO_PLAYER) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "unknown target");
-    if (size > EDGEPHYS_MAX_MESSAGE_BYTES) {
-      return Fail(EDGEPHYS_E_TOO_LARGE, "message payload over EDGEPHYS_MAX_MESSAGE_BYTES");
-    }
-    const auto* bytes = static_cast<const uint8_t*>(data);
-    const Status st = client->client->SendMessage(static_cast<edgephys::MessageTarget>(target),
-                                                  to_player, {bytes, size});
-    return st.ok() ? Ok() : FailStatus(st);
-  });
-}
-
 edgephys_status edgephys_client_get_state_format(edgephys_client* client, uint32_t* out) {
   EDGEPHYS_CHECK(client);
   if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");

@@ -1,4 +1,4 @@
-// The C API's ownership calls (include/edgephys/edgephys.h, "ownership") over
+// The C API's ownership calls (include/edgephys/edgephys_app_state.h, "ownership") over
 // Client::RequestOwnership, HandOver, ReleaseOwnership, SetTakeoverAllowed and OwnerOf.
 #include <new>
 #include <string>

@@ -1,4 +1,4 @@
-// The C API's properties (include/edgephys/edgephys.h, "properties") over Client::SetProperty,
+// The C API's properties (include/edgephys/edgephys_app_state.h, "properties") over Client::SetProperty,
 // CompareAndSetProperty and FindProperty, and the property of the event polled last.
 #include <cmath>
 #include <cstring>

@@ -1,5 +1,5 @@
 // The reason table behind edgephys_reason_name and the text the C API puts in the detail of
-// REJECTED, ERROR and DISCONNECTED events (include/edgephys/edgephys.h, "reasons"). Internal to
+// REJECTED, ERROR and DISCONNECTED events (include/edgephys/edgephys_reasons.h). Internal to
 // sdk/. Static storage; thread-safe (read-only).
 #pragma once
 

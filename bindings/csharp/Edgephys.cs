@@ -34,14 +34,14 @@ public enum EventType : uint {
   OwnershipChanged,
 }
 
-// Properties (edgephys.h, "properties"): value types, and who may write a property.
+// Properties (edgephys_app_state.h, "properties"): value types, and who may write a property.
 public enum PropertyType : uint { None = 0, Bool, Int64, Double, String, Bytes, Vec3, Quat }
 public enum PropertyAuthority : uint { Owner = 0, Anyone = 1 }
 
 // Whom an application message is for (edgephys_client_send_message).
 public enum MessageTarget : uint { Room = 0, Others = 1, Player = 2 }
 
-// Reason codes (edgephys.h, "reasons"): Rejected and Error events carry a RejectReason,
+// Reason codes (edgephys_reasons.h): Rejected and Error events carry a RejectReason,
 // Disconnected events a DisconnectReason. Native.ReasonName names either.
 public enum RejectReason : uint {
   None = 0, BadToken, ExpiredToken, ReplayedToken, RoomFull, ServerFull, WrongRoom, NotOwner,
@@ -531,7 +531,7 @@ public sealed class Client : IDisposable {
   public void Grab(uint entity, uint hand) { Native.Check(Native.edgephys_client_grab(handle_, entity, hand), "grab"); }
   public void Release(uint entity) { Native.Check(Native.edgephys_client_release(handle_, entity), "release"); }
 
-  // Ownership (edgephys.h, "ownership"): OwnershipChanged tells the outcome; refusals come as
+  // Ownership (edgephys_app_state.h, "ownership"): OwnershipChanged tells the outcome; refusals come as
   // Error (e.g. RejectReason.TakeoverRefused).
   public void RequestOwnership(uint entity) {
     Native.Check(Native.edgephys_client_request_ownership(handle_, entity), "request ownership");

@@ -125,7 +125,7 @@ class Client {
   edgephys_status Grab(uint32_t entity, uint32_t hand) { return edgephys_client_grab(handle_, entity, hand); }
   edgephys_status Release(uint32_t entity) { return edgephys_client_release(handle_, entity); }
 
-  // Ownership (edgephys.h, "ownership"); OWNERSHIP_CHANGED events tell the outcome.
+  // Ownership (edgephys_app_state.h, "ownership"); OWNERSHIP_CHANGED events tell the outcome.
   edgephys_status RequestOwnership(uint32_t entity) {
     return edgephys_client_request_ownership(handle_, entity);
   }

@@ -250,7 +250,9 @@ TEST(CApiProperties, TheCppWrapperWritesAndReadsEveryType) {
         EXPECT_EQ(c->Update(world.Now()), EDGEPHYS_OK);
         edgephys_event ev;
         while (c->Poll(&ev)) {
-          if (ev.type == EDGEPHYS_EVENT_CONNECTED) EXPECT_EQ(c->Join("cpp"), EDGEPHYS_OK);
+          if (ev.type == EDGEPHYS_EVENT_CONNECTED) {
+            EXPECT_EQ(c->Join("cpp"), EDGEPHYS_OK);
+          }
           if (ev.type == EDGEPHYS_EVENT_JOINED) ++joined;
           if (ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED && c == &b) {
             sdk::Property p;

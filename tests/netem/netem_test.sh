@@ -40,7 +40,7 @@
 # NETEM_LOG_DIR=<dir> keeps all logs there.
 # Known intermittent failure (found with udp_impair, ~3 runs in 16): "observer did not converge
 # in cycle 1". The relay replicates to a member before its Joined is delivered; the client drops
-# state payloads until joined (client.cc OnUnreliablePayload) although the connection acked
+# state payloads until joined (client_receive.cc OnUnreliablePayload) although the connection acked
 # them, so format-2 deltas reference states it never decoded and those entities stay frozen
 # until their refresh keyframe (~120 sends, ~10 s at 12 Hz). Cycle 0 then "converges" at 0 ms
 # only because the spawn pose is the cycle-0 hold pose.
