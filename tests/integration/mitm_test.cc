@@ -6,6 +6,7 @@
 // with nothing applied to the room.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <optional>
 
 #include "protocol/packet_seal.h"
@@ -193,7 +194,7 @@ TEST_F(MitmTest, APlainForwardingProxyStillConnectsAndStatesArriveIntact) {
   ASSERT_TRUE(victim_->PublishTransform(*id, {4, 5, 6}, {0, 0, 0, 1}).ok());
   ASSERT_TRUE(Run([&] {
     const RemoteEntity* e = watcher_->FindEntity(*id);
-    return e != nullptr && e->has_state && e->state.position.x == 4.0f;
+    return e != nullptr && e->has_state && std::abs(e->state.position.x - 4.0f) < 0.01f;
   }, 3.0));
   const RemoteEntity* seen = watcher_->FindEntity(*id);
   EXPECT_EQ(seen->owner, kVictim);
