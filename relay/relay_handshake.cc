@@ -6,8 +6,6 @@
 // The rest of Relay is in relay.cc.
 #include <spdlog/spdlog.h>
 
-#include <optional>
-
 #include "relay/cluster_hook.h"
 #include "relay/drop_log.h"
 #include "relay/relay.h"
@@ -167,7 +165,7 @@ void Relay::Admit(const Endpoint& from, const JoinToken& token, std::span<const 
                           token.player_id,
                           static_cast<uint32_t>(config_.connection.keepalive_interval_s * 1000),
                           static_cast<uint32_t>(config_.connection.timeout_s * 1000)};
-  std::optional<KeyExchange> kx;
+  KeyExchangePublic relay_public{};
   if (!client_key.empty()) {  // packet authentication: this connection's keys
     Result<KeyExchange> generated = KeyExchange::Generate();
     Result<ConnectionKeys> keys =
@@ -179,9 +177,9 @@ void Relay::Admit(const Endpoint& from, const JoinToken& token, std::span<const 
       return SendReject(from, Code(RejectReason::AuthRequired), kMaxPacketSize);  // verified
     }
     session->EnableSeal(*keys);
-    kx.emplace(std::move(*generated));
-    accept.relay_key = kx->public_key();
-    relay_key = fbb.CreateVector(kx->public_key().data(), kx->public_key().size());
+    relay_public = generated->public_key();
+    accept.relay_key = relay_public;
+    relay_key = fbb.CreateVector(relay_public.data(), relay_public.size());
   }
   const HandshakeProof proof = AcceptProof(token.session_secret, accept);
   FinishControl(fbb, schema::CreateAccept(fbb, connection_id, token.player_id, accept.keepalive_ms,
