@@ -110,7 +110,7 @@ TEST(CApi, ReasonNamesCoverTheTableAndSeparateTheFamilies) {
   for (uint32_t code = 0; code <= EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW; ++code) {
     EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED, code), "unknown") << code;
   }
-  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_TAKEOVER_REFUSED + 1),
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_BAD_PROOF + 1),
                "unknown");
   EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED,
                                     EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW + 1),
