@@ -104,7 +104,7 @@ TEST(CApi, ReasonNamesCoverTheTableAndSeparateTheFamilies) {
                                     EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW),
                "ReliableOverflow");
   // Every code of both families has a name; the first past each family's end has none.
-  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_TAKEOVER_REFUSED; ++code) {
+  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_BAD_PROOF; ++code) {
     EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, code), "unknown") << code;
   }
   for (uint32_t code = 0; code <= EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW; ++code) {
