@@ -24,6 +24,7 @@
 #include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
+#include "protocol/join_token.h"
 
 namespace edgephys {
 namespace {
@@ -102,7 +103,11 @@ struct Fixture {
   uint16_t sequence = 0;
 
   explicit Fixture(size_t entities) {
-    const Bytes token(64, 1);
+    JoinToken t;  // a client token; the scripted relay never reads it
+    t.room = "r";
+    t.player_id = 1;
+    t.expiry_unix_s = 4'000'000'000;
+    const Bytes token = *SignJoinToken(t, "scripted");
     (void)client.Connect(ToRelayAddress(server), token, now);
     {
       flatbuffers::FlatBufferBuilder fbb(64);

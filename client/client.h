@@ -128,8 +128,10 @@ struct ClientConfig {
   // relay's key (a relay run with --packet-auth false, or an on-path attacker who stripped the
   // key to downgrade the session to unauthenticated packets) ends the handshake at once in
   // kRejected with reject_reason() AuthRequired, and the SDK sends the relay a Disconnect;
-  // nothing is ever sent unsealed. false: such an Accept connects without packet
-  // authentication (only to measure a relay run with --packet-auth false).
+  // nothing is ever sent unsealed. An Accept without the relay's proof of the session secret
+  // ends it likewise with BadProof (docs/protocol.md §2 "Proofs"). false: such an Accept
+  // connects without packet authentication and without a proof (only to measure a relay run
+  // with --packet-auth false); a proof that is present is still checked.
   bool require_packet_auth = true;
 };
 
@@ -263,10 +265,15 @@ class Client final {
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
 
-  // Starts the handshake with the relay at `server`. `token` is the binary join token (decode
-  // the printable form with Base64UrlDecode); copied. `now`: seconds on any monotonic clock,
-  // the same clock as every later call. kInvalidArgument if already started, or if `server`
-  // or an entry of ClientConfig::relays is not a numeric address (nothing is sent then).
+  // Starts the handshake with the relay at `server`. `token` is the binary client token the
+  // backend handed out (SignJoinToken's output; decode the printable form with
+  // Base64UrlDecode): its relay part goes to the relay, its session secret never leaves this
+  // client and authenticates the relay (an Accept without the relay's proof of it ends the
+  // handshake in kRejected, reason BadProof: a man in the middle). Copied. `now`: seconds on
+  // any monotonic clock, the same clock as every later call. kInvalidArgument if already
+  // started, or if `server` or an entry of ClientConfig::relays is not a numeric address;
+  // kMalformed, naming the cause, if `token` is not a client token (e.g. a relay part alone,
+  // or an older token version). Nothing is sent then.
   Status Connect(const RelayAddress& server, std::span<const uint8_t> token, double now);
 
   // Receives everything pending, advances the handshake, resends, publishes due transforms.

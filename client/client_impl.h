@@ -18,6 +18,7 @@
 #include "protocol/connection.h"
 #include "protocol/datagram_socket.h"
 #include "protocol/delta_codec.h"
+#include "protocol/handshake.h"
 #include "protocol/packet_seal.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/shared_delta_codec.h"
@@ -124,7 +125,9 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   ControlMessageListener* control_listener_ = nullptr;  // ProtocolPeer
   ClientState state_ = ClientState::kIdle;
   Endpoint server_;
-  std::vector<uint8_t> token_;
+  std::vector<uint8_t> token_;     // the client token's relay part (sent in Connect)
+  SessionSecret session_secret_{};  // the client token's secret part (never sent)
+  HandshakeProof connect_proof_{};  // the proof of the last Connect sent (Accept chains to it)
   std::vector<uint8_t> cookie_;
   uint64_t nonce_ = 0;
   double handshake_started_ = 0;

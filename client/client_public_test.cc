@@ -1,6 +1,7 @@
 // The public surface of client/client.h that does not need a relay: RelayAddress parsing and
-// printing, the conversions of client_endpoint.h, and Connect()'s checks of the addresses it is
-// given (a bad one is refused before anything is sent, and the client stays usable).
+// printing, the conversions of client_endpoint.h, and Connect()'s checks of the addresses and
+// the token it is given (a bad one is refused before anything is sent, and the client stays
+// usable).
 #include <gtest/gtest.h>
 
 #include <utility>
@@ -9,6 +10,7 @@
 #include "client/client.h"
 #include "client/client_endpoint.h"
 #include "protocol/datagram_socket.h"
+#include "protocol/join_token.h"
 
 namespace edgephys {
 namespace {
@@ -25,7 +27,14 @@ class SendLog final : public DatagramSocket {
   std::vector<std::pair<Endpoint, size_t>> sent;
 };
 
-const std::vector<uint8_t> kToken(64, 1);
+// A client token (relay part | session secret), as a backend hands it out.
+const std::vector<uint8_t> kToken = [] {
+  JoinToken t;
+  t.room = "r";
+  t.player_id = 1;
+  t.expiry_unix_s = 4'000'000'000;
+  return *SignJoinToken(t, "secret");
+}();
 
 TEST(RelayAddressTest, ParsesNumericAddressesCanonically) {
   Result<RelayAddress> v4 = ParseRelayAddress("127.0.0.1:7777");
@@ -76,6 +85,27 @@ TEST(ClientAddressTest, ConnectRefusesABadAddressAndSendsNothing) {
   ASSERT_EQ(socket.sent.size(), 1u);  // the Hello
   EXPECT_EQ(socket.sent[0].first, Endpoint(asio::ip::make_address("127.0.0.1"), 7777));
   EXPECT_EQ(client.Connect({"127.0.0.1", 7777}, kToken, 0).code(), StatusCode::kInvalidArgument);
+}
+
+// The SDK needs the whole client token: its relay part alone (no session secret to prove), an
+// old-format token or bytes that are no token are refused before anything is sent.
+TEST(ClientAddressTest, ConnectRefusesAnythingButAClientToken) {
+  SendLog socket;
+  Client client(ClientConfig{}, &socket);
+  const std::vector<uint8_t> relay_part(kToken.begin(), kToken.end() - kSessionSecretSize);
+  std::vector<uint8_t> old_format = kToken;
+  old_format[0] = 1;
+  for (const std::vector<uint8_t>& bad :
+       {relay_part, old_format, std::vector<uint8_t>(64, 1), std::vector<uint8_t>()}) {
+    Status st = client.Connect({"127.0.0.1", 7777}, bad, 0);
+    EXPECT_EQ(st.code(), StatusCode::kMalformed) << st.ToString();
+    EXPECT_EQ(client.state(), ClientState::kIdle);
+  }
+  EXPECT_NE(client.Connect({"127.0.0.1", 7777}, relay_part, 0).detail().find("session secret"),
+            std::string_view::npos);
+  EXPECT_TRUE(socket.sent.empty());
+  ASSERT_TRUE(client.Connect({"127.0.0.1", 7777}, kToken, 0).ok());
+  EXPECT_EQ(socket.sent.size(), 1u);
 }
 
 TEST(ClientAddressTest, ConnectRefusesABadRelayInTheConfig) {

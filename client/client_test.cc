@@ -18,6 +18,7 @@
 #include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
+#include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
 
 namespace edgephys {
@@ -137,6 +138,15 @@ class RecordingListener final : public ClientListener {
   double last_update_read_unix_s = 0;  // CLOCK_REALTIME when that update was reported
 };
 
+// A client token for the scripted relay (which checks nothing: it never reads the token).
+Bytes ScriptedToken() {
+  JoinToken t;
+  t.room = "r";
+  t.player_id = 1;
+  t.expiry_unix_s = 4'000'000'000;
+  return *SignJoinToken(t, "scripted");
+}
+
 // A client joined to room "r" (own block kOwnBase) through a scripted relay.
 class ClientReceiveTest : public ::testing::Test {
  protected:
@@ -149,7 +159,7 @@ class ClientReceiveTest : public ::testing::Test {
   }
 
   void SetUp() override {
-    ASSERT_TRUE(client_.Connect(ToRelayAddress(server_), Bytes(64, 1), now_).ok());
+    ASSERT_TRUE(client_.Connect(ToRelayAddress(server_), ScriptedToken(), now_).ok());
     flatbuffers::FlatBufferBuilder challenge(64);
     FinishControl(challenge, schema::CreateChallenge(
                                  challenge, challenge.CreateVector(Bytes(kCookieSize, 2))));

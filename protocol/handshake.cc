@@ -104,4 +104,69 @@ const schema::ControlMessage* VerifyControlMessage(std::span<const uint8_t> payl
   return msg;
 }
 
+namespace {
+
+// Appends `bytes` with a u16 length (longer inputs are cut: no valid field comes near it).
+void PutField(std::vector<uint8_t>& out, std::span<const uint8_t> bytes) {
+  const size_t n = std::min<size_t>(bytes.size(), UINT16_MAX);
+  out.push_back(static_cast<uint8_t>(n));
+  out.push_back(static_cast<uint8_t>(n >> 8));
+  out.insert(out.end(), bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(n));
+}
+
+void PutU32(std::vector<uint8_t>& out, uint32_t v) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<uint8_t>(v >> (8 * i)));
+}
+
+HandshakeProof Hmac(const SessionSecret& key, const std::vector<uint8_t>& data) {
+  HandshakeProof out{};
+  unsigned int len = 0;
+  HMAC(EVP_sha256(), key.data(), static_cast<int>(key.size()), data.data(), data.size(),
+       out.data(), &len);
+  return out;
+}
+
+}  // namespace
+
+HandshakeProof ConnectProof(const SessionSecret& secret, const ConnectTranscript& t) {
+  std::vector<uint8_t> m = {'E', 'P', 'C', 'P', kHandshakeVersion};
+  m.reserve(5 + 8 + 6 + t.cookie.size() + t.token.size() + t.client_key.size());
+  for (int i = 0; i < 8; ++i) m.push_back(static_cast<uint8_t>(t.client_nonce >> (8 * i)));
+  PutField(m, t.cookie);
+  PutField(m, t.token);
+  PutField(m, t.client_key);
+  return Hmac(secret, m);
+}
+
+HandshakeProof AcceptProof(const SessionSecret& secret, const AcceptTranscript& t) {
+  std::vector<uint8_t> m = {'E', 'P', 'A', 'P', kHandshakeVersion};
+  m.insert(m.end(), t.connect_proof.begin(), t.connect_proof.end());
+  PutField(m, t.relay_key);
+  PutU32(m, t.connection_id);
+  PutU32(m, t.player_id);
+  PutU32(m, t.keepalive_ms);
+  PutU32(m, t.timeout_ms);
+  return Hmac(secret, m);
+}
+
+bool ProofMatches(const flatbuffers::Vector<uint8_t>* received, const HandshakeProof& expected) {
+  return received != nullptr && received->size() == kHandshakeProofSize &&
+         CRYPTO_memcmp(received->data(), expected.data(), kHandshakeProofSize) == 0;
+}
+
+std::vector<uint8_t> BuildConnectPacket(const ConnectTranscript& t, const SessionSecret& secret,
+                                        HandshakeProof* proof) {
+  const HandshakeProof p = ConnectProof(secret, t);
+  if (proof != nullptr) *proof = p;
+  flatbuffers::FlatBufferBuilder fbb(512);
+  auto cookie = fbb.CreateVector(t.cookie.data(), t.cookie.size());
+  auto token = fbb.CreateVector(t.token.data(), t.token.size());
+  flatbuffers::Offset<flatbuffers::Vector<uint8_t>> key;
+  if (!t.client_key.empty()) key = fbb.CreateVector(t.client_key.data(), t.client_key.size());
+  auto proof_vector = fbb.CreateVector(p.data(), p.size());
+  FinishControl(fbb, schema::CreateConnect(fbb, cookie, token, t.client_nonce, key,
+                                           kHandshakeVersion, proof_vector));
+  return BuildHandshakePacket(PacketType::kConnect, fbb);
+}
+
 }  // namespace edgephys

@@ -3,12 +3,20 @@
 //   client                                   relay
 //   Hello{nonce, padding} (>= 1000 bytes) -->
 //                                         <-- Challenge{cookie}          (stateless, < hello)
-//   Connect{cookie, token, nonce}         -->
-//                                         <-- Accept{connection id} | Reject{reason}
+//   Connect{cookie, token, nonce, client key, version, proof} -->
+//                                         <-- Accept{connection id, ..., relay key, proof}
+//                                             | Reject{reason}
 //
 // The relay keeps no state for an address until a Connect carries a cookie it issued to that
 // address and nonce within kCookieLifetimeS, and never answers an unverified address with
 // more bytes than the datagram that provoked the answer.
+//
+// Mutual authentication: both proofs are HMAC-SHA256 under the token's session secret, which
+// the client got from its backend beside the token and the relay decrypts from the token
+// (protocol/join_token.h). The Connect proof covers the client's nonce, the cookie, the relay
+// part of the token and the client's public key; the Accept proof covers the Connect proof
+// and everything the Accept says (relay key, connection id, player id, timers). A man in the
+// middle that substitutes either public key cannot make the other side's check pass.
 #pragma once
 
 #include <array>
@@ -18,6 +26,7 @@
 
 #include "edgephys/schema/control_generated.h"
 #include "protocol/datagram_socket.h"
+#include "protocol/join_token.h"
 #include "protocol/packet.h"
 #include "protocol/status.h"
 
@@ -71,5 +80,44 @@ void FinishControl(flatbuffers::FlatBufferBuilder& fbb, flatbuffers::Offset<T> b
 
 // Random 64-bit value from OpenSSL's CSPRNG (nonces, connection ids).
 uint64_t SecureRandom64();
+
+// The handshake version a Connect carries (schema Connect.version). A relay answers any other
+// (an older SDK's Connect has none: 0) with Reject{BadVersion}.
+inline constexpr uint8_t kHandshakeVersion = 2;
+inline constexpr size_t kHandshakeProofSize = 32;
+using HandshakeProof = std::array<uint8_t, kHandshakeProofSize>;
+
+// What the Connect proof covers (docs/protocol.md §2, "Proofs"):
+//   HMAC-SHA256(session secret, "EPCP" | u8 version | u64 client_nonce | u16 len | cookie
+//               | u16 len | relay token | u16 len | client_key)        (integers little-endian)
+struct ConnectTranscript {
+  uint64_t client_nonce = 0;
+  std::span<const uint8_t> cookie;
+  std::span<const uint8_t> token;       // the relay part, exactly as sent
+  std::span<const uint8_t> client_key;  // empty if none was sent
+};
+HandshakeProof ConnectProof(const SessionSecret& secret, const ConnectTranscript& t);
+
+// What the Accept proof covers:
+//   HMAC-SHA256(session secret, "EPAP" | u8 version | connect proof (32) | u16 len | relay_key
+//               | u32 connection_id | u32 player_id | u32 keepalive_ms | u32 timeout_ms)
+struct AcceptTranscript {
+  HandshakeProof connect_proof{};
+  std::span<const uint8_t> relay_key;  // empty if the Accept carries none
+  uint32_t connection_id = 0;
+  uint32_t player_id = 0;
+  uint32_t keepalive_ms = 0;
+  uint32_t timeout_ms = 0;
+};
+HandshakeProof AcceptProof(const SessionSecret& secret, const AcceptTranscript& t);
+
+// True if `received` (untrusted, any size) is exactly `expected`; constant time in the content.
+bool ProofMatches(const flatbuffers::Vector<uint8_t>* received, const HandshakeProof& expected);
+
+// The Connect datagram of this handshake version: `transcript`'s fields, version, and the proof
+// under `secret` (also stored in `*proof` if not null, for checking the Accept).
+std::vector<uint8_t> BuildConnectPacket(const ConnectTranscript& transcript,
+                                        const SessionSecret& secret,
+                                        HandshakeProof* proof = nullptr);
 
 }  // namespace edgephys

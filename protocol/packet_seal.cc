@@ -1,5 +1,6 @@
 #include "protocol/packet_seal.h"
 
+#include <openssl/crypto.h>
 #include <openssl/evp.h>
 #include <openssl/kdf.h>
 #include <openssl/sha.h>
@@ -14,7 +15,7 @@ namespace edgephys {
 namespace {
 
 constexpr size_t kAadSize = kPacketPrefixSize + kSealSequenceSize;
-constexpr std::string_view kKeyInfo = "edgephys v1 packet keys";
+constexpr std::string_view kKeyInfo = "edgephys v2 packet keys";
 
 EVP_CIPHER_CTX* NewCipher(const PacketKey& key, bool encrypt) {
   EVP_CIPHER_CTX* ctx = EVP_CIPHER_CTX_new();
@@ -69,16 +70,18 @@ KeyExchange& KeyExchange::operator=(KeyExchange&& o) noexcept {
 KeyExchange::~KeyExchange() { EVP_PKEY_free(static_cast<EVP_PKEY*>(pkey_)); }
 
 Result<ConnectionKeys> KeyExchange::Derive(std::span<const uint8_t> peer_public, bool own_is_client,
-                                           std::span<const uint8_t> token, uint64_t client_nonce,
-                                           uint32_t connection_id) const {
+                                           std::span<const uint8_t> token,
+                                           const SessionSecret& session_secret,
+                                           uint64_t client_nonce, uint32_t connection_id) const {
   if (peer_public.size() != kKeyExchangePublicSize || pkey_ == nullptr) {
     return Status::InvalidArgument("key exchange: a public key is 32 bytes");
   }
   EVP_PKEY* peer = EVP_PKEY_new_raw_public_key(EVP_PKEY_X25519, nullptr, peer_public.data(),
                                                peer_public.size());
   if (peer == nullptr) return Status::InvalidArgument("key exchange: bad public key");
-  std::array<uint8_t, 32> shared{};
-  size_t shared_len = shared.size();
+  // ikm = X25519 shared secret | session secret.
+  std::array<uint8_t, 32 + kSessionSecretSize> shared{};
+  size_t shared_len = 32;
   EVP_PKEY_CTX* dctx = EVP_PKEY_CTX_new(static_cast<EVP_PKEY*>(pkey_), nullptr);
   const bool derived = dctx != nullptr && EVP_PKEY_derive_init(dctx) == 1 &&
                        EVP_PKEY_derive_set_peer(dctx, peer) == 1 &&
@@ -87,8 +90,9 @@ Result<ConnectionKeys> KeyExchange::Derive(std::span<const uint8_t> peer_public,
   EVP_PKEY_free(peer);
   // An all-zero secret means a small-order peer point (RFC 7748 §6.1): refuse it.
   bool zero = true;
-  for (uint8_t b : shared) zero &= b == 0;
+  for (size_t i = 0; i < 32; ++i) zero &= shared[i] == 0;
   if (!derived || zero) return Status::InvalidArgument("key exchange: derivation refused");
+  std::memcpy(shared.data() + 32, session_secret.data(), kSessionSecretSize);
 
   std::array<uint8_t, SHA256_DIGEST_LENGTH> salt{};
   SHA256(token.data(), token.size(), salt.data());
@@ -111,6 +115,7 @@ Result<ConnectionKeys> KeyExchange::Derive(std::span<const uint8_t> peer_public,
       EVP_PKEY_CTX_add1_hkdf_info(kctx, info.data(), static_cast<int>(info.size())) == 1 &&
       EVP_PKEY_derive(kctx, okm.data(), &okm_len) == 1 && okm_len == okm.size();
   EVP_PKEY_CTX_free(kctx);
+  OPENSSL_cleanse(shared.data(), shared.size());
   if (!expanded) return Status::Unauthenticated("key exchange: HKDF failed");
   ConnectionKeys keys;
   std::memcpy(keys.client_to_relay.data(), okm.data(), 32);

@@ -1,5 +1,6 @@
 // Packet authentication after the handshake (docs/protocol.md §3a): an ephemeral X25519 key
-// exchange bound to the join token yields one ChaCha20-Poly1305 key per direction; every Data
+// exchange, mixed with the session secret that only the client (from its backend) and the
+// relays (sealed in the join token) know, yields one ChaCha20-Poly1305 key per direction; every Data
 // and Disconnect packet is then sealed (AEAD: the prefix and a 64-bit per-direction sequence
 // authenticated in clear, the rest encrypted) and opened with a replay window.
 //
@@ -8,9 +9,12 @@
 //   nonce (12)      = direction u32 LE (0: client -> relay, 1: relay -> client) | sequence u64 LE
 //   AAD             = the first 18 bytes
 //
-// Keys: ikm = X25519(own private, peer public); salt = SHA-256(join token bytes);
-// info = "edgephys v1 packet keys" | client public (32) | relay public (32) | client nonce u64 LE
+// Keys: ikm = X25519(own private, peer public) | session secret (32);
+// salt = SHA-256(join token relay part, as sent in Connect);
+// info = "edgephys v2 packet keys" | client public (32) | relay public (32) | client nonce u64 LE
 // | connection id u32 LE; HKDF-SHA256 -> 64 bytes: client->relay key, relay->client key.
+// Without the session secret, a man in the middle that substituted both public keys cannot
+// derive either side's keys.
 //
 // Thread-safety: a PacketSeal may be used by one thread at a time (one per connection). Cost:
 // O(packet) per Seal/Open, no allocation after construction. Failure modes: Open() refuses a
@@ -25,6 +29,7 @@
 #include <memory>
 #include <span>
 
+#include "protocol/join_token.h"
 #include "protocol/packet.h"
 #include "protocol/status.h"
 
@@ -59,8 +64,10 @@ class KeyExchange {
   // The connection's keys given the peer's public key and the handshake transcript (see the top
   // of this file). `own_is_client` says which public key is whose. Errors: kInvalidArgument
   // (a peer key of the wrong size or a degenerate point), kInternal.
+  // `token` is the relay part sent in Connect; `session_secret` the token's session secret.
   Result<ConnectionKeys> Derive(std::span<const uint8_t> peer_public, bool own_is_client,
-                                std::span<const uint8_t> token, uint64_t client_nonce,
+                                std::span<const uint8_t> token,
+                                const SessionSecret& session_secret, uint64_t client_nonce,
                                 uint32_t connection_id) const;
 
  private:

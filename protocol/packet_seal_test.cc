@@ -15,8 +15,9 @@ Pair Connect(std::vector<uint8_t> token = {1, 2, 3}) {
   auto c = KeyExchange::Generate();
   auto r = KeyExchange::Generate();
   EXPECT_TRUE(c.ok() && r.ok());
-  auto ck = c->Derive(r->public_key(), true, token, 77, 0x1234);
-  auto rk = r->Derive(c->public_key(), false, token, 77, 0x1234);
+  const SessionSecret secret{9, 8, 7};
+  auto ck = c->Derive(r->public_key(), true, token, secret, 77, 0x1234);
+  auto rk = r->Derive(c->public_key(), false, token, secret, 77, 0x1234);
   EXPECT_TRUE(ck.ok() && rk.ok());
   EXPECT_EQ(ck->client_to_relay, rk->client_to_relay);
   EXPECT_EQ(ck->relay_to_client, rk->relay_to_client);
@@ -108,18 +109,27 @@ TEST(PacketSeal, ReplayWindowAcceptsReorderingOnceAndRefusesRepeatsAndTheTooOld)
   EXPECT_EQ(p.relay->Open(sent[300], out, &why), 0u);
 }
 
-TEST(KeyExchange, RefusesBadPeerKeysAndBindsTheToken) {
+TEST(KeyExchange, RefusesBadPeerKeysAndBindsTheTokenAndTheSessionSecret) {
   auto c = KeyExchange::Generate();
   auto r = KeyExchange::Generate();
   ASSERT_TRUE(c.ok() && r.ok());
+  const SessionSecret s1{1}, s2{2};
   std::vector<uint8_t> short_key(31, 1), zero(32, 0);
-  EXPECT_FALSE(c->Derive(short_key, true, {}, 1, 1).ok());
-  EXPECT_FALSE(c->Derive(zero, true, {}, 1, 1).ok());  // small-order point
+  EXPECT_FALSE(c->Derive(short_key, true, {}, s1, 1, 1).ok());
+  EXPECT_FALSE(c->Derive(zero, true, {}, s1, 1, 1).ok());  // small-order point
   std::vector<uint8_t> t1{1}, t2{2};
-  auto a = c->Derive(r->public_key(), true, t1, 1, 1);
-  auto b = r->Derive(c->public_key(), false, t2, 1, 1);
+  auto a = c->Derive(r->public_key(), true, t1, s1, 1, 1);
+  auto b = r->Derive(c->public_key(), false, t2, s1, 1, 1);
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_NE(a->client_to_relay, b->client_to_relay);
+  // Same keys and token, another session secret: other keys. A man in the middle that ran its
+  // own X25519 with both sides knows each shared secret but not the session secret.
+  auto same = r->Derive(c->public_key(), false, t1, s1, 1, 1);
+  auto other = r->Derive(c->public_key(), false, t1, s2, 1, 1);
+  ASSERT_TRUE(same.ok() && other.ok());
+  EXPECT_EQ(a->client_to_relay, same->client_to_relay);
+  EXPECT_NE(a->client_to_relay, other->client_to_relay);
+  EXPECT_NE(a->relay_to_client, other->relay_to_client);
 }
 
 }  // namespace

@@ -15,7 +15,9 @@ std::vector<uint8_t> Token(uint64_t nonce, const std::string& room = "arena") {
   t.player_id = 7;
   t.expiry_unix_s = 2000;
   t.nonce = nonce;
-  return *SignJoinToken(t, "secret");
+  const std::vector<uint8_t> client = *SignJoinToken(t, "secret");
+  auto relay_part = SplitClientToken(client)->relay_token;  // what a Connect carries
+  return {relay_part.begin(), relay_part.end()};
 }
 
 TEST(Redirect, SignedRedirectVerifiesAndSurvivesTheWire) {

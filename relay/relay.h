@@ -158,10 +158,11 @@ class Relay final : private SessionHost {
   void HandleHello(const Endpoint& from, std::span<const uint8_t> data, double now);
   void HandleConnect(const Endpoint& from, std::span<const uint8_t> data, double now,
                      uint64_t unix_now_s);
-  // Makes the session of an admitted Connect and answers Accept.
-  // `client_key` empty: packets unsealed (RelayConfig::packet_auth off).
+  // Makes the session of an admitted Connect and answers Accept (carrying the relay's proof,
+  // chained to `connect_proof`). `client_key` empty: packets unsealed (packet_auth off).
   void Admit(const Endpoint& from, const JoinToken& token, std::span<const uint8_t> token_bytes,
-             std::span<const uint8_t> client_key, uint64_t client_nonce, double now);
+             std::span<const uint8_t> client_key, uint64_t client_nonce,
+             const HandshakeProof& connect_proof, double now);
   void SendReject(const Endpoint& to, uint16_t reason, size_t request_size);
   // Sends a reply to an address that has not completed the handshake, refusing (and
   // counting) any reply larger than the datagram that provoked it.

@@ -18,8 +18,8 @@
 
 namespace edgephys {
 
-// Number of RejectReason values in schema/control.fbs (None .. TakeoverRefused).
-inline constexpr size_t kRejectReasonCount = 22;
+// Number of RejectReason values in schema/control.fbs (None .. BadProof).
+inline constexpr size_t kRejectReasonCount = 24;
 inline constexpr size_t kDisconnectReasonCount = 7;
 
 // A fixed-bucket histogram safe to Observe() from one thread while others read it.

@@ -189,7 +189,7 @@ void AddLogging(CLI::App& app, RelayFlags* f) {
 }
 
 void AddToken(CLI::App& app, RelayFlags* f) {
-  f->token_cmd = app.add_subcommand("token", "Mint a join token (printed as base64url)");
+  f->token_cmd = app.add_subcommand("token", "Mint a client join token (base64url: the relay part and the player's session secret; hand it to the player over a secure channel)");
   f->token.room = "lobby";
   f->token_cmd->add_option("--room", f->token.room, "Room the token grants")
       ->capture_default_str();

@@ -1,6 +1,7 @@
 // Relay: the handshake (Hello -> Challenge, Connect -> Accept or Reject) and admission of a new
-// session: cookie check, join-token verification, cluster routing, limits (draining, packet
-// authentication, capacity, connections per address, token replay) and the per-connection keys.
+// session: cookie check, handshake version, join-token verification, the client's proof of the
+// token's session secret, cluster routing, limits (draining, packet authentication, capacity,
+// connections per address, token replay), the per-connection keys and the relay's own proof.
 // Replies to unverified addresses are never larger than the request (no amplification).
 // The rest of Relay is in relay.cc.
 #include <spdlog/spdlog.h>
@@ -55,6 +56,10 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
     Log().Note("connect dropped", DropReasonName(DropReason::kBadCookie), from, now);
     return;
   }
+  if (connect->version() != kHandshakeVersion) {  // an older SDK: it cannot prove a secret
+    Log().Note("connect rejected", "BadVersion", from, now);
+    return SendReject(from, Code(RejectReason::BadVersion), data.size());
+  }
   std::span<const uint8_t> token_bytes;
   if (connect->token() != nullptr) {
     token_bytes = std::span<const uint8_t>(connect->token()->data(), connect->token()->size());
@@ -69,6 +74,16 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
                                                     : RejectReason::BadToken;
     Log().Note("connect rejected", schema::EnumNameRejectReason(r), from, now);
     return SendReject(from, Code(r), data.size());
+  }
+  // The client proves it holds the session secret sealed in the token and binds its key to
+  // it: a man in the middle that swapped the key (or replays the token it saw) fails here.
+  const HandshakeProof connect_proof =
+      ConnectProof(token->session_secret,
+                   {connect->client_nonce(), std::span<const uint8_t>(cookie->data(), cookie->size()),
+                    token_bytes, client_key});
+  if (!ProofMatches(connect->proof(), connect_proof)) {
+    Log().Note("connect rejected", "BadProof", from, now);
+    return SendReject(from, Code(RejectReason::BadProof), data.size());
   }
   if (cluster_) {  // the room may live on another relay of the cluster
     std::vector<uint8_t> redirect;
@@ -124,11 +139,12 @@ void Relay::HandleConnect(const Endpoint& from, std::span<const uint8_t> data, d
   }
 
   Admit(from, *token, token_bytes, config_.packet_auth ? client_key : std::span<const uint8_t>(),
-        connect->client_nonce(), now);
+        connect->client_nonce(), connect_proof, now);
 }
 
 void Relay::Admit(const Endpoint& from, const JoinToken& token, std::span<const uint8_t> token_bytes,
-                  std::span<const uint8_t> client_key, uint64_t client_nonce, double now) {
+                  std::span<const uint8_t> client_key, uint64_t client_nonce,
+                  const HandshakeProof& connect_proof, double now) {
   uint32_t connection_id = 0;
   while (connection_id == 0 || sessions_.count(connection_id) != 0) {
     connection_id = static_cast<uint32_t>(SecureRandom64());
@@ -141,25 +157,34 @@ void Relay::Admit(const Endpoint& from, const JoinToken& token, std::span<const 
   auto session = std::make_unique<Session>(host, counters_, from, connection_id, token.player_id,
                                            token.permissions, token.room, token.nonce,
                                            config_.connection, config_.limits, now);
-  flatbuffers::FlatBufferBuilder fbb(128);
+  flatbuffers::FlatBufferBuilder fbb(192);
   flatbuffers::Offset<flatbuffers::Vector<uint8_t>> relay_key;
+  AcceptTranscript accept{connect_proof,
+                          {},
+                          connection_id,
+                          token.player_id,
+                          static_cast<uint32_t>(config_.connection.keepalive_interval_s * 1000),
+                          static_cast<uint32_t>(config_.connection.timeout_s * 1000)};
+  KeyExchangePublic relay_public{};
   if (!client_key.empty()) {  // packet authentication: this connection's keys
-    Result<KeyExchange> kx = KeyExchange::Generate();
+    Result<KeyExchange> generated = KeyExchange::Generate();
     Result<ConnectionKeys> keys =
-        kx.ok() ? kx->Derive(client_key, /*own_is_client=*/false, token_bytes, client_nonce,
-                             connection_id)
-                : Result<ConnectionKeys>(kx.status());
+        generated.ok() ? generated->Derive(client_key, /*own_is_client=*/false, token_bytes,
+                                           token.session_secret, client_nonce, connection_id)
+                       : Result<ConnectionKeys>(generated.status());
     if (!keys.ok()) {
       Log().Note("connect rejected", "bad packet key", from, now);
       return SendReject(from, Code(RejectReason::AuthRequired), kMaxPacketSize);  // verified
     }
     session->EnableSeal(*keys);
-    relay_key = fbb.CreateVector(kx->public_key().data(), kx->public_key().size());
+    relay_public = generated->public_key();
+    accept.relay_key = relay_public;
+    relay_key = fbb.CreateVector(relay_public.data(), relay_public.size());
   }
-  FinishControl(fbb, schema::CreateAccept(
-                         fbb, connection_id, token.player_id,
-                         static_cast<uint32_t>(config_.connection.keepalive_interval_s * 1000),
-                         static_cast<uint32_t>(config_.connection.timeout_s * 1000), relay_key));
+  const HandshakeProof proof = AcceptProof(token.session_secret, accept);
+  FinishControl(fbb, schema::CreateAccept(fbb, connection_id, token.player_id, accept.keepalive_ms,
+                                          accept.timeout_ms, relay_key,
+                                          fbb.CreateVector(proof.data(), proof.size())));
   session->accept_packet() = BuildHandshakePacket(PacketType::kAccept, fbb);
   Transmit(from, session->accept_packet());
   session_by_endpoint_[from] = connection_id;

@@ -321,10 +321,11 @@ TEST(RelayShards, RoutesSessionsByConnectionIdAndConnectsByRoom) {
   for (int k = 0; k < 12; ++k) {
     const std::string room = "r" + std::to_string(k);
     flatbuffers::FlatBufferBuilder fbb(256);
-    auto token = MintToken(room, 5);
+    const auto client_token = MintToken(room, 5);
+    const auto relay_part = SplitClientToken(client_token)->relay_token;  // what Connect carries
     std::array<uint8_t, kCookieSize> cookie{};
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie.data(), cookie.size()),
-                                             fbb.CreateVector(token), 1));
+                                             fbb.CreateVector(relay_part.data(), relay_part.size()), 1));
     auto packet = BuildHandshakePacket(PacketType::kConnect, fbb);
     for (const char* address : {"127.0.0.1", "127.0.0.2", "127.0.0.3"}) {
       EXPECT_EQ(shards.Route(At(address, 5000), packet), shards.ShardOfRoom(room));
@@ -543,9 +544,16 @@ TEST(RelayShards, GarbageIsDroppedAndCountedAndRoomsKeepWorking) {
             0u);
 
   // Connects that pass the cookie check but carry bad tokens are refused with BadToken.
-  Client& truncated =
-      world.AddClient(std::vector<uint8_t>(token.begin(), token.end() - 5), "127.0.0.5");
-  Client& random = world.AddClient(random_bytes(60), "127.0.0.6");
+  // (A truncated token's MAC: the relay part's last byte altered, as the SDK refuses a client
+  // token of the wrong length before sending.)
+  auto cut = MintToken(room, 10);
+  cut[cut.size() - kSessionSecretSize - 1] ^= 0x01;
+  Client& truncated = world.AddClient(cut, "127.0.0.5");
+  // A client token whose relay part was altered (the SDK refuses bytes that are no client
+  // token before sending; the relay refuses this one by its MAC).
+  auto altered = MintToken(room, 11);
+  altered[5] ^= 0x40;
+  Client& random = world.AddClient(altered, "127.0.0.6");
   EXPECT_TRUE(world.RunUntil(
       [&] {
         return truncated.state() == ClientState::kRejected &&

@@ -266,8 +266,8 @@ edgephys_status edgephys_client_connect(edgephys_client* client, const char* rel
     auto server = edgephys::ParseRelayAddress(relay_address);
     if (!server.ok()) return Fail(EDGEPHYS_E_MALFORMED, "relay_address: " + server.status().ToString());
     auto bytes = edgephys::Base64UrlDecode(token);
-    if (!bytes.ok() || bytes->empty() || bytes->size() > edgephys::kMaxJoinTokenSize) {
-      return Fail(EDGEPHYS_E_MALFORMED, "token is not a base64url join token");
+    if (!bytes.ok() || bytes->empty() || bytes->size() > edgephys::kMaxClientTokenSize) {
+      return Fail(EDGEPHYS_E_MALFORMED, "token is not a base64url client token");
     }
     if (edgephys_status s = CheckNow(client, now_s); s != EDGEPHYS_OK) return s;
     Status st = client->client->Connect(*server, *bytes, now_s);

@@ -15,7 +15,7 @@ struct Reason {
   const char* text;
 };
 
-constexpr std::array<Reason, 22> kReject = {{
+constexpr std::array<Reason, 24> kReject = {{
     {"None", "no reason given"},
     {"BadToken", "the join token's MAC does not match, or it does not parse"},
     {"ExpiredToken", "the join token has expired"},
@@ -38,6 +38,9 @@ constexpr std::array<Reason, 22> kReject = {{
     {"UnknownPlayer", "no player with this id is in the room"},
     {"NotPermitted", "the join token does not grant this"},
     {"TakeoverRefused", "the entity's owner does not allow taking it over"},
+    {"BadVersion", "the relay speaks another handshake version (update the SDK or the relay)"},
+    {"BadProof", "the relay and this client could not prove the token's session secret to each "
+                 "other: a man in the middle, or an altered token"},
 }};
 
 constexpr std::array<Reason, 7> kDisconnect = {{
@@ -61,6 +64,8 @@ static_assert(EDGEPHYS_REJECT_NOT_PERMITTED ==
 static_assert(EDGEPHYS_REJECT_TAKEOVER_REFUSED ==
               static_cast<int>(schema::RejectReason::TakeoverRefused));
 static_assert(EDGEPHYS_REJECT_OVER_BUDGET == static_cast<int>(schema::RejectReason::OverBudget));
+static_assert(EDGEPHYS_REJECT_BAD_VERSION == static_cast<int>(schema::RejectReason::BadVersion));
+static_assert(EDGEPHYS_REJECT_BAD_PROOF == static_cast<int>(schema::RejectReason::BadProof));
 static_assert(EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW ==
               static_cast<int>(schema::DisconnectReason::ReliableOverflow));
 static_assert(EDGEPHYS_DISCONNECT_KICKED == static_cast<int>(schema::DisconnectReason::Kicked));

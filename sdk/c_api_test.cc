@@ -4,6 +4,8 @@
 // crash; scripts/fuzz.sh runs this binary again under ASan + UBSan (c_api_sanitized_test).
 #include <gtest/gtest.h>
 
+#include "protocol/join_token.h"
+
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -14,6 +16,16 @@
 #include "edgephys/edgephys.h"
 
 namespace {
+
+// A client token's printable form (the relay at 127.0.0.1:9 never answers it).
+std::string ClientTokenText() {
+  edgephys::JoinToken t;
+  t.room = "r";
+  t.player_id = 1;
+  t.expiry_unix_s = 4'000'000'000;
+  return edgephys::Base64UrlEncode(*edgephys::SignJoinToken(t, "secret"));
+}
+
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -105,13 +117,13 @@ TEST(CApi, ReasonNamesCoverTheTableAndSeparateTheFamilies) {
                                     EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW),
                "ReliableOverflow");
   // Every code of both families has a name; the first past each family's end has none.
-  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_TAKEOVER_REFUSED; ++code) {
+  for (uint32_t code = 0; code <= EDGEPHYS_REJECT_BAD_PROOF; ++code) {
     EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, code), "unknown") << code;
   }
   for (uint32_t code = 0; code <= EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW; ++code) {
     EXPECT_STRNE(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED, code), "unknown") << code;
   }
-  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_TAKEOVER_REFUSED + 1),
+  EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_REJECTED, EDGEPHYS_REJECT_BAD_PROOF + 1),
                "unknown");
   EXPECT_STREQ(edgephys_reason_name(EDGEPHYS_EVENT_DISCONNECTED,
                                     EDGEPHYS_DISCONNECT_RELIABLE_OVERFLOW + 1),
@@ -218,8 +230,11 @@ TEST_F(CApiClient, ConnectRejectsBadArguments) {
   std::string long_token(400, 'A');  // decodes, but longer than any join token
   EXPECT_STATUS(EDGEPHYS_E_MALFORMED, edgephys_client_connect(c_, "127.0.0.1:9", long_token.c_str(), 1));
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_connect(c_, "127.0.0.1:9", "AAAA", std::nan("")));
-  EXPECT_STATUS(EDGEPHYS_OK, edgephys_client_connect(c_, "127.0.0.1:9", "AAAA", 1));
-  EXPECT_STATUS(EDGEPHYS_E_ALREADY_EXISTS, edgephys_client_connect(c_, "127.0.0.1:9", "AAAA", 1));
+  // Not a client token (no session secret): refused before anything is sent.
+  EXPECT_STATUS(EDGEPHYS_E_MALFORMED, edgephys_client_connect(c_, "127.0.0.1:9", "AAAA", 1));
+  const std::string token = ClientTokenText();
+  EXPECT_STATUS(EDGEPHYS_OK, edgephys_client_connect(c_, "127.0.0.1:9", token.c_str(), 1));
+  EXPECT_STATUS(EDGEPHYS_E_ALREADY_EXISTS, edgephys_client_connect(c_, "127.0.0.1:9", token.c_str(), 1));
 }
 
 TEST_F(CApiClient, UpdateRejectsNonFiniteAndBackwardsTime) {
@@ -485,7 +500,7 @@ TEST(CApi, HandshakeTimeoutEndsInAnEventNotAHang) {
   edgephys_client* c = nullptr;
   ASSERT_EQ(edgephys_client_create(&cfg, &c), EDGEPHYS_OK);
   // A token-shaped string for a port nobody serves: the handshake times out.
-  std::string token(120, 'A');
+  std::string token = ClientTokenText();
   ASSERT_EQ(edgephys_client_connect(c, "127.0.0.1:9", token.c_str(), 0.0), EDGEPHYS_OK) << edgephys_last_error();
   edgephys_client_info info{};
   info.struct_size = sizeof(info);

@@ -47,7 +47,7 @@ public enum RejectReason : uint {
   None = 0, BadToken, ExpiredToken, ReplayedToken, RoomFull, ServerFull, WrongRoom, NotOwner,
   UnknownEntity, DuplicateEntity, InvalidMessage, NotJoined, EntityLimit, BadCookie,
   InvalidContainer, GrabRefused, RateLimited, OverBudget, AuthRequired, UnknownPlayer, NotPermitted,
-  TakeoverRefused,
+  TakeoverRefused, BadVersion, BadProof,
 }
 public enum DisconnectReason : uint {
   None = 0, Timeout, ClientLeft, ServerShutdown, Kicked, ProtocolError, ReliableOverflow,

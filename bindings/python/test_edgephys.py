@@ -73,7 +73,7 @@ class BindingTest(unittest.TestCase):
         self.assertEqual(ep.reason_name(ep.EVENT_DISCONNECTED, ep.DISCONNECT_RELIABLE_OVERFLOW),
                          "ReliableOverflow")
         self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_AUTH_REQUIRED), "AuthRequired")
-        self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_TAKEOVER_REFUSED + 1), "unknown")
+        self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_BAD_PROOF + 1), "unknown")
         self.assertEqual(ep.reason_name(ep.EVENT_JOINED, 1), "unknown")
         ev = ep.Event()
         ev.type, ev.code = ep.EVENT_DISCONNECTED, ep.DISCONNECT_TIMEOUT

@@ -252,10 +252,15 @@ EDGEPHYS_API edgephys_status edgephys_client_destroy(edgephys_client* client);
  * except edgephys_client_destroy returns EDGEPHYS_E_CLOSED. Closing twice is an error too. */
 EDGEPHYS_API edgephys_status edgephys_client_close(edgephys_client* client);
 
-/* Starts the handshake with the relay at `relay_address` ("127.0.0.1:7777") using the join
- * token `token` (base64url text, as `edgephys-relay token` prints it). EDGEPHYS_E_MALFORMED on
- * an unparsable address or token, EDGEPHYS_E_ALREADY_EXISTS if already started. The result
- * comes later as EDGEPHYS_EVENT_CONNECTED, _REJECTED or _DISCONNECTED (handshake timeout). */
+/* Starts the handshake with the relay at `relay_address` ("127.0.0.1:7777") using the client
+ * token `token` (base64url text, as your backend or `edgephys-relay token` hands it out: the
+ * part the relay reads and a session secret the SDK keeps, never sends, and uses to
+ * authenticate the relay; docs/protocol.md §6). EDGEPHYS_E_MALFORMED on an unparsable address
+ * or token (the last error's text names the cause, e.g. a token of an older format),
+ * EDGEPHYS_E_ALREADY_EXISTS if already started. The result comes later as
+ * EDGEPHYS_EVENT_CONNECTED, _REJECTED (reason BadProof: the relay could not prove the session
+ * secret, a man in the middle; BadVersion: the relay speaks another handshake version) or
+ * _DISCONNECTED (handshake timeout). */
 EDGEPHYS_API edgephys_status edgephys_client_connect(edgephys_client* client,
                                                      const char* relay_address,
                                                      const char* token, double now_s);

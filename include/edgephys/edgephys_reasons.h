@@ -48,6 +48,11 @@ extern "C" {
  *                                              to send messages)
  *                        21  TakeoverRefused   an ownership request for an entity whose owner
  *                                              does not allow takeover, or PhyS simulates
+ *                        22  BadVersion        the relay speaks another handshake version
+ *                                              (this SDK is older or newer than the relay)
+ *                        23  BadProof          the handshake's proof of the token's session
+ *                                              secret failed: a man in the middle, or a
+ *                                              client token whose secret part was altered
  *  DISCONNECTED           0  None              the handshake timed out (detail says so)
  *                         1  Timeout           the relay stopped answering
  *                         2  ClientLeft        this client disconnected
@@ -86,7 +91,9 @@ typedef enum edgephys_reject_reason {
   EDGEPHYS_REJECT_AUTH_REQUIRED = 18,
   EDGEPHYS_REJECT_UNKNOWN_PLAYER = 19,
   EDGEPHYS_REJECT_NOT_PERMITTED = 20,
-  EDGEPHYS_REJECT_TAKEOVER_REFUSED = 21
+  EDGEPHYS_REJECT_TAKEOVER_REFUSED = 21,
+  EDGEPHYS_REJECT_BAD_VERSION = 22,
+  EDGEPHYS_REJECT_BAD_PROOF = 23
 } edgephys_reject_reason;
 
 typedef enum edgephys_disconnect_reason {

@@ -18,6 +18,7 @@
 #include "protocol/emulation_codec.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
+#include "protocol/packet_seal.h"
 #include "protocol/property_codec.h"
 #include "protocol/quantize.h"
 #include "protocol/soft_body_codec.h"
@@ -266,13 +267,21 @@ Bytes Paper() {
   return out;
 }
 
+// A client token (relay part | session secret) with a fixed secret: the same bytes each run.
 Bytes Token() {
   JoinToken t;
   t.room = kFuzzRoom;
   t.player_id = 5;
   t.expiry_unix_s = kUnixNow + 600;
   t.nonce = 42;
+  t.session_secret.fill(0x5e);
   return *SignJoinToken(t, kFuzzSecret);
+}
+
+Bytes RelayPart() {
+  const Bytes client = Token();
+  auto relay = SplitClientToken(client)->relay_token;
+  return Bytes(relay.begin(), relay.end());
 }
 
 void PacketCorpus() {
@@ -283,15 +292,24 @@ void PacketCorpus() {
     return BuildHandshakePacket(PacketType::kHello, fbb, kMinHelloPacketSize);
   }();
   Write("packet_fuzz", "hello", Input(0).Add(0, hello_packet).bytes);
-  Bytes connect_packet = [] {
+  // A Connect of handshake version 2 (relay part, client key, version, proof; its cookie is
+  // not the relay's), and one of the older layout (whole token, no version, no proof).
+  const Bytes client_key(kKeyExchangePublicSize, 0x4b);
+  Bytes connect_packet = [&] {
+    const uint8_t cookie[kCookieSize] = {};
+    const Bytes token = RelayPart();
+    return BuildConnectPacket({12345, cookie, token, client_key}, SplitClientToken(Token())->session_secret);
+  }();
+  Write("packet_fuzz", "connect", Input(0).Add(0, connect_packet).bytes);
+  Bytes old_connect_packet = [] {
     flatbuffers::FlatBufferBuilder fbb(256);
     uint8_t cookie[kCookieSize] = {};
-    Bytes token = Token();
+    Bytes token = RelayPart();
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie, kCookieSize),
                                              fbb.CreateVector(token), 12345));
     return BuildHandshakePacket(PacketType::kConnect, fbb);
   }();
-  Write("packet_fuzz", "connect", Input(0).Add(0, connect_packet).bytes);
+  Write("packet_fuzz", "connect_v1", Input(0).Add(0, old_connect_packet).bytes);
 
   // Session traffic from A (unit 0 was its JoinRoom): a reliable Spawn and a state.
   Bytes data = Header(40, 0, 0);
@@ -324,10 +342,19 @@ void PacketCorpus() {
     return schema::CreateChallenge(fbb, fbb.CreateVector(cookie, kCookieSize));
   });
   Bytes accept = Msg([](auto& fbb) { return schema::CreateAccept(fbb, 77, 2, 100, 5000); });
+  // An Accept with a relay key and a proof (the proof cannot match: B's key is random).
+  Bytes proved_accept = Msg([](auto& fbb) {
+    const Bytes relay_key(kKeyExchangePublicSize, 0x52);
+    const HandshakeProof proof = AcceptProof(SessionSecret{}, {{}, relay_key, 77, 2, 100, 5000});
+    return schema::CreateAccept(fbb, 77, 2, 100, 5000, fbb.CreateVector(relay_key),
+                                fbb.CreateVector(proof.data(), proof.size()));
+  });
   Bytes reject = Msg([](auto& fbb) { return schema::CreateReject(fbb, schema::RejectReason::BadToken); });
   Write("packet_fuzz", "handshake_client",
         Input(0).Add(4 | 8 | (2 << 4), challenge).Add(4 | 8 | (4 << 4), accept).bytes);
   Write("packet_fuzz", "reject_client", Input(0).Add(4 | 8 | (5 << 4), reject).bytes);
+  Write("packet_fuzz", "proved_accept_client",
+        Input(0).Add(4 | 8 | (2 << 4), challenge).Add(4 | 8 | (4 << 4), proved_accept).bytes);
 }
 
 void ReliableCorpus() {
@@ -384,9 +411,11 @@ void StateCorpus() {
   Input delta(0);
   for (const Bytes& p : DeltaPayloads()) delta.Add(1, p);
   Write("state_fuzz", "delta", delta.bytes);
+  // The client token, its relay part, and the client token's printable form.
   Bytes token = Token();
   std::string text = Base64UrlEncode(token);
-  Write("state_fuzz", "token", Input(0).Add(6, token).Add(6, Bytes(text.begin(), text.end())).bytes);
+  Write("state_fuzz", "token",
+        Input(0).Add(6, token).Add(6, RelayPart()).Add(6, Bytes(text.begin(), text.end())).bytes);
   // Custom quantisation (mode bit 0): bounds, step, rotation bound as raw floats.
   Input custom(1);
   for (float f : {-50.f, -10.f, -50.f, 50.f, 40.f, 50.f, 0.0005f, 0.5f}) {

@@ -14,7 +14,8 @@
 //   3: a datagram from the relay's address to A (tag bit 3: prefix with A's id prepended):
 //      the client SDK's datagram path
 //   4: a datagram from a silent server to client B, which is mid-handshake: the client's
-//      handshake handling (tag bit 3: a handshake prefix of type tag >> 4 prepended)
+//      handshake handling, proof checks included (tag bit 3: a handshake prefix of type
+//      tag >> 4 prepended)
 // The relay and the clients are pumped one fake-clock step after each record. Every record is
 // also opened by a PacketSeal (must refuse it, never crash) and sealed and opened again (must
 // round-trip).
@@ -71,12 +72,25 @@ void ParseDirectly(std::span<const uint8_t> bytes) {
         const auto* c = msg->body_as_Connect();
         if (c->token() != nullptr) {
           TokenError error;
-          (void)VerifyJoinToken({c->token()->data(), c->token()->size()}, kFuzzSecret, kUnixNow,
-                                &error);
+          std::span<const uint8_t> token(c->token()->data(), c->token()->size());
+          auto verified = VerifyJoinToken(token, kFuzzSecret, kUnixNow, &error);
+          // The relay's proof check on whatever the message holds (absent fields: empty).
+          auto span_of = [](const flatbuffers::Vector<uint8_t>* v) {
+            return v ? std::span<const uint8_t>(v->data(), v->size()) : std::span<const uint8_t>();
+          };
+          const HandshakeProof proof = ConnectProof(
+              verified.ok() ? verified->session_secret : SessionSecret{},
+              {c->client_nonce(), span_of(c->cookie()), token, span_of(c->client_key())});
+          (void)ProofMatches(c->proof(), proof);
         }
         break;
       }
-      case schema::Body::Accept: (void)msg->body_as_Accept()->connection_id(); break;
+      case schema::Body::Accept: {
+        const auto* a = msg->body_as_Accept();
+        (void)ProofMatches(a->proof(), AcceptProof(SessionSecret{}, {{}, {}, a->connection_id(),
+                                                                     a->player_id(), 0, 0}));
+        break;
+      }
       case schema::Body::Reject: (void)msg->body_as_Reject()->reason(); break;
       default: break;
     }

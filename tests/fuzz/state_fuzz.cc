@@ -15,8 +15,10 @@
 //      baselines decoded earlier)
 //   4: DecodeWorkerStates (format 6)
 //   5: DecodeWorkerSoftChunk (format 8)
-//   6: VerifyJoinToken on the bytes; Base64UrlDecode of the bytes as text (and the token in
-//      it); SignJoinToken -> VerifyJoinToken round trip of a token built from the bytes
+//   6: VerifyJoinToken on the bytes, and on the relay part when they split as a client token;
+//      Base64UrlDecode of the bytes as text (and the token in it); SignJoinToken ->
+//      SplitClientToken -> VerifyJoinToken round trip of a token built from the bytes (the
+//      session secret the relay decrypts is the client's)
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -57,7 +59,16 @@ std::vector<uint8_t> WithFormat(std::span<const uint8_t> bytes, uint8_t format) 
 void CheckTokens(std::span<const uint8_t> bytes) {
   TokenError error = TokenError::kNone;
   auto direct = VerifyJoinToken(bytes, kFuzzSecret, kUnixNow, &error);
-  if (!direct.ok()) EDGEPHYS_FUZZ_CHECK(error != TokenError::kNone);
+  if (!direct.ok()) {
+    EDGEPHYS_FUZZ_CHECK(error != TokenError::kNone);
+    EDGEPHYS_FUZZ_CHECK(!direct.status().detail().empty());  // every refusal names its cause
+  }
+  auto split = SplitClientToken(bytes);
+  if (split.ok()) {
+    EDGEPHYS_FUZZ_CHECK(split->relay_token.size() + kSessionSecretSize == bytes.size());
+    auto relay = VerifyJoinToken(split->relay_token, kFuzzSecret, kUnixNow, &error);
+    if (relay.ok()) EDGEPHYS_FUZZ_CHECK(relay->session_secret == split->session_secret);
+  }
 
   std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   auto decoded = Base64UrlDecode(text);
@@ -74,17 +85,27 @@ void CheckTokens(std::span<const uint8_t> bytes) {
   t.permissions = in.U16();
   t.expiry_unix_s = kUnixNow + 1 + in.U16();
   t.nonce = in.U16();
+  t.session_secret.fill(in.U8());  // zero: SignJoinToken draws one
   auto room = in.Bytes(in.U8() % 80);
   t.room.assign(room.begin(), room.end());
   auto signed_token = SignJoinToken(t, kFuzzSecret);
   if (!signed_token.ok()) return;
-  EDGEPHYS_FUZZ_CHECK(signed_token->size() <= kMaxJoinTokenSize);
-  auto verified = VerifyJoinToken(*signed_token, kFuzzSecret, kUnixNow, &error);
+  EDGEPHYS_FUZZ_CHECK(signed_token->size() <= kMaxClientTokenSize);
+  auto client = SplitClientToken(*signed_token);
+  EDGEPHYS_FUZZ_CHECK(client.ok());
+  EDGEPHYS_FUZZ_CHECK(client->relay_token.size() <= kMaxJoinTokenSize);
+  EDGEPHYS_FUZZ_CHECK(!VerifyJoinToken(*signed_token, kFuzzSecret, kUnixNow, &error).ok());
+  auto verified = VerifyJoinToken(client->relay_token, kFuzzSecret, kUnixNow, &error);
   EDGEPHYS_FUZZ_CHECK(verified.ok());
   EDGEPHYS_FUZZ_CHECK(verified->room == t.room && verified->player_id == t.player_id &&
                       verified->permissions == t.permissions &&
                       verified->expiry_unix_s == t.expiry_unix_s && verified->nonce == t.nonce);
-  EDGEPHYS_FUZZ_CHECK(!VerifyJoinToken(*signed_token, "another-secret", kUnixNow, &error).ok());
+  EDGEPHYS_FUZZ_CHECK(verified->session_secret == client->session_secret);
+  if (t.session_secret != SessionSecret{}) {
+    EDGEPHYS_FUZZ_CHECK(client->session_secret == t.session_secret);
+  }
+  EDGEPHYS_FUZZ_CHECK(
+      !VerifyJoinToken(client->relay_token, "another-secret", kUnixNow, &error).ok());
 }
 
 }  // namespace

@@ -43,6 +43,19 @@ inline std::vector<uint8_t> MintToken(const std::string& room, uint32_t player,
   return *SignJoinToken(t, secret);
 }
 
+// The relay part of a client token (what a Connect carries; the SDK splits it the same way).
+// Bytes that are not a client token come back unchanged (tests send garbage on purpose).
+inline std::vector<uint8_t> RelayPart(std::span<const uint8_t> client_token) {
+  auto split = SplitClientToken(client_token);
+  if (!split.ok()) return {client_token.begin(), client_token.end()};
+  return {split->relay_token.begin(), split->relay_token.end()};
+}
+// The session secret of a client token (all zero if it is not one).
+inline SessionSecret SecretOf(std::span<const uint8_t> client_token) {
+  auto split = SplitClientToken(client_token);
+  return split.ok() ? split->session_secret : SessionSecret{};
+}
+
 // A relay on an ephemeral loopback UDP port plus clients, all pumped from the test thread with
 // the real monotonic clock.
 class LoopbackWorld {

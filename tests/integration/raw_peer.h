@@ -1,5 +1,5 @@
 // A hand-driven client for hostile tests: it completes the real handshake (Hello, Challenge,
-// Connect with its own X25519 key, Accept) on its own loopback socket, then sends data packets
+// Connect with its own X25519 key and proof, Accept) on its own loopback socket, then sends data packets
 // the test composes unit by unit, sealed with the session's keys as the relay expects. What
 // the relay sends it is read and dropped (never acknowledged), as an attacker would.
 //
@@ -16,6 +16,7 @@
 #include "protocol/handshake.h"
 #include "protocol/packet_seal.h"
 #include "protocol/udp_socket.h"
+#include "tests/integration/harness.h"
 
 namespace edgephys::testing {
 
@@ -23,10 +24,12 @@ class RawPeer {
  public:
   enum class State { kHandshaking, kConnected, kRejected };
 
+  // `token`: a client token (SignJoinToken's output).
   RawPeer(const asio::ip::address& local, const Endpoint& relay, std::vector<uint8_t> token)
       : socket_(std::move(*UdpSocket::Open(Endpoint(local, 0)))),
         relay_(relay),
-        token_(std::move(token)),
+        token_(RelayPart(token)),
+        secret_(SecretOf(token)),
         nonce_(SecureRandom64()),
         kx_(std::move(*KeyExchange::Generate())) {}
 
@@ -58,7 +61,8 @@ class RawPeer {
         const auto* accept = msg->body_as_Accept();
         if (accept->relay_key() == nullptr) continue;
         auto keys = kx_.Derive(std::span(accept->relay_key()->data(), accept->relay_key()->size()),
-                               /*own_is_client=*/true, token_, nonce_, accept->connection_id());
+                               /*own_is_client=*/true, token_, secret_, nonce_,
+                               accept->connection_id());
         if (!keys.ok()) continue;
         seal_ = std::make_unique<PacketSeal>(*keys, PacketSeal::Side::kClient);
         connection_id_ = accept->connection_id();
@@ -72,11 +76,8 @@ class RawPeer {
   // Resends the Connect (the first, or its answer, may be lost).
   void SendConnect() {
     if (cookie_.empty() || state_ != State::kHandshaking) return;
-    flatbuffers::FlatBufferBuilder fbb(256);
-    const KeyExchangePublic& key = kx_.public_key();
-    FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie_), fbb.CreateVector(token_),
-                                             nonce_, fbb.CreateVector(key.data(), key.size())));
-    (void)socket_->SendTo(relay_, BuildHandshakePacket(PacketType::kConnect, fbb));
+    (void)socket_->SendTo(relay_, BuildConnectPacket({nonce_, cookie_, token_, kx_.public_key()},
+                                                     secret_));
   }
 
   // One sealed data packet carrying reliable unit `id` of `size` bytes (`last`: the last unit
@@ -103,7 +104,8 @@ class RawPeer {
  private:
   std::unique_ptr<UdpSocket> socket_;
   Endpoint relay_;
-  std::vector<uint8_t> token_;
+  std::vector<uint8_t> token_;  // the relay part
+  SessionSecret secret_;
   uint64_t nonce_;
   KeyExchange kx_;
   std::vector<uint8_t> cookie_;

@@ -1,6 +1,7 @@
 // Handshake, tokens, anti-amplification and hostile input against a live relay on loopback.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <random>
 
 #include "tests/integration/harness.h"
@@ -37,10 +38,18 @@ class RawPeer {
     FinishControl(fbb, schema::CreateHello(fbb, nonce));
     return BuildHandshakePacket(PacketType::kHello, fbb, pad_to);
   }
+  // A Connect as the SDK sends it for the client token `token`: its relay part, a packet key
+  // (the relay seals by default) and the proof under its session secret. Bytes that are not a
+  // client token go as they are, with a proof under an all-zero secret.
   std::vector<uint8_t> Connect(std::span<const uint8_t> cookie, std::span<const uint8_t> token,
                                uint64_t nonce) {
+    const KeyExchangePublic key = KeyExchange::Generate()->public_key();
+    return BuildConnectPacket({nonce, cookie, RelayPart(token), key}, SecretOf(token));
+  }
+  // A Connect of the previous handshake version: the whole token, no version, no proof.
+  std::vector<uint8_t> OldConnect(std::span<const uint8_t> cookie, std::span<const uint8_t> token,
+                                  uint64_t nonce) {
     flatbuffers::FlatBufferBuilder fbb;
-    // A packet key, so the relay (sealing by default) accepts the Connect.
     const KeyExchangePublic key = KeyExchange::Generate()->public_key();
     FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie.data(), cookie.size()),
                                              fbb.CreateVector(token.data(), token.size()), nonce,
@@ -60,11 +69,14 @@ class RawPeer {
     return {};
   }
   // Full handshake; returns the Accept's connection id or the Reject reason (as negative).
-  int64_t Handshake(std::span<const uint8_t> token) {
+  // `connect` builds the Connect (default: this peer's Connect()).
+  int64_t Handshake(std::span<const uint8_t> token,
+                    std::function<std::vector<uint8_t>(std::span<const uint8_t>, uint64_t)> connect = {}) {
     uint64_t nonce = SecureRandom64();
     auto cookie = GetCookie(nonce);
     if (cookie.empty()) return -1000;
-    for (auto& reply : Exchange(Connect(cookie, token, nonce))) {
+    auto packet = connect ? connect(cookie, nonce) : Connect(cookie, token, nonce);
+    for (auto& reply : Exchange(packet)) {
       const auto* msg = VerifyControlMessage(std::span<const uint8_t>(reply).subspan(kPacketPrefixSize));
       if (msg == nullptr) continue;
       if (msg->body_type() == schema::Body::Accept) return msg->body_as_Accept()->connection_id();
@@ -140,6 +152,44 @@ TEST(RelayHandshake, BadExpiredAndReplayedTokensAreRejectedWithReason) {
   EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::BadToken), 3u);
   EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::ExpiredToken), 1u);
   EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::ReplayedToken), 1u);
+  EXPECT_EQ(world.relay().session_count(), 1u);
+}
+
+// An older SDK's Connect (no handshake version, no proof) gets a Reject naming the cause; a
+// Connect whose proof does not match the token's session secret (a man in the middle that
+// swapped the client key, or a client holding the wrong secret) gets BadProof. Both counted.
+TEST(RelayHandshake, OldVersionsAndBadProofsAreRejectedWithReason) {
+  LoopbackWorld world;
+  RawPeer peer(world);
+  const auto token = MintToken("room", 5);
+  const auto relay_part = RelayPart(token);
+  EXPECT_EQ(peer.Handshake(token, [&](std::span<const uint8_t> cookie, uint64_t nonce) {
+    return peer.OldConnect(cookie, relay_part, nonce);
+  }), -static_cast<int64_t>(RejectReason::BadVersion));
+  // The right token with a wrong secret.
+  EXPECT_EQ(peer.Handshake(token, [&](std::span<const uint8_t> cookie, uint64_t nonce) {
+    SessionSecret wrong = SecretOf(token);
+    wrong[0] ^= 1;
+    return BuildConnectPacket({nonce, cookie, relay_part, KeyExchange::Generate()->public_key()}, wrong);
+  }), -static_cast<int64_t>(RejectReason::BadProof));
+  // A proof made for one client key, sent with another (the key swapped on the way).
+  EXPECT_EQ(peer.Handshake(token, [&](std::span<const uint8_t> cookie, uint64_t nonce) {
+    const KeyExchangePublic mine = KeyExchange::Generate()->public_key();
+    const KeyExchangePublic swapped = KeyExchange::Generate()->public_key();
+    const HandshakeProof proof = ConnectProof(SecretOf(token), {nonce, cookie, relay_part, mine});
+    flatbuffers::FlatBufferBuilder fbb;
+    FinishControl(fbb, schema::CreateConnect(fbb, fbb.CreateVector(cookie.data(), cookie.size()),
+                                             fbb.CreateVector(relay_part), nonce,
+                                             fbb.CreateVector(swapped.data(), swapped.size()),
+                                             kHandshakeVersion,
+                                             fbb.CreateVector(proof.data(), proof.size())));
+    return BuildHandshakePacket(PacketType::kConnect, fbb);
+  }), -static_cast<int64_t>(RejectReason::BadProof));
+  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::BadVersion), 1u);
+  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::BadProof), 2u);
+  EXPECT_EQ(world.relay().session_count(), 0u);
+  // None of them used the token up: the genuine Connect is admitted.
+  EXPECT_GT(peer.Handshake(token), 0);
   EXPECT_EQ(world.relay().session_count(), 1u);
 }
 
