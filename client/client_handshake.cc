@@ -176,7 +176,7 @@ void Client::Impl::RestartHandshake(const Endpoint& server, double now) {
 void Client::Impl::HandleRedirect(const schema::ControlMessage& msg, double now) {
   auto ticket = ParseRedirect(*msg.body_as_Redirect());
   if (!ticket.ok() || redirects_this_handshake_ >= config_.max_redirects ||
-      !VerifyRedirect(*ticket, token_, UnixNowS()).ok()) {
+      !VerifyRedirect(*ticket, token_, session_secret_, UnixNowS()).ok()) {
     ++redirects_refused_;  // forged, expired or a loop: keep waiting for a real answer
     return;
   }

@@ -31,10 +31,20 @@ std::array<uint8_t, 32> RedirectMac(std::span<const uint8_t> key, const Redirect
   return mac;
 }
 
+// The redirect MAC key: HMAC-SHA256(session secret, "edgephys redirect key").
+std::array<uint8_t, 32> RedirectKey(const SessionSecret& secret) {
+  static constexpr char kLabel[] = "edgephys redirect key";
+  std::array<uint8_t, 32> key{};
+  unsigned int len = 0;
+  HMAC(EVP_sha256(), secret.data(), static_cast<int>(secret.size()),
+       reinterpret_cast<const uint8_t*>(kLabel), sizeof(kLabel) - 1, key.data(), &len);
+  return key;
+}
+
 }  // namespace
 
-Result<RedirectTicket> SignRedirect(std::span<const uint8_t> token, std::string_view address,
-                                    uint64_t expiry_unix_s) {
+Result<RedirectTicket> SignRedirect(std::span<const uint8_t> token, const SessionSecret& secret,
+                                    std::string_view address, uint64_t expiry_unix_s) {
   JoinTokenRoute route;
   if (!PeekJoinToken(token, &route)) return Status::InvalidArgument("malformed token");
   if (address.empty() || address.size() > kMaxRedirectAddressSize) {
@@ -45,12 +55,12 @@ Result<RedirectTicket> SignRedirect(std::span<const uint8_t> token, std::string_
   t.room = std::string(route.room);
   t.token_nonce = route.nonce;
   t.expiry_unix_s = expiry_unix_s;
-  t.mac = RedirectMac(token.last(kJoinTokenMacSize), t);
+  t.mac = RedirectMac(RedirectKey(secret), t);
   return t;
 }
 
 Status VerifyRedirect(const RedirectTicket& t, std::span<const uint8_t> token,
-                      uint64_t now_unix_s) {
+                      const SessionSecret& secret, uint64_t now_unix_s) {
   const Status forged = Status::Unauthenticated("forged redirect");
   JoinTokenRoute route;
   if (!PeekJoinToken(token, &route) || t.address.empty() ||
@@ -58,7 +68,7 @@ Status VerifyRedirect(const RedirectTicket& t, std::span<const uint8_t> token,
       t.token_nonce != route.nonce) {
     return forged;
   }
-  auto mac = RedirectMac(token.last(kJoinTokenMacSize), t);
+  auto mac = RedirectMac(RedirectKey(secret), t);
   if (CRYPTO_memcmp(mac.data(), t.mac.data(), mac.size()) != 0) return forged;
   if (t.expiry_unix_s <= now_unix_s) {
     return Status::Unauthenticated("expired redirect",

@@ -1,10 +1,11 @@
 // Signed redirects: how a relay of a cluster sends a connecting client to the relay that holds
 // its room (docs/protocol.md, "Redirect"), and how the client SDK checks one.
 //
-// The MAC is HMAC-SHA256 keyed by the join token's own MAC (its last 32 bytes): only a party
-// that holds the operator's secret (a relay, which computes that MAC when it verifies the
-// token) or the token itself (the client) can make or check it, so a datagram spoofed by
-// anyone else is refused. It covers "EPRD" | u8 version (1) | u8 room length | room | u64
+// The MAC is HMAC-SHA256 under a key derived from the token's session secret
+// (HMAC-SHA256(secret, "edgephys redirect key")): only a relay (which decrypts the secret from
+// the token) or the client (which got it beside the token) can make or check it; an observer
+// who saw the token in a Connect cannot, so a datagram spoofed by anyone else is refused. It
+// covers "EPRD" | u8 version (1) | u8 room length | room | u64
 // token nonce | u64 expiry | u16 address length | address. A redirect is bound to one token
 // (room and nonce) and expires (the relay gives it kRedirectLifetimeS).
 //
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "edgephys/schema/control_generated.h"
+#include "protocol/join_token.h"
 #include "protocol/status.h"
 
 namespace edgephys {
@@ -33,14 +35,16 @@ struct RedirectTicket {
   std::array<uint8_t, 32> mac{};
 };
 
-// Signs a redirect to `address` for the holder of `token` (a token the caller has verified).
-// kInvalidArgument on a malformed token or an address outside 1..kMaxRedirectAddressSize.
-Result<RedirectTicket> SignRedirect(std::span<const uint8_t> token, std::string_view address,
-                                    uint64_t expiry_unix_s);
-// OK if `ticket` was signed for `token` and has not expired at `now_unix_s`; else
-// kUnauthenticated ("forged redirect": MAC, room or nonce mismatch; "expired redirect").
+// Signs a redirect to `address` for the holder of `token` (a token relay part the caller has
+// verified, and the session secret it carried). kInvalidArgument on a malformed token or an
+// address outside 1..kMaxRedirectAddressSize.
+Result<RedirectTicket> SignRedirect(std::span<const uint8_t> token, const SessionSecret& secret,
+                                    std::string_view address, uint64_t expiry_unix_s);
+// OK if `ticket` was signed for `token` (its relay part) under `secret` and has not expired at
+// `now_unix_s`; else kUnauthenticated ("forged redirect": MAC, room or nonce mismatch;
+// "expired redirect").
 Status VerifyRedirect(const RedirectTicket& ticket, std::span<const uint8_t> token,
-                      uint64_t now_unix_s);
+                      const SessionSecret& secret, uint64_t now_unix_s);
 
 // The handshake datagram (PacketType::kReject, ControlMessage{Redirect}) carrying `ticket`.
 std::vector<uint8_t> BuildRedirectPacket(const RedirectTicket& ticket);

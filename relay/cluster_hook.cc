@@ -113,7 +113,7 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
       ++counters_.connects_deferred;
       return Route::kDeferred;
     }
-    auto ticket = SignRedirect(token_bytes, owner->address,
+    auto ticket = SignRedirect(token_bytes, token.session_secret, owner->address,
                                unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
     if (!ticket.ok()) return Route::kDeferred;
     *packet = BuildRedirectPacket(*ticket);
@@ -129,7 +129,7 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
     if (owner->second == directory_->relay_id()) return Route::kLocal;
     auto relay = view->relays.find(owner->second);
     if (relay != view->relays.end()) {
-      auto ticket = SignRedirect(token_bytes, relay->second.address,
+      auto ticket = SignRedirect(token_bytes, token.session_secret, relay->second.address,
                                  unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
       if (!ticket.ok()) return Route::kLocal;
       *packet = BuildRedirectPacket(*ticket);

@@ -567,15 +567,15 @@ TEST(ClusterRedirect, ForgedAndExpiredRedirectsAreRefusedByTheSdk) {
   const std::string target_address = FormatEndpoint(target.endpoint());
   std::vector<std::function<std::vector<uint8_t>()>> replies = {
       // Signed with another token (an attacker who does not hold this one).
-      [&] { return BuildRedirectPacket(*SignRedirect(testing::RelayPart(Token("arena", 7)), target_address, UnixNow() + 30)); },
+      [&] { return BuildRedirectPacket(*SignRedirect(testing::RelayPart(Token("arena", 7)), testing::SecretOf(Token("arena", 7)), target_address, UnixNow() + 30)); },
       // Right token, tampered address.
       [&] {
-        auto t = *SignRedirect(testing::RelayPart(token), target_address, UnixNow() + 30);
+        auto t = *SignRedirect(testing::RelayPart(token), testing::SecretOf(token), target_address, UnixNow() + 30);
         t.address = "127.0.0.1:9";
         return BuildRedirectPacket(t);
       },
       // Right token, expired.
-      [&] { return BuildRedirectPacket(*SignRedirect(testing::RelayPart(token), target_address, UnixNow() - 1)); },
+      [&] { return BuildRedirectPacket(*SignRedirect(testing::RelayPart(token), testing::SecretOf(token), target_address, UnixNow() - 1)); },
   };
   for (size_t i = 0; i < replies.size(); ++i) {
     const int connects_before = fake.connects;
@@ -592,7 +592,7 @@ TEST(ClusterRedirect, ForgedAndExpiredRedirectsAreRefusedByTheSdk) {
   }
   // A genuine one is followed: the handshake moves to the target.
   for (int k = 0; k < 400 && target.connects == 0; ++k) {
-    fake.Pump([&] { return BuildRedirectPacket(*SignRedirect(testing::RelayPart(token), target_address, UnixNow() + 30)); });
+    fake.Pump([&] { return BuildRedirectPacket(*SignRedirect(testing::RelayPart(token), testing::SecretOf(token), target_address, UnixNow() + 30)); });
     target.Pump([&] { return std::vector<uint8_t>{}; });
     client.Update(now());
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
