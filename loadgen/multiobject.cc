@@ -301,10 +301,6 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
     config.room_defaults.replication.rotation_threshold_deg = o.rotation_threshold_deg;
   }
   if (o.ambient_hz > 0) config.room_defaults.replication.ambient_hz = o.ambient_hz;
-  if (o.key_sample_threshold_m >= 0) {
-    config.room_defaults.replication.key_sample_threshold_m =
-        static_cast<float>(o.key_sample_threshold_m);
-  }
   ReplicationConfig& rep = config.room_defaults.replication;
   rep.shared_encoding = o.shared_encoding;
   config.physics.max_substeps = o.relay_max_substeps;

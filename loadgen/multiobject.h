@@ -79,8 +79,6 @@ struct MultiObjectOptions {
   float rotation_threshold_deg = -1.f;
   // ReplicationConfig::ambient_hz (boxes nobody touches); <= 0: the relay's default.
   double ambient_hz = 0;
-  // ReplicationConfig::key_sample_threshold_m (0: no key samples); < 0: the relay's default.
-  double key_sample_threshold_m = -1;
   // ReplicationConfig::shared_encoding: state format 9 (the relay's default); false: format 2.
   bool shared_encoding = true;
   // >= 0: the probe plays out at this fixed delay (s); < 0: the SDK's adaptive delay.

@@ -15,8 +15,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MultiObjectOptions, seed, stirrer_angular_spe
                                    rotation_threshold_deg, stirrer_half_height, sleep_threshold,
                                    moving_speed_mps, bench_warmup_steps, bench_steps, bench_max_s,
                                    receivers, duration_s, relay_settle_steps, relay_max_substeps,
-                                   position_step_m, rotation_bound_deg, ambient_hz, key_sample_threshold_m,
-                                   shared_encoding,
+                                   position_step_m, rotation_bound_deg, ambient_hz, shared_encoding,
                                    playout_min_delay_s, playout_limit_s)
 
 namespace {
@@ -214,9 +213,6 @@ class MultiObjectScenario final : public Scenario {
                    "The display probe's third yardstick: the room's playout held to this delay (s; "
                    "edgephys_client_set_max_playout_delay); 0: the adaptive delay alone")
         ->check(CLI::Range(0.0, 4.0));
-    cmd.add_option("--key-sample-threshold", o_.key_sample_threshold_m,
-                   "Relay's key samples: off-schedule sends when a body leaves its line by this "
-                   "(m; ReplicationConfig::key_sample_threshold_m; 0: none; <0: default)");
     cmd.add_option("--ambient-hz", o_.ambient_hz,
                    "Relay's send rate for boxes nobody touches (ReplicationConfig::ambient_hz; 0: default)");
     cmd.add_flag("!--no-bench", o_.bench, "Skip the standalone PhyS vs raw Bullet steps");

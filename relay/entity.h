@@ -88,14 +88,6 @@ struct Entity {
   // Format 9 rooms (ReplicationConfig::shared_encoding): the entity's recent versions and this
   // tick's cached record bodies, shared by every receiver (Room::PrepareStates).
   std::shared_ptr<SharedEntity> shared;
-  // Key samples (ReplicationConfig::key_sample_threshold_m, Room::MarkKeySamples): the state
-  // time, position and velocity of the body's last scheduled or key sample and the schedule
-  // slot it fell in; `key_sample`: this tick sends it to every receiver, due or not.
-  double key_time = -1;
-  Vec3f key_position;
-  Vec3f key_velocity;
-  int64_t key_slot = -1;
-  bool key_sample = false;
 };
 
 using EntityTable = std::unordered_map<uint32_t, Entity>;

@@ -117,34 +117,25 @@ ClientReplicator::~ClientReplicator() {
   if (lockstep_) lockstep_->Unregister(this);
 }
 
-PriorityClass ClassOf(const ReplicationConfig& config, const Entity& e, double now) {
+PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
   if ((e.flags & (kFlagAvatar | kFlagHand)) || e.held_by != 0) return PriorityClass::kCritical;
-  if (now - e.changed_at > config.resting_after_s) return PriorityClass::kResting;
+  if (now - e.changed_at > config_.resting_after_s) return PriorityClass::kResting;
   if (e.physics == PhysicsRole::kSimulated && e.touching == 0 &&
-      now - e.interacted_at > config.interaction_linger_s) {
+      now - e.interacted_at > config_.interaction_linger_s) {
     return PriorityClass::kAmbient;
   }
   return PriorityClass::kNormal;
 }
 
-double SendInterval(const ReplicationConfig& config, PriorityClass c) {
-  if (config.fixed_rate_hz > 0) return 1.0 / config.fixed_rate_hz;
+double ClientReplicator::IntervalOf(PriorityClass c) const {
+  if (config_.fixed_rate_hz > 0) return 1.0 / config_.fixed_rate_hz;
   switch (c) {
-    case PriorityClass::kCritical: return 1.0 / config.critical_hz;
-    case PriorityClass::kAmbient: return 1.0 / config.ambient_hz;
-    default: return 1.0 / config.normal_hz;
+    case PriorityClass::kCritical: return 1.0 / config_.critical_hz;
+    case PriorityClass::kAmbient: return 1.0 / config_.ambient_hz;
+    default: return 1.0 / config_.normal_hz;
   }
 }
 
-double SchedulePhase(uint32_t id, double interval) {
-  return static_cast<double>((id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
-}
-
-PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
-  return edgephys::ClassOf(config_, e, now);
-}
-
-double ClientReplicator::IntervalOf(PriorityClass c) const { return SendInterval(config_, c); }
 
 void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double now,
                             Connection& connection, PacketWriter& out, RelayCounters& counters) {
@@ -194,7 +185,7 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     const uint32_t id = e.id;
     if (e.owner == self && !include_own_) continue;
     View& v = ViewOf(e);
-    if ((now + kEpsilon < v.next_due && !e.key_sample) || v.settled_version == e.version) continue;
+    if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
@@ -291,7 +282,8 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     // faster than the interval, so the long-run rate is exact; a receiver that sent late
     // (loss, budget) is back on the grid after one send.
     if (interval > 0 && std::isfinite(interval)) {
-      const double phase = SchedulePhase(c.id, interval);
+      const double phase =
+          static_cast<double>((c.id * 2654435761u) >> 8) * (1.0 / (1u << 24)) * interval;
       v.next_due = phase + (std::floor((now + kEpsilon - phase) / interval) + 1.0) * interval;
     } else {
       v.next_due = now + interval;  // a rate of 0: never again on schedule

@@ -117,21 +117,7 @@ struct ReplicationConfig {
   // is measured by `edgephys-loadgen softbody --soft-touched-hz`.
   float soft_touch_margin_m = 0.1f;
   double soft_touched_hz = 24;
-  // Key samples of PhyS-simulated bodies: besides its scheduled sends, a body is sent in the
-  // tick where its path has left the straight line from its last scheduled or key sample (the
-  // position and PhyS velocity then) by more than this, so a receiver's interpolation follows
-  // pushes and collisions instead of cutting across them. The room decides once per tick for
-  // all its receivers (they keep sharing baselines). Cost: the extra sends of bodies that
-  // change course. 0: none.
-  float key_sample_threshold_m = 0.01f;
 };
-
-// The class an entity is sent at under `config` (the same for every receiver of a room).
-PriorityClass ClassOf(const ReplicationConfig& config, const Entity& e, double now);
-// Seconds between scheduled sends of class `c` (fixed_rate_hz when set).
-double SendInterval(const ReplicationConfig& config, PriorityClass c);
-// The room-wide send schedule: entity `id` at `interval` is due at phase + k * interval.
-double SchedulePhase(uint32_t id, double interval);
 
 // True when rooms with `config` send format 9 (the edgephys default).
 inline bool UsesSharedEncoding(const ReplicationConfig& config) {

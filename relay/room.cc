@@ -1,7 +1,6 @@
 #include "relay/room.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstring>
 
 #include "relay/lockstep.h"
@@ -204,42 +203,6 @@ void Room::PrepareStates(double now) {
         e.shared->BindSlot(e.slot, e.serial);
       }
       shared_->PrepareEntity(*e.shared, e.prepared);
-    }
-  }
-}
-
-void Room::MarkKeySamples(double now) {
-  const ReplicationConfig& rc = config_.replication;
-  const double threshold = rc.key_sample_threshold_m;
-  if (threshold <= 0) return;
-  for (auto& [id, e] : entities_) {
-    e.key_sample = false;
-    if (e.physics != PhysicsRole::kSimulated) continue;
-    const PriorityClass cls = ClassOf(rc, e, now);
-    const double interval = SendInterval(rc, cls);
-    int64_t slot = -1;
-    if (cls != PriorityClass::kResting && interval > 0 && std::isfinite(interval)) {
-      const double phase = SchedulePhase(e.id, interval);
-      slot = static_cast<int64_t>(std::floor((now + 1e-6 - phase) / interval));  // as Tick
-    }
-    bool restart = e.key_time < 0 || slot != e.key_slot;  // a scheduled send: the new line
-    if (!restart) {
-      const double dt = e.state_time - e.key_time;
-      const Vec3f& p = e.key_position;
-      const Vec3f& v = e.key_velocity;
-      const double dx = e.state.position.x - (p.x + v.x * dt);
-      const double dy = e.state.position.y - (p.y + v.y * dt);
-      const double dz = e.state.position.z - (p.z + v.z * dt);
-      if (dx * dx + dy * dy + dz * dz > threshold * threshold) {
-        e.key_sample = true;
-        restart = true;
-      }
-    }
-    if (restart) {
-      e.key_time = e.state_time;
-      e.key_position = e.state.position;
-      e.key_velocity = e.linear_velocity;
-      e.key_slot = slot;
     }
   }
 }

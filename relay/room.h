@@ -86,9 +86,6 @@ class Room {
   // records each entity's version and empties its body cache. O(entities), no allocation
   // after the first call per entity. Not thread-safe: call on the room's thread before the
   // clients' ticks, which then only read the result (format 9 bodies are cached thread-safely).
-  // Marks the PhyS-simulated bodies whose path left the line from their last sample by more
-  // than key_sample_threshold_m (Entity::key_sample), once per tick for all receivers. O(bodies).
-  void MarkKeySamples(double now);
   void PrepareStates(double now);
   // Builds frame() from the entities as they are now. O(entities) plus a sort by id only when
   // entities came or went since the last call. Room thread, before the receivers' ticks.
