@@ -185,9 +185,9 @@ public struct NativeSpawnDesc {
   public IntPtr Name;
   public IntPtr RigidBody, Colliders;
   public uint ColliderCount;
-  public IntPtr Joints;
-  public uint JointCount;
+  public IntPtr Joints; public uint JointCount;
   public IntPtr SoftBody;
+  public uint OnOwnerLeave;  // appended (edgephys.h on_owner_leave); 0: Default
 }
 
 [StructLayout(LayoutKind.Sequential)]
