@@ -139,6 +139,7 @@ void Client::Impl::HandleHandshakePacket(std::span<const uint8_t> packet, double
     }
     key_exchange_.reset();
     connection_ = std::make_unique<Connection>(accept->connection_id(), cc, now);
+    unreliable_.sent = 0;  // the relay orders unreliable messages per connection
     if (seal_) connection_->SetDatagramOverhead(kSealOverhead);  // count the sealed datagrams
     player_id_ = accept->player_id();
     state_ = ClientState::kConnected;

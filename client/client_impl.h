@@ -159,6 +159,7 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   // ResetRoom) and what was received and dropped.
   struct UnreliableMessages {
     std::unordered_map<uint32_t, uint32_t> last;
+    uint32_t sent = 0;  // this connection's last message number (reset with the connection)
     uint64_t received = 0, stale = 0, malformed = 0;
   } unreliable_;
   ReplicationTracker tracker_;

@@ -54,10 +54,13 @@ Status Client::Impl::SendMessageUnreliable(MessageTarget target, uint32_t to_pla
   AppMessageHeader h;
   h.target = static_cast<uint8_t>(target);
   h.to_player = to_player;
+  h.sequence = unreliable_.sent + 1;
   std::array<uint8_t, kMaxUnreliablePayload> buffer;
   const size_t n = EncodeAppMessage(h, payload, buffer);
   Result<uint16_t> sent = connection_->SendUnreliable({buffer.data(), n}, now_, *this);
-  return sent.ok() ? Status::Ok() : sent.status();
+  if (!sent.ok()) return sent.status();
+  ++unreliable_.sent;
+  return Status::Ok();
 }
 
 void Client::Impl::OnUnreliableMessage(std::span<const uint8_t> payload) {

@@ -3,7 +3,9 @@
 // directions, the same 14-byte header:
 //   u8 format = 15, u8 target (0 room, 1 others, 2 player), u32 to_player, u32 sender,
 //   u32 sequence, then the application's bytes to the end of the payload.
-// Client -> relay: sender and sequence are 0 (ignored). Relay -> member: sender is the sending
+// Client -> relay: sender is 0 (ignored); sequence numbers the client's unreliable messages on
+// this connection (1, 2, ...; 0 = unnumbered) and the relay drops one not newer than the
+// newest it forwarded from that connection. Relay -> member: sender is the sending
 // player's id, sequence numbers that player's unreliable messages (1, 2, ...; per player
 // identity, across rejoins) so a receiver drops any older than the newest it delivered.
 //
@@ -19,7 +21,7 @@
 
 namespace edgephys {
 
-inline constexpr uint8_t kAppMessageFormat = 15;
+inline constexpr uint8_t kAppMessageFormat = kUnorderedPayloadFormat;  // any order on the wire
 inline constexpr size_t kAppMessageHeaderSize = 14;
 // Largest payload of an unreliable message: one datagram (kMaxUnreliablePayload) less the
 // header. 1165 bytes.

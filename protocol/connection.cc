@@ -397,7 +397,9 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
   // A packet whose unreliable payload is stale is dropped whole, reliable units included (the
   // peer resends them), and not acknowledged, so the sender never counts a dropped payload
   // as delivered (the delta codecs reference only acknowledged states). Its acks still apply.
-  const bool stale = parsed.has_unreliable && impl_->have_unreliable &&
+  const bool unordered = parsed.has_unreliable && !parsed.unreliable.empty() &&
+                         parsed.unreliable[0] == kUnorderedPayloadFormat;
+  const bool stale = parsed.has_unreliable && !unordered && impl_->have_unreliable &&
                      !SequenceGreater(parsed.sequence, impl_->newest_unreliable);
   if (stale) {
     impl_->last_receive_time = now;
@@ -428,7 +430,9 @@ Status Connection::ProcessPacket(std::span<const uint8_t> packet, double now,
       return status;
     }
   }
-  if (parsed.has_unreliable && connected()) {
+  if (parsed.has_unreliable && unordered && connected()) {
+    handler.OnUnreliablePayload(parsed.sequence, parsed.unreliable);
+  } else if (parsed.has_unreliable && connected()) {
     if (!impl_->have_unreliable || SequenceGreater(parsed.sequence, impl_->newest_unreliable)) {
       impl_->have_unreliable = true;
       impl_->newest_unreliable = parsed.sequence;

@@ -25,7 +25,10 @@
 //    payload only if the packet is newer than every unreliable payload it has delivered
 //    (older ones are dropped as stale and counted). A packet with a stale payload is dropped
 //    whole (reliable units riding on it are resent) and not acknowledged, so OnPacketAcked()
-//    on the sender means "delivered".
+//    on the sender means "delivered". Exception: a payload whose first byte is
+//    kUnorderedPayloadFormat (an unreliable application message, which carries its own
+//    per-sender sequence) is delivered whenever its packet is new, in any order, and neither
+//    is dropped by nor moves the state payloads' newest sequence.
 //
 // Thread-safety: none. One thread owns a Connection (the room's thread on the relay).
 // Cost: ProcessPacket and SendUnreliable are O(packet size) and allocate nothing once the
@@ -44,6 +47,9 @@
 #include "protocol/status.h"
 
 namespace edgephys {
+
+// First byte of an unreliable payload that skips the sequenced-stale check (see above).
+inline constexpr uint8_t kUnorderedPayloadFormat = 15;
 
 inline constexpr size_t kConnectionHeaderSize = kPacketPrefixSize + 8;
 inline constexpr size_t kMaxReliableUnitSize = 1024;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <set>
 
 #include "protocol/testing/connection_test_util.h"
 
@@ -135,7 +136,8 @@ TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
   std::map<uint16_t, uint32_t> sent_counter;  // sequence -> counter in that payload
   for (uint32_t i = 0; i < 3000; ++i) {
     Bytes payload(8);
-    StoreU32LE(payload.data(), i);
+    payload[0] = 1;  // a state format: sequenced (kUnorderedPayloadFormat is not)
+    StoreU32LE(payload.data() + 1, i);
     auto sequence = link.a.connection->SendUnreliable(payload, link.now(), link.a);
     ASSERT_TRUE(sequence.ok());
     sent_counter[*sequence] = i;
@@ -146,7 +148,7 @@ TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
   ASSERT_GT(h.unreliable.size(), 1200u);
   uint32_t previous = 0;
   for (size_t i = 0; i < h.unreliable.size(); ++i) {
-    uint32_t counter = LoadU32LE(h.unreliable[i].data());
+    uint32_t counter = LoadU32LE(h.unreliable[i].data() + 1);
     EXPECT_EQ(counter, sent_counter[h.unreliable_sequences[i]]);
     if (i > 0) {
       EXPECT_GT(counter, previous);
@@ -156,6 +158,49 @@ TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
   EXPECT_GT(link.b.connection->stats().stale_dropped, 0u);
   EXPECT_GT(link.b.connection->stats().duplicates_dropped, 0u);
   EXPECT_GT(link.b.statuses[StatusCode::kAlreadyExists], 0);
+}
+
+// Application messages (first byte kUnorderedPayloadFormat) interleaved with state payloads
+// under reordering: every message whose packet arrives is delivered once, even when a newer
+// state payload came first, and a late message never makes the next state payload stale.
+TEST(ConnectionTest, UnorderedPayloadsSkipTheStaleCheckAndLeaveStatesSequenced) {
+  NetworkConditions c = Harsh(17);
+  c.loss = 0.05;
+  c.reorder = 0.3;
+  c.duplicate = 0.1;
+  Link link(c);
+  std::set<uint32_t> messages_sent;
+  for (uint32_t i = 0; i < 3000; ++i) {
+    Bytes payload(8);
+    payload[0] = i % 2 == 0 ? kUnorderedPayloadFormat : 1;
+    StoreU32LE(payload.data() + 1, i);
+    ASSERT_TRUE(link.a.connection->SendUnreliable(payload, link.now(), link.a).ok());
+    if (i % 2 == 0) messages_sent.insert(i);
+    link.Step();
+  }
+  link.Run(1.0);
+  std::set<uint32_t> messages_got;
+  uint32_t previous_state = 0;
+  size_t states = 0;
+  bool message_after_newer_state = false;
+  for (const Bytes& p : link.b.handler.unreliable) {
+    const uint32_t counter = LoadU32LE(p.data() + 1);
+    if (p[0] == kUnorderedPayloadFormat) {
+      EXPECT_TRUE(messages_got.insert(counter).second) << "message " << counter << " twice";
+      if (counter < previous_state) message_after_newer_state = true;
+      continue;
+    }
+    if (states++ > 0) {
+      EXPECT_GT(counter, previous_state);
+    }
+    previous_state = counter;
+  }
+  // 5 % loss: about 1,425 of 1,500 messages arrive; the stale check would have dropped the
+  // ~30 % that came after a newer packet.
+  EXPECT_GT(messages_got.size(), 1350u);
+  EXPECT_TRUE(message_after_newer_state);
+  for (uint32_t m : messages_got) EXPECT_TRUE(messages_sent.count(m));
+  EXPECT_GT(states, 1000u);
 }
 
 TEST(ConnectionTest, OversizedPeerMessageIsAProtocolError) {

@@ -85,6 +85,17 @@ void Session::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t
   if (is_worker_) return host_->OnWorkerStates(*this, payload);
   if (room_ == nullptr) return counters_->RejectUpdate(DropReason::kNotJoined);
   if (!payload.empty() && payload[0] == kAppMessageFormat) {
+    // The channel delivers these in any order (protocol/connection.h); the client numbers
+    // them 1, 2, ... per connection, and 0 is unnumbered. Short ones go on to be refused.
+    if (payload.size() >= kAppMessageHeaderSize) {
+      const uint32_t sequence = LoadU32LE(payload.data() + 10);
+      if (sequence != 0) {
+        if (sequence <= newest_message_sequence_) {
+          return counters_->RejectUpdate(DropReason::kStale);
+        }
+        newest_message_sequence_ = sequence;
+      }
+    }
     return room_->MessageUnreliable(*this, payload, now_);
   }
   room_->ApplyStates(*this, payload, now_);

@@ -161,6 +161,9 @@ class Session final : public ConnectionHandler,
   std::vector<uint8_t> accept_packet_;
   bool is_worker_ = false;
   bool closing_ = false;
+  // The newest client-side number of an unreliable application message this connection
+  // forwarded: an older or repeated one is dropped as stale (in order per sender).
+  uint32_t newest_message_sequence_ = 0;
   DisconnectReason close_reason_ = DisconnectReason::kNone;
   uint64_t close_acked_end_ = 0;
   double close_deadline_ = 0;

@@ -99,6 +99,9 @@ if [ "$short" = 1 ]; then
   run_charts ccu ccu --users 20 --rooms 2 --ramp 2 --duration 4
   run ceiling ceiling --io-threads 1 --clients 32 --rooms 4 --warmup 0.5 --duration 1 \
     --iperf-seconds 1 --repeat 1
+  run messages.1 messages --users 25 --rate 40 --warmup 0.3 --duration 1 --property-seconds 0.5
+  run messages.2 messages --users 25 --rate 40 --unreliable --warmup 0.3 --duration 1 \
+    --property-seconds 0.5
 else
   run_charts relay_compare relay-compare --objects 32,64,128,256,512 \
     --modes photon,paper,edgephys --duration 10 --receivers 2
@@ -115,6 +118,10 @@ else
   run_charts ccu.2 ccu --users 250 --rooms 1 --ramp 8 --duration 12
   run_charts ccu.3 ccu --users 1000 --rooms 40 --ramp 20 --duration 15
   run ceiling ceiling --io-threads 1,2 --repeat 3
+  for i in 1 2 3; do  # medians of 3 (figures.py takes them)
+    run messages.$i messages --users 25 --rate 200
+    run messages.$((i + 3)) messages --users 25 --rate 200 --unreliable
+  done
   if [ -x "$build/bench/codec_bench" ]; then
     echo "== codec_bench"
     "$build/bench/codec_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true \
@@ -131,9 +138,9 @@ echo "bench.sh: $(( $(date +%s) - start )) s; page $doc, charts and figures.json
 if [ "$short" = 1 ]; then
   # Every table this mode measures must be in the page with numbers.
   python3 "$figures" check "$doc" relay_compare interp_sweep codec_sweep multiobject_quarter \
-    multiobject_full softbody ccu ceiling || failed=1
+    multiobject_full softbody ccu ceiling messages || failed=1
   python3 "$figures" measured "$raw/measured.json" relay_compare interp_sweep codec_sweep \
-    multiobject_quarter multiobject_full softbody ccu ceiling || failed=1
+    multiobject_quarter multiobject_full softbody ccu ceiling messages || failed=1
 else
   # The raw JSON stays out of the tree (figures.json holds the rows).
   rm -rf "$raw"

@@ -190,7 +190,32 @@ def t_codec_bench(j):
     return rows
 
 
+def t_messages(j):
+    o, s = j["options"], j["summary"]
+    return [["unreliable" if o["unreliable"] else "reliable", o["users"], o["rate_hz"],
+             o["payload_bytes"], s["sent_per_s"], s["delivered_per_s"], s["relay_cpu"],
+             s["delivered_per_core_s"], s["accepted_per_core_s"],
+             s["relay_egress_bytes_per_s"] / 1e6, s["received_total"] / max(s["expected_total"], 1),
+             s["property_sent_bytes"], s["property_received_bytes"]]]
+
+
+def median_rows(rows, key_cols):
+    """One row per key (the first KEY_COLS cells): the median of each other cell over runs."""
+    groups = {}
+    for row in rows:
+        groups.setdefault(tuple(row[:key_cols]), []).append(row)
+    out = []
+    for key, rs in groups.items():
+        med = list(key)
+        for i in range(key_cols, len(rs[0])):
+            vals = sorted(r[i] for r in rs if r[i] is not None)
+            med.append(vals[len(vals) // 2] if vals else None)
+        out.append(med)
+    return out
+
+
 EXTRACTORS = {
+    "messages": t_messages,
     "relay_compare": t_relay_compare,
     "multiobject_quarter": t_multiobject,
     "multiobject_full": t_multiobject,
@@ -214,6 +239,8 @@ def extract(raw_dir, machine_path, out_path, template_path):
             continue
         table = dict(template["tables"][name])
         table["rows"] = [row for j in runs for row in fn(j)]
+        if table.get("median_key_columns"):  # several runs of one configuration: medians
+            table["rows"] = median_rows(table["rows"], table["median_key_columns"])
         figures["tables"][name] = table
     with open(out_path, "w") as f:
         json.dump(figures, f, indent=1)

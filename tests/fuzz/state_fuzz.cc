@@ -28,6 +28,7 @@
 #include "physics_backend/worker_protocol.h"
 #include "protocol/delta_codec.h"
 #include "protocol/emulation_codec.h"
+#include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/quantize.h"
 #include "protocol/shared_delta_codec.h"
@@ -67,7 +68,15 @@ void CheckTokens(std::span<const uint8_t> bytes) {
   if (split.ok()) {
     EDGEPHYS_FUZZ_CHECK(split->relay_token.size() + kSessionSecretSize == bytes.size());
     auto relay = VerifyJoinToken(split->relay_token, kFuzzSecret, kUnixNow, &error);
-    if (relay.ok()) EDGEPHYS_FUZZ_CHECK(relay->session_secret == split->session_secret);
+    if (relay.ok()) {
+      // The relay part alone decides admission; a client token whose tail (the secret) was
+      // altered still splits, but its Connect proof only matches the relay's when the
+      // secrets agree, so such a client is refused with BadProof.
+      const ConnectTranscript t{.client_nonce = 7, .token = split->relay_token};
+      const bool same = relay->session_secret == split->session_secret;
+      EDGEPHYS_FUZZ_CHECK((ConnectProof(split->session_secret, t) ==
+                           ConnectProof(relay->session_secret, t)) == same);
+    }
   }
 
   std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());

@@ -105,9 +105,10 @@ TEST(UnreliableMessages, AtMostOnceInOrderAtExactlyTheAddressedPlayersUnderLossR
   }
   world.RunFor(2.0);  // everything that will arrive has arrived; nothing arrives twice after
   // At most 64 % of a stream survives two lossy hops (0.8 x 0.8); with 20 ms of jitter over
-  // 10 ms of spacing many more are reordered, and the sequenced channel drops a datagram that
-  // arrives after a newer one (a state or another message): a quarter or so arrives.
-  const size_t min = kN / 8;
+  // 10 ms of spacing many are reordered, and a message that arrives after a later one of the
+  // same sender is dropped (in order per sender, at the relay and at the receiver): about
+  // 35-40 % arrive. States interleaved on the same channel do not make messages stale.
+  const size_t min = kN / 4;
   // A: its own room messages, B's, C's to player 1; not its own full-size ones.
   ExpectOrderedSubset(ia.Stream(1, kToRoom), kN, min, "a <- a room");
   ExpectOrderedSubset(ia.Stream(2, kToOthers), kN, min, "a <- b others");
@@ -211,6 +212,20 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
   EXPECT_EQ(room.message_stats().unreliable, got_b.size());
   EXPECT_EQ(room.message_stats().refused, 5u + limited);
   EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::RateLimited), limited);
+
+  // Replayed or reordered on the way in: the relay forwards a connection's numbered message
+  // only when it is newer than the newest it forwarded from there; the older one is counted.
+  std::vector<uint8_t> numbered(kAppMessageHeaderSize + 5);
+  h = AppMessageHeader{.target = 1, .sequence = 1000};  // Others
+  ASSERT_EQ(EncodeAppMessage(h, Payload(kToOthers, 5000), numbered), numbered.size());
+  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, numbered, world.now()).ok());
+  world.RunFor(0.1);
+  h.sequence = 999;
+  ASSERT_EQ(EncodeAppMessage(h, Payload(kToOthers, 5001), numbered), numbered.size());
+  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, numbered, world.now()).ok());
+  world.RunFor(0.5);
+  EXPECT_EQ(ia.Stream(2, kToOthers), std::vector<uint32_t>{5000});
+  EXPECT_EQ(UpdatesRejected(world.counters(), DropReason::kStale), 1u);
 }
 
 // The SDK drops an unreliable message from a sender that is not newer than the last one it
