@@ -186,7 +186,7 @@ def t_codec_bench(j):
         if b.get("aggregate_name", "median") != "median" or "items_per_second" not in b:
             continue
         rows.append([b.get("run_name", b["name"]), b["items_per_second"] / 1e6,
-                     b.get("bytes_per_entity", 0.0)])
+                     b.get("payload_bytes_per_entity")])
     return rows
 
 
