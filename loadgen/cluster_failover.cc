@@ -50,6 +50,7 @@
 #include "cluster/redis_client.h"
 #include "cluster/testing/redis_server.h"
 #include "loadgen/cluster_spawn_burst.h"
+#include "loadgen/relay_process.h"
 #include "protocol/endpoint.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
@@ -181,22 +182,10 @@ int main(int argc, char** argv) {
                                      "--max-handshakes-per-s", "100000",
                                      "--max-connections-per-address", "100000",
                                      "--admin-addr", "off", "--log-level", "warn", "--run-for", "600"};
-    pid_t pid = fork();
-    if (pid == 0) {
-      std::vector<char*> cargs;
-      for (auto& a : args) cargs.push_back(a.data());
-      cargs.push_back(nullptr);
-      execv(relay_binary.c_str(), cargs.data());
-      _exit(127);
-    }
+    const pid_t pid = StartRelayProcess(args);
     pids.push_back(pid);
   }
-  auto stop_all = [&] {
-    for (pid_t p : pids) {
-      if (p > 0) kill(p, SIGKILL), waitpid(p, nullptr, 0);
-    }
-    pids.clear();
-  };
+  auto stop_all = [&] { KillRelayProcesses(pids); };
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // relays register
 
   const auto start = Clock::now();

@@ -1,4 +1,5 @@
 #include "loadgen/cluster_spawn_burst.h"
+#include "loadgen/relay_process.h"
 
 #include <nlohmann/json.hpp>
 #include <signal.h>
@@ -92,22 +93,10 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
                                      "--cluster-heartbeat-ms", std::to_string(o.heartbeat_ms),
                                      "--cluster-snapshot-ms", std::to_string(o.snapshot_ms),
                                      "--admin-addr", "off", "--log-level", "warn", "--run-for", "120"};
-    const pid_t pid = fork();
-    if (pid == 0) {
-      std::vector<char*> cargs;
-      for (auto& a : args) cargs.push_back(a.data());
-      cargs.push_back(nullptr);
-      execv(o.relay_binary.c_str(), cargs.data());
-      _exit(127);
-    }
+    const pid_t pid = StartRelayProcess(args);
     pids.push_back(pid);
   }
-  auto stop_all = [&] {
-    for (pid_t p : pids) {
-      if (p > 0) kill(p, SIGKILL), waitpid(p, nullptr, 0);
-    }
-    pids.clear();
-  };
+  auto stop_all = [&] { KillRelayProcesses(pids); };
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // relays register
 
   const auto start = Clock::now();

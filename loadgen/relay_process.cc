@@ -1,0 +1,29 @@
+#include "loadgen/relay_process.h"
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace edgephys {
+
+pid_t StartRelayProcess(const std::vector<std::string>& args) {
+  std::vector<std::string> owned = args;
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::vector<char*> cargs;
+    for (auto& a : owned) cargs.push_back(a.data());
+    cargs.push_back(nullptr);
+    execv(cargs[0], cargs.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+void KillRelayProcesses(std::vector<pid_t>& pids) {
+  for (pid_t p : pids) {
+    if (p > 0) kill(p, SIGKILL), waitpid(p, nullptr, 0);
+  }
+  pids.clear();
+}
+
+}  // namespace edgephys

@@ -1,0 +1,19 @@
+// Child relay processes for the cluster benchmarks: start one edgephys-relay binary with a
+// given argv, and stop a set of them. Single-threaded use; the caller owns the pids.
+#pragma once
+
+#include <sys/types.h>
+
+#include <string>
+#include <vector>
+
+namespace edgephys {
+
+// fork + execv(args[0], args). Returns the child's pid, or -1 if fork failed. A child whose
+// exec fails exits with status 127.
+pid_t StartRelayProcess(const std::vector<std::string>& args);
+
+// SIGKILL and reap every pid > 0 in `pids`, then clear it. Bounded: waitpid after SIGKILL.
+void KillRelayProcesses(std::vector<pid_t>& pids);
+
+}  // namespace edgephys
