@@ -17,18 +17,22 @@
 namespace edgephys::testing {
 
 // Payload: u8 tag (which stream), u32 sequence, then filler up to the wanted size (at least 5
-// bytes). The filler depends on the sequence, so a payload mixed with another one is caught.
-inline std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
+// bytes): byte i is i * filler_step + seq, so a payload mixed with another one is caught.
+inline std::vector<uint8_t> TaggedPayload(uint8_t tag, uint32_t seq, size_t size,
+                                          uint8_t filler_step) {
   std::vector<uint8_t> p(std::max<size_t>(size, 5));
   p[0] = tag;
   std::memcpy(&p[1], &seq, 4);
-  for (size_t i = 5; i < p.size(); ++i) p[i] = static_cast<uint8_t>(i * 31 + seq);
+  for (size_t i = 5; i < p.size(); ++i) p[i] = static_cast<uint8_t>(i * filler_step + seq);
   return p;
 }
 
 // Records the messages a subclass hands to Record (from OnMessage or OnUnreliableMessage) and
-// every error reason. Single-threaded: the simulated world calls it from its own loop.
+// every error reason; Stream checks payloads made by TaggedPayload with `filler_step`.
+// Single-threaded: the simulated world calls it from its own loop.
 struct MessageInbox : ClientListener {
+  explicit MessageInbox(uint8_t step) : filler_step(step) {}
+  uint8_t filler_step;
   struct Got {
     uint32_t sender;
     std::vector<uint8_t> payload;
@@ -47,7 +51,7 @@ struct MessageInbox : ClientListener {
       if (g.sender != sender || g.payload.empty() || g.payload[0] != tag) continue;
       uint32_t seq = 0;
       std::memcpy(&seq, &g.payload[1], 4);
-      EXPECT_EQ(g.payload, Payload(tag, seq, g.payload.size()));
+      EXPECT_EQ(g.payload, TaggedPayload(tag, seq, g.payload.size(), filler_step));
       seqs.push_back(seq);
     }
     return seqs;

@@ -22,7 +22,13 @@
 namespace edgephys::testing {
 namespace {
 
+constexpr uint8_t kFillerStep = 31;
+std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
+  return TaggedPayload(tag, seq, size, kFillerStep);
+}
+
 struct Inbox : MessageInbox {
+  Inbox() : MessageInbox(kFillerStep) {}
   void OnMessage(uint32_t sender, std::span<const uint8_t> payload) override {
     Record(sender, payload);
   }

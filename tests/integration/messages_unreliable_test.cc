@@ -19,7 +19,13 @@
 namespace edgephys::testing {
 namespace {
 
+constexpr uint8_t kFillerStep = 7;
+std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
+  return TaggedPayload(tag, seq, size, kFillerStep);
+}
+
 struct Inbox : MessageInbox {  // records the unreliable ones
+  Inbox() : MessageInbox(kFillerStep) {}
   size_t reliable = 0;  // reliable ones (none expected)
   void OnMessage(uint32_t, std::span<const uint8_t>) override { ++reliable; }
   void OnUnreliableMessage(uint32_t sender, std::span<const uint8_t> payload) override {
