@@ -156,6 +156,21 @@ class ClusterWorld {
   std::set<Client*> joins_;
 };
 
+// a and b join `room`; a spawns a persistent entity and b sees it: its id in *tool. Fails the
+// test (fatally) otherwise.
+void JoinPairAndSpawnPersistent(ClusterWorld& world, Client& a, Client& b, const char* room,
+                                uint32_t* tool) {
+  world.set_room(a, room);
+  world.set_room(b, room);
+  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 15.0));
+  SpawnDesc d;
+  d.flags = kPersistent;
+  auto spawned = a.Spawn(d);
+  ASSERT_TRUE(spawned.ok());
+  *tool = *spawned;
+  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) != nullptr; }, 5.0));
+}
+
 class ClusterTest : public ::testing::Test {
  protected:
   void SetUp() override { ASSERT_TRUE(redis_.Start()) << "redis-server did not start"; }
@@ -319,17 +334,11 @@ TEST_F(ClusterTest, PropertiesComeBackWithTheRoomAfterItsRelayDies) {
   CountingListener la, lb;
   Client& a = world.AddClient(0, Token("pr", 301), &la);
   Client& b = world.AddClient(1, Token("pr", 302), &lb);
-  world.set_room(a, "pr");
-  world.set_room(b, "pr");
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 15.0));
-  SpawnDesc d;
-  d.flags = kPersistent;
-  auto tool = a.Spawn(d);
-  ASSERT_TRUE(tool.ok());
-  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) != nullptr; }, 5.0));
+  uint32_t tool = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinPairAndSpawnPersistent(world, a, b, "pr", &tool));
   ASSERT_TRUE(a.CompareAndSetProperty(0, "step", PropertyValue::Int64(1), 0,
                                       PropertyAuthority::kAnyone).ok());
-  ASSERT_TRUE(a.SetProperty(*tool, "tip", PropertyValue::Vec3({1, 2, 3})).ok());
+  ASSERT_TRUE(a.SetProperty(tool, "tip", PropertyValue::Vec3({1, 2, 3})).ok());
   ASSERT_TRUE(b.SetProperty(0, "title", PropertyValue::String("suture")).ok());
   ASSERT_TRUE(world.RunUntil([&] {
     const PropertyRecord* step = b.FindProperty(0, "step");
@@ -390,21 +399,15 @@ TEST_F(ClusterTest, OwnershipComesBackWithTheRoomAndStaleStatesStayStale) {
   CountingListener la, lb;
   Client& a = world.AddClient(0, Token("ow", 311), &la);
   Client& b = world.AddClient(1, Token("ow", 312), &lb);
-  world.set_room(a, "ow");
-  world.set_room(b, "ow");
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 15.0));
-  SpawnDesc d;
-  d.flags = kPersistent;
-  auto tool = a.Spawn(d);
-  ASSERT_TRUE(tool.ok());
-  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) != nullptr; }, 5.0));
-  ASSERT_TRUE(a.HandOver(*tool, 312).ok());
-  ASSERT_TRUE(world.RunUntil([&] { return b.Owns(*tool); }, 5.0));
-  ASSERT_TRUE(b.SetTakeoverAllowed(*tool, true).ok());
-  ASSERT_TRUE(b.SetOwnerLeave(*tool, 2).ok());
+  uint32_t tool = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinPairAndSpawnPersistent(world, a, b, "ow", &tool));
+  ASSERT_TRUE(a.HandOver(tool, 312).ok());
+  ASSERT_TRUE(world.RunUntil([&] { return b.Owns(tool); }, 5.0));
+  ASSERT_TRUE(b.SetTakeoverAllowed(tool, true).ok());
+  ASSERT_TRUE(b.SetOwnerLeave(tool, 2).ok());
   ASSERT_TRUE(world.RunUntil([&] {
     const auto& entities = world.relay(world.Holder("ow"))->FindRoom("ow")->entities();
-    const auto it = entities.find(*tool);
+    const auto it = entities.find(tool);
     return it != entities.end() && it->second.takeover_allowed && it->second.on_owner_leave == 2;
   }, 5.0));
   world.RunUntil([] { return false; }, 0.4);  // a snapshot interval or more
@@ -416,7 +419,7 @@ TEST_F(ClusterTest, OwnershipComesBackWithTheRoomAndStaleStatesStayStale) {
     return h >= 0 && world.relay(h)->rooms().count("ow") != 0;
   }, 5.0));
   const RoomHost& host = *world.relay(world.Holder("ow"))->rooms().at("ow");
-  const Entity* e = host.room().entities().count(*tool) ? &host.room().entities().at(*tool) : nullptr;
+  const Entity* e = host.room().entities().count(tool) ? &host.room().entities().at(tool) : nullptr;
   ASSERT_NE(e, nullptr);
   EXPECT_EQ(e->owner, 312u);
   EXPECT_EQ(e->authority_seq, 1u);
@@ -425,10 +428,10 @@ TEST_F(ClusterTest, OwnershipComesBackWithTheRoomAndStaleStatesStayStale) {
   EXPECT_EQ(e->on_owner_leave, 2);
   ASSERT_TRUE(world.RunUntil([&] { return a.resumes() + b.resumes() >= 2 && a.joined() && b.joined(); }, 10.0));
   // A, the former owner, sends a late state: dropped and counted; B's next one is taken.
-  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {*tool, {42, 1, 0}, {0, 0, 0, 1}}, world.Now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {tool, {42, 1, 0}, {0, 0, 0, 1}}, world.Now()).ok());
   ASSERT_TRUE(world.RunUntil([&] { return host.ownership_stats().stale == 1; }, 5.0));
   EXPECT_NE(e->state.position.x, 42.f);
-  ASSERT_TRUE(b.PublishTransform(*tool, {-3, 1, 0}, {0, 0, 0, 1}).ok());
+  ASSERT_TRUE(b.PublishTransform(tool, {-3, 1, 0}, {0, 0, 0, 1}).ok());
   ASSERT_TRUE(world.RunUntil([&] { return e->state.position.x == -3.f; }, 5.0));
 }
 

@@ -1,25 +1,37 @@
 // RoomHost::GrabAt (relay/room_host.h): a grab that carries the hand's pose now, so that it is
-// judged against where the hand is, not against its last state to reach the relay.
+// judged against where the hand is, not against its last state to reach the relay; and the
+// checks it shares with Grab (GrabTarget).
 #include <cmath>
 
 #include "relay/room_host.h"
 
 namespace edgephys {
 
-void RoomHost::GrabAt(MemberLink& link, uint32_t entity_id, uint32_t hand_id,
-                      const schema::Pose& pose, double now) {
+Entity* RoomHost::GrabTarget(MemberLink& link, uint32_t entity_id, uint32_t hand_id) {
   using schema::RejectReason;
   Entity* hand = room_.FindEntity(hand_id);
   Entity* e = room_.FindEntity(entity_id);
   if (hand == nullptr || e == nullptr) {
-    return link.SendError(RejectReason::UnknownEntity, e ? hand_id : entity_id, "no such entity");
+    link.SendError(RejectReason::UnknownEntity, e ? hand_id : entity_id, "no such entity");
+    return nullptr;
   }
   if (hand->owner != link.player_id()) {
-    return link.SendError(RejectReason::NotOwner, hand_id, "not your hand");
+    link.SendError(RejectReason::NotOwner, hand_id, "not your hand");
+    return nullptr;
   }
   if (room_.physics() == nullptr || e->physics != PhysicsRole::kSimulated) {
-    return link.SendError(RejectReason::GrabRefused, entity_id, "not simulated by PhyS");
+    link.SendError(RejectReason::GrabRefused, entity_id, "not simulated by PhyS");
+    return nullptr;
   }
+  return e;
+}
+
+void RoomHost::GrabAt(MemberLink& link, uint32_t entity_id, uint32_t hand_id,
+                      const schema::Pose& pose, double now) {
+  using schema::RejectReason;
+  Entity* e = GrabTarget(link, entity_id, hand_id);
+  if (e == nullptr) return;
+  Entity* hand = room_.FindEntity(hand_id);
   const auto refuse = [&](const char* detail) {
     ++grab_pose_stats_.refused;
     link.SendError(RejectReason::GrabRefused, entity_id, detail);

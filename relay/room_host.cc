@@ -303,17 +303,8 @@ void RoomHost::Despawn(MemberLink& link, uint32_t entity_id) {
 }
 
 void RoomHost::Grab(MemberLink& link, uint32_t entity_id, uint32_t hand_id) {
-  Entity* hand = room_.FindEntity(hand_id);
-  Entity* e = room_.FindEntity(entity_id);
-  if (hand == nullptr || e == nullptr) {
-    return link.SendError(RejectReason::UnknownEntity, e ? hand_id : entity_id, "no such entity");
-  }
-  if (hand->owner != link.player_id()) {
-    return link.SendError(RejectReason::NotOwner, hand_id, "not your hand");
-  }
-  if (room_.physics() == nullptr || e->physics != PhysicsRole::kSimulated) {
-    return link.SendError(RejectReason::GrabRefused, entity_id, "not simulated by PhyS");
-  }
+  Entity* e = GrabTarget(link, entity_id, hand_id);
+  if (e == nullptr) return;
   e->grab_requester = link.player_id();
   room_.physics()->RequestGrab(entity_id, hand_id);  // answered in ApplyPhysics
 }

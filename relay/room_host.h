@@ -282,6 +282,9 @@ class RoomHost {
   std::vector<PosedGrab> posed_grabs_;
   GrabPoseStats grab_pose_stats_;
   void IssuePosedGrabs(int steps);
+  // The checks Grab and GrabAt share (relay/room_grab.cc): both entities exist, the hand is the
+  // sender's, PhyS simulates the target. Returns the target, or nullptr after sending the Error.
+  Entity* GrabTarget(MemberLink& link, uint32_t entity_id, uint32_t hand_id);
   std::unordered_map<uint32_t, TokenBucket> ownership_rates_;  // per player identity
 };
 

@@ -11,6 +11,34 @@ import unittest
 import edgephys as ep
 
 
+class _RoomPair:
+    """Two clients joining one room. pump() updates both, joins each on CONNECTED, notes JOINED
+    and hands every other event to on_event(client, event), then sleeps 5 ms."""
+
+    def __init__(self, test, a, b, room, on_event):
+        self.test, self.clients, self.room, self.on_event = test, (a, b), room, on_event
+        self.joined = set()
+
+    def pump(self):
+        for c in self.clients:
+            c.update()
+            for ev in c.events():
+                if ev.type == ep.EVENT_CONNECTED:
+                    c.join(self.room)
+                elif ev.type == ep.EVENT_JOINED:
+                    self.joined.add(c)
+                else:
+                    self.on_event(c, ev)
+        time.sleep(0.005)
+
+    def join_both(self, deadline):
+        """Pumps until both joined (failing the test at `deadline`); returns pump."""
+        while len(self.joined) < 2 and time.monotonic() < deadline:
+            self.pump()
+        self.test.assertEqual(len(self.joined), 2, "both clients joined")
+        return self.pump
+
+
 class BindingTest(unittest.TestCase):
     def test_version(self):
         self.assertEqual(ep.lib.edgephys_abi_version(), ep.ABI_VERSION)
@@ -107,26 +135,15 @@ class BindingTest(unittest.TestCase):
             b.connect(relay, os.environ["EDGEPHYS_TOKEN_4"])
             got = {a: [], b: []}
             unreliable = {a: [], b: []}
-            joined = set()
             deadline = time.monotonic() + 10
 
-            def pump():
-                for c in (a, b):
-                    c.update()
-                    for ev in c.events():
-                        if ev.type == ep.EVENT_CONNECTED:
-                            c.join(room)
-                        elif ev.type == ep.EVENT_JOINED:
-                            joined.add(c)
-                        elif ev.type == ep.EVENT_MESSAGE and ev.flags & ep.MESSAGE_UNRELIABLE:
-                            unreliable[c].append((ev.player_id, ev.payload))
-                        elif ev.type == ep.EVENT_MESSAGE:
-                            got[c].append((ev.player_id, ev.payload))
-                time.sleep(0.005)
+            def on_event(c, ev):
+                if ev.type == ep.EVENT_MESSAGE and ev.flags & ep.MESSAGE_UNRELIABLE:
+                    unreliable[c].append((ev.player_id, ev.payload))
+                elif ev.type == ep.EVENT_MESSAGE:
+                    got[c].append((ev.player_id, ev.payload))
 
-            while len(joined) < 2 and time.monotonic() < deadline:
-                pump()
-            self.assertEqual(len(joined), 2, "both clients joined")
+            pump = _RoomPair(self, a, b, room, on_event).join_both(deadline)
             settle = time.monotonic() + 0.3  # both acknowledge their Joined (unreliable sends)
             while time.monotonic() < settle:
                 pump()
@@ -168,28 +185,17 @@ class BindingTest(unittest.TestCase):
             changed = {a: [], b: []}
             conflicts = {a: [], b: []}
             errors = {a: [], b: []}
-            joined = set()
             deadline = time.monotonic() + 10
 
-            def pump():
-                for c in (a, b):
-                    c.update()
-                    for ev in c.events():
-                        if ev.type == ep.EVENT_CONNECTED:
-                            c.join(room)
-                        elif ev.type == ep.EVENT_JOINED:
-                            joined.add(c)
-                        elif ev.type == ep.EVENT_PROPERTY_CHANGED:
-                            changed[c].append(ev.property)
-                        elif ev.type == ep.EVENT_PROPERTY_CONFLICT:
-                            conflicts[c].append((ev.other_id, ev.property))
-                        elif ev.type == ep.EVENT_ERROR:
-                            errors[c].append((ev.code, ep.detail(ev)))
-                time.sleep(0.005)
+            def on_event(c, ev):
+                if ev.type == ep.EVENT_PROPERTY_CHANGED:
+                    changed[c].append(ev.property)
+                elif ev.type == ep.EVENT_PROPERTY_CONFLICT:
+                    conflicts[c].append((ev.other_id, ev.property))
+                elif ev.type == ep.EVENT_ERROR:
+                    errors[c].append((ev.code, ep.detail(ev)))
 
-            while len(joined) < 2 and time.monotonic() < deadline:
-                pump()
-            self.assertEqual(len(joined), 2, "both clients joined")
+            pump = _RoomPair(self, a, b, room, on_event).join_both(deadline)
             values = {"py.flag": True, "py.count": -3, "py.gain": 0.5, "py.title": "step one",
                       "py.blob": b"\x00\xff", "py.where": (1.0, 2.0, 3.0), "py.turn": (0.0, 0.0, 0.0, 1.0)}
             for k, v in values.items():
@@ -240,28 +246,17 @@ class BindingTest(unittest.TestCase):
             changes = {a: [], b: []}
             errors = {a: [], b: []}
             spawned = {a: set(), b: set()}
-            joined = set()
             deadline = time.monotonic() + 10
 
-            def pump():
-                for c in (a, b):
-                    c.update()
-                    for ev in c.events():
-                        if ev.type == ep.EVENT_CONNECTED:
-                            c.join(room)
-                        elif ev.type == ep.EVENT_JOINED:
-                            joined.add(c)
-                        elif ev.type == ep.EVENT_SPAWNED:
-                            spawned[c].add(ev.entity_id)
-                        elif ev.type == ep.EVENT_OWNERSHIP_CHANGED:
-                            changes[c].append((ev.entity_id, ev.player_id, ev.code))
-                        elif ev.type == ep.EVENT_ERROR:
-                            errors[c].append((ev.code, ev.entity_id))
-                time.sleep(0.005)
+            def on_event(c, ev):
+                if ev.type == ep.EVENT_SPAWNED:
+                    spawned[c].add(ev.entity_id)
+                elif ev.type == ep.EVENT_OWNERSHIP_CHANGED:
+                    changes[c].append((ev.entity_id, ev.player_id, ev.code))
+                elif ev.type == ep.EVENT_ERROR:
+                    errors[c].append((ev.code, ev.entity_id))
 
-            while len(joined) < 2 and time.monotonic() < deadline:
-                pump()
-            self.assertEqual(len(joined), 2, "both clients joined")
+            pump = _RoomPair(self, a, b, room, on_event).join_both(deadline)
             box = a.spawn(position=(0, 1, 0))
             while box not in spawned[b] and time.monotonic() < deadline:
                 pump()

@@ -19,6 +19,7 @@
 #include "edgephys/edgephys.h"
 #include "edgephys/edgephys.hpp"
 #include "protocol/join_token.h"
+#include "tests/integration/c_client_connect.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -27,17 +28,9 @@ namespace {
 // One C API client of a LoopbackWorld's relay, pumped with the world.
 class CClient {
  public:
-  CClient(LoopbackWorld& world, const std::vector<uint8_t>& token) : world_(world) {
-    edgephys_client_config cfg;
-    EXPECT_EQ(edgephys_client_config_init(&cfg), EDGEPHYS_OK);
-    cfg.bind_address = "127.0.0.1:0";
-    EXPECT_EQ(edgephys_client_create(&cfg, &c_), EDGEPHYS_OK) << edgephys_last_error();
-    const std::string address = "127.0.0.1:" + std::to_string(world.relay_endpoint().port());
-    EXPECT_EQ(edgephys_client_connect(c_, address.c_str(), Base64UrlEncode(token).c_str(),
-                                      world.Now()),
-              EDGEPHYS_OK)
-        << edgephys_last_error();
-  }
+  CClient(LoopbackWorld& world, const std::vector<uint8_t>& token)
+      : c_(ConnectCClient(world, token)), world_(world) {}
+
   ~CClient() { edgephys_client_destroy(c_); }
 
   // Updates the client and keeps its events; joins `room` on CONNECTED when asked to.

@@ -15,68 +15,29 @@
 #include "client/client_testing.h"
 #include "protocol/handshake.h"
 #include "relay/room_host.h"
+#include "tests/integration/join_all.h"
+#include "tests/integration/message_inbox.h"
 #include "tests/integration/sim_world.h"
 
 namespace edgephys::testing {
 namespace {
 
-// Payload: u8 tag (which stream), u32 sequence, then filler up to the wanted size.
+constexpr uint8_t kFillerStep = 31;
 std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
-  std::vector<uint8_t> p(std::max<size_t>(size, 5));
-  p[0] = tag;
-  std::memcpy(&p[1], &seq, 4);
-  for (size_t i = 5; i < p.size(); ++i) p[i] = static_cast<uint8_t>(i * 31 + seq);
-  return p;
+  return TaggedPayload(tag, seq, size, kFillerStep);
 }
 
-struct Inbox : ClientListener {
-  struct Got {
-    uint32_t sender;
-    std::vector<uint8_t> payload;
-  };
-  std::vector<Got> got;
-  std::vector<uint16_t> errors;
+struct Inbox : MessageInbox {
+  Inbox() : MessageInbox(kFillerStep) {}
   void OnMessage(uint32_t sender, std::span<const uint8_t> payload) override {
-    got.push_back({sender, {payload.begin(), payload.end()}});
+    Record(sender, payload);
   }
-  void OnError(uint16_t reason, uint32_t, std::string_view) override { errors.push_back(reason); }
-  // The sequences received from `sender` with `tag`, in arrival order; checks each payload's
-  // filler.
-  std::vector<uint32_t> Stream(uint32_t sender, uint8_t tag) const {
-    std::vector<uint32_t> seqs;
-    for (const Got& g : got) {
-      if (g.sender != sender || g.payload.empty() || g.payload[0] != tag) continue;
-      uint32_t seq = 0;
-      std::memcpy(&seq, &g.payload[1], 4);
-      EXPECT_EQ(g.payload, Payload(tag, seq, g.payload.size()));
-      seqs.push_back(seq);
-    }
-    return seqs;
-  }
-  size_t Count(uint16_t reason) const { return std::count(errors.begin(), errors.end(), reason); }
 };
 
 std::vector<uint32_t> Iota(uint32_t n) {
   std::vector<uint32_t> v(n);
   for (uint32_t i = 0; i < n; ++i) v[i] = i;
   return v;
-}
-
-template <typename World>
-void JoinAll(World& world, std::vector<Client*> clients, const char* room) {
-  ASSERT_TRUE(world.RunUntil([&] {
-    for (Client* c : clients) {
-      if (c->state() != ClientState::kConnected) return false;
-    }
-    return true;
-  }, 10.0));
-  for (Client* c : clients) ASSERT_TRUE(c->JoinRoom(room).ok());
-  ASSERT_TRUE(world.RunUntil([&] {
-    for (Client* c : clients) {
-      if (!c->joined()) return false;
-    }
-    return true;
-  }, 10.0));
 }
 
 constexpr uint8_t kToRoom = 1, kToOthers = 2, kToPlayer = 3, kBig = 4;
@@ -146,9 +107,9 @@ TEST(Messages, UnpermittedMisaddressedAndMalformedAreRefusedCountedAndReachNobod
   ASSERT_TRUE(ClientTesting::SendReliableUnchecked(b, bad).ok());
   ASSERT_TRUE(world.RunUntil([&] { return ia.errors.size() + ib.errors.size() >= 4; }, 5.0));
   world.RunFor(0.5);
-  EXPECT_EQ(ia.Count(static_cast<uint16_t>(schema::RejectReason::NotPermitted)), 1u);
-  EXPECT_EQ(ib.Count(static_cast<uint16_t>(schema::RejectReason::UnknownPlayer)), 1u);
-  EXPECT_EQ(ib.Count(static_cast<uint16_t>(schema::RejectReason::InvalidMessage)), 2u);
+  EXPECT_EQ(ia.Count(schema::RejectReason::NotPermitted), 1u);
+  EXPECT_EQ(ib.Count(schema::RejectReason::UnknownPlayer), 1u);
+  EXPECT_EQ(ib.Count(schema::RejectReason::InvalidMessage), 2u);
   EXPECT_TRUE(ia.got.empty());
   EXPECT_TRUE(ib.got.empty());
   EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::NotPermitted), 1u);
@@ -174,8 +135,8 @@ TEST(Messages, OversizedAndOverRateAreRefusedAndCountedTheRestDelivered) {
     ASSERT_TRUE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kToOthers, i)).ok());
   }
   world.RunFor(2.0);
-  const size_t limited = ia.Count(static_cast<uint16_t>(schema::RejectReason::RateLimited));
-  EXPECT_EQ(ia.Count(static_cast<uint16_t>(schema::RejectReason::OverBudget)), 1u);
+  const size_t limited = ia.Count(schema::RejectReason::RateLimited);
+  EXPECT_EQ(ia.Count(schema::RejectReason::OverBudget), 1u);
   EXPECT_GT(limited, 150u);  // the burst is 100; the rest of 400 over ~1 s of refill at 50/s
   EXPECT_LT(limited, kFlood);
   // What was not refused arrived, once each, in order.

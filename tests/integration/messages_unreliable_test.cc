@@ -12,46 +12,24 @@
 #include "client/client_testing.h"
 #include "protocol/app_message_codec.h"
 #include "relay/room_host.h"
+#include "tests/integration/join_all.h"
+#include "tests/integration/message_inbox.h"
 #include "tests/integration/sim_world.h"
 
 namespace edgephys::testing {
 namespace {
 
-// Payload: u8 tag (which stream), u32 sequence, then filler up to the wanted size.
+constexpr uint8_t kFillerStep = 7;
 std::vector<uint8_t> Payload(uint8_t tag, uint32_t seq, size_t size = 5) {
-  std::vector<uint8_t> p(std::max<size_t>(size, 5));
-  p[0] = tag;
-  std::memcpy(&p[1], &seq, 4);
-  for (size_t i = 5; i < p.size(); ++i) p[i] = static_cast<uint8_t>(i * 7 + seq);
-  return p;
+  return TaggedPayload(tag, seq, size, kFillerStep);
 }
 
-struct Inbox : ClientListener {
-  struct Got {
-    uint32_t sender;
-    std::vector<uint8_t> payload;
-  };
-  std::vector<Got> got;       // unreliable ones
-  size_t reliable = 0;        // reliable ones (none expected)
-  std::vector<uint16_t> errors;
+struct Inbox : MessageInbox {  // records the unreliable ones
+  Inbox() : MessageInbox(kFillerStep) {}
+  size_t reliable = 0;  // reliable ones (none expected)
   void OnMessage(uint32_t, std::span<const uint8_t>) override { ++reliable; }
   void OnUnreliableMessage(uint32_t sender, std::span<const uint8_t> payload) override {
-    got.push_back({sender, {payload.begin(), payload.end()}});
-  }
-  void OnError(uint16_t reason, uint32_t, std::string_view) override { errors.push_back(reason); }
-  std::vector<uint32_t> Stream(uint32_t sender, uint8_t tag) const {
-    std::vector<uint32_t> seqs;
-    for (const Got& g : got) {
-      if (g.sender != sender || g.payload.empty() || g.payload[0] != tag) continue;
-      uint32_t seq = 0;
-      std::memcpy(&seq, &g.payload[1], 4);
-      EXPECT_EQ(g.payload, Payload(tag, seq, g.payload.size()));
-      seqs.push_back(seq);
-    }
-    return seqs;
-  }
-  size_t Count(schema::RejectReason reason) const {
-    return std::count(errors.begin(), errors.end(), static_cast<uint16_t>(reason));
+    Record(sender, payload);
   }
 };
 
@@ -62,23 +40,6 @@ void ExpectOrderedSubset(const std::vector<uint32_t>& seqs, uint32_t n, size_t m
   for (size_t i = 1; i < seqs.size(); ++i) EXPECT_LT(seqs[i - 1], seqs[i]);
   for (uint32_t s : seqs) EXPECT_LT(s, n);
   EXPECT_GE(seqs.size(), min);
-}
-
-template <typename World>
-void JoinAll(World& world, std::vector<Client*> clients, const char* room) {
-  ASSERT_TRUE(world.RunUntil([&] {
-    for (Client* c : clients) {
-      if (c->state() != ClientState::kConnected) return false;
-    }
-    return true;
-  }, 10.0));
-  for (Client* c : clients) ASSERT_TRUE(c->JoinRoom(room).ok());
-  ASSERT_TRUE(world.RunUntil([&] {
-    for (Client* c : clients) {
-      if (!c->joined()) return false;
-    }
-    return true;
-  }, 10.0));
 }
 
 constexpr uint8_t kToRoom = 1, kToOthers = 2, kToPlayer = 3, kFull = 4;

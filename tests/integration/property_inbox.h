@@ -1,5 +1,5 @@
 // A ClientListener that records what a client learns about properties, and helpers shared by
-// the property integration tests.
+// the property integration tests (JoinAll comes with it).
 #pragma once
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 
 #include "client/client.h"
 #include "edgephys/schema/control_generated.h"
+#include "tests/integration/join_all.h"
 
 namespace edgephys::testing {
 
@@ -42,23 +43,6 @@ inline std::vector<uint32_t> OneTo(uint32_t n) {
   std::vector<uint32_t> v(n);
   for (uint32_t i = 0; i < n; ++i) v[i] = i + 1;
   return v;
-}
-
-template <typename World>
-void JoinAll(World& world, std::vector<Client*> clients, const char* room) {
-  ASSERT_TRUE(world.RunUntil([&] {
-    for (Client* c : clients) {
-      if (c->state() != ClientState::kConnected) return false;
-    }
-    return true;
-  }, 10.0));
-  for (Client* c : clients) ASSERT_TRUE(c->JoinRoom(room).ok());
-  ASSERT_TRUE(world.RunUntil([&] {
-    for (Client* c : clients) {
-      if (!c->joined()) return false;
-    }
-    return true;
-  }, 10.0));
 }
 
 }  // namespace edgephys::testing

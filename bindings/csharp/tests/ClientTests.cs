@@ -164,31 +164,43 @@ static class ClientTests {
     }
   }
 
+  // Updates a and b once each, then sleeps 5 ms.
+  static void Pump(Client a, Client b) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+
+  // Connects a and b to EDGEPHYS_RELAY with the tokens EDGEPHYS_TOKEN_<tokenA> and
+  // EDGEPHYS_TOKEN_<tokenB>, joins both to EDGEPHYS_ROOM on Connected and pumps until both have
+  // joined (the caller's handlers are live meanwhile). Returns the deadline (10 s from the
+  // call) the test goes on with; fails the test when they have not both joined by then.
+  static double ConnectBothAndJoin(Client a, Client b, int tokenA, int tokenB) {
+    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
+    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
+    int joined = 0;
+    a.Connected += id => a.Join(room);
+    b.Connected += id => b.Join(room);
+    a.Joined += (r, x) => ++joined;
+    b.Joined += (r, x) => ++joined;
+    a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_" + tokenA));
+    b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_" + tokenB));
+    double end = Native.Now() + 10;
+    while (joined < 2 && Native.Now() < end) Pump(a, b);
+    Expect(joined == 2, "both joined");
+    return end;
+  }
+
   // A (player 3) sends to the room and to the others, B (player 4) to player 3: each arrives where addressed, with
   // the sender's id, in order.
   static void MessagesReachTheAddressedPlayers() {
-    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
-    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
     using (var a = new Client(false))
     using (var b = new Client(false)) {
-      int joined = 0;
       var gotA = new System.Collections.Generic.List<string>();
       var gotB = new System.Collections.Generic.List<string>();
-      a.Connected += id => a.Join(room);
-      b.Connected += id => b.Join(room);
-      a.Joined += (r, x) => ++joined;
-      b.Joined += (r, x) => ++joined;
       a.MessageReceived += (from, p) => gotA.Add(from + ":" + System.Text.Encoding.UTF8.GetString(p));
       b.MessageReceived += (from, p) => gotB.Add(from + ":" + (p.Length > 1000 ? "big" + p.Length : System.Text.Encoding.UTF8.GetString(p)));
       var unreliableB = new System.Collections.Generic.List<string>();
       b.UnreliableMessageReceived += (from, p) => unreliableB.Add(from + ":" + System.Text.Encoding.UTF8.GetString(p));
-      a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_3"));
-      b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_4"));
-      double end = Native.Now() + 10;
-      while (joined < 2 && Native.Now() < end) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
-      Expect(joined == 2, "both joined");
+      double end = ConnectBothAndJoin(a, b, 3, 4);
       double settle = Native.Now() + 0.3;  // both acknowledge their Joined (unreliable sends)
-      while (Native.Now() < settle) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+      while (Native.Now() < settle) Pump(a, b);
       a.SendMessageUnreliable(System.Text.Encoding.UTF8.GetBytes("ray"), MessageTarget.Others);
       ExpectStatus(Status.TooLarge, () => a.SendMessageUnreliable(new byte[Native.MaxUnreliableMessageBytes + 1]),
                    "oversized unreliable message");
@@ -196,7 +208,7 @@ static class ClientTests {
       a.SendMessage(new byte[40000], MessageTarget.Others);
       b.SendMessage(System.Text.Encoding.UTF8.GetBytes("just for 3"), MessageTarget.Player, 3);
       ExpectStatus(Status.TooLarge, () => a.SendMessage(new byte[Native.MaxMessageBytes + 1]), "oversized message");
-      while ((gotA.Count < 2 || gotB.Count < 2) && Native.Now() < end) { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); }
+      while ((gotA.Count < 2 || gotB.Count < 2) && Native.Now() < end) Pump(a, b);
       gotA.Sort();  // in order per sender; different senders' messages may interleave
       Expect(string.Join("|", gotA) == "3:hello, room|4:just for 3", "A got: " + string.Join("|", gotA));
       Expect(string.Join("|", gotB) == "3:hello, room|3:big40000", "B got: " + string.Join("|", gotB));
@@ -205,28 +217,17 @@ static class ClientTests {
   }
 
   static void PropertiesConvergeAndOneCompareAndSetWins() {
-    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
-    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
     using (var a = new Client(false))
     using (var b = new Client(false)) {
-      int joined = 0;
       var changedAtB = new System.Collections.Generic.List<Property>();
       var conflicts = new System.Collections.Generic.List<string>();
       var errors = new System.Collections.Generic.List<RejectReason>();
-      a.Connected += id => a.Join(room);
-      b.Connected += id => b.Join(room);
-      a.Joined += (r, x) => ++joined;
-      b.Joined += (r, x) => ++joined;
       b.PropertyChanged += p => changedAtB.Add(p);
       a.PropertyConflict += (req, p) => conflicts.Add("a:" + req + ":" + p.Version + ":" + p.IntValue);
       b.PropertyConflict += (req, p) => conflicts.Add("b:" + req + ":" + p.Version + ":" + p.IntValue);
       b.Error += (reason, entity, detail) => errors.Add(reason);
-      a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_5"));
-      b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_6"));
-      double end = Native.Now() + 10;
-      Action pump = () => { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); };
-      while (joined < 2 && Native.Now() < end) pump();
-      Expect(joined == 2, "both joined");
+      double end = ConnectBothAndJoin(a, b, 5, 6);
+      Action pump = () => Pump(a, b);
       a.SetProperty(0, "cs.step", PropertyValue.Int64(1), PropertyAuthority.Anyone);
       a.SetProperty(0, "cs.title", "step one");
       a.SetProperty(0, "cs.blob", new byte[] { 0, 255 });
@@ -263,28 +264,17 @@ static class ClientTests {
   // A (player 7) spawns a box; B's (player 8) request is refused while A forbids takeover; A
   // hands it to B: both hear it, B may publish it and A may not; B releases it to the room.
   static void OwnershipHandOverAndRefusedRequest() {
-    string relay = Environment.GetEnvironmentVariable("EDGEPHYS_RELAY");
-    string room = Environment.GetEnvironmentVariable("EDGEPHYS_ROOM");
     using (var a = new Client(false))
     using (var b = new Client(false)) {
-      int joined = 0;
       var spawnedAtB = new System.Collections.Generic.List<uint>();
       var changes = new System.Collections.Generic.List<string>();
       var errors = new System.Collections.Generic.List<RejectReason>();
-      a.Connected += id => a.Join(room);
-      b.Connected += id => b.Join(room);
-      a.Joined += (r, x) => ++joined;
-      b.Joined += (r, x) => ++joined;
       b.Spawned += e => spawnedAtB.Add(e.EntityId);
       a.OwnershipChanged += (entity, owner, seq) => changes.Add("a:" + owner + ":" + seq);
       b.OwnershipChanged += (entity, owner, seq) => changes.Add("b:" + owner + ":" + seq);
       b.Error += (reason, entity, detail) => errors.Add(reason);
-      a.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_7"));
-      b.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_8"));
-      double end = Native.Now() + 10;
-      Action pump = () => { a.Update(); b.Update(); System.Threading.Thread.Sleep(5); };
-      while (joined < 2 && Native.Now() < end) pump();
-      Expect(joined == 2, "both joined");
+      double end = ConnectBothAndJoin(a, b, 7, 8);
+      Action pump = () => Pump(a, b);
       uint box = a.Spawn(new Transform(0, 1, 0), EntityFlags.None);
       while (!spawnedAtB.Contains(box) && Native.Now() < end) pump();
       Expect(b.Owner(box) == 7, "B sees A's box");
