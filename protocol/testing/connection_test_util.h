@@ -39,9 +39,14 @@ class RecordingHandler : public ConnectionHandler {
     reliable.emplace_back(message.begin(), message.end());
   }
   void OnUnreliablePayload(uint16_t sequence, std::span<const uint8_t> payload) override {
-    if (!unreliable_sequences.empty()) {
-      EXPECT_TRUE(SequenceGreater(sequence, unreliable_sequences.back()))
-          << sequence << " after " << unreliable_sequences.back();
+    // Payloads starting with kUnorderedPayloadFormat may come in any order (connection.h).
+    if (payload.empty() || payload[0] != kUnorderedPayloadFormat) {
+      if (have_ordered_) {
+        EXPECT_TRUE(SequenceGreater(sequence, last_ordered_))
+            << sequence << " after " << last_ordered_;
+      }
+      have_ordered_ = true;
+      last_ordered_ = sequence;
     }
     unreliable_sequences.push_back(sequence);
     if (keep_payloads) unreliable.emplace_back(payload.begin(), payload.end());
@@ -66,6 +71,9 @@ class RecordingHandler : public ConnectionHandler {
   std::vector<bool> sent = std::vector<bool>(65536);
   std::vector<bool> acked = std::vector<bool>(65536);
   uint64_t acked_count = 0;
+ private:
+  bool have_ordered_ = false;
+  uint16_t last_ordered_ = 0;
 };
 
 // Collects the packets a Connection writes.
