@@ -127,17 +127,28 @@ TEST(ConnectionTest, MaxSizeMessageArrivesIntact) {
   EXPECT_TRUE(link.b.handler.reliable[0] == big);
 }
 
-TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
-  NetworkConditions c = Harsh(13);
+// A link that reorders heavily: 5 % loss, 30 % reordering, 10 % duplication.
+NetworkConditions Reordering(uint64_t seed) {
+  NetworkConditions c = Harsh(seed);
   c.loss = 0.05;
   c.reorder = 0.3;
   c.duplicate = 0.1;
-  Link link(c);
+  return c;
+}
+
+// An unreliable payload: first byte `format` (which decides sequenced or not), then `counter`.
+Bytes CounterPayload(uint8_t format, uint32_t counter) {
+  Bytes payload(8);
+  payload[0] = format;
+  StoreU32LE(payload.data() + 1, counter);
+  return payload;
+}
+
+TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
+  Link link(Reordering(13));
   std::map<uint16_t, uint32_t> sent_counter;  // sequence -> counter in that payload
   for (uint32_t i = 0; i < 3000; ++i) {
-    Bytes payload(8);
-    payload[0] = 1;  // a state format: sequenced (kUnorderedPayloadFormat is not)
-    StoreU32LE(payload.data() + 1, i);
+    const Bytes payload = CounterPayload(1, i);  // a state format: sequenced
     auto sequence = link.a.connection->SendUnreliable(payload, link.now(), link.a);
     ASSERT_TRUE(sequence.ok());
     sent_counter[*sequence] = i;
@@ -164,16 +175,10 @@ TEST(ConnectionTest, UnreliableNeverDeliversOlderPayloads) {
 // under reordering: every message whose packet arrives is delivered once, even when a newer
 // state payload came first, and a late message never makes the next state payload stale.
 TEST(ConnectionTest, UnorderedPayloadsSkipTheStaleCheckAndLeaveStatesSequenced) {
-  NetworkConditions c = Harsh(17);
-  c.loss = 0.05;
-  c.reorder = 0.3;
-  c.duplicate = 0.1;
-  Link link(c);
+  Link link(Reordering(17));
   std::set<uint32_t> messages_sent;
   for (uint32_t i = 0; i < 3000; ++i) {
-    Bytes payload(8);
-    payload[0] = i % 2 == 0 ? kUnorderedPayloadFormat : 1;
-    StoreU32LE(payload.data() + 1, i);
+    const Bytes payload = CounterPayload(i % 2 == 0 ? kUnorderedPayloadFormat : 1, i);
     ASSERT_TRUE(link.a.connection->SendUnreliable(payload, link.now(), link.a).ok());
     if (i % 2 == 0) messages_sent.insert(i);
     link.Step();
