@@ -57,6 +57,8 @@
 
 namespace edgephys {
 
+class StateDecoderPlugin;  // client/state_decoder_plugin.h
+
 class DatagramSocket;  // protocol/datagram_socket.h
 
 // A relay's UDP address: a numeric IPv4 or IPv6 address (no name lookup) and a port.
@@ -90,8 +92,12 @@ struct ClientConfig {
   // used instead and counted in arrival_time_fallbacks(). Cost when on: a recvmsg(2) with a
   // control message per datagram instead of a recvfrom(2), plus a clock read per fallback.
   bool record_arrival_times = false;
-  // Load generators only: false receives state datagrams (unreliable channel: formats 1-12,
-  // soft bodies) without decoding them. The connection still acknowledges every packet as it
+  // Load generators and tests only: a decoder for state formats the SDK does not carry
+  // (client/state_decoder_plugin.h: the benchmark emulations). Null: payloads of such formats
+  // are refused and counted (state_payloads_refused()).
+  std::shared_ptr<const StateDecoderPlugin> state_decoder;
+  // Load generators only: false receives state datagrams (unreliable channel: rigid and soft
+  // bodies) without decoding them. The connection still acknowledges every packet as it
   // arrives, so the relay does for this client exactly what it does for a decoding one; the
   // client just holds no states (entities() keep their spawn transforms, OnEntityUpdated and
   // OnSoftBodyUpdated are never called). Their bytes still count in state_bytes_received().
@@ -408,7 +414,7 @@ class Client final {
   uint32_t player_id() const;
   uint32_t entity_id_base() const;
   // The state format the joined room sends (its Joined message; docs/protocol.md §5): 9 (the
-  // default), 2, or an emulation's (3, 4); 0 before the first Joined. Kept after a leave until
+  // default), 2, or a plug-in's (ClientConfig::state_decoder); 0 before the first Joined. Kept after a leave until
   // the next Joined.
   uint8_t state_format() const;
   const std::string& room() const;
@@ -431,6 +437,9 @@ class Client final {
   // member states only after it has acknowledged its Joined message, so in a room this stays 0;
   // late payloads from a room just left land here.
   uint64_t state_payloads_outside_room() const;
+  // State payloads refused: malformed, or of a format the SDK does not decode (and no
+  // ClientConfig::state_decoder does).
+  uint64_t state_payloads_refused() const;
   // Arrival time (as RemoteEntity::arrival_unix_s: Unix seconds, CLOCK_REALTIME) of the
   // datagram Update() read last. Inside a listener callback run by Update() it is the datagram
   // that delivered what the callback reports (for a reliable message: the datagram that

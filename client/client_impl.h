@@ -22,7 +22,6 @@
 #include "protocol/packet_seal.h"
 #include "protocol/replication_tracker.h"
 #include "protocol/shared_delta_codec.h"
-#include "protocol/soft_body_codec.h"
 #include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
 
@@ -174,10 +173,10 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
   std::unique_ptr<SharedDeltaDecoder> shared_decoder_;  // rooms using format 9
   float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
-  SoftBodyChunk soft_chunk_;
   std::unique_ptr<SoftDeltaReceiver> soft_decoder_;  // format 11; per room (reset on Joined)
   uint64_t bytes_state_received_ = 0;
   uint64_t state_payloads_outside_room_ = 0;
+  uint64_t state_payloads_refused_ = 0;
   double packet_arrival_unix_s_ = 0;
   uint64_t arrival_time_fallbacks_ = 0;
   // Cluster.

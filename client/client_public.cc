@@ -92,6 +92,9 @@ uint64_t Client::state_bytes_received() const { return impl_->bytes_state_receiv
 uint64_t Client::state_payloads_outside_room() const {
   return impl_->state_payloads_outside_room_;
 }
+uint64_t Client::state_payloads_refused() const {
+  return impl_->state_payloads_refused_;
+}
 double Client::packet_arrival_unix_s() const { return impl_->packet_arrival_unix_s_; }
 uint64_t Client::arrival_time_fallbacks() const { return impl_->arrival_time_fallbacks_; }
 uint64_t Client::redirects_followed() const { return impl_->redirects_followed_; }

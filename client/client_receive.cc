@@ -7,7 +7,7 @@
 #include <algorithm>
 
 #include "protocol/app_message_codec.h"
-#include "protocol/emulation_codec.h"
+#include "client/state_decoder_plugin.h"
 #include "protocol/handshake.h"
 
 namespace edgephys {
@@ -184,25 +184,28 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
 
 Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
   if (payload.empty()) return Status::Malformed("empty state payload");
+  batch_.states.clear();
   switch (payload[0]) {
-    case kFormatPhoton:
-    case kFormatPaper:
-      return DecodeEmulationBatch(payload, &batch_, [this](uint32_t id, EntityState* s) {
-        auto it = entities_.find(id);
-        if (it == entities_.end()) return false;
-        *s = it->second.state;
-        return true;
-      });
-    case kDeltaStateFormat:
-      batch_.states.clear();
-      if (!delta_decoder_) return Status::Malformed("format 2 without quantisation");
-      return delta_decoder_->Decode(payload, &batch_);
     case kSharedDeltaStateFormat:
-      batch_.states.clear();
-      if (!shared_decoder_) return Status(StatusCode::kMalformed, "format 9 without quantisation");
+      if (!shared_decoder_) return Status::Malformed("format 9 in a room that announced another");
       return shared_decoder_->Decode(payload, &batch_);
+    case kDeltaStateFormat:
+      if (!delta_decoder_) return Status::Malformed("format 2 in a room that announced another");
+      return delta_decoder_->Decode(payload, &batch_);
     default:
-      return DecodeStateBatch(payload, &batch_);
+      if (config_.state_decoder == nullptr || payload[0] != state_format_) {
+        return Status::Malformed("state format " + std::to_string(payload[0]) +
+                                 " is not decoded by the SDK");
+      }
+      return config_.state_decoder->Decode(
+          payload,
+          [this](uint32_t id, EntityState* s) {
+            auto it = entities_.find(id);
+            if (it == entities_.end()) return false;
+            *s = it->second.state;
+            return true;
+          },
+          &batch_);
   }
 }
 
@@ -217,19 +220,6 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
   if (!payload.empty() && payload[0] == kAppMessageFormat) return OnUnreliableMessage(payload);
   bytes_state_received_ += payload.size();
   if (!config_.decode_states) return;  // acknowledged by the connection all the same
-  if (!payload.empty() && payload[0] == kSoftBodyFormat) {
-    if (!joined_ || !DecodeSoftBodyChunk(payload, position_step_m_, kMaxSoftBodyNodes, &soft_chunk_).ok()) {
-      return;
-    }
-    auto it = entities_.find(soft_chunk_.entity_id);
-    if (it == entities_.end()) return;  // particles of an entity not spawned (yet): skip
-    RemoteEntity& e = it->second;
-    e.nodes.resize(soft_chunk_.total);
-    std::copy(soft_chunk_.positions.begin(), soft_chunk_.positions.end(),
-              e.nodes.begin() + soft_chunk_.first);
-    listener_->OnSoftBodyUpdated(e);
-    return;
-  }
   if (!payload.empty() && payload[0] == kSoftDeltaFormat) {
     // Decoded whatever the entity table holds: the relay counts this packet's versions as held
     // once it is acknowledged, so they must be stored even for a body not spawned yet.
@@ -248,7 +238,10 @@ void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const ui
     }
     return;
   }
-  if (!joined_ || !DecodeStates(payload).ok()) return;
+  if (!DecodeStates(payload).ok()) {
+    ++state_payloads_refused_;
+    return;
+  }
   // One hash lookup per state in the common case (a known remote entity): own entities can only
   // have ids in this player's block, and an id in entities_ is never a tombstone (Spawn erases
   // the tombstone, Despawn erases the entity), so owned_ and despawned_ are consulted only for

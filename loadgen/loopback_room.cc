@@ -96,7 +96,6 @@ RelayConfig BenchmarkRelayConfig(uint32_t receivers, uint32_t max_entities, floa
   config.room_defaults.tick_rate_hz = 60;
   config.room_defaults.max_entities_per_player = max_entities;
   config.room_defaults.budgets = RoomBudgets::Unlimited();
-  config.room_defaults.replication.mode = ReplicationMode::kEdgephys;
   config.room_defaults.replication.position_step_m = position_step_m;
   config.room_defaults.replication.rotation_bound_deg = rotation_bound_deg;
   config.limits.spawns_per_s = 0;

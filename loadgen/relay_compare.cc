@@ -10,6 +10,7 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
+#include "loadgen/emulation/emulation_plugins.h"
 #include "loadgen/paper_figures.h"
 #include "loadgen/stats.h"
 #include "protocol/handshake.h"
@@ -99,7 +100,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   config.room_defaults.max_entities_per_player = objects + 16;
   config.room_defaults.budgets = RoomBudgets::Unlimited();
   ReplicationConfig& r = config.room_defaults.replication;
-  r.mode = mode;
+  UseReplicationMode(mode, &r);
   r.fixed_rate_hz = o.rate_hz;
   r.position_step_m = o.position_step_m;
   r.rotation_bound_deg = o.rotation_bound_deg;
@@ -137,6 +138,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
   ClientConfig host_config;
   host_config.publish_rate_hz = 240;  // the host's own pacing is --rate; the SDK adds no delay
   ClientConfig receiver_config;
+  receiver_config.state_decoder = EmulationStateDecoder();  // formats 1, 3, 4
   // Measurement bots: also against a relay run with --packet-auth false.
   receiver_config.require_packet_auth = host_config.require_packet_auth = false;
   for (uint32_t i = 0; i <= o.receivers; ++i) {

@@ -16,7 +16,7 @@
 
 #include "loadgen/motion.h"
 #include "loadgen/relay_target.h"
-#include "relay/replication.h"
+#include "loadgen/emulation/emulation_plugins.h"
 
 namespace edgephys::loadgen {
 
@@ -35,8 +35,8 @@ struct RelayCompareOptions {
   float rotation_threshold_deg = 0.05f;
   bool shared_encoding = true;  // edgephys mode: state format 9 (the relay's default); false: 2
   bool progress = true;
-  // --relay: an external edgephys-relay started with the replication flags of the one mode
-  // measured (--replication-mode, --position-step, ...: the load generator cannot set them).
+  // --relay: an external edgephys-relay (its own format, mode edgephys, with the replication
+  // flags it was started with: --position-step, ...; the load generator cannot set them).
   // Egress per receiver then = the /metrics edgephys_bytes_sent_total difference minus what
   // the host's socket received (on loopback, what the relay sent the host), over receivers.
   ExternalRelayOptions external;

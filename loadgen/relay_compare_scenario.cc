@@ -40,7 +40,7 @@ nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompare
     j["relay"] = ExternalRelayJson(o.external);
     j["notes"] = {
         {"mode, rate_hz, position_step_m, rotation_bound_deg, thresholds",
-         "the external relay's own flags (--replication-mode, --position-step, ...); the load "
+         "the external relay's own flags (--position-step, ...; its format is edgephys); the load "
          "generator only echoes its options and cannot check them"},
         {"egress_bytes_per_s_per_receiver",
          "edgephys_bytes_sent_total difference over the window (process-wide) minus the bytes "
@@ -154,8 +154,9 @@ class RelayCompareScenario final : public Scenario {
     if (o_.rate_hz <= 0 || o_.duration_s <= 0 || o_.receivers == 0) {
       return "--rate, --duration and --receivers must be positive";
     }
-    if (o_.external.enabled() && o_.modes.size() != 1) {
-      return "--relay: one --modes value, the external relay's --replication-mode";
+    if (o_.external.enabled() &&
+        (o_.modes.size() != 1 || o_.modes[0] != ReplicationMode::kEdgephys)) {
+      return "--relay: --modes edgephys only (the emulations are plug-ins of the in-process relay)";
     }
     return ValidateExternalRelay(o_.external);
   }

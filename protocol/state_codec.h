@@ -26,18 +26,17 @@ namespace edgephys {
 // length within 1e-3. Relays drop (and count) states that fail this.
 bool IsValidState(const EntityState& state);
 
-// The first byte of every state payload on the unreliable channel. One list, so that no two
-// formats share an id (the PhyS worker link's own formats, 6 and up, are in
-// physics/worker_protocol.h).
-// kQuantizedDelta (protocol/delta_codec.h) is stateful: it is decoded only by a DeltaDecoder
-// owned by the stream's receiver, never by DecodeStateBatch. kPhoton and kPaper are the
-// benchmark emulations (protocol/emulation_codec.h); kSoftBody carries soft-body particles
-// (protocol/soft_body_codec.h).
+// The first byte of every state payload on the unreliable channel. Ids in use: 1 (kFloat, the
+// clients' up-format), 2 (kQuantizedDelta, protocol/delta_codec.h), 5 (kSoftBody, soft-body
+// particle chunks inside the PhyS worker link, protocol/soft_body_codec.h), 6 and 8 (the worker
+// link's own, physics_backend/worker_protocol.h), 9 (protocol/shared_delta_codec.h), 11
+// (protocol/soft_delta_codec.h), 15 (application messages, protocol/app_message_codec.h).
+// 3 and 4 are reserved for the benchmark emulations (loadgen/emulation/), which the product
+// neither sends nor decodes. kQuantizedDelta is stateful: it is decoded only by a DeltaDecoder
+// owned by the stream's receiver, never by DecodeStateBatch.
 enum class StateFormat : uint8_t {
   kFloat = 1,
   kQuantizedDelta = 2,
-  kPhoton = 3,
-  kPaper = 4,
   kSoftBody = 5,
 };
 
@@ -56,7 +55,7 @@ class StateEncoder {
   virtual size_t Finish() = 0;
 };
 
-// What the byte-aligned encoders (formats 1, 3 and 4) share: Begin() reserves a fixed-size
+// What the byte-aligned encoders (format 1 and the emulations) share: Begin() reserves a fixed-size
 // header that Finish() fills in, and Add() appends after it.
 class ByteStateEncoder : public StateEncoder {
  public:
@@ -91,7 +90,7 @@ struct StateBatch {
   std::vector<EntityState> states;  // reused by the caller between decodes
 };
 
-// Decodes the stateless formats (format 1). Untrusted input: kMalformed on truncation,
+// Decodes format 1 (a client's states on their way up to the relay). Untrusted input: kMalformed on truncation,
 // trailing bytes, an unknown format or a count larger than the payload can hold; `batch` is
 // then unspecified. A format-2 payload returns kInvalidArgument ("needs a DeltaDecoder"):
 // dispatch on payload[0] == StateFormat::kQuantizedDelta to the stream's DeltaDecoder.

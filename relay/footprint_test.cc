@@ -33,7 +33,6 @@ double BytesEach(int n, Make make) {
 
 ReplicationConfig SharedEncodingConfig() {
   ReplicationConfig config;
-  config.mode = ReplicationMode::kEdgephys;
   config.shared_encoding = true;
   return config;
 }

@@ -226,7 +226,6 @@ void ClientReplicator::CopyCanonical(const LockstepGroup& group, uint32_t self, 
 void ClientReplicator::AdoptCanonical(const ClientReplicator& canonical,
                                       std::span<const SharedDeltaStream::PayloadFix> fixes) {
   views_ = canonical.views_;
-  view_extras_ = canonical.view_extras_;
   view_slot_of_ = canonical.view_slot_of_;
   live_views_ = canonical.live_views_;
   bytes_per_entity_ = canonical.bytes_per_entity_;

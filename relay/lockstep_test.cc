@@ -75,7 +75,6 @@ class LockstepTest : public RoomHostTest {
     config_.capacity = 32;
     config_.max_entities_per_player = 8;
     config_.tick_rate_hz = 60;
-    config_.replication.mode = ReplicationMode::kEdgephys;
     config_.replication.shared_encoding = true;
     config_.replication.shared_lockstep = true;
     config_.replication.lockstep_ack_ticks = 3;

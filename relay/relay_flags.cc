@@ -119,9 +119,6 @@ void AddReplication(CLI::App& app, RelayFlags* f) {
   app.add_option("--interaction-linger", rep.interaction_linger_s,
                  "Seconds an entity stays out of the ambient class after an interaction")
       ->group(kTuning)->capture_default_str()->check(InRange("--interaction-linger", 0.0, 3600.0));
-  app.add_option("--replication-mode", f->replication_mode,
-                 "edgephys, float, photon or paper (emulations for comparisons)")
-      ->group(kTuning)->capture_default_str();
   app.add_flag("--shared-encoding,!--no-shared-encoding", rep.shared_encoding,
                "Encode each entity delta once per room tick for all receivers (format 9; "
                "default: on)")
@@ -220,10 +217,10 @@ void AddRelayFlags(CLI::App& app, RelayFlags* flags) {
 
 Status FinishRelayFlags(RelayFlags* flags) {
   flags->admin_addr_given = flags->admin_addr_opt != nullptr && flags->admin_addr_opt->count() > 0;
-  if (!ParseReplicationMode(flags->replication_mode,
-                            &flags->config.room_defaults.replication.mode)) {
-    return Status::InvalidArgument("--replication-mode: unknown mode (edgephys, float, photon or paper)",
-                                   "'" + flags->replication_mode + "'");
+  const ReplicationConfig& rep = flags->config.room_defaults.replication;
+  if (Result<QuantizationParams> q = MakeQuantizationParams(QuantizationOf(rep)); !q.ok()) {
+    return Status::InvalidArgument("--position-step / --rotation-bound: not a usable quantisation",
+                                   std::string(q.status().message()));
   }
   return Status::Ok();
 }

@@ -28,7 +28,6 @@ struct RelayFlags {
   std::string admin_key;                    // empty: $EDGEPHYS_ADMIN_KEY
   std::string secret;                       // empty: $EDGEPHYS_SECRET
   std::string log_level = "info";
-  std::string replication_mode = "edgephys";
   double run_for_s = 0;                     // 0: until a signal
   size_t io_threads = 1;
   std::string redis;                        // empty: no cluster

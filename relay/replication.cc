@@ -24,16 +24,6 @@ double Weight(PriorityClass c) {
   return 1.0;
 }
 
-float Distance(const Vec3f& a, const Vec3f& b) {
-  float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
-float AngleDeg(const Quatf& a, const Quatf& b) {
-  float dot = std::fabs(a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w);
-  return 2.0f * std::acos(std::min(1.0f, dot)) * 57.29578f;
-}
-
 }  // namespace
 
 QuantizationConfig QuantizationOf(const ReplicationConfig& config) {
@@ -46,71 +36,27 @@ QuantizationConfig QuantizationOf(const ReplicationConfig& config) {
   return q;
 }
 
-std::string_view ReplicationModeName(ReplicationMode mode) {
-  switch (mode) {
-    case ReplicationMode::kFloat: return "float";
-    case ReplicationMode::kEdgephys: return "edgephys";
-    case ReplicationMode::kPhoton: return "photon";
-    case ReplicationMode::kPaper: return "paper";
-  }
-  return "unknown";
-}
-
-bool ParseReplicationMode(std::string_view text, ReplicationMode* mode) {
-  for (ReplicationMode m : {ReplicationMode::kFloat, ReplicationMode::kEdgephys,
-                            ReplicationMode::kPhoton, ReplicationMode::kPaper}) {
-    if (text == ReplicationModeName(m)) {
-      *mode = m;
-      return true;
-    }
-  }
-  return false;
-}
-
 ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     : config_(config), payload_(kMaxUnreliablePayload) {
-  switch (config_.mode) {
-    case ReplicationMode::kPhoton:
-      encoder_ = std::make_unique<PhotonEmulationEncoder>();
-      break;
-    case ReplicationMode::kPaper: {
-      auto paper = std::make_unique<PaperEmulationEncoder>();
-      paper_ = paper.get();
-      encoder_ = std::move(paper);
-      break;
-    }
-    case ReplicationMode::kEdgephys: {
-      auto params = MakeQuantizationParams(QuantizationOf(config_));
-      if (params.ok() && UsesSharedEncoding(config_)) {
-        SharedDeltaStreamOptions options;
-        if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
-          include_own_ = true;
-          options.ack_delay_ticks = config_.lockstep_ack_ticks;
-        }
-        auto shared = std::make_unique<SharedDeltaStream>(*params, options);
-        shared_ = shared.get();
-        encoder_ = std::move(shared);
-        break;
+  if (config_.plugin != nullptr) {
+    plugin_ = config_.plugin->NewStream(config_);
+  } else {
+    auto params = MakeQuantizationParams(QuantizationOf(config_));
+    if (!params.ok()) params = MakeQuantizationParams(QuantizationConfig{});
+    if (UsesSharedEncoding(config_)) {
+      SharedDeltaStreamOptions options;
+      if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
+        include_own_ = true;
+        options.ack_delay_ticks = config_.lockstep_ack_ticks;
       }
-      if (params.ok()) {
-        auto delta = std::make_unique<DeltaEncoder>(*params);
-        delta_ = delta.get();
-        encoder_ = std::move(delta);
-        break;
-      }
-      config_.mode = ReplicationMode::kFloat;  // invalid quantisation: fall back to exact floats
-      [[fallthrough]];
+      shared_ = std::make_unique<SharedDeltaStream>(*params, options);
+    } else {
+      delta_ = std::make_unique<DeltaEncoder>(*params);
     }
-    case ReplicationMode::kFloat:
-      encoder_ = std::make_unique<FloatStateEncoder>();
-      break;
   }
-  if (config_.mode == ReplicationMode::kEdgephys) {
-    soft_ = std::make_unique<SoftDeltaSender>(
-        SoftDeltaSenderConfig{config_.position_step_m, config_.position_threshold_m});
-  }
+  soft_ = std::make_unique<SoftDeltaSender>(
+      SoftDeltaSenderConfig{config_.position_step_m, config_.position_threshold_m});
   candidates_.reserve(256);
-  in_payload_.reserve(kMaxUnreliablePayload / 8);
 }
 
 ClientReplicator::~ClientReplicator() {
@@ -189,38 +135,19 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
     bool want = false;
-    switch (config_.mode) {
-      case ReplicationMode::kPhoton:
-        want = true;  // fixed rate, changed or not
-        break;
-      case ReplicationMode::kPaper:
-        if (const ViewExtra& x = view_extras_[e.slot]; x.ever_sent) {
-          fields = 0;
-          if (Distance(e.state.position, x.last_sent_state.position) > config_.position_threshold_m) {
-            fields |= kFieldPosition;
-          }
-          if (AngleDeg(e.state.rotation, x.last_sent_state.rotation) > config_.rotation_threshold_deg) {
-            fields |= kFieldRotation;
-          }
-        }
-        want = fields != 0;
-        break;
-      case ReplicationMode::kFloat:
-        want = tracker_.NeedsSend(id, e.version, now, resend_after);
-        break;
-      case ReplicationMode::kEdgephys: {
-        const DeltaEncoder::UpdateNeed need =
-            shared_ != nullptr
-                ? (e.shared != nullptr
-                       ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
-                                       config_.rotation_threshold_deg, now, resend_after)
-                       : DeltaEncoder::UpdateNeed::kSend)
-                : delta_->Need(id, e.state, config_.position_threshold_m,
-                               config_.rotation_threshold_deg, now, resend_after);
-        if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
-        want = need == DeltaEncoder::UpdateNeed::kSend;
-        break;
-      }
+    if (plugin_ != nullptr) {
+      want = plugin_->Want(e, now, resend_after, &fields);
+    } else {
+      const DeltaEncoder::UpdateNeed need =
+          shared_ != nullptr
+              ? (e.shared != nullptr
+                     ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
+                                     config_.rotation_threshold_deg, now, resend_after)
+                     : DeltaEncoder::UpdateNeed::kSend)
+              : delta_->Need(id, e.state, config_.position_threshold_m,
+                             config_.rotation_threshold_deg, now, resend_after);
+      if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
+      want = need == DeltaEncoder::UpdateNeed::kSend;
     }
     if (!want) continue;
     double waiting = std::max(now - v.last_sent, IntervalOf(cls));
@@ -249,27 +176,23 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     selected_.swap(candidates_);
   }
 
-  encoder_->Begin(payload_, time_ms_);
-  in_payload_.clear();
+  BeginPayload();
   for (const Candidate& c : selected_) {
     auto add = [&]() {
-      if (paper_ != nullptr) return paper_->AddFields(c.entity->state, c.fields);
+      if (plugin_ != nullptr) return plugin_->Add(*c.entity, c.fields);
       if (shared_ != nullptr) {  // the room codes the body once for every receiver
         return c.entity->shared != nullptr && c.entity->prepared_valid &&
                shared_->Add(c.id, *c.entity->shared);
       }
-      if (delta_ != nullptr) {  // the room quantised it once for every receiver
-        return delta_->Add(c.entity->state,
-                           c.entity->prepared_valid ? &c.entity->prepared : nullptr);
-      }
-      return encoder_->Add(c.entity->state);
+      // format 2: the room quantised it once for every receiver
+      return delta_->Add(c.entity->state, c.entity->prepared_valid ? &c.entity->prepared : nullptr);
     };
     if (!add()) {
       Flush(now, connection, out, counters);
-      encoder_->Begin(payload_, time_ms_);
+      BeginPayload();
       if (!add()) continue;
     }
-    if (shared_ == nullptr) in_payload_.emplace_back(c.id, c.entity->version);  // format 9: count()
+    if (delta_ != nullptr) ++delta_in_payload_;
     if (c.entity->owner == self) ++own_in_payload_;  // include_own_: not counted as delivered
     if (lockstep_capture_ != nullptr) payload_owners_.push_back(c.entity->owner);
     View& v = views_[c.entity->slot];
@@ -288,25 +211,22 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     } else {
       v.next_due = now + interval;  // a rate of 0: never again on schedule
     }
-    if (!view_extras_.empty()) {
-      ViewExtra& x = view_extras_[c.entity->slot];
-      if (c.fields & kFieldPosition) x.last_sent_state.position = c.entity->state.position;
-      if (c.fields & kFieldRotation) x.last_sent_state.rotation = c.entity->state.rotation;
-      x.ever_sent = true;
-    }
   }
   Flush(now, connection, out, counters);
 }
 
 void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* out,
                              RelayCounters& counters) {
-  // Format 9 keeps no per-entity list here (its stream records the sends): its count.
-  const size_t entities = shared_ != nullptr ? shared_->count() : in_payload_.size();
+  const size_t entities = shared_ != nullptr ? shared_->count()
+                          : plugin_ != nullptr ? plugin_->count()
+                                               : delta_in_payload_;
   const size_t own = own_in_payload_;
   own_in_payload_ = 0;
-  size_t size = encoder_->Finish();
+  delta_in_payload_ = 0;
+  const size_t size = shared_ != nullptr ? shared_->Finish()
+                      : plugin_ != nullptr ? plugin_->Finish()
+                                           : delta_->Finish();
   if (size == 0) {
-    in_payload_.clear();
     payload_owners_.clear();
     return;
   }
@@ -325,7 +245,7 @@ void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* o
       shared_->OnSent(*seq, now);
       if (lockstep_capture_ != nullptr) shared_->OnPacketAcked(*seq);
     } else {
-      for (const auto& [id, version] : in_payload_) tracker_.OnSent(*seq, id, version, now);
+      plugin_->OnSent(*seq, now);
     }
     if (lockstep_capture_ == nullptr) {  // the canonical's are counted as its copies are sent
       RelayCounters::Inc(counters.entity_updates_sent, entities - own);
@@ -347,7 +267,16 @@ void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* o
     double per_entity = static_cast<double>(size) / static_cast<double>(entities);
     bytes_per_entity_ = 0.8 * bytes_per_entity_ + 0.2 * per_entity;
   }
-  in_payload_.clear();
+}
+
+void ClientReplicator::BeginPayload() {
+  if (shared_ != nullptr) {
+    shared_->Begin(payload_, time_ms_);
+  } else if (plugin_ != nullptr) {
+    plugin_->Begin(payload_, time_ms_);
+  } else {
+    delta_->Begin(payload_, time_ms_);
+  }
 }
 
 }  // namespace edgephys

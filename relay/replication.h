@@ -6,19 +6,17 @@
 //     class's send interval (critical: avatars, hands, grabbed — default 48 Hz; normal —
 //     default 12 Hz; ambient — simulated by PhyS and untouched by any user for
 //     `interaction_linger_s` — `ambient_hz`; resting — nothing changed for `resting_after_s`:
-//     only on change) and whose
-//     state differs from what the client has (selective synchronisation: in `edgephys` mode,
-//     against what it ACKNOWLEDGED, by more than the thresholds; in `paper` mode against what
-//     was last sent, by more than the thresholds; in `photon` mode always);
+//     only on change) and whose state differs from what the client ACKNOWLEDGED by more than
+//     the thresholds (selective synchronisation; a plug-in stream decides for its own format);
 //  2. orders them by a priority accumulator (class weight x time waiting) and takes them in
 //     that order while the per-client bandwidth budget allows, so nothing starves;
-//  3. encodes them into as few datagrams as fit the MTU with the room's encoder.
+//  3. encodes them into as few datagrams as fit the MTU.
 //
-// Modes (ReplicationMode): `float` (format 1, exact floats; the foundation format),
-// `edgephys` (format 2, quantized delta against acknowledged baselines; with
-// ReplicationConfig::shared_encoding format 9, whose bodies the room encodes once per tick for
-// all receivers: Room::PrepareStates, Entity::shared), and the baselines
-// `photon` (format 3) and `paper` (format 4) for side-by-side comparison.
+// Formats: 9 (shared delta: the room encodes each entity's body once per tick for all
+// receivers, Room::PrepareStates, Entity::shared; the default), 2 (quantized delta against
+// acknowledged baselines, per receiver; ReplicationConfig::shared_encoding false, kept for one
+// release), or a plug-in's (relay/replication_plugin.h: the benchmark emulations). Soft bodies:
+// format 11.
 //
 // Thread-safety: none; owned by the session, used on the room's thread.
 // Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
@@ -38,15 +36,13 @@
 
 #include "protocol/connection.h"
 #include "protocol/delta_codec.h"
-#include "protocol/emulation_codec.h"
 #include "protocol/flat_id_map.h"
 #include "protocol/packet_seal.h"
-#include "protocol/replication_tracker.h"
 #include "protocol/shared_delta_codec.h"
-#include "protocol/soft_body_codec.h"
 #include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
 #include "relay/relay_counters.h"
+#include "relay/replication_plugin.h"
 
 namespace edgephys {
 
@@ -55,18 +51,14 @@ struct ReplicationFrame;
 class LockstepGroup;
 struct LockstepMember;
 
-enum class ReplicationMode : uint8_t { kFloat = 0, kEdgephys, kPhoton, kPaper };
-std::string_view ReplicationModeName(ReplicationMode mode);
-// Parses "float", "edgephys", "photon" or "paper"; false if unknown.
-bool ParseReplicationMode(std::string_view text, ReplicationMode* mode);
-
 // kAmbient: a PhyS-simulated entity that nothing reported touches (no open trigger overlap or
 // reported contact) and that no event named for `interaction_linger_s` (grab, release, hand or
 // reported contact): the background of a scene, sent at `ambient_hz`.
 enum class PriorityClass : uint8_t { kCritical = 0, kNormal, kAmbient, kResting };
 
 struct ReplicationConfig {
-  ReplicationMode mode = ReplicationMode::kEdgephys;
+  // A state format the relay does not carry (relay/replication_plugin.h); null: format 9 (or 2).
+  std::shared_ptr<const ReplicationPlugin> plugin;
   double critical_hz = 48;            // avatars, hands, grabbed objects
   double normal_hz = 12;              // everything else that moves
   // PhyS-simulated entities no user interacts with. A receiver interpolates them over a longer
@@ -80,7 +72,7 @@ struct ReplicationConfig {
   // event that names it (hand triggers and contacts, ReportContacts entities).
   double interaction_linger_s = 2.0;
   double resting_after_s = 1.0;       // unchanged this long: resting (sent only on change)
-  double fixed_rate_hz = 0;           // > 0: every class at this rate (benchmarks, photon)
+  double fixed_rate_hz = 0;           // > 0: every class at this rate (benchmarks)
   // Selective sync thresholds: an entity whose client copy is within these of the truth is
   // not resent. The defaults equal the quantisation's accuracy (position_step_m,
   // rotation_bound_deg): finer thresholds cannot bring a client closer than the lattice, and
@@ -92,7 +84,7 @@ struct ReplicationConfig {
   float position_step_m = 0.001f;
   float rotation_bound_deg = 0.1f;
   float bounds_half_extent_m = 1000.0f;  // room bounds: a cube centred on the origin
-  // edgephys mode: send state format 9 ("shared delta", protocol/shared_delta_codec.h); false
+  // Send state format 9 ("shared delta", protocol/shared_delta_codec.h); false
   // sends format 2. The room quantises, predicts and codes each (entity, baseline) delta once per
   // tick for every receiver on that baseline; each receiver only appends bits. Clients learn the
   // format from Joined. The default: at 100 users in one room 4.9x less relay CPU per delivered
@@ -108,20 +100,19 @@ struct ReplicationConfig {
   // ticks after the send in every stream of such a room. Off by default.
   bool shared_lockstep = false;
   uint32_t lockstep_ack_ticks = 3;
-  // Soft bodies: in edgephys mode they are sent as format 11 (residuals against acknowledged
-  // versions, protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held,
-  // an open touch event, or a Hand entity's centre within this distance of a particle: PhyS
-  // reports no contact events for soft bodies), else at normal_hz; other modes send
-  // format 5 (absolute particles) at normal_hz. 24 Hz, not critical_hz: a poked bunny costs
+  // Soft bodies are sent as format 11 (residuals against acknowledged versions,
+  // protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held, an open
+  // touch event, or a Hand entity's centre within this distance of a particle: PhyS reports no
+  // contact events for soft bodies), else at normal_hz. 24 Hz, not critical_hz: a poked bunny costs
   // ~4 bits a particle per version, and the display error during pokes it adds against 48 Hz
   // is measured by `edgephys-loadgen softbody --soft-touched-hz`.
   float soft_touch_margin_m = 0.1f;
   double soft_touched_hz = 24;
 };
 
-// True when rooms with `config` send format 9 (the edgephys default).
+// True when rooms with `config` send format 9 (the default).
 inline bool UsesSharedEncoding(const ReplicationConfig& config) {
-  return config.mode == ReplicationMode::kEdgephys && config.shared_encoding;
+  return config.plugin == nullptr && config.shared_encoding;
 }
 
 // True when rooms with `config` run lockstep receivers (relay/lockstep.h).
@@ -135,8 +126,8 @@ QuantizationConfig QuantizationOf(const ReplicationConfig& config);
 
 class ClientReplicator {
  public:
-  // An edgephys `config` whose quantisation MakeQuantizationParams refuses falls back to
-  // format 1 (exact floats).
+  // `config`'s quantisation must be one MakeQuantizationParams accepts (the relay's flags and
+  // the admin API refuse others); a refused one is replaced by the default quantisation.
   explicit ClientReplicator(const ReplicationConfig& config);
   ~ClientReplicator();
 
@@ -169,23 +160,16 @@ class ClientReplicator {
       static_cast<double>(kConnectionHeaderSize + 3 + kSealOverhead);
 
   // One per entity slot (Entity::slot), valid while `serial` equals the entity's. 32 bytes:
-  // every receiver reads one per entity each tick (the walk is bound by loading them), so
-  // what only some modes need is in ViewExtra.
+  // every receiver reads one per entity each tick (the walk is bound by loading them).
   struct View {
     uint32_t serial = 0;  // 0: free
     uint32_t id = 0;
     double last_sent = -1e9;
     double next_due = -1e9;
-    // edgephys mode: the entity version whose state the client has acknowledged within the
-    // thresholds (nothing to send until the version changes); 0 = none.
+    // The entity version whose state the client has acknowledged within the thresholds
+    // (nothing to send until the version changes); 0 = none.
     uint32_t settled_version = 0;
   };
-  // Beside views_ (same slot), only in paper mode (UsesViewExtras).
-  struct ViewExtra {
-    EntityState last_sent_state;  // paper mode's significance test
-    bool ever_sent = false;
-  };
-  bool UsesViewExtras() const { return paper_ != nullptr; }
   void ResetView(uint32_t slot);
   struct Candidate {
     double priority;
@@ -203,33 +187,20 @@ class ClientReplicator {
   void TickEntities(const ReplicationFrame& frame, uint32_t self, double now, double resend_after,
                     Connection* connection, PacketWriter* out, RelayCounters& counters);
   void Flush(double now, Connection* connection, PacketWriter* out, RelayCounters& counters);
+  void BeginPayload();  // starts a payload in payload_ with this receiver's stream
   // Lockstep (relay/lockstep.cc): sends copies of the group's payloads of this tick.
   void CopyCanonical(const LockstepGroup& group, uint32_t self, double now,
                      Connection& connection, PacketWriter& out, RelayCounters& counters);
   // Lockstep leave: the entity state of `canonical` (views and stream), with `fixes` applied.
   void AdoptCanonical(const ClientReplicator& canonical,
                       std::span<const SharedDeltaStream::PayloadFix> fixes);
-  // Soft bodies: format 11 (edgephys mode, soft_) or format 5: the latest particle set of each
-  // changed soft body, in chunks, resent until every chunk of that version is acknowledged.
-  void TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
-                      double resend_after, Connection& connection, PacketWriter& out,
-                      RelayCounters& counters);
+  // Soft bodies (format 11, soft_): residuals of each due soft body's particles against what
+  // the client acknowledged.
   struct SoftView {
-    uint32_t sent_version = 0;
-    uint32_t acked_version = 0;
-    uint32_t chunk_count = 0;
-    uint64_t acked_chunks = 0;  // bit i: chunk i of sent_version acknowledged
     double sent_at = -1e9;
     double next_due = -1e9;
   };
-  struct SoftRecord {
-    bool valid = false;
-    uint16_t sequence = 0;
-    uint32_t id = 0;
-    uint32_t version = 0;
-    uint32_t chunk = 0;
-  };
-  void TickSoftDeltas(const ReplicationFrame& frame, uint32_t self, double now,
+  void TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
                       double resend_after, Connection& connection, PacketWriter& out,
                       RelayCounters& counters);
   bool FlushSoft(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
@@ -238,27 +209,23 @@ class ClientReplicator {
   // this receiver: they go out at once.
   static bool Resumed(const Entity& e, const SoftView& v, double now);
   std::unordered_map<uint32_t, SoftView> soft_views_;
-  std::unique_ptr<SoftDeltaSender> soft_;            // edgephys mode: format 11
+  std::unique_ptr<SoftDeltaSender> soft_;            // format 11
   std::vector<std::pair<uint32_t, const Entity*>> soft_due_;
   const std::vector<Vec3f>* hands_ = nullptr;        // this tick's Hand entity positions
-  std::vector<SoftRecord> soft_records_;  // ring indexed by packet sequence; empty until a
-                                          // format-5 soft body is first sent
 
   ReplicationConfig config_;
-  std::unique_ptr<StateEncoder> encoder_;
-  PaperEmulationEncoder* paper_ = nullptr;  // encoder_ when mode is kPaper
-  DeltaEncoder* delta_ = nullptr;           // encoder_ when mode is kEdgephys (format 2)
-  SharedDeltaStream* shared_ = nullptr;     // encoder_ when kEdgephys with shared_encoding
+  // Exactly one of the three streams: format 9, format 2 or a plug-in's.
+  std::unique_ptr<SharedDeltaStream> shared_;
+  std::unique_ptr<DeltaEncoder> delta_;
+  std::unique_ptr<PluginStream> plugin_;
+  size_t delta_in_payload_ = 0;             // format 2: entities in the open payload
   uint64_t shared_hits_counted_ = 0;        // shared_'s stats already added to the counters
   uint64_t shared_entities_counted_ = 0;
-  ReplicationTracker tracker_;              // acks for float / emulation modes
   std::vector<View> views_;            // by entity slot: walked densely, no lookups
-  std::vector<ViewExtra> view_extras_;  // by entity slot, UsesViewExtras() only
   FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
   size_t live_views_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> selected_;
-  std::vector<std::pair<uint32_t, uint32_t>> in_payload_;  // (id, version)
   std::vector<uint8_t> payload_;
   double budget_bytes_ = 0;
   double bytes_per_entity_ = 16;  // running estimate of one encoded entity

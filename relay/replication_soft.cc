@@ -1,5 +1,5 @@
-// ClientReplicator's soft bodies: format 11 (edgephys mode, residuals against acknowledged
-// versions, protocol/soft_delta_stream.h) or format 5 (absolute particles in chunks), at
+// ClientReplicator's soft bodies: format 11 (residuals against acknowledged versions,
+// protocol/soft_delta_stream.h), at
 // soft_touched_hz while a hand touches a body, and the new world's first particles at once
 // after a PhyS failover. The rest of the class is in replication.cc.
 #include <algorithm>
@@ -9,52 +9,6 @@
 #include "relay/replication.h"
 
 namespace edgephys {
-
-void ClientReplicator::TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
-                                      double resend_after, Connection& connection,
-                                      PacketWriter& out, RelayCounters& counters) {
-  if (soft_ != nullptr) {
-    TickSoftDeltas(frame, self, now, resend_after, connection, out, counters);
-    return;
-  }
-  for (const Entity* entity : frame.soft) {
-    const Entity& e = *entity;
-    const uint32_t id = e.id;
-    if (e.nodes_version == 0 || e.owner == self || e.nodes.empty()) continue;
-    SoftView& v = soft_views_[id];
-    const bool resumed = Resumed(e, v, now);  // the new world's first particles: at once
-    if (!resumed) {
-      if (now + kEpsilon < v.next_due || e.nodes_version <= v.acked_version) continue;
-      if (e.nodes_version == v.sent_version && now - v.sent_at < resend_after) continue;
-    }
-    if (config_.bandwidth_budget_bytes_per_s > 0 && budget_bytes_ <= 0) return;
-    const std::vector<Vec3f>& nodes = resumed ? e.resumed_nodes : e.nodes;
-    const uint32_t version = resumed ? e.resumed_version : e.nodes_version;
-    uint32_t first = 0, chunk = 0;
-    while (first < nodes.size() && chunk < 64) {
-      uint32_t n = 0;
-      size_t size = EncodeSoftBodyChunk(time_ms_, id, nodes, first, config_.position_step_m,
-                                        payload_, &n);
-      if (size == 0) break;
-      Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
-      if (seq.ok()) {
-        if (soft_records_.empty()) soft_records_.resize(ReplicationTracker::kPacketRecords);
-        soft_records_[*seq % soft_records_.size()] = {true, *seq, id, version, chunk};
-        RelayCounters::Inc(counters.entity_updates_sent);
-      }
-      budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
-      first += n;
-      ++chunk;
-    }
-    if (v.sent_version != version) v.acked_chunks = 0;
-    v.sent_version = version;
-    v.chunk_count = chunk;
-    v.sent_at = now;
-    double interval = 1.0 / (config_.fixed_rate_hz > 0 ? config_.fixed_rate_hz : config_.normal_hz);
-    v.next_due += interval;
-    if (v.next_due < now - interval) v.next_due = now + interval;
-  }
-}
 
 bool ClientReplicator::Resumed(const Entity& e, const SoftView& v, double now) {
   // After a PhyS failover the receivers get the new world's first particles at once: the jump
@@ -103,7 +57,7 @@ bool ClientReplicator::FlushSoft(double now, Connection& connection, PacketWrite
   return true;
 }
 
-void ClientReplicator::TickSoftDeltas(const ReplicationFrame& frame, uint32_t self, double now,
+void ClientReplicator::TickSoftBodies(const ReplicationFrame& frame, uint32_t self, double now,
                                       double resend_after, Connection& connection,
                                       PacketWriter& out, RelayCounters& counters) {
   hands_ = &frame.hands;

@@ -24,7 +24,6 @@ class AckedStateTest : public RoomHostTest, public ::testing::WithParamInterface
  protected:
   AckedStateTest() {
     config_.tick_rate_hz = 60;
-    config_.replication.mode = ReplicationMode::kEdgephys;
     config_.replication.shared_encoding = GetParam();
     host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
                                        0.0);

@@ -174,7 +174,7 @@ void Room::ScheduleNextTick(double now) {
 }
 
 void Room::PrepareStates(double now) {
-  if (config_.replication.mode != ReplicationMode::kEdgephys) return;
+  if (config_.replication.plugin != nullptr) return;  // a plug-in encodes per receiver
   if (!quantization_tried_) {
     quantization_tried_ = true;
     auto params = MakeQuantizationParams(QuantizationOf(config_.replication));

@@ -35,14 +35,8 @@ bool ValidScale(const schema::Vec3& s) {
 constexpr size_t kMaxEarlyStates = 1024;
 
 uint8_t StateFormatOf(const ReplicationConfig& config) {
-  switch (config.mode) {
-    case ReplicationMode::kEdgephys:
-      return UsesSharedEncoding(config) ? kSharedDeltaStateFormat : kDeltaStateFormat;
-    case ReplicationMode::kPhoton: return kFormatPhoton;
-    case ReplicationMode::kPaper: return kFormatPaper;
-    case ReplicationMode::kFloat: return 1;
-  }
-  return 1;
+  if (config.plugin != nullptr) return config.plugin->state_format();
+  return UsesSharedEncoding(config) ? kSharedDeltaStateFormat : kDeltaStateFormat;
 }
 
 // Rewrites the owner recorded in a stored ControlMessage{Spawn} (in place; same size).

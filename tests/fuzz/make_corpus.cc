@@ -15,7 +15,7 @@
 #include "protocol/byte_io.h"
 #include "protocol/container_builder.h"
 #include "protocol/delta_codec.h"
-#include "protocol/emulation_codec.h"
+#include "loadgen/emulation/emulation_codec.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/packet_seal.h"

@@ -27,7 +27,7 @@
 
 #include "physics_backend/worker_protocol.h"
 #include "protocol/delta_codec.h"
-#include "protocol/emulation_codec.h"
+#include "loadgen/emulation/emulation_codec.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
 #include "protocol/quantize.h"

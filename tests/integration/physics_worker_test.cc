@@ -182,14 +182,9 @@ float MaxDistance(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
 // body jitters under the plate on its own (its contact particles move 5-9 mm per 1/60 s step,
 // and 4-13 mm between two 12 Hz updates in normal running), so the bound for every particle is
 // that of the body's own motion over one or two steps.
-// Both soft-body wires: format 11 (edgephys mode: residuals against acknowledged versions) and
-// format 5 (the baseline modes: absolute particles in chunks).
-class SoftFailover : public ::testing::TestWithParam<ReplicationMode> {};
-
-TEST_P(SoftFailover, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParticles) {
-  RelayConfig config = LoopbackWorld::DefaultConfig();
-  config.room_defaults.replication.mode = GetParam();
-  LoopbackWorld world(config);
+// Soft bodies go as format 11 (residuals against acknowledged versions).
+TEST(SoftFailover, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedParticles) {
+  LoopbackWorld world(LoopbackWorld::DefaultConfig());
   WorkerProcess reaper;
   ASSERT_NO_FATAL_FAILURE(reaper.StartAttached(world));
   const pid_t worker = reaper.pid;
@@ -267,12 +262,6 @@ TEST_P(SoftFailover, KillMinusNineDuringASoftBodyDeformationKeepsTheDeformedPart
   for (const Vec3f& q : trace.nodes) top_after = std::max(top_after, q.y);
   EXPECT_LT(top_after, 0.9f * top) << "the bunny sprang back to its spawn shape";
 }
-
-INSTANTIATE_TEST_SUITE_P(PhysicsWorker, SoftFailover,
-                         ::testing::Values(ReplicationMode::kEdgephys, ReplicationMode::kPhoton),
-                         [](const ::testing::TestParamInfo<ReplicationMode>& p) {
-                           return std::string(ReplicationModeName(p.param));
-                         });
 
 }  // namespace
 }  // namespace edgephys::testing

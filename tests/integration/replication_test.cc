@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 
+#include "loadgen/emulation/emulation_plugins.h"
 #include "tests/integration/sim_world.h"
 
 namespace edgephys::testing {
@@ -20,10 +21,13 @@ struct Room2 {
   Counter counter;
   Client* a;
   Client* b;
-  explicit Room2(const ReplicationConfig& replication, NetworkConditions net = {})
+  explicit Room2(const ReplicationConfig& replication, NetworkConditions net = {},
+                 bool decode_emulations = true)
       : world(net, Config(replication)) {
+    ClientConfig receiver;  // decodes the emulations' formats (loadgen/emulation/)
+    if (decode_emulations) receiver.state_decoder = EmulationStateDecoder();
     a = &world.AddClient(MintToken("rep", 1));
-    b = &world.AddClient(MintToken("rep", 2), &counter);
+    b = &world.AddClient(MintToken("rep", 2), &counter, receiver);
     EXPECT_TRUE(world.RunUntil([&] {
       return a->state() == ClientState::kConnected && b->state() == ClientState::kConnected;
     }, 5.0));
@@ -57,7 +61,7 @@ struct Room2 {
 
 TEST(Replication, CriticalEntitiesGoAt48HzNormalAt12HzRestingOnlyOnChange) {
   ReplicationConfig r;
-  r.mode = ReplicationMode::kFloat;
+  UseReplicationMode(ReplicationMode::kFloat, &r);
   Room2 room(r);
   auto hand = *room.a->Spawn({.flags = 1u << 4 /* Hand */});
   auto cube = *room.a->Spawn({});
@@ -74,7 +78,7 @@ TEST(Replication, CriticalEntitiesGoAt48HzNormalAt12HzRestingOnlyOnChange) {
 
 TEST(Replication, PriorityAccumulatorSendsEveryEntityUnderATooSmallBudget) {
   ReplicationConfig r;
-  r.mode = ReplicationMode::kFloat;
+  UseReplicationMode(ReplicationMode::kFloat, &r);
   r.bandwidth_budget_bytes_per_s = 3000;  // ~90 updates/s of 33 bytes; 40 entities want 480/s
   Room2 room(r);
   std::vector<uint32_t> ids;
@@ -106,7 +110,7 @@ TEST(Replication, PriorityAccumulatorSendsEveryEntityUnderATooSmallBudget) {
 TEST(Replication, EmulationModesDeliverExactStates) {
   for (ReplicationMode mode : {ReplicationMode::kPhoton, ReplicationMode::kPaper}) {
     ReplicationConfig r;
-    r.mode = mode;
+    UseReplicationMode(mode, &r);
     r.fixed_rate_hz = 12;
     Room2 room(r);
     std::vector<uint32_t> ids;
@@ -125,9 +129,36 @@ TEST(Replication, EmulationModesDeliverExactStates) {
   }
 }
 
+// The SDK decodes formats 9, 2 and 11 only: a relay sending an emulation's format to a client
+// without the matching decoder gets every payload refused and counted, nothing applied.
+TEST(Replication, FormatsTheSdkDoesNotCarryAreRefusedAndCounted) {
+  for (ReplicationMode mode :
+       {ReplicationMode::kFloat, ReplicationMode::kPhoton, ReplicationMode::kPaper}) {
+    ReplicationConfig r;
+    UseReplicationMode(mode, &r);
+    r.fixed_rate_hz = 12;
+    Room2 room(r, {}, /*decode_emulations=*/false);
+    EXPECT_EQ(room.b->state_format(), ReplicationPluginFor(mode)->state_format());
+    auto id = *room.a->Spawn({});
+    room.Move({id}, 12, 1.0);
+    room.world.RunFor(0.3);
+    EXPECT_GT(room.b->state_payloads_refused(), 5u) << ReplicationModeName(mode);
+    EXPECT_EQ(room.counter.updates[id], 0) << ReplicationModeName(mode);
+    EXPECT_EQ(room.b->state(), ClientState::kConnected) << ReplicationModeName(mode);
+  }
+  // The product's format is decoded without any plug-in, and nothing is refused.
+  Room2 room(ReplicationConfig{}, {}, /*decode_emulations=*/false);
+  EXPECT_EQ(room.b->state_format(), kSharedDeltaStateFormat);
+  auto id = *room.a->Spawn({});
+  room.Move({id}, 12, 1.0);
+  room.world.RunFor(0.3);
+  EXPECT_GT(room.counter.updates[id], 5);
+  EXPECT_EQ(room.b->state_payloads_refused(), 0u);
+}
+
 TEST(Replication, PaperModeSendsOnlySignificantFields) {
   ReplicationConfig r;
-  r.mode = ReplicationMode::kPaper;
+  UseReplicationMode(ReplicationMode::kPaper, &r);
   r.fixed_rate_hz = 12;
   r.position_threshold_m = 0.01f;
   Room2 room(r);

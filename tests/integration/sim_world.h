@@ -36,11 +36,12 @@ class SimWorld {
     relay_ = std::make_unique<Relay>(config, relay_sim_.get(), &counters_);
   }
 
-  Client& AddClient(const std::vector<uint8_t>& token, ClientListener* listener = nullptr) {
+  Client& AddClient(const std::vector<uint8_t>& token, ClientListener* listener = nullptr,
+                    const ClientConfig& config = {}) {
     uint16_t port = static_cast<uint16_t>(20000 + raws_.size());
     raws_.push_back(network_.CreateSocket(Endpoint(asio::ip::make_address("10.0.0.2"), port)));
     sims_.push_back(std::make_unique<NetworkSimulator>(raws_.back().get(), Seeded(100 + port)));
-    clients_.push_back(std::make_unique<Client>(ClientConfig{}, sims_.back().get(), listener));
+    clients_.push_back(std::make_unique<Client>(config, sims_.back().get(), listener));
     (void)clients_.back()->Connect(ToRelayAddress(relay_endpoint_), token, now_);
     return *clients_.back();
   }

@@ -30,7 +30,7 @@ TEST(SoftBodyRate, TouchedByAHandItGoesAtTheTouchedRateOtherwiseAtTheNormalRate)
   RelayConfig config = LoopbackWorld::DefaultConfig();
   config.room_defaults.tick_rate_hz = 60;
   ReplicationConfig& rep = config.room_defaults.replication;
-  ASSERT_EQ(rep.mode, ReplicationMode::kEdgephys);
+  ASSERT_EQ(rep.plugin, nullptr);
   ASSERT_EQ(rep.soft_touched_hz, 24);  // the default under test
   ASSERT_EQ(rep.normal_hz, 12);
   LoopbackWorld world(config);

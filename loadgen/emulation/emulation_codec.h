@@ -1,6 +1,7 @@
 // Emulation formats: the same relay speaking like the baselines it is compared with, so that a
 // benchmark measures all of them side by side in one run (docs/benchmarks.md,
-// "Relay bandwidth"). Not for production rooms.
+// "Relay bandwidth"). Linked only by the load generator, bench/ and tests (through the
+// plug-ins of loadgen/emulation/emulation_plugins.h), never by the relay binary or libedgephys.
 //
 // Format 3, "photon": one message per entity per send, full float transform, each message
 // carrying the overhead of Photon's binary UDP protocol (a 12-byte command header per message,
@@ -22,13 +23,12 @@
 #include <span>
 
 #include "protocol/state_codec.h"
+#include "relay/replication_plugin.h"  // kFieldPosition, kFieldRotation
 
 namespace edgephys {
 
-inline constexpr uint8_t kFormatPhoton = static_cast<uint8_t>(StateFormat::kPhoton);
-inline constexpr uint8_t kFormatPaper = static_cast<uint8_t>(StateFormat::kPaper);
-inline constexpr uint8_t kFieldPosition = 1u << 0;
-inline constexpr uint8_t kFieldRotation = 1u << 1;
+inline constexpr uint8_t kFormatPhoton = 3;  // ids reserved in protocol/state_codec.h
+inline constexpr uint8_t kFormatPaper = 4;
 
 class PhotonEmulationEncoder final : public ByteStateEncoder {
  public:
@@ -58,4 +58,4 @@ Status DecodeEmulationBatch(std::span<const uint8_t> payload, StateBatch* batch,
 
 }  // namespace edgephys
 
-#include "protocol/emulation_codec_inl.h"
+#include "loadgen/emulation/emulation_codec_inl.h"

@@ -1,4 +1,4 @@
-#include "protocol/emulation_codec.h"
+#include "loadgen/emulation/emulation_codec.h"
 
 #include "protocol/byte_io.h"
 
