@@ -15,6 +15,7 @@
 
 #include "client/client_endpoint.h"
 #include "client/client_testing.h"
+#include "client/state_decoder_plugin.h"
 #include "protocol/testing/connection_doubles.h"
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
@@ -147,11 +148,25 @@ Bytes ScriptedToken() {
   return *SignJoinToken(t, "scripted");
 }
 
-// A client joined to room "r" (own block kOwnBase) through a scripted relay.
+// Format 1 (exact floats) for the scripted relay's states: the SDK decodes only the relay's
+// formats (9, 2, 11), so these tests give the client a plug-in for the simplest one.
+class Format1Decoder final : public StateDecoderPlugin {
+ public:
+  Status Decode(std::span<const uint8_t> payload, const Known&, StateBatch* batch) const override {
+    return DecodeStateBatch(payload, batch);
+  }
+};
+
+// A client joined to room "r" (own block kOwnBase, state format 1: Joined's default) through
+// a scripted relay.
 class ClientReceiveTest : public ::testing::Test {
  protected:
-  explicit ClientReceiveTest(const ClientConfig& config = ClientConfig{})
+  explicit ClientReceiveTest(const ClientConfig& config = WithFormat1(ClientConfig{}))
       : client_(Unsealed(config), &socket_, &listener_) {}
+  static ClientConfig WithFormat1(ClientConfig config) {
+    config.state_decoder = std::make_shared<Format1Decoder>();
+    return config;
+  }
   // The scripted relay does not seal: its Accept carries no key.
   static ClientConfig Unsealed(ClientConfig config) {
     config.require_packet_auth = false;
@@ -272,13 +287,33 @@ TEST_F(ClientReceiveTest, StateUpdatesASpawnedEntityAndNotifies) {
   EXPECT_TRUE(relay_handler_.Acked(last_sequence_));
 }
 
+// Without a decoder for it, a format the SDK does not carry is refused and counted, and neither
+// a malformed payload of a format it does carry nor one of another room's format applies.
+class ClientRefusalTest : public ClientReceiveTest {
+ protected:
+  ClientRefusalTest() : ClientReceiveTest(ClientConfig{}) {}
+};
+
+TEST_F(ClientRefusalTest, StatesOfAFormatTheSdkDoesNotDecodeAreRefusedAndCounted) {
+  const uint32_t id = kOtherBase + 5;
+  Spawn(id, 1.0f);
+  SendStates({At(id, 2.0f)}, 1234);  // format 1, announced by Joined, no decoder
+  EXPECT_EQ(client_.state_payloads_refused(), 1u);
+  EXPECT_EQ(client_.FindEntity(id)->state.position.x, 1.0f);  // the spawn's, untouched
+  SendPayload(Bytes{2, 1, 2, 3});  // format 2 in a room that announced 1
+  SendPayload(Bytes{3, 0, 0, 0, 0, 0, 0});         // an emulation's id
+  EXPECT_EQ(client_.state_payloads_refused(), 3u);
+  EXPECT_TRUE(listener_.updated.empty());
+  EXPECT_EQ(client_.state(), ClientState::kConnected);
+}
+
 // ClientConfig::decode_states = false (load generators): the state packets are acknowledged
 // exactly as by a decoding client, but nothing is decoded or reported; reliable messages are.
 class ClientNoDecodeTest : public ClientReceiveTest {
  protected:
   ClientNoDecodeTest() : ClientReceiveTest(Config()) {}
   static ClientConfig Config() {
-    ClientConfig config;
+    ClientConfig config = WithFormat1({});
     config.decode_states = false;
     return config;
   }
@@ -468,7 +503,7 @@ class ClientArrivalTest : public ClientReceiveTest {
  protected:
   ClientArrivalTest() : ClientReceiveTest(Config()) { socket_.SetStamps(kStamps); }
   static ClientConfig Config() {
-    ClientConfig config;
+    ClientConfig config = WithFormat1({});
     config.record_arrival_times = true;
     return config;
   }

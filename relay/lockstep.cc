@@ -143,8 +143,8 @@ void LockstepGroup::Leave(ClientReplicator& r, uint32_t due, RelayCounters& coun
 
 bool LockstepGroup::TryRejoin(ClientReplicator& r, const ReplicationFrame& frame,
                               RelayCounters& counters) {
-  SharedDeltaStream& mine = *r.shared_;
-  SharedDeltaStream& canonical = *canonical_->shared_;
+  SharedDeltaStream& mine = r.shared_->codec();
+  SharedDeltaStream& canonical = canonical_->shared_->codec();
   // Entities whose records differ (typically ones at rest: each stream acknowledged its own
   // send of the same version, in different ticks) are allowed up to a budget: the canonical
   // stream forgets them, so its next send of each is a keyframe, to every lockstep receiver.
@@ -230,8 +230,6 @@ void ClientReplicator::AdoptCanonical(const ClientReplicator& canonical,
   live_views_ = canonical.live_views_;
   bytes_per_entity_ = canonical.bytes_per_entity_;
   shared_->AdoptFrom(*canonical.shared_, fixes);
-  shared_hits_counted_ = shared_->stats().cache_hits;
-  shared_entities_counted_ = shared_->stats().entities;
 }
 
 }  // namespace edgephys

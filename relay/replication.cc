@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "relay/entity.h"
+#include "relay/entity_streams.h"
 #include "relay/lockstep.h"
 
 namespace edgephys {
@@ -37,22 +38,10 @@ QuantizationConfig QuantizationOf(const ReplicationConfig& config) {
 }
 
 ClientReplicator::ClientReplicator(const ReplicationConfig& config)
-    : config_(config), payload_(kMaxUnreliablePayload) {
-  if (config_.plugin != nullptr) {
-    plugin_ = config_.plugin->NewStream(config_);
-  } else {
-    auto params = MakeQuantizationParams(QuantizationOf(config_));
-    if (!params.ok()) params = MakeQuantizationParams(QuantizationConfig{});
-    if (UsesSharedEncoding(config_)) {
-      SharedDeltaStreamOptions options;
-      if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
-        include_own_ = true;
-        options.ack_delay_ticks = config_.lockstep_ack_ticks;
-      }
-      shared_ = std::make_unique<SharedDeltaStream>(*params, options);
-    } else {
-      delta_ = std::make_unique<DeltaEncoder>(*params);
-    }
+    : config_(config), payload_(kMaxUnreliablePayload), stream_(NewEntityStream(config_)) {
+  if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
+    shared_ = dynamic_cast<SharedDeltaEntityStream*>(stream_.get());
+    include_own_ = shared_ != nullptr;
   }
   soft_ = std::make_unique<SoftDeltaSender>(
       SoftDeltaSenderConfig{config_.position_step_m, config_.position_threshold_m});
@@ -125,7 +114,7 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
         __builtin_prefetch(&views_[ahead]);
         __builtin_prefetch(reinterpret_cast<const char*>(&views_[ahead]) + sizeof(View) - 1);
       }
-      if (shared_ != nullptr) shared_->Prefetch(ahead);
+      stream_->Prefetch(ahead);
     }
     const Entity& e = *frame.by_id[i];
     const uint32_t id = e.id;
@@ -134,22 +123,9 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
-    bool want = false;
-    if (plugin_ != nullptr) {
-      want = plugin_->Want(e, now, resend_after, &fields);
-    } else {
-      const DeltaEncoder::UpdateNeed need =
-          shared_ != nullptr
-              ? (e.shared != nullptr
-                     ? shared_->Need(id, *e.shared, e.state, config_.position_threshold_m,
-                                     config_.rotation_threshold_deg, now, resend_after)
-                     : DeltaEncoder::UpdateNeed::kSend)
-              : delta_->Need(id, e.state, config_.position_threshold_m,
-                             config_.rotation_threshold_deg, now, resend_after);
-      if (need == DeltaEncoder::UpdateNeed::kAckedWithin) v.settled_version = e.version;
-      want = need == DeltaEncoder::UpdateNeed::kSend;
-    }
-    if (!want) continue;
+    const StreamNeed need = stream_->Want(e, now, resend_after, &fields);
+    if (need == StreamNeed::kSettled) v.settled_version = e.version;
+    if (need != StreamNeed::kSend) continue;
     double waiting = std::max(now - v.last_sent, IntervalOf(cls));
     candidates_.push_back({Weight(cls) * std::min(waiting, 60.0), id, &e, fields});
   }
@@ -178,21 +154,11 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
 
   BeginPayload();
   for (const Candidate& c : selected_) {
-    auto add = [&]() {
-      if (plugin_ != nullptr) return plugin_->Add(*c.entity, c.fields);
-      if (shared_ != nullptr) {  // the room codes the body once for every receiver
-        return c.entity->shared != nullptr && c.entity->prepared_valid &&
-               shared_->Add(c.id, *c.entity->shared);
-      }
-      // format 2: the room quantised it once for every receiver
-      return delta_->Add(c.entity->state, c.entity->prepared_valid ? &c.entity->prepared : nullptr);
-    };
-    if (!add()) {
+    if (!stream_->Add(*c.entity, c.fields)) {
       Flush(now, connection, out, counters);
       BeginPayload();
-      if (!add()) continue;
+      if (!stream_->Add(*c.entity, c.fields)) continue;
     }
-    if (delta_ != nullptr) ++delta_in_payload_;
     if (c.entity->owner == self) ++own_in_payload_;  // include_own_: not counted as delivered
     if (lockstep_capture_ != nullptr) payload_owners_.push_back(c.entity->owner);
     View& v = views_[c.entity->slot];
@@ -217,15 +183,10 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
 
 void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* out,
                              RelayCounters& counters) {
-  const size_t entities = shared_ != nullptr ? shared_->count()
-                          : plugin_ != nullptr ? plugin_->count()
-                                               : delta_in_payload_;
+  const size_t entities = stream_->count();
   const size_t own = own_in_payload_;
   own_in_payload_ = 0;
-  delta_in_payload_ = 0;
-  const size_t size = shared_ != nullptr ? shared_->Finish()
-                      : plugin_ != nullptr ? plugin_->Finish()
-                                           : delta_->Finish();
+  const size_t size = stream_->Finish();
   if (size == 0) {
     payload_owners_.clear();
     return;
@@ -235,32 +196,19 @@ void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* o
   Result<uint16_t> seq =
       lockstep_capture_ != nullptr
           ? Result<uint16_t>(lockstep_capture_->Capture({payload_.data(), size}, entities,
-                                                        shared_->open_payload(), payload_owners_))
+                                                        shared_->codec().open_payload(),
+                                                        payload_owners_))
           : connection->SendUnreliable({payload_.data(), size}, now, *out);
   payload_owners_.clear();
   if (seq.ok()) {
-    if (delta_ != nullptr) {
-      delta_->OnSent(*seq, now);
-    } else if (shared_ != nullptr) {
-      shared_->OnSent(*seq, now);
-      if (lockstep_capture_ != nullptr) shared_->OnPacketAcked(*seq);
-    } else {
-      plugin_->OnSent(*seq, now);
-    }
-    if (lockstep_capture_ == nullptr) {  // the canonical's are counted as its copies are sent
+    stream_->OnSent(*seq, now);
+    if (lockstep_capture_ != nullptr) {
+      stream_->OnAcked(*seq);
+    } else {  // the canonical's are counted as its copies are sent
       RelayCounters::Inc(counters.entity_updates_sent, entities - own);
     }
-    if (shared_ != nullptr) {
-      const SharedDeltaStreamStats& st = shared_->stats();
-      RelayCounters::Inc(counters.shared_bodies_cached, st.cache_hits - shared_hits_counted_);
-      RelayCounters::Inc(counters.shared_bodies_coded, (st.entities - shared_entities_counted_) -
-                                                           (st.cache_hits - shared_hits_counted_));
-    }
   }
-  if (shared_ != nullptr) {
-    shared_hits_counted_ = shared_->stats().cache_hits;
-    shared_entities_counted_ = shared_->stats().entities;
-  }
+  stream_->Count(seq.ok(), counters);
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
   if (entities > 0) {
     // Running estimate of one entity's encoded size, for budget decisions before encoding.
@@ -269,14 +217,6 @@ void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* o
   }
 }
 
-void ClientReplicator::BeginPayload() {
-  if (shared_ != nullptr) {
-    shared_->Begin(payload_, time_ms_);
-  } else if (plugin_ != nullptr) {
-    plugin_->Begin(payload_, time_ms_);
-  } else {
-    delta_->Begin(payload_, time_ms_);
-  }
-}
+void ClientReplicator::BeginPayload() { stream_->Begin(payload_, time_ms_); }
 
 }  // namespace edgephys

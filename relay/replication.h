@@ -15,7 +15,7 @@
 // Formats: 9 (shared delta: the room encodes each entity's body once per tick for all
 // receivers, Room::PrepareStates, Entity::shared; the default), 2 (quantized delta against
 // acknowledged baselines, per receiver; ReplicationConfig::shared_encoding false, kept for one
-// release), or a plug-in's (relay/replication_plugin.h: the benchmark emulations). Soft bodies:
+// release), or a plug-in's (relay/entity_stream.h: the benchmark emulations). Soft bodies:
 // format 11.
 //
 // Thread-safety: none; owned by the session, used on the room's thread.
@@ -42,7 +42,7 @@
 #include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
 #include "relay/relay_counters.h"
-#include "relay/replication_plugin.h"
+#include "relay/entity_streams.h"
 
 namespace edgephys {
 
@@ -57,7 +57,7 @@ struct LockstepMember;
 enum class PriorityClass : uint8_t { kCritical = 0, kNormal, kAmbient, kResting };
 
 struct ReplicationConfig {
-  // A state format the relay does not carry (relay/replication_plugin.h); null: format 9 (or 2).
+  // A state format the relay does not carry (relay/entity_stream.h); null: format 9 (or 2).
   std::shared_ptr<const ReplicationPlugin> plugin;
   double critical_hz = 48;            // avatars, hands, grabbed objects
   double normal_hz = 12;              // everything else that moves
@@ -214,19 +214,15 @@ class ClientReplicator {
   const std::vector<Vec3f>* hands_ = nullptr;        // this tick's Hand entity positions
 
   ReplicationConfig config_;
-  // Exactly one of the three streams: format 9, format 2 or a plug-in's.
-  std::unique_ptr<SharedDeltaStream> shared_;
-  std::unique_ptr<DeltaEncoder> delta_;
-  std::unique_ptr<PluginStream> plugin_;
-  size_t delta_in_payload_ = 0;             // format 2: entities in the open payload
-  uint64_t shared_hits_counted_ = 0;        // shared_'s stats already added to the counters
-  uint64_t shared_entities_counted_ = 0;
+  std::vector<uint8_t> payload_;
+  // The receiver's rigid-body format (relay/entity_streams.h: format 9, 2 or a plug-in's).
+  std::unique_ptr<EntityStream> stream_;
+  SharedDeltaEntityStream* shared_ = nullptr;  // stream_, in lockstep rooms only
   std::vector<View> views_;            // by entity slot: walked densely, no lookups
   FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
   size_t live_views_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> selected_;
-  std::vector<uint8_t> payload_;
   double budget_bytes_ = 0;
   double bytes_per_entity_ = 16;  // running estimate of one encoded entity
   double last_tick_ = -1;

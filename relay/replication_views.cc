@@ -15,21 +15,13 @@ void ClientReplicator::OnPacketAcked(uint16_t sequence) {
     (void)member_->OnAcked(sequence);  // unknown or stale sequences: ignored
     return;
   }
-  if (shared_ != nullptr) {
-    shared_->OnPacketAcked(sequence);
-  } else if (plugin_ != nullptr) {
-    plugin_->OnAcked(sequence);
-  } else {
-    delta_->OnPacketAcked(sequence);
-  }
+  stream_->OnAcked(sequence);
 }
 
 void ClientReplicator::Forget(uint32_t entity_id) {
   soft_views_.erase(entity_id);
   soft_->Forget(entity_id);
-  if (shared_ != nullptr) shared_->Forget(entity_id);
-  if (plugin_ != nullptr) plugin_->Forget(entity_id);
-  if (delta_ != nullptr) delta_->Forget(entity_id);
+  stream_->Forget(entity_id);
   if (const uint32_t* slot = view_slot_of_.Find(entity_id); slot != nullptr) {
     ResetView(*slot);
     view_slot_of_.Erase(entity_id);

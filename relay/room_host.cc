@@ -8,6 +8,7 @@
 
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
+#include "relay/entity_streams.h"
 
 namespace edgephys {
 namespace {
@@ -34,10 +35,6 @@ bool ValidScale(const schema::Vec3& s) {
 // States held per member for entities whose spawn has not arrived yet.
 constexpr size_t kMaxEarlyStates = 1024;
 
-uint8_t StateFormatOf(const ReplicationConfig& config) {
-  if (config.plugin != nullptr) return config.plugin->state_format();
-  return UsesSharedEncoding(config) ? kSharedDeltaStateFormat : kDeltaStateFormat;
-}
 
 // Rewrites the owner recorded in a stored ControlMessage{Spawn} (in place; same size).
 void SetStoredOwner(std::vector<uint8_t>& spawn, uint32_t owner) {

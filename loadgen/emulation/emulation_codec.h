@@ -23,7 +23,7 @@
 #include <span>
 
 #include "protocol/state_codec.h"
-#include "relay/replication_plugin.h"  // kFieldPosition, kFieldRotation
+#include "relay/entity_stream.h"  // kFieldPosition, kFieldRotation
 
 namespace edgephys {
 

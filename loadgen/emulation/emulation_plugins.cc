@@ -24,10 +24,11 @@ float AngleDeg(const Quatf& a, const Quatf& b) {
 }
 
 // Format 1: exact floats, every version until acknowledged (ReplicationTracker).
-class FloatStream final : public PluginStream {
+class FloatStream final : public EntityStream {
  public:
-  bool Want(const Entity& e, double now, double resend_after_s, uint8_t*) override {
-    return tracker_.NeedsSend(e.id, e.version, now, resend_after_s);
+  StreamNeed Want(const Entity& e, double now, double resend_after_s, uint8_t*) override {
+    return tracker_.NeedsSend(e.id, e.version, now, resend_after_s) ? StreamNeed::kSend
+                                                                    : StreamNeed::kSkip;
   }
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override {
     encoder_.Begin(out, time_ms);
@@ -53,9 +54,9 @@ class FloatStream final : public PluginStream {
 };
 
 // Format 3: every due entity, changed or not (the fixed rate decides); no acknowledgements.
-class PhotonStream final : public PluginStream {
+class PhotonStream final : public EntityStream {
  public:
-  bool Want(const Entity&, double, double, uint8_t*) override { return true; }
+  StreamNeed Want(const Entity&, double, double, uint8_t*) override { return StreamNeed::kSend; }
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override { encoder_.Begin(out, time_ms); }
   bool Add(const Entity& e, uint8_t) override { return encoder_.Add(e.state); }
   size_t count() const override { return encoder_.count(); }
@@ -70,14 +71,14 @@ class PhotonStream final : public PluginStream {
 
 // Format 4: the fields that moved beyond the thresholds since the last SENT state (the paper's
 // significance test; nothing is acknowledged).
-class PaperStream final : public PluginStream {
+class PaperStream final : public EntityStream {
  public:
   explicit PaperStream(const ReplicationConfig& config)
       : position_threshold_m_(config.position_threshold_m),
         rotation_threshold_deg_(config.rotation_threshold_deg) {}
-  bool Want(const Entity& e, double, double, uint8_t* fields) override {
+  StreamNeed Want(const Entity& e, double, double, uint8_t* fields) override {
     auto it = last_sent_.find(e.id);
-    if (it == last_sent_.end()) return true;  // never sent: both fields
+    if (it == last_sent_.end()) return StreamNeed::kSend;  // never sent: both fields
     *fields = 0;
     if (Distance(e.state.position, it->second.position) > position_threshold_m_) {
       *fields |= kFieldPosition;
@@ -85,7 +86,7 @@ class PaperStream final : public PluginStream {
     if (AngleDeg(e.state.rotation, it->second.rotation) > rotation_threshold_deg_) {
       *fields |= kFieldRotation;
     }
-    return *fields != 0;
+    return *fields != 0 ? StreamNeed::kSend : StreamNeed::kSkip;
   }
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override { encoder_.Begin(out, time_ms); }
   bool Add(const Entity& e, uint8_t fields) override {
@@ -119,7 +120,7 @@ class EmulationPlugin final : public ReplicationPlugin {
       default: return static_cast<uint8_t>(StateFormat::kFloat);
     }
   }
-  std::unique_ptr<PluginStream> NewStream(const ReplicationConfig& config) const override {
+  std::unique_ptr<EntityStream> NewStream(const ReplicationConfig& config) const override {
     switch (mode_) {
       case ReplicationMode::kPhoton: return std::make_unique<PhotonStream>();
       case ReplicationMode::kPaper: return std::make_unique<PaperStream>(config);

@@ -10,7 +10,7 @@
 //   paper     4       fields beyond the thresholds of the last SENT     PaperEmulationEncoder
 //
 // Thread-safety: the plug-ins are immutable and may be shared by any number of relays and
-// clients; their streams are per receiver (relay/replication_plugin.h).
+// clients; their streams are per receiver (relay/entity_stream.h).
 #pragma once
 
 #include <memory>
