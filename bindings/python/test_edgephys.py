@@ -301,10 +301,14 @@ class BindingTest(unittest.TestCase):
             with self.assertRaises(ep.EdgephysError) as e:
                 a.offload(box, (float("nan"), 0, 0))
             self.assertEqual(e.exception.status, ep.E_INVALID_ARGUMENT)
-            for _ in range(10):
-                pump()  # A's pose reaches the relay
+            def b_sees_pose():  # A's pose reached the relay (and B)
+                e = b.entity(box)
+                return e is not None and e.has_state and abs(e.transform.position.x - 0.25) < 0.002
+            while not b_sees_pose() and time.monotonic() < deadline:
+                pump()
             a.offload(box, (1, 0, 0))
-            while len(changes[b]) < 4 and time.monotonic() < deadline:
+            # Both hear the offload (each in its own time: A's and B's messages race).
+            while (len(changes[a]) < 4 or len(changes[b]) < 4) and time.monotonic() < deadline:
                 pump()
             self.assertEqual((a.owner(box), b.owner(box)), (0, 0))
             b.request_ownership(box)

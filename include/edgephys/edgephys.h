@@ -506,7 +506,8 @@ typedef enum edgephys_interpolator {
 } edgephys_interpolator;
 
 /* The state format of the joined room, from its Joined message (docs/protocol.md §5): 9 (the
- * relay's default), 2, or an emulation's (3, 4). EDGEPHYS_E_NOT_FOUND before
+ * relay's default) or 2 (the previous default); the SDK decodes these two (and format 11, soft
+ * bodies) and refuses others (a benchmark relay's emulations, 3 and 4). EDGEPHYS_E_NOT_FOUND before
  * the client first joined a room (then *out is 0); after a leave, the last room's until the next
  * join. Cost O(1). */
 EDGEPHYS_API edgephys_status edgephys_client_get_state_format(edgephys_client* client,
