@@ -63,17 +63,6 @@ using Clock = std::chrono::steady_clock;
 constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
 constexpr double kStampPeriodS = 50.0;  // x carries the send time modulo this
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
-uint16_t FreeUdpPort() {
-  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
-  return (*s)->LocalEndpoint().port();
-}
-
 double Percentile(std::vector<double> v, double p) {
   if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());

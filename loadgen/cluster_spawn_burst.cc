@@ -31,17 +31,6 @@ constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Pers
 constexpr std::string_view kLostPrefix = "lost in failover: ";
 constexpr char kRoom[] = "burst";
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
-uint16_t FreeUdpPort() {
-  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
-  return (*s)->LocalEndpoint().port();
-}
-
 // Collects the entities its client reported lost (OnError "lost in failover: ...").
 struct LossListener : ClientListener {
   std::set<uint32_t> lost;

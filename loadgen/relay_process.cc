@@ -4,6 +4,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
+
+#include "protocol/endpoint.h"
+#include "protocol/udp_socket.h"
+
 namespace edgephys {
 
 pid_t StartRelayProcess(const std::vector<std::string>& args) {
@@ -24,6 +29,17 @@ void KillRelayProcesses(std::vector<pid_t>& pids) {
     if (p > 0) kill(p, SIGKILL), waitpid(p, nullptr, 0);
   }
   pids.clear();
+}
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+uint16_t FreeUdpPort() {
+  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
+  return (*s)->LocalEndpoint().port();
 }
 
 }  // namespace edgephys
