@@ -161,16 +161,12 @@ int main(int argc, char** argv) {
     std::string bind = "127.0.0.1:" + std::to_string(port);
     endpoints.push_back(*ParseEndpoint(bind));
     relay_index["127.0.0.1-" + std::to_string(port)] = i;
-    std::vector<std::string> args = {relay_binary, "--bind", bind, "--metrics", "off",
-                                     "--secret", secret, "--redis",
-                                     "127.0.0.1:" + std::to_string(redis.port()),
-                                     "--timeout", std::to_string(relay_timeout_s),
-                                     "--cluster-ttl-ms", std::to_string(ttl_ms),
-                                     "--cluster-heartbeat-ms", std::to_string(heartbeat_ms),
-                                     "--cluster-snapshot-ms", std::to_string(snapshot_ms),
-                                     "--max-handshakes-per-s", "100000",
-                                     "--max-connections-per-address", "100000",
-                                     "--admin-addr", "off", "--log-level", "warn", "--run-for", "600"};
+    std::vector<std::string> args = ClusterRelayArgs(relay_binary, bind, secret, redis.port(),
+                                                     relay_timeout_s, ttl_ms, heartbeat_ms,
+                                                     snapshot_ms, 600);
+    // Every bot joins from 127.0.0.1 at once: lift the per-address and handshake-rate limits.
+    args.insert(args.end(), {"--max-handshakes-per-s", "100000",
+                             "--max-connections-per-address", "100000"});
     const pid_t pid = StartRelayProcess(args);
     pids.push_back(pid);
   }

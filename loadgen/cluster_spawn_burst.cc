@@ -74,14 +74,9 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
     const std::string bind = "127.0.0.1:" + std::to_string(port);
     endpoints.push_back(*ParseEndpoint(bind));
     relay_ids.push_back("127.0.0.1-" + std::to_string(port));
-    std::vector<std::string> args = {o.relay_binary, "--bind", bind, "--metrics", "off",
-                                     "--secret", secret, "--redis",
-                                     "127.0.0.1:" + std::to_string(redis.port()),
-                                     "--timeout", std::to_string(o.relay_timeout_s),
-                                     "--cluster-ttl-ms", std::to_string(o.ttl_ms),
-                                     "--cluster-heartbeat-ms", std::to_string(o.heartbeat_ms),
-                                     "--cluster-snapshot-ms", std::to_string(o.snapshot_ms),
-                                     "--admin-addr", "off", "--log-level", "warn", "--run-for", "120"};
+    const std::vector<std::string> args =
+        ClusterRelayArgs(o.relay_binary, bind, secret, redis.port(), o.relay_timeout_s, o.ttl_ms,
+                         o.heartbeat_ms, o.snapshot_ms, 120);
     const pid_t pid = StartRelayProcess(args);
     pids.push_back(pid);
   }

@@ -31,6 +31,18 @@ void KillRelayProcesses(std::vector<pid_t>& pids) {
   pids.clear();
 }
 
+std::vector<std::string> ClusterRelayArgs(const std::string& binary, const std::string& bind,
+                                          const std::string& secret, int redis_port, double timeout_s,
+                                          double ttl_ms, double heartbeat_ms, double snapshot_ms,
+                                          int run_for_s) {
+  return {binary, "--bind", bind, "--metrics", "off", "--secret", secret, "--redis",
+          "127.0.0.1:" + std::to_string(redis_port), "--timeout", std::to_string(timeout_s),
+          "--cluster-ttl-ms", std::to_string(ttl_ms),
+          "--cluster-heartbeat-ms", std::to_string(heartbeat_ms),
+          "--cluster-snapshot-ms", std::to_string(snapshot_ms),
+          "--admin-addr", "off", "--log-level", "warn", "--run-for", std::to_string(run_for_s)};
+}
+
 uint64_t UnixNow() {
   return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
                                    std::chrono::system_clock::now().time_since_epoch())

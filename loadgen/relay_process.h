@@ -18,6 +18,14 @@ pid_t StartRelayProcess(const std::vector<std::string>& args);
 // SIGKILL and reap every pid > 0 in `pids`, then clear it. Bounded: waitpid after SIGKILL.
 void KillRelayProcesses(std::vector<pid_t>& pids);
 
+// The argv of one edgephys-relay of a Redis cluster: `binary` bound to `bind` ("host:port"),
+// `secret`, Redis on 127.0.0.1:`redis_port`, client --timeout `timeout_s`, cluster TTL,
+// heartbeat and snapshot periods in ms; metrics and admin off, warn logs, exits after run_for_s.
+std::vector<std::string> ClusterRelayArgs(const std::string& binary, const std::string& bind,
+                                          const std::string& secret, int redis_port, double timeout_s,
+                                          double ttl_ms, double heartbeat_ms, double snapshot_ms,
+                                          int run_for_s);
+
 // Seconds since the Unix epoch, system clock (join-token expiry times).
 uint64_t UnixNow();
 
