@@ -63,17 +63,6 @@ using Clock = std::chrono::steady_clock;
 constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Persistent);
 constexpr double kStampPeriodS = 50.0;  // x carries the send time modulo this
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
-uint16_t FreeUdpPort() {
-  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
-  return (*s)->LocalEndpoint().port();
-}
-
 double Percentile(std::vector<double> v, double p) {
   if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
@@ -172,16 +161,12 @@ int main(int argc, char** argv) {
     std::string bind = "127.0.0.1:" + std::to_string(port);
     endpoints.push_back(*ParseEndpoint(bind));
     relay_index["127.0.0.1-" + std::to_string(port)] = i;
-    std::vector<std::string> args = {relay_binary, "--bind", bind, "--metrics", "off",
-                                     "--secret", secret, "--redis",
-                                     "127.0.0.1:" + std::to_string(redis.port()),
-                                     "--timeout", std::to_string(relay_timeout_s),
-                                     "--cluster-ttl-ms", std::to_string(ttl_ms),
-                                     "--cluster-heartbeat-ms", std::to_string(heartbeat_ms),
-                                     "--cluster-snapshot-ms", std::to_string(snapshot_ms),
-                                     "--max-handshakes-per-s", "100000",
-                                     "--max-connections-per-address", "100000",
-                                     "--admin-addr", "off", "--log-level", "warn", "--run-for", "600"};
+    std::vector<std::string> args = ClusterRelayArgs(relay_binary, bind, secret, redis.port(),
+                                                     relay_timeout_s, ttl_ms, heartbeat_ms,
+                                                     snapshot_ms, 600);
+    // Every bot joins from 127.0.0.1 at once: lift the per-address and handshake-rate limits.
+    args.insert(args.end(), {"--max-handshakes-per-s", "100000",
+                             "--max-connections-per-address", "100000"});
     const pid_t pid = StartRelayProcess(args);
     pids.push_back(pid);
   }

@@ -31,17 +31,6 @@ constexpr uint32_t kPersistent = static_cast<uint32_t>(schema::EntityFlags::Pers
 constexpr std::string_view kLostPrefix = "lost in failover: ";
 constexpr char kRoom[] = "burst";
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
-uint16_t FreeUdpPort() {
-  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
-  return (*s)->LocalEndpoint().port();
-}
-
 // Collects the entities its client reported lost (OnError "lost in failover: ...").
 struct LossListener : ClientListener {
   std::set<uint32_t> lost;
@@ -85,14 +74,9 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
     const std::string bind = "127.0.0.1:" + std::to_string(port);
     endpoints.push_back(*ParseEndpoint(bind));
     relay_ids.push_back("127.0.0.1-" + std::to_string(port));
-    std::vector<std::string> args = {o.relay_binary, "--bind", bind, "--metrics", "off",
-                                     "--secret", secret, "--redis",
-                                     "127.0.0.1:" + std::to_string(redis.port()),
-                                     "--timeout", std::to_string(o.relay_timeout_s),
-                                     "--cluster-ttl-ms", std::to_string(o.ttl_ms),
-                                     "--cluster-heartbeat-ms", std::to_string(o.heartbeat_ms),
-                                     "--cluster-snapshot-ms", std::to_string(o.snapshot_ms),
-                                     "--admin-addr", "off", "--log-level", "warn", "--run-for", "120"};
+    const std::vector<std::string> args =
+        ClusterRelayArgs(o.relay_binary, bind, secret, redis.port(), o.relay_timeout_s, o.ttl_ms,
+                         o.heartbeat_ms, o.snapshot_ms, 120);
     const pid_t pid = StartRelayProcess(args);
     pids.push_back(pid);
   }

@@ -10,6 +10,7 @@
 #include "client/interpolation.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/paper_figures.h"
+#include "loadgen/relay_window_result.h"
 #include "loadgen/stats.h"
 #include "loadgen/scenes/scenes.h"
 #include "protocol/handshake.h"
@@ -515,16 +516,11 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
     sent.insert(sent.end(), receivers[k]->sent_errors.begin(), receivers[k]->sent_errors.end());
   }
   const double per = static_cast<double>(R) * elapsed;
-  r->relay_ok = true;
-  r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
-  r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
-  r->ip_udp_mbit_per_s_per_client = window.IpUdpMbitPerReceiver(R);
+  SetRelayWindowRates(r, window, R, dt);
   r->updates_per_s_per_client = updates / per;
   r->bytes_per_update = updates > 0 ? relay_total / updates : 0;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;
-  r->relay_step_ms_mean = window.step_ms_mean;
-  r->sim_speed = static_cast<double>(window.physics_steps) * dt / elapsed;
   r->relay_moving_fraction = moving_samples.empty() ? 0 : [&] {
     double s = 0;
     for (double x : moving_samples) s += x;

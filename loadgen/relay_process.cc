@@ -4,6 +4,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
+
+#include "protocol/endpoint.h"
+#include "protocol/udp_socket.h"
+
 namespace edgephys {
 
 pid_t StartRelayProcess(const std::vector<std::string>& args) {
@@ -24,6 +29,29 @@ void KillRelayProcesses(std::vector<pid_t>& pids) {
     if (p > 0) kill(p, SIGKILL), waitpid(p, nullptr, 0);
   }
   pids.clear();
+}
+
+std::vector<std::string> ClusterRelayArgs(const std::string& binary, const std::string& bind,
+                                          const std::string& secret, int redis_port, double timeout_s,
+                                          double ttl_ms, double heartbeat_ms, double snapshot_ms,
+                                          int run_for_s) {
+  return {binary, "--bind", bind, "--metrics", "off", "--secret", secret, "--redis",
+          "127.0.0.1:" + std::to_string(redis_port), "--timeout", std::to_string(timeout_s),
+          "--cluster-ttl-ms", std::to_string(ttl_ms),
+          "--cluster-heartbeat-ms", std::to_string(heartbeat_ms),
+          "--cluster-snapshot-ms", std::to_string(snapshot_ms),
+          "--admin-addr", "off", "--log-level", "warn", "--run-for", std::to_string(run_for_s)};
+}
+
+uint64_t UnixNow() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+uint16_t FreeUdpPort() {
+  auto s = UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"));
+  return (*s)->LocalEndpoint().port();
 }
 
 }  // namespace edgephys

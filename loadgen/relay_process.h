@@ -1,9 +1,11 @@
 // Child relay processes for the cluster benchmarks: start one edgephys-relay binary with a
-// given argv, and stop a set of them. Single-threaded use; the caller owns the pids.
+// given argv, and stop a set of them; the free port and wall-clock second they are started
+// with. Single-threaded use; the caller owns the pids.
 #pragma once
 
 #include <sys/types.h>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -15,5 +17,20 @@ pid_t StartRelayProcess(const std::vector<std::string>& args);
 
 // SIGKILL and reap every pid > 0 in `pids`, then clear it. Bounded: waitpid after SIGKILL.
 void KillRelayProcesses(std::vector<pid_t>& pids);
+
+// The argv of one edgephys-relay of a Redis cluster: `binary` bound to `bind` ("host:port"),
+// `secret`, Redis on 127.0.0.1:`redis_port`, client --timeout `timeout_s`, cluster TTL,
+// heartbeat and snapshot periods in ms; metrics and admin off, warn logs, exits after run_for_s.
+std::vector<std::string> ClusterRelayArgs(const std::string& binary, const std::string& bind,
+                                          const std::string& secret, int redis_port, double timeout_s,
+                                          double ttl_ms, double heartbeat_ms, double snapshot_ms,
+                                          int run_for_s);
+
+// Seconds since the Unix epoch, system clock (join-token expiry times).
+uint64_t UnixNow();
+
+// A UDP port on 127.0.0.1 that was free a moment ago (bound to port 0, read, closed); another
+// process may take it before the caller binds it.
+uint16_t FreeUdpPort();
 
 }  // namespace edgephys

@@ -9,6 +9,7 @@
 
 #include "loadgen/loopback_room.h"
 #include "loadgen/paper_figures.h"
+#include "loadgen/relay_window_result.h"
 #include "loadgen/softbody_scene.h"
 #include "loadgen/stats.h"
 #include "loadgen/scenes/scenes.h"
@@ -242,13 +243,8 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
     sent.insert(sent.end(), receivers[k]->sent_errors.begin(), receivers[k]->sent_errors.end());
   }
   const double per = static_cast<double>(R) * elapsed;
-  r->relay_ok = true;
-  r->egress_mbit_per_s_per_client = window.RelayMbitPerReceiver(R);
-  r->socket_mbit_per_s_per_client = window.SocketMbitPerReceiver(R);
-  r->ip_udp_mbit_per_s_per_client = window.IpUdpMbitPerReceiver(R);
+  SetRelayWindowRates(r, window, R, dt);
   r->soft_updates_per_s_per_client = updates / per;
-  r->relay_step_ms_mean = window.step_ms_mean;
-  r->sim_speed = static_cast<double>(window.physics_steps) * dt / elapsed;
   r->deformation_min_m = deformation.empty() ? 0 : *std::min_element(deformation.begin(), deformation.end());
   r->deformation_max_m = Max(deformation);
   r->node_err_max_m = Max(same_errors);
