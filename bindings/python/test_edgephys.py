@@ -257,6 +257,11 @@ class BindingTest(unittest.TestCase):
                     errors[c].append((ev.code, ev.entity_id))
 
             pump = _RoomPair(self, a, b, room, on_event).join_both(deadline)
+
+            def hear(n):  # both clients heard n ownership changes (their messages race)
+                while (len(changes[a]) < n or len(changes[b]) < n) and time.monotonic() < deadline:
+                    pump()
+
             box = a.spawn(position=(0, 1, 0))
             while box not in spawned[b] and time.monotonic() < deadline:
                 pump()
@@ -269,8 +274,7 @@ class BindingTest(unittest.TestCase):
             self.assertEqual(ep.reason_name(ep.EVENT_ERROR, ep.REJECT_TAKEOVER_REFUSED), "TakeoverRefused")
             # Handed over: both hear it; B publishes it now, A no longer may.
             a.hand_over(box, 8)
-            while not (changes[a] and changes[b]) and time.monotonic() < deadline:
-                pump()
+            hear(1)
             self.assertEqual(changes[a], [(box, 8, 1)])
             self.assertEqual(changes[b], [(box, 8, 1)])
             self.assertEqual((a.owner(box), b.owner(box)), (8, 8))
@@ -279,14 +283,12 @@ class BindingTest(unittest.TestCase):
                 a.publish(box, (0.5, 1, 0))
             self.assertEqual(e.exception.status, ep.E_NOT_FOUND)
             b.release_ownership(box)
-            while len(changes[a]) < 2 and time.monotonic() < deadline:
-                pump()
+            hear(2)
             self.assertEqual(changes[a][-1], (box, 0, 2))
             # A takes it back, moves it and reads its motion; bad values are refused; A offloads
             # it; B takes it and starts from A's pose.
             a.request_ownership(box)
-            while len(changes[b]) < 3 and time.monotonic() < deadline:
-                pump()
+            hear(3)
             self.assertEqual(a.owner(box), 7)
             a.publish(box, (0.25, 1, 0))
             pose, lin, ang = a.owned_motion(box)
@@ -307,13 +309,10 @@ class BindingTest(unittest.TestCase):
             while not b_sees_pose() and time.monotonic() < deadline:
                 pump()
             a.offload(box, (1, 0, 0))
-            # Both hear the offload (each in its own time: A's and B's messages race).
-            while (len(changes[a]) < 4 or len(changes[b]) < 4) and time.monotonic() < deadline:
-                pump()
+            hear(4)
             self.assertEqual((a.owner(box), b.owner(box)), (0, 0))
             b.request_ownership(box)
-            while len(changes[b]) < 5 and time.monotonic() < deadline:
-                pump()
+            hear(5)
             self.assertEqual(b.owner(box), 8)
             pose, lin, ang = b.owned_motion(box)
             self.assertEqual(pose.position.x, 0.25)
