@@ -240,14 +240,8 @@ class SharedDeltaRoom {
 
 struct SharedDeltaStreamOptions {
   // As DeltaEncoderOptions::keyframe_refresh_sends (keyframes are cached like deltas); at most
-  // 65,535 (larger values are capped). With ack_delay_ticks > 0 a refresh keyframe goes at the
-  // first send of each period of 2 x this many room ticks instead (phased by entity id).
+  // 65,535 (larger values are capped).
   uint32_t keyframe_refresh_sends = 120;
-  // > 0 (lockstep rooms, relay/lockstep.h): an acknowledgement of a payload sent in room tick T
-  // is taken in (its sends become baselines) only from tick T + ack_delay_ticks on; until then
-  // its sends count as in flight. Every stream of a room uses the same delay, so receivers that
-  // acknowledge within it hold the same keys as the room's canonical stream. 0: at once.
-  uint32_t ack_delay_ticks = 0;
 };
 
 struct SharedDeltaStreamStats {
@@ -311,35 +305,6 @@ class SharedDeltaStream final : public StateEncoder {
   // The number of the open (or last) payload: unique per stream, never 0 once Begin ran.
   uint32_t open_payload() const { return payload_no_; }
 
-  // --- Lockstep (relay/lockstep.h; protocol/shared_delta_lockstep.cc). Streams with
-  // ack_delay_ticks > 0 only. ---
-  // Whether, from room tick `tick` on (the entity's room tick, before any receiver's tick), this
-  // stream's record of `entity` lets `canonical` reference nothing this stream's receiver does
-  // not hold: the canonical has no record of it (it starts with a keyframe), or both have the
-  // same acknowledged key (or neither a usable one) and the same sends since, by tick and key.
-  // Takes in both records' due acknowledgements first. O(1).
-  bool SameBaselines(SharedDeltaStream& canonical, const SharedEntity& entity, uint32_t tick);
-  // A payload this stream sent (newest first), for lockstep's ack bookkeeping.
-  struct SentPayloadInfo {
-    uint32_t tick = 0;
-    bool acked = false;
-    bool has_sequence = false;  // the packet sequence that may still acknowledge it is known
-    uint16_t sequence = 0;
-  };
-  // Appends the payloads sent in ticks after `after_tick` (wrapping order). O(payloads + 128).
-  void PayloadsAfter(uint32_t after_tick, std::vector<SentPayloadInfo>* out) const;
-  // How one of the canonical stream's payloads reached this stream's receiver.
-  struct PayloadFix {
-    uint32_t payload = 0;       // the canonical's payload number
-    bool acked = false;
-    bool has_sequence = false;  // not acked yet: the receiver's packet that may acknowledge it
-    uint16_t sequence = 0;
-  };
-  // Becomes a copy of `canonical` (same options), except that the payloads in `fixes` are
-  // acknowledged as given, and only the sequences in `fixes` map to payloads (the canonical's
-  // own sequences are dropped). O(entities + payload ring).
-  void AdoptFrom(const SharedDeltaStream& canonical, std::span<const PayloadFix> fixes);
-
  private:
   static_assert(2 * kMaxReferenceDistance <= 0xFFFF);
   static constexpr uint32_t kRememberedSends = 4;
@@ -361,8 +326,7 @@ class SharedDeltaStream final : public StateEncoder {
     uint32_t acked_ref = 0;  // the tick it was sent in (its key's ref once acknowledged)
     // Its key's two older samples, as ticks before acked_ref, and the key's depth.
     uint16_t acked_back1 = 0, acked_back2 = 0;
-    // Sends since the last keyframe (saturates; options are capped at 0xFFFF); in lockstep
-    // streams (ack_delay_ticks > 0) instead the refresh period of the last keyframe (Add).
+    // Sends since the last keyframe (saturates; options are capped at 0xFFFF).
     uint16_t sends_since_keyframe = 0;
     uint8_t acked_depth = 0;
     // The stream's acknowledgement count when Resolve last looked (nothing to take in while
@@ -399,13 +363,11 @@ class SharedDeltaStream final : public StateEncoder {
   // The entity's track, made afresh if its slot holds none or another occupant's.
   Track& ClaimTrack(uint32_t id, const SharedEntity& entity, bool* created);
   void FreeTrack(uint32_t slot);
-  // Takes in acknowledgements of `t`'s remembered sends newer than its acknowledged one that
-  // are due at room tick `tick` (options_.ack_delay_ticks).
+  // Takes in the acknowledgements of `t`'s remembered sends newer than its acknowledged one
+  // (`tick`: the room tick it is resolved at).
   void Resolve(Track& t, uint32_t tick) const;
-  // Whether payload `p`'s acknowledgement counts at room tick `tick`.
-  bool AckDue(const PayloadRecord& p, uint32_t tick) const {
-    return p.acked && (options_.ack_delay_ticks == 0 || tick - p.tick >= options_.ack_delay_ticks);
-  }
+  // Whether payload `p` was acknowledged (its sends are baselines).
+  static bool AckDue(const PayloadRecord& p, uint32_t /*tick*/) { return p.acked; }
   const PayloadRecord* SentPayload(uint32_t payload) const {
     const PayloadRecord& p = payloads_[payload & (kPayloadRing - 1)];
     return payload != 0 && p.number == payload ? &p : nullptr;

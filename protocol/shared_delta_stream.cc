@@ -105,12 +105,9 @@ inline Code ExpGolomb0(uint32_t u) {
 void SharedDeltaStream::Resolve(Track& t, uint32_t tick) const {
   if (t.acked_no >= t.next) return;  // nothing newer than the acknowledged send
   // No payload acknowledged since the last look: its sends' flags are as they were then (a
-  // send added since has a payload no ack has marked yet). With an ack delay an old ack
-  // becomes due with time: look every time.
-  if (options_.ack_delay_ticks == 0) {
-    if (t.resolved_epoch == ack_epoch_) return;
-    t.resolved_epoch = ack_epoch_;
-  }
+  // send added since has a payload no ack has marked yet).
+  if (t.resolved_epoch == ack_epoch_) return;
+  t.resolved_epoch = ack_epoch_;
   const uint32_t oldest = t.next > kRememberedSends ? t.next - kRememberedSends : 0;
   // Newest first: the newest acknowledged send is the baseline.
   for (uint32_t no = t.next; no > oldest && no > t.acked_no; --no) {
@@ -143,17 +140,7 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (entity.serial() == 0) return false;
   bool created = false;
   Track& track = ClaimTrack(id, entity, &created);
-  // Lockstep streams (ack_delay_ticks > 0) refresh on the room's clock instead of counting
-  // sends: at the first send in each new period of 2 x keyframe_refresh_sends ticks (phased by
-  // id), the record keeping the period of its last keyframe. A keyframe forced by a loss then
-  // never shifts the schedule, so streams that lost differently refresh in the same ticks.
-  const bool by_tick = options_.ack_delay_ticks > 0 && options_.keyframe_refresh_sends > 0;
-  const uint32_t period = 2 * options_.keyframe_refresh_sends;
-  const uint16_t epoch =
-      by_tick ? static_cast<uint16_t>((tick_ + (id * 2654435761u) % period) / period) : 0;
-  if (created && by_tick) {
-    track.sends_since_keyframe = epoch;
-  } else if (created && options_.keyframe_refresh_sends > 0) {
+  if (created && options_.keyframe_refresh_sends > 0) {
     track.sends_since_keyframe =
         static_cast<uint16_t>((id * 2654435761u) % options_.keyframe_refresh_sends);
   }
@@ -165,8 +152,7 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   }
   bool refresh = false;
   if (!keyframe && options_.keyframe_refresh_sends > 0 &&
-      (by_tick ? track.sends_since_keyframe != epoch
-               : track.sends_since_keyframe >= options_.keyframe_refresh_sends)) {
+      track.sends_since_keyframe >= options_.keyframe_refresh_sends) {
     keyframe = refresh = true;
   }
   SharedBaselineKey key;
@@ -222,14 +208,10 @@ bool SharedDeltaStream::Add(uint32_t id, SharedEntity& entity) {
   if (keyframe) {
     ++stats_.keyframes;
     if (refresh) ++stats_.refresh_keyframes;
-    if (by_tick) {
-      track.sends_since_keyframe = epoch;
-    } else if (refresh || track.next > 0) {
-      track.sends_since_keyframe = 0;
-    }
+    if (refresh || track.next > 0) track.sends_since_keyframe = 0;
   } else {
     prev_distance_ = distance;
-    if (!by_tick && track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
+    if (track.sends_since_keyframe < 0xFFFF) ++track.sends_since_keyframe;
   }
   const uint32_t send_no = track.next++;
   const uint32_t i = send_no % kRememberedSends;

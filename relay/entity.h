@@ -112,15 +112,10 @@ void TrackOwnerMotion(Entity& e, const EntityState& next, double now);
 // that no receiver walks or sorts the room's entity table itself). Built on the room's thread
 // before the receivers' ticks; read-only during them (they may run in parallel). Pointers
 // into the room's entity table, valid until the room's entities change.
-class LockstepGroup;
-
 struct ReplicationFrame {
   std::vector<const Entity*> by_id;  // every entity, by increasing id
   std::vector<const Entity*> soft;   // soft bodies with particles, by increasing id
   std::vector<Vec3f> hands;          // positions of the Hand entities (soft-body touch test)
-  // Lockstep rooms (relay/lockstep.h): the room's group, whose canonical payloads of this tick
-  // its receivers in lockstep are sent; null otherwise.
-  std::shared_ptr<LockstepGroup> lockstep;
 };
 
 struct Member {

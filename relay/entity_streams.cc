@@ -16,9 +16,7 @@ StreamNeed FromUpdateNeed(DeltaEncoder::UpdateNeed need) {
 }
 
 std::unique_ptr<EntityStream> MakeShared(const ReplicationConfig& c, const QuantizationParams& p) {
-  SharedDeltaStreamOptions options;
-  if (UsesLockstep(c)) options.ack_delay_ticks = c.lockstep_ack_ticks;  // relay/lockstep.h
-  return std::make_unique<SharedDeltaEntityStream>(c, p, options);
+  return std::make_unique<SharedDeltaEntityStream>(c, p);
 }
 
 std::unique_ptr<EntityStream> MakeDelta(const ReplicationConfig& c, const QuantizationParams& p) {
@@ -48,11 +46,10 @@ const FormatRow& RowOf(const ReplicationConfig& config) {
 }  // namespace
 
 SharedDeltaEntityStream::SharedDeltaEntityStream(const ReplicationConfig& config,
-                                                 const QuantizationParams& params,
-                                                 const SharedDeltaStreamOptions& options)
+                                                 const QuantizationParams& params)
     : position_threshold_m_(config.position_threshold_m),
       rotation_threshold_deg_(config.rotation_threshold_deg),
-      codec_(params, options) {}
+      codec_(params) {}
 
 StreamNeed SharedDeltaEntityStream::Want(const Entity& e, double now, double resend_after_s,
                                          uint8_t*) {
@@ -75,13 +72,6 @@ void SharedDeltaEntityStream::Count(bool sent, RelayCounters& counters) {
   }
   hits_counted_ = st.cache_hits;
   entities_counted_ = st.entities;
-}
-
-void SharedDeltaEntityStream::AdoptFrom(SharedDeltaEntityStream& canonical,
-                                        std::span<const SharedDeltaStream::PayloadFix> fixes) {
-  codec_.AdoptFrom(canonical.codec_, fixes);
-  hits_counted_ = codec_.stats().cache_hits;
-  entities_counted_ = codec_.stats().entities;
 }
 
 DeltaEntityStream::DeltaEntityStream(const ReplicationConfig& config,

@@ -23,8 +23,7 @@ struct ReplicationConfig;
 // Room::PrepareStates); per receiver only the choice of reference and a bit copy.
 class SharedDeltaEntityStream final : public EntityStream {
  public:
-  SharedDeltaEntityStream(const ReplicationConfig& config, const QuantizationParams& params,
-                          const SharedDeltaStreamOptions& options);
+  SharedDeltaEntityStream(const ReplicationConfig& config, const QuantizationParams& params);
   StreamNeed Want(const Entity& e, double now, double resend_after_s, uint8_t* fields) override;
   void Prefetch(uint32_t slot) const override { codec_.Prefetch(slot); }
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override { codec_.Begin(out, time_ms); }
@@ -37,12 +36,6 @@ class SharedDeltaEntityStream final : public EntityStream {
   void Count(bool sent, RelayCounters& counters) override;
   void OnAcked(uint16_t sequence) override { codec_.OnPacketAcked(sequence); }
   void Forget(uint32_t entity_id) override { codec_.Forget(entity_id); }
-
-  // Lockstep (relay/lockstep.h) works on the codec's references directly.
-  SharedDeltaStream& codec() { return codec_; }
-  // Takes `canonical`'s references (a receiver leaving lockstep), with `fixes` applied.
-  void AdoptFrom(SharedDeltaEntityStream& canonical,
-                 std::span<const SharedDeltaStream::PayloadFix> fixes);
 
  private:
   float position_threshold_m_;

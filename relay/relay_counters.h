@@ -70,14 +70,6 @@ struct RelayCounters {
   // or no free cache slot). cached / (cached + coded) is the sharing ratio.
   Counter shared_bodies_cached{0};
   Counter shared_bodies_coded{0};
-  // Lockstep rooms (relay/lockstep.h): canonical payloads sent as copies to receivers in
-  // lockstep, receivers that left lockstep (an acknowledgement not in within the ack ticks),
-  // receivers that (re)joined it, and the entities such a rejoin made the canonical stream
-  // send as keyframes (relay/lockstep.h).
-  Counter lockstep_sends{0};
-  Counter lockstep_leaves{0};
-  Counter lockstep_rejoins{0};
-  Counter lockstep_forced_keyframes{0};  // entities a rejoin made the canonical stream keyframe
   Counter reliable_resends{0};
   Counter reliable_messages_received{0};
   Counter connections_accepted{0};

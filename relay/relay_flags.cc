@@ -123,13 +123,6 @@ void AddReplication(CLI::App& app, RelayFlags* f) {
                "Encode each entity delta once per room tick for all receivers (format 9; "
                "default: on)")
       ->group(kTuning);
-  app.add_flag("--shared-lockstep", rep.shared_lockstep,
-               "Receivers that acknowledge in time get copies of the room's payloads "
-               "(default: off)")
-      ->group(kTuning);
-  app.add_option("--lockstep-ack-ticks", rep.lockstep_ack_ticks,
-                 "Room ticks after which an acknowledgement counts as a lockstep baseline")
-      ->group(kTuning)->capture_default_str()->check(InRange("--lockstep-ack-ticks", 1, 32));
 }
 
 void AddPhysics(CLI::App& app, RelayFlags* f) {

@@ -179,21 +179,6 @@ const FamilySpec kFamilies[] = {
      "Format-9 entity records whose body the receiver's tick coded (first user of the body, or "
      "no free cache slot).",
      CounterSource{&C::shared_bodies_coded}},
-    {"edgephys_lockstep_sends_total",
-     "Lockstep rooms: canonical payloads sent as copies to receivers in lockstep.",
-     CounterSource{&C::lockstep_sends}},
-    {"edgephys_lockstep_leaves_total",
-     "Lockstep rooms: receivers that left lockstep (a canonical payload not acknowledged within "
-     "the ack ticks).",
-     CounterSource{&C::lockstep_leaves}},
-    {"edgephys_lockstep_rejoins_total",
-     "Lockstep rooms: receivers that joined lockstep (their references matched the canonical "
-     "stream's).",
-     CounterSource{&C::lockstep_rejoins}},
-    {"edgephys_lockstep_forced_keyframes_total",
-     "Lockstep rooms: entities a rejoin made the canonical stream send as keyframes (records "
-     "that differed from the joiner's).",
-     CounterSource{&C::lockstep_forced_keyframes}},
     {"edgephys_entity_updates_received_total", "Entity states accepted from their owners.",
      CounterSource{&C::entity_updates_received}},
     {"edgephys_reliable_resends_total", "Reliable units sent more than once.",

@@ -8,8 +8,7 @@
 //   counters   packets_received_total, packets_sent_total, bytes_received_total,
 //              bytes_sent_total, entity_updates_sent_total, entity_updates_received_total,
 //              shared_bodies_cached_total, shared_bodies_coded_total (format 9),
-//              lockstep_sends_total, lockstep_leaves_total, lockstep_rejoins_total,
-//              lockstep_forced_keyframes_total, reliable_resends_total,
+//              reliable_resends_total,
 //              reliable_messages_received_total, connections_accepted_total,
 //              send_errors_total, io_queue_drops_total,
 //              packets_rejected_total{reason}, entity_updates_rejected_total{reason}

@@ -5,7 +5,6 @@
 
 #include "relay/entity.h"
 #include "relay/entity_streams.h"
-#include "relay/lockstep.h"
 
 namespace edgephys {
 namespace {
@@ -39,18 +38,12 @@ QuantizationConfig QuantizationOf(const ReplicationConfig& config) {
 
 ClientReplicator::ClientReplicator(const ReplicationConfig& config)
     : config_(config), payload_(kMaxUnreliablePayload), stream_(NewEntityStream(config_)) {
-  if (UsesLockstep(config_)) {  // every stream of a lockstep room (relay/lockstep.h)
-    shared_ = dynamic_cast<SharedDeltaEntityStream*>(stream_.get());
-    include_own_ = shared_ != nullptr;
-  }
   soft_ = std::make_unique<SoftDeltaSender>(
       SoftDeltaSenderConfig{config_.position_step_m, config_.position_threshold_m});
   candidates_.reserve(256);
 }
 
-ClientReplicator::~ClientReplicator() {
-  if (lockstep_) lockstep_->Unregister(this);
-}
+ClientReplicator::~ClientReplicator() = default;
 
 PriorityClass ClientReplicator::ClassOf(const Entity& e, double now) const {
   if ((e.flags & (kFlagAvatar | kFlagHand)) || e.held_by != 0) return PriorityClass::kCritical;
@@ -85,22 +78,12 @@ void ClientReplicator::Tick(const ReplicationFrame& frame, uint32_t self, double
   }
   const double resend_after = connection.stats().rtt_s * 1.25 + 0.05;
   TickSoftBodies(frame, self, now, resend_after, connection, out, counters);
-  if (frame.lockstep != nullptr && include_own_ && shared_ != nullptr) {
-    if (!lockstep_) {
-      lockstep_ = frame.lockstep;
-      member_ = std::make_unique<LockstepMember>();
-      lockstep_->Register(this);
-    }
-    member_->ticked = true;
-    member_->last_tick = lockstep_->tick();
-    if (member_->in) return CopyCanonical(*lockstep_, self, now, connection, out, counters);
-  }
-  TickEntities(frame, self, now, resend_after, &connection, &out, counters);
+  TickEntities(frame, self, now, resend_after, connection, out, counters);
 }
 
 void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self, double now,
-                                    double resend_after, Connection* connection,
-                                    PacketWriter* out, RelayCounters& counters) {
+                                    double resend_after, Connection& connection,
+                                    PacketWriter& out, RelayCounters& counters) {
   const bool budgeted = config_.bandwidth_budget_bytes_per_s > 0;
   candidates_.clear();
   // The walk below is bound by loading this receiver's per-entity records (views_, the format-9
@@ -118,7 +101,7 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     }
     const Entity& e = *frame.by_id[i];
     const uint32_t id = e.id;
-    if (e.owner == self && !include_own_) continue;
+    if (e.owner == self) continue;
     View& v = ViewOf(e);
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
@@ -159,8 +142,6 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
       BeginPayload();
       if (!stream_->Add(*c.entity, c.fields)) continue;
     }
-    if (c.entity->owner == self) ++own_in_payload_;  // include_own_: not counted as delivered
-    if (lockstep_capture_ != nullptr) payload_owners_.push_back(c.entity->owner);
     View& v = views_[c.entity->slot];
     v.last_sent = now;
     double interval = IntervalOf(ClassOf(*c.entity, now));
@@ -181,32 +162,15 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
   Flush(now, connection, out, counters);
 }
 
-void ClientReplicator::Flush(double now, Connection* connection, PacketWriter* out,
+void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& out,
                              RelayCounters& counters) {
   const size_t entities = stream_->count();
-  const size_t own = own_in_payload_;
-  own_in_payload_ = 0;
   const size_t size = stream_->Finish();
-  if (size == 0) {
-    payload_owners_.clear();
-    return;
-  }
-  // A lockstep group's canonical replicator: the group keeps the payload for its receivers,
-  // and the canonical stream counts it acknowledged (due after the group's ack ticks).
-  Result<uint16_t> seq =
-      lockstep_capture_ != nullptr
-          ? Result<uint16_t>(lockstep_capture_->Capture({payload_.data(), size}, entities,
-                                                        shared_->codec().open_payload(),
-                                                        payload_owners_))
-          : connection->SendUnreliable({payload_.data(), size}, now, *out);
-  payload_owners_.clear();
+  if (size == 0) return;
+  Result<uint16_t> seq = connection.SendUnreliable({payload_.data(), size}, now, out);
   if (seq.ok()) {
     stream_->OnSent(*seq, now);
-    if (lockstep_capture_ != nullptr) {
-      stream_->OnAcked(*seq);
-    } else {  // the canonical's are counted as its copies are sent
-      RelayCounters::Inc(counters.entity_updates_sent, entities - own);
-    }
+    RelayCounters::Inc(counters.entity_updates_sent, entities);
   }
   stream_->Count(seq.ok(), counters);
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;

@@ -22,8 +22,6 @@
 // Cost: O(entities in room) per tick (a walk of the room's frame, Room::BuildFrame, with the
 // views in an array indexed by the entities' room-local slots), plus O(k log k) for the k
 // candidates only under a bandwidth budget; no allocation per packet once the views exist.
-// In a lockstep room (UsesLockstep, relay/lockstep.h) a receiver in lockstep costs
-// O(payloads) per tick instead: copies of the room's canonical payloads, no walk.
 #pragma once
 
 #include <array>
@@ -48,8 +46,6 @@ namespace edgephys {
 
 struct Entity;
 struct ReplicationFrame;
-class LockstepGroup;
-struct LockstepMember;
 
 // kAmbient: a PhyS-simulated entity that nothing reported touches (no open trigger overlap or
 // reported contact) and that no event named for `interaction_linger_s` (grab, release, hand or
@@ -93,13 +89,6 @@ struct ReplicationConfig {
   // entity), against ~2.3 KiB per (receiver, entity) for format 2
   // (protocol/shared_delta_codec.h, protocol/delta_codec.h).
   bool shared_encoding = true;
-  // Format 9 rooms without a bandwidth budget: lockstep receivers (relay/lockstep.h). The room
-  // runs one canonical replicator per tick; receivers that acknowledge its payloads within
-  // `lockstep_ack_ticks` ticks are sent copies of them instead of being walked entity by entity
-  // (their own entities' records included); acknowledgements count as baselines only that many
-  // ticks after the send in every stream of such a room. Off by default.
-  bool shared_lockstep = false;
-  uint32_t lockstep_ack_ticks = 3;
   // Soft bodies are sent as format 11 (residuals against acknowledged versions,
   // protocol/soft_delta_stream.h) at soft_touched_hz while a hand touches them (held, an open
   // touch event, or a Hand entity's centre within this distance of a particle: PhyS reports no
@@ -115,11 +104,6 @@ inline bool UsesSharedEncoding(const ReplicationConfig& config) {
   return config.plugin == nullptr && config.shared_encoding;
 }
 
-// True when rooms with `config` run lockstep receivers (relay/lockstep.h).
-inline bool UsesLockstep(const ReplicationConfig& config) {
-  return UsesSharedEncoding(config) && config.shared_lockstep &&
-         config.bandwidth_budget_bytes_per_s <= 0 && config.lockstep_ack_ticks > 0;
-}
 
 // The quantisation a room with `config` uses (format 2).
 QuantizationConfig QuantizationOf(const ReplicationConfig& config);
@@ -134,8 +118,6 @@ class ClientReplicator {
   // Sends this tick's updates for the client `self` (player id) through `connection`.
   // `frame` is the room's offer for this tick (Room::BuildFrame): its entities by id, soft
   // bodies and hands, so the replicator neither walks the room's table nor sorts by id.
-  // In a lockstep room (frame.lockstep) the replicator registers with the room's group on its
-  // first tick and, while in lockstep, sends copies of the canonical payloads instead.
   void Tick(const ReplicationFrame& frame, uint32_t self, double now, Connection& connection,
             PacketWriter& out, RelayCounters& counters);
 
@@ -148,11 +130,8 @@ class ClientReplicator {
   // tracker's entries and the delta encoder's tracks: Tick makes the view first, Forget
   // erases all) or its soft body views if more. For tests and diagnostics. O(1).
   size_t tracked_entities() const;
-  // Lockstep rooms: whether this receiver is in lockstep now (tests, diagnostics).
-  bool in_lockstep() const;
 
  private:
-  friend class LockstepGroup;
   static constexpr double kEpsilon = 1e-6;
   // Bytes a datagram costs on the wire beyond its state payload: connection header, chunk
   // header and the seal (the budget is counted as the sealed datagrams go out).
@@ -182,18 +161,11 @@ class ClientReplicator {
   View& ViewOf(const Entity& e);
   PriorityClass ClassOf(const Entity& e, double now) const;
   double IntervalOf(PriorityClass c) const;
-  // The entity walk, selection and encoding of Tick (connection and out null: the canonical
-  // replicator of a lockstep group, whose payloads go to lockstep_capture_).
+  // The entity walk, selection and encoding of Tick.
   void TickEntities(const ReplicationFrame& frame, uint32_t self, double now, double resend_after,
-                    Connection* connection, PacketWriter* out, RelayCounters& counters);
-  void Flush(double now, Connection* connection, PacketWriter* out, RelayCounters& counters);
+                    Connection& connection, PacketWriter& out, RelayCounters& counters);
+  void Flush(double now, Connection& connection, PacketWriter& out, RelayCounters& counters);
   void BeginPayload();  // starts a payload in payload_ with this receiver's stream
-  // Lockstep (relay/lockstep.cc): sends copies of the group's payloads of this tick.
-  void CopyCanonical(const LockstepGroup& group, uint32_t self, double now,
-                     Connection& connection, PacketWriter& out, RelayCounters& counters);
-  // Lockstep leave: the entity state of `canonical` (views and stream), with `fixes` applied.
-  void AdoptCanonical(const ClientReplicator& canonical,
-                      std::span<const SharedDeltaStream::PayloadFix> fixes);
   // Soft bodies (format 11, soft_): residuals of each due soft body's particles against what
   // the client acknowledged.
   struct SoftView {
@@ -217,7 +189,6 @@ class ClientReplicator {
   std::vector<uint8_t> payload_;
   // The receiver's rigid-body format (relay/entity_streams.h: format 9, 2 or a plug-in's).
   std::unique_ptr<EntityStream> stream_;
-  SharedDeltaEntityStream* shared_ = nullptr;  // stream_, in lockstep rooms only
   std::vector<View> views_;            // by entity slot: walked densely, no lookups
   FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
   size_t live_views_ = 0;
@@ -227,14 +198,6 @@ class ClientReplicator {
   double bytes_per_entity_ = 16;  // running estimate of one encoded entity
   double last_tick_ = -1;
   uint32_t time_ms_ = 0;
-  // Lockstep rooms (UsesLockstep): every replicator sends the receiver's own entities too, so
-  // that its stream can match the canonical one's (the client ignores them).
-  bool include_own_ = false;
-  size_t own_in_payload_ = 0;           // records of own entities in the open payload
-  std::shared_ptr<LockstepGroup> lockstep_;  // registered with (receivers)
-  std::unique_ptr<LockstepMember> member_;   // with lockstep_
-  LockstepGroup* lockstep_capture_ = nullptr;  // the group's canonical replicator: its sink
-  std::vector<uint32_t> payload_owners_;       // canonical: owners of the open payload's records
 };
 
 }  // namespace edgephys

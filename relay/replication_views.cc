@@ -1,20 +1,13 @@
 // ClientReplicator's per-entity views and acknowledgements (relay/replication.h): the views by
 // entity slot, forgetting despawned entities, and routing a packet's acknowledgement to the
-// soft-body sender, the lockstep member (relay/lockstep.h) or the state stream.
+// soft-body sender or the state stream.
 #include "relay/entity.h"
-#include "relay/lockstep.h"
 #include "relay/replication.h"
 
 namespace edgephys {
 
 void ClientReplicator::OnPacketAcked(uint16_t sequence) {
   if (soft_->OnAcked(sequence)) return;
-  // In lockstep, its packets stand for canonical payloads (its own stream is set aside); out
-  // of it, the stream adopted from the canonical one maps the sequences still in flight.
-  if (member_ != nullptr && member_->in) {
-    (void)member_->OnAcked(sequence);  // unknown or stale sequences: ignored
-    return;
-  }
   stream_->OnAcked(sequence);
 }
 
@@ -56,11 +49,5 @@ void ClientReplicator::ResetView(uint32_t slot) { views_[slot] = View{}; }
 size_t ClientReplicator::tracked_entities() const {
   return std::max(live_views_, soft_views_.size());
 }
-
-}  // namespace edgephys
-
-namespace edgephys {
-
-bool ClientReplicator::in_lockstep() const { return member_ != nullptr && member_->in; }
 
 }  // namespace edgephys

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstring>
 
-#include "relay/lockstep.h"
 #include "relay/replication.h"
 #include "edgephys/schema/control_generated.h"
 
@@ -163,10 +162,6 @@ void Room::BuildFrame() {
   }
 }
 
-void Room::TickLockstep(double now, RelayCounters& counters) {
-  if (frame_.lockstep && shared_) frame_.lockstep->BeginTick(frame_, *shared_, now, counters);
-}
-
 void Room::ScheduleNextTick(double now) {
   double interval = 1.0 / std::max(1.0, config_.tick_rate_hz);
   next_tick_ += interval;
@@ -182,9 +177,6 @@ void Room::PrepareStates(double now) {
     if (params.ok() && UsesSharedEncoding(config_.replication)) {
       shared_ = std::make_unique<SharedDeltaRoom>(
           *params, SharedVersionWindowFor(config_.tick_rate_hz));
-      if (UsesLockstep(config_.replication)) {
-        frame_.lockstep = std::make_shared<LockstepGroup>(config_.replication, config_.tick_rate_hz);
-      }
     }
   }
   if (!quantization_) return;

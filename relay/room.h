@@ -91,10 +91,6 @@ class Room {
   // entities came or went since the last call. Room thread, before the receivers' ticks.
   void BuildFrame();
   const ReplicationFrame& frame() const { return frame_; }
-  // Lockstep rooms (UsesLockstep): the canonical replicator's tick and the leave and rejoin
-  // checks (LockstepGroup::BeginTick), after PrepareStates and BuildFrame, before the
-  // receivers' ticks. A no-op in other rooms. Room thread.
-  void TickLockstep(double now, RelayCounters& counters);
   // Format 9 rooms: the tick clock and body cache; null otherwise (or before the first tick).
   const SharedDeltaRoom* shared_encoding() const { return shared_.get(); }
 

@@ -503,7 +503,6 @@ void RoomHost::BeginTick(double now, std::vector<MemberLink*>* receivers) {
   if (!join_streams_.empty()) PumpJoinStreams();
   room_.PrepareStates(now);  // once per changed entity, not once per receiver
   room_.BuildFrame();        // once per room tick, not once per receiver
-  room_.TickLockstep(now, *env_.counters);  // lockstep rooms: the canonical payloads
   for (const auto& [pid, member] : room_.members()) {
     if (member.link->ReadyForStates()) receivers->push_back(member.link);
   }

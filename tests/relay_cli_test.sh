@@ -23,7 +23,7 @@ while read -r line; do
     *) [[ "$line" == *=* ]] || fail "no default shown: $line" ;;
   esac
 done < <(grep -E '^  --' "$work/help.txt")
-for tuning in --max-handshakes-per-s --cluster-ttl-ms --shared-lockstep --physics-idle \
+for tuning in --max-handshakes-per-s --cluster-ttl-ms --physics-idle \
               --max-reassembly-bytes; do
   ! grep -q -- "$tuning" "$work/help.txt" || fail "$tuning is a tuning option, not for --help"
 done
@@ -36,13 +36,14 @@ if "$relay" --config "$work/bad.toml" --bind 127.0.0.1:0 --metrics off --admin-a
 fi
 grep -q -- "cluster-ttl-ms" "$work/bad.log" || fail "the refusal does not name cluster-ttl-ms: $(cat "$work/bad.log")"
 # ... and a good one runs.
-printf 'max-handshakes-per-s = 5\nshared-lockstep = true\nmax-reassembly-bytes = 67108864\nlog-level = "warn"\n' >"$work/good.toml"
+printf 'max-handshakes-per-s = 5\nmax-reassembly-bytes = 67108864\nlog-level = "warn"\n' >"$work/good.toml"
 "$relay" --config "$work/good.toml" --bind 127.0.0.1:0 --metrics off --admin-addr off \
     --run-for 0.2 >"$work/good.log" 2>&1 || fail "a valid config file was refused: $(cat "$work/good.log")"
 
 # Options of experiments that left the tree are unknown.
 for gone in --batching --sleep-to-deadline --max-sleep --reliable-delay --velocities \
-            --key-samples --stamp-state-time --extrapolation-threshold; do
+            --key-samples --stamp-state-time --extrapolation-threshold --shared-lockstep \
+            --lockstep-ack-ticks --replication-mode; do
   if "$relay" "$gone" --bind 127.0.0.1:0 --metrics off --admin-addr off --run-for 0.1 \
       >/dev/null 2>&1; then
     fail "$gone was accepted"
