@@ -47,9 +47,7 @@ const FormatRow& RowOf(const ReplicationConfig& config) {
 
 SharedDeltaEntityStream::SharedDeltaEntityStream(const ReplicationConfig& config,
                                                  const QuantizationParams& params)
-    : position_threshold_m_(config.position_threshold_m),
-      rotation_threshold_deg_(config.rotation_threshold_deg),
-      codec_(params) {}
+    : CodecEntityStream(config.position_threshold_m, config.rotation_threshold_deg, params) {}
 
 StreamNeed SharedDeltaEntityStream::Want(const Entity& e, double now, double resend_after_s,
                                          uint8_t*) {
@@ -76,9 +74,7 @@ void SharedDeltaEntityStream::Count(bool sent, RelayCounters& counters) {
 
 DeltaEntityStream::DeltaEntityStream(const ReplicationConfig& config,
                                      const QuantizationParams& params)
-    : position_threshold_m_(config.position_threshold_m),
-      rotation_threshold_deg_(config.rotation_threshold_deg),
-      codec_(params) {}
+    : CodecEntityStream(config.position_threshold_m, config.rotation_threshold_deg, params) {}
 
 StreamNeed DeltaEntityStream::Want(const Entity& e, double now, double resend_after_s, uint8_t*) {
   return FromUpdateNeed(codec_.Need(e.id, e.state, position_threshold_m_, rotation_threshold_deg_,
