@@ -122,13 +122,13 @@ class ClientReplicator {
             PacketWriter& out, RelayCounters& counters);
 
   void OnPacketAcked(uint16_t sequence);
-  // Drops everything held for `entity_id` (despawned): its view, tracker entry or delta
-  // encoder track (~2.3 KiB), and soft body view. The relay calls it for every member left in
+  // Drops everything held for `entity_id` (despawned): its view, its record in the entity
+  // stream (format 2: ~2.3 KiB), and its soft body view. The relay calls it for every member left in
   // the room whenever an entity goes, whether despawned by its owner or with its owner.
   void Forget(uint32_t entity_id);
   // How many entities this replicator holds per-entity state for: its views (which cover the
-  // tracker's entries and the delta encoder's tracks: Tick makes the view first, Forget
-  // erases all) or its soft body views if more. For tests and diagnostics. O(1).
+  // entity stream's records: Tick makes the view first, Forget erases all) or its soft body
+  // views if more. For tests and diagnostics. O(1).
   size_t tracked_entities() const;
 
  private:
