@@ -190,6 +190,19 @@ struct HttpGate::Impl {
     return best;
   }
 
+  // The connection to close for a newcomer: the oldest one still sending its request, once
+  // what already waits in its socket is read (a request that arrived while the gate was
+  // accepting is served, not evicted). 0: every connection has its request in work.
+  uint64_t EvictionVictim(const std::string* ip) {
+    for (;;) {
+      const uint64_t victim = OldestReading(ip);
+      if (victim == 0) return 0;
+      OnReadable(victim);
+      auto it = conns.find(victim);
+      if (it != conns.end() && it->second.state == State::kReading) return victim;
+    }
+  }
+
   void Respond(Conn& c, std::string response) {
     c.state = State::kWriting;
     c.out = std::move(response);
@@ -254,10 +267,10 @@ struct HttpGate::Impl {
       int port = 0;
       std::string ip = IpOf(ss, &port);
       // Caps: make room by closing the oldest slow sender of this address, then of all.
-      size_t& mine = per_address[ip];
+      const size_t mine = per_address[ip];
       bool ok = true;
       if (mine >= options.max_per_address) {
-        uint64_t victim = OldestReading(&ip);
+        uint64_t victim = EvictionVictim(&ip);
         if (victim != 0) {
           stats.evicted.fetch_add(1, std::memory_order_relaxed);
           Close(victim);
@@ -266,7 +279,7 @@ struct HttpGate::Impl {
         }
       }
       if (ok && conns.size() >= options.max_connections) {
-        uint64_t victim = OldestReading(nullptr);
+        uint64_t victim = EvictionVictim(nullptr);
         if (victim != 0) {
           stats.evicted.fetch_add(1, std::memory_order_relaxed);
           Close(victim);

@@ -10,6 +10,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <string>
 #include <thread>
@@ -170,6 +171,54 @@ TEST_F(HttpGateTest, SlowSendersCannotStarve) {
   EXPECT_GE(s.evicted, 64u - 32u);
   EXPECT_GE(s.health_answers, 2u);
   for (int fd : slow) ::close(fd);
+}
+
+// A request that reached its socket while the gate was busy accepting newer connections of the
+// same address is served, not evicted as the oldest slow sender. The gate thread is held inside
+// the health callback while the flood connects and the request is sent, so the gate meets the
+// flood's connections before the request's bytes.
+TEST(HttpGate, ARequestWaitingInItsSocketIsServedNotEvicted) {
+  std::atomic<bool> hold{false}, held{false};
+  GateOptions o;
+  o.max_per_address = 4;
+  o.request_deadline = 10000ms;
+  o.health_path = "/healthz";
+  o.health = [&] {
+    held = true;
+    while (hold) std::this_thread::sleep_for(1ms);
+    return HealthAnswer{200, "{}"};
+  };
+  HttpGate gate(o);
+  gate.routes().Post("/echo", [](const httplib::Request& req, httplib::Response& res) {
+    res.set_content("body=[" + req.body + "]", "text/plain");
+  });
+  ASSERT_TRUE(gate.Start().ok());
+  int early = Connect(gate.port());
+  ASSERT_GE(early, 0);
+  for (int i = 0; i < 200 && gate.stats().accepted < 1; ++i) std::this_thread::sleep_for(5ms);
+  ASSERT_EQ(gate.stats().accepted, 1u);
+
+  hold = true;
+  std::thread stall([&] { (void)Exchange(gate.port(), "GET /healthz HTTP/1.1\r\n\r\n", "127.0.0.9"); });
+  for (int i = 0; i < 400 && !held; ++i) std::this_thread::sleep_for(5ms);
+  ASSERT_TRUE(held);
+  std::vector<int> flood;
+  for (int i = 0; i < 12; ++i) {
+    int fd = Connect(gate.port());
+    ASSERT_GE(fd, 0);
+    (void)::send(fd, "G", 1, MSG_NOSIGNAL);
+    flood.push_back(fd);
+  }
+  const std::string req = "POST /echo HTTP/1.1\r\nContent-Length: 2\r\n\r\nok";
+  ASSERT_EQ(::send(early, req.data(), req.size(), MSG_NOSIGNAL), static_cast<ssize_t>(req.size()));
+  std::this_thread::sleep_for(50ms);
+  hold = false;
+  stall.join();
+  const std::string r = ReadAll(early);
+  EXPECT_NE(r.find("body=[ok]"), std::string::npos) << "evicted with its request waiting: " << r;
+  EXPECT_GE(gate.stats().evicted, 12u + 1u - 4u - 1u);
+  ::close(early);
+  for (int fd : flood) ::close(fd);
 }
 
 TEST(HttpGate, BindErrorsNameTheCause) {
