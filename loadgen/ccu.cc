@@ -23,6 +23,7 @@
 #include "protocol/container_builder.h"
 #include "protocol/handshake.h"
 #include "protocol/join_token.h"
+#include "protocol/network_simulator.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
 #include "loadgen/relay_target.h"
@@ -67,6 +68,7 @@ class Bot : public ClientListener {
   uint32_t index_;
   uint32_t room_;
   std::unique_ptr<UdpSocket> socket;
+  std::unique_ptr<ImpairedSocket> link;  // --impaired: the client's socket, over `socket`
   std::unique_ptr<Client> client;
   double start_at = 0;
   double joined_at = -1;
@@ -119,6 +121,13 @@ class World {
   explicit World(const CcuOptions& options) : o(options) {}
   double Now() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
 };
+
+// Whether bot `index` is one of the --impaired fraction: every 1/f-th bot, so they spread over
+// the rooms (bots go round the rooms in index order).
+bool Impaired(const CcuOptions& o, uint32_t index) {
+  return o.impaired_fraction > 0 &&
+         std::floor((index + 1) * o.impaired_fraction) > std::floor(index * o.impaired_fraction);
+}
 
 Vec3f HandPath(const Bot& b, double t, float side) {
   return AvatarHandPosition(b.home, b.index_, t, side);
@@ -328,12 +337,23 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
       if (!b->client) {
         if (now < b->start_at) continue;
         b->socket = std::move(*UdpSocket::Open(Endpoint(asio::ip::make_address("127.0.0.1"), 0)));
-        b->client = std::make_unique<Client>(cc, b->socket.get(), b.get());
+        DatagramSocket* socket = b->socket.get();
+        if (Impaired(o, b->index_)) {
+          NetworkConditions link{.loss = o.impaired_loss, .latency_s = o.impaired_delay_ms / 1000};
+          NetworkConditions up = link, down = link;
+          up.seed = o.seed * 1000003 + 2 * b->index_;
+          down.seed = up.seed + 1;
+          b->link = std::make_unique<ImpairedSocket>(socket, up, down);
+          b->link->Update(now);
+          socket = b->link.get();
+        }
+        b->client = std::make_unique<Client>(cc, socket, b.get());
         (void)b->client->Connect(ToRelayAddress(relay.endpoint()), token(*b), now);
       }
       // Publish first, then Update: the client sends what was just published in this pass
       // (Update receives, then sends), instead of one whole pass over the bots later.
       b->Tick(now);
+      if (b->link) b->link->Update(now);
       b->client->Update(now);
       if (b->client->state() == ClientState::kConnected && !b->join_requested) {
         (void)b->client->JoinRoom("ccu-" + std::to_string(b->room_));
@@ -410,6 +430,11 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   result.grab_arrival_latency_ms_p99 = Percentile(world.grab_arrival_latencies_ms, 99);
   for (auto& b : world.bots) {
     if (b->client) result.arrival_time_fallbacks += b->client->arrival_time_fallbacks();
+    if (b->link) {
+      ++result.impaired_users;
+      result.impaired_dropped_up += b->link->up_stats().dropped;
+      result.impaired_dropped_down += b->link->down_stats().dropped;
+    }
   }
   result.relay_wait_ms_mean = 500.0 / o.tick_rate_hz;
   result.physics_step_ms_p99 = Percentile(step_ms, 99);

@@ -49,6 +49,12 @@ struct CcuOptions {
   // Every bot decodes what it receives (the SDK has no acknowledge-only mode), but only every
   // `measure_every`-th bot matches poses for latency and keeps jitter buffers (1: all bots).
   uint32_t measure_every = 1;
+  // --impaired: this fraction of the bots (every 1/f-th, spread over the rooms) reach the
+  // relay over a link of their own that loses --impaired-loss of the datagrams and delays them
+  // --impaired-delay-ms, both directions (protocol/network_simulator.h, in the bot process).
+  double impaired_fraction = 0;
+  double impaired_loss = 0.10;
+  double impaired_delay_ms = 30;
   // --samples: every latency sample as a CSV line (kind, time, rooms, bots, entity, ms), and
   // every measured hand pose that matched no publish; empty: none written.
   std::string samples_path;
@@ -97,6 +103,10 @@ struct CcuResult {
   uint64_t hand_updates_measured = 0;
   uint64_t hand_unmatched = 0;
   uint64_t cross_room_samples = 0;
+  // --impaired: bots on the lossy link, and the datagrams their links dropped (to the relay,
+  // from the relay).
+  uint32_t impaired_users = 0;
+  uint64_t impaired_dropped_up = 0, impaired_dropped_down = 0;
   std::vector<CcuSample> series;
   // External relay: scrapes of /metrics that failed (their seconds have no server figures).
   uint32_t metrics_failures = 0;

@@ -39,7 +39,10 @@ nlohmann::json Summary(const CcuResult& r) {
           {"hand_update_ratio", r.expected_update_ratio},
           {"hand_updates_measured", r.hand_updates_measured},
           {"hand_unmatched", r.hand_unmatched},
-          {"cross_room_samples", r.cross_room_samples}};
+          {"cross_room_samples", r.cross_room_samples},
+          {"impaired_users", r.impaired_users},
+          {"impaired_dropped_up", r.impaired_dropped_up},
+          {"impaired_dropped_down", r.impaired_dropped_down}};
 }
 
 // External relay: the server-side figures' provenance, and what it cannot give.
@@ -81,6 +84,10 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
     AddExternalNotes(o, r, &summary);
     j["runs"].push_back({{"summary", summary}, {"series", Series(r)}});
   }
+  if (o.impaired_fraction > 0) {
+    j["options"]["impaired"] = {{"fraction", o.impaired_fraction}, {"loss", o.impaired_loss},
+                                {"delay_ms", o.impaired_delay_ms}};
+  }
   if (o.external.enabled()) {
     j["relay"] = ExternalRelayJson(o.external);
     j["options"]["measure_every"] = o.measure_every;
@@ -110,6 +117,15 @@ void FillTable(const CcuOptions& o, const std::vector<CcuResult>& results, Table
           "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
           "thread CPU / wall; unmatched = measured hand poses matched to no publish, not in the "
           "percentiles)\n");
+  if (o.impaired_fraction > 0) {
+    for (const CcuResult& r : results) {
+      t->Line("(%u bots on a %.0f %% loss, %.0f ms link: %llu datagrams dropped to the relay, %llu "
+              "from it)\n",
+              r.impaired_users, o.impaired_loss * 100, o.impaired_delay_ms,
+              static_cast<unsigned long long>(r.impaired_dropped_up),
+              static_cast<unsigned long long>(r.impaired_dropped_down));
+    }
+  }
   if (o.external.enabled()) {
     t->Line("(external relay %s: egress, updates and step time from its /metrics, process-wide; "
             "cpu = its process CPU from /proc%s)\n",
@@ -166,6 +182,15 @@ class CcuScenario final : public Scenario {
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th bot matches poses for latency (all still decode; 1: all)")
         ->check(CLI::Range(1u, 1000000u));
+    cmd.add_option("--impaired", o_.impaired_fraction,
+                   "Fraction of the bots on a lossy, delayed link of their own (both directions; "
+                   "0: none)")
+        ->check(CLI::Range(0.0, 1.0));
+    cmd.add_option("--impaired-loss", o_.impaired_loss, "Loss of the --impaired bots' links (per direction)")
+        ->check(CLI::Range(0.0, 1.0));
+    cmd.add_option("--impaired-delay-ms", o_.impaired_delay_ms,
+                   "One-way delay of the --impaired bots' links (ms)")
+        ->check(CLI::Range(0.0, 10000.0));
     cmd.add_option("--samples", o_.samples_path,
                    "Write every latency sample (and unmatched hand pose) to this CSV (with several "
                    "--users: one file per count, suffixed .<users>)");

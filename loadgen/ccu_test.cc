@@ -7,7 +7,7 @@
 namespace edgephys::loadgen {
 namespace {
 
-CcuResult SmallRun(uint32_t users, uint32_t rooms) {
+CcuResult SmallRun(uint32_t users, uint32_t rooms, double impaired = 0) {
   spdlog::set_level(spdlog::level::warn);  // the in-process relay logs every join at info
   CcuOptions o;
   o.users = {users};
@@ -15,6 +15,7 @@ CcuResult SmallRun(uint32_t users, uint32_t rooms) {
   o.ramp_s = 1.5;
   o.duration_s = 3;
   o.progress = false;
+  o.impaired_fraction = impaired;
   std::vector<CcuResult> r = RunCcu(o);
   EXPECT_EQ(r.size(), 1u);
   return r.empty() ? CcuResult{} : r[0];
@@ -41,6 +42,18 @@ TEST(Ccu, OneRoomMatchesEveryPose) {
   ASSERT_GT(r.hand_updates_measured, 200u);
   EXPECT_LE(r.hand_unmatched, r.hand_updates_measured / 100);
   EXPECT_EQ(r.cross_room_samples, 0u);
+}
+
+// --impaired: a quarter of the bots on a 10 % loss, 30 ms link. The links really drop both
+// ways, and reliable spawns and grab events still reach every room-mate once.
+TEST(Ccu, ImpairedBotsLoseDatagramsButNoReliableMessage) {
+  const CcuResult r = SmallRun(8, 2, 0.25);
+  EXPECT_EQ(r.connected, 8u);
+  EXPECT_EQ(r.impaired_users, 2u);
+  EXPECT_GT(r.impaired_dropped_up, 10u);
+  EXPECT_GT(r.impaired_dropped_down, 10u);
+  EXPECT_EQ(r.reliable_lost, 0u);
+  EXPECT_GT(r.hand_updates_measured, 100u);
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // DatagramSocket: the one I/O seam of edgephys. The relay, the client SDK and the connection
 // code never touch the OS directly; they are handed a DatagramSocket, so tests can put an
-// in-process InMemoryNetwork or a NetworkSimulator (protocol/testing/) underneath and pump
-// everything deterministically with injected time.
+// in-process InMemoryNetwork (protocol/testing/) or a NetworkSimulator
+// (protocol/network_simulator.h) underneath and pump everything deterministically with
+// injected time.
 #pragma once
 
 #include <asio/ip/udp.hpp>

@@ -1,7 +1,9 @@
-#include "protocol/testing/network_simulator.h"
+#include "protocol/network_simulator.h"
 
 #include <gtest/gtest.h>
 
+#include <deque>
+#include <map>
 #include <vector>
 
 #include "protocol/byte_io.h"
@@ -212,6 +214,85 @@ TEST(NetworkSimulatorTest, SetConditionsAppliesToLaterSends) {
   ASSERT_TRUE(sim.SendTo(kTo, Numbered(1)).ok());
   sim.Update(1);
   EXPECT_EQ(inner.sent.size(), 1u);
+}
+
+// Inner socket with datagrams waiting to be read (fed by the test) and a record of sends.
+class FeedSocket final : public DatagramSocket {
+ public:
+  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override {
+    sent.push_back({0, to, std::vector<uint8_t>(data.begin(), data.end())});
+    return Status::Ok();
+  }
+  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override {
+    if (pending.empty()) return 0;
+    *from = kTo;
+    const std::vector<uint8_t> d = std::move(pending.front());
+    pending.pop_front();
+    std::copy_n(d.begin(), std::min(d.size(), buffer.size()), buffer.begin());
+    return d.size();
+  }
+  Endpoint LocalEndpoint() const override {
+    return Endpoint(asio::ip::make_address("192.0.2.1"), 4242);
+  }
+  std::deque<std::vector<uint8_t>> pending;
+  std::vector<RecordingSocket::Sent> sent;
+};
+
+// Both directions of one socket, each with its own conditions: arrivals lose their share and
+// wait their delay, sends are impaired apart from them.
+TEST(ImpairedSocketTest, ArrivalsAreLostAndDelayedApartFromSends) {
+  FeedSocket inner;
+  NetworkConditions up;
+  up.loss = 0.5;
+  up.seed = 11;
+  NetworkConditions down;
+  down.loss = 0.1;
+  down.latency_s = 0.030;
+  down.seed = 12;
+  ImpairedSocket socket(&inner, up, down);
+  EXPECT_EQ(socket.LocalEndpoint(), inner.LocalEndpoint());
+  constexpr uint32_t kCount = 20000;
+  std::map<uint32_t, double> fed_at, read_at;
+  double now = 0;
+  uint8_t buffer[16];
+  for (uint32_t i = 0; i < kCount + 100; ++i) {
+    if (i < kCount) {
+      inner.pending.push_back(Numbered(i));
+      fed_at[i] = now;
+      ASSERT_TRUE(socket.SendTo(kTo, Numbered(i)).ok());
+    }
+    now += 0.001;
+    socket.Update(now);
+    Endpoint from;
+    while (size_t n = socket.ReceiveFrom(&from, buffer)) {
+      ASSERT_EQ(n, 4u);
+      EXPECT_EQ(from, kTo);
+      const uint32_t id = LoadU32LE(buffer);
+      EXPECT_TRUE(read_at.emplace(id, now).second) << "delivered twice: " << id;
+    }
+  }
+  EXPECT_NEAR(1.0 - read_at.size() / double(kCount), 0.10, 0.01);
+  for (const auto& [id, t] : read_at) {
+    // Fed at fed_at, taken into the simulator at the next read (one step later at most).
+    EXPECT_GE(t - fed_at[id], 0.030 - 1e-9) << id;
+    EXPECT_LE(t - fed_at[id], 0.030 + 0.003) << id;
+  }
+  EXPECT_NEAR(inner.sent.size() / double(kCount), 0.5, 0.02);
+  EXPECT_EQ(socket.down_stats().dropped + read_at.size(), kCount);
+  EXPECT_EQ(socket.up_stats().sent, kCount);
+}
+
+// A datagram larger than the reader's buffer is reported with its full size, as UdpSocket does.
+TEST(ImpairedSocketTest, OversizedArrivalKeepsItsSize) {
+  FeedSocket inner;
+  ImpairedSocket socket(&inner, {}, {});
+  inner.pending.push_back(std::vector<uint8_t>(3000, 7));
+  socket.Update(1);
+  uint8_t small[100];
+  Endpoint from;
+  EXPECT_EQ(socket.ReceiveFrom(&from, small), 3000u);
+  EXPECT_EQ(small[99], 7);
+  EXPECT_EQ(socket.ReceiveFrom(&from, small), 0u);
 }
 
 }  // namespace

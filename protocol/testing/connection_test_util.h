@@ -14,7 +14,7 @@
 #include "protocol/byte_io.h"
 #include "protocol/connection.h"
 #include "protocol/testing/in_memory_network.h"
-#include "protocol/testing/network_simulator.h"
+#include "protocol/network_simulator.h"
 #include "protocol/sequence.h"
 
 namespace edgephys::testing {

@@ -253,6 +253,73 @@ TEST(Replication, SharedEncodingConvergesOnALossyNetwork) {
   EXPECT_GT(room.counter.updates[ids[0]], 10);
 }
 
+// One receiver in ten on a 10 % loss, 30 ms link of its own (both directions), the others
+// clean, the room at its defaults: every receiver converges to the relay's state once the
+// publisher stops, and the lossy one was really served through its losses.
+TEST(Replication, ATenthOfTheReceiversOnALossyLinkAllConverge) {
+  SimWorld world({}, Room2::Config(ReplicationConfig{}));
+  Client& a = world.AddClient(MintToken("rep", 1));
+  NetworkConditions lossy;
+  lossy.loss = 0.10;
+  lossy.latency_s = 0.030;
+  std::vector<Client*> receivers;
+  std::vector<Counter> counts(10);
+  receivers.push_back(&world.AddClientOnLink(MintToken("rep", 2), lossy, &counts[0]));
+  for (uint32_t i = 1; i < 10; ++i) {
+    receivers.push_back(&world.AddClient(MintToken("rep", 2 + i), &counts[i]));
+  }
+  std::vector<Client*> all = receivers;
+  all.push_back(&a);
+  ASSERT_TRUE(world.RunUntil([&] {
+    for (Client* c : all) {
+      if (c->state() != ClientState::kConnected) return false;
+    }
+    return true;
+  }, 10.0));
+  for (Client* c : all) ASSERT_TRUE(c->JoinRoom("rep").ok());
+  ASSERT_TRUE(world.RunUntil([&] {
+    for (Client* c : all) {
+      if (!c->joined()) return false;
+    }
+    return true;
+  }, 10.0));
+  std::vector<uint32_t> ids;
+  for (int i = 0; i < 40; ++i) ids.push_back(*a.Spawn({}));
+  double next = world.now();
+  world.RunFor(4.0, [&](double now) {
+    if (now < next) return;
+    next += 1.0 / 30;
+    for (uint32_t id : ids) {
+      const float t = static_cast<float>(now) + 0.1f * static_cast<float>(id % 11);
+      ASSERT_TRUE(a.PublishTransform(id, {t, std::sin(t), float(id % 7)},
+                                     {0, std::sin(t / 2), 0, std::cos(t / 2)}).ok());
+    }
+  });
+  const Room* relay_room = world.relay().FindRoom("rep");
+  ASSERT_NE(relay_room, nullptr);
+  auto converged = [&](const Client* c) {
+    for (uint32_t id : ids) {
+      const RemoteEntity* e = c->FindEntity(id);
+      if (e == nullptr || !WithinPrecision(e->state, relay_room->entities().at(id).state)) {
+        return false;
+      }
+    }
+    return true;
+  };
+  EXPECT_TRUE(world.RunUntil([&] {
+    for (const Client* c : receivers) {
+      if (!converged(c)) return false;
+    }
+    return true;
+  }, 5.0));
+  for (size_t i = 0; i < receivers.size(); ++i) {
+    EXPECT_TRUE(converged(receivers[i])) << "receiver " << i << (i == 0 ? " (lossy link)" : "");
+    EXPECT_GT(counts[i].updates[ids[0]], 30) << "receiver " << i;
+  }
+  EXPECT_GT(world.link(0).down_stats().dropped, 20u);
+  EXPECT_GT(world.link(0).up_stats().dropped, 5u);
+}
+
 namespace ambient {
 
 ColliderSpec TriggerBox(Vec3f half_extents) {

@@ -8,7 +8,7 @@
 
 #include "client/client_endpoint.h"
 #include "protocol/testing/in_memory_network.h"
-#include "protocol/testing/network_simulator.h"
+#include "protocol/network_simulator.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -46,10 +46,27 @@ class SimWorld {
     return *clients_.back();
   }
 
+  // A client on a link of its own: both directions cross `link` (seeded per client), on top
+  // of the world's conditions at the relay.
+  Client& AddClientOnLink(const std::vector<uint8_t>& token, const NetworkConditions& link,
+                          ClientListener* listener = nullptr, const ClientConfig& config = {}) {
+    uint16_t port = static_cast<uint16_t>(20000 + raws_.size());
+    raws_.push_back(network_.CreateSocket(Endpoint(asio::ip::make_address("10.0.0.2"), port)));
+    NetworkConditions up = link, down = link;
+    up.seed = 300 + 2 * port;
+    down.seed = 301 + 2 * port;
+    links_.push_back(std::make_unique<ImpairedSocket>(raws_.back().get(), up, down));
+    clients_.push_back(std::make_unique<Client>(config, links_.back().get(), listener));
+    (void)clients_.back()->Connect(ToRelayAddress(relay_endpoint_), token, now_);
+    return *clients_.back();
+  }
+  const ImpairedSocket& link(size_t i) const { return *links_.at(i); }
+
   void Step(double dt = 0.005) {
     now_ += dt;
     relay_sim_->Update(now_);
     for (auto& s : sims_) s->Update(now_);
+    for (auto& l : links_) l->Update(now_);
     relay_->Update(now_, UnixNow());
     for (auto& c : clients_) {
       if (c) c->Update(now_);
@@ -96,6 +113,7 @@ class SimWorld {
   std::unique_ptr<Relay> relay_;
   std::vector<std::unique_ptr<DatagramSocket>> raws_;
   std::vector<std::unique_ptr<NetworkSimulator>> sims_;
+  std::vector<std::unique_ptr<ImpairedSocket>> links_;
   std::vector<std::unique_ptr<Client>> clients_;
   std::vector<size_t> frozen_;
   double now_ = 0;

@@ -1,6 +1,8 @@
-// NetworkSimulator: a DatagramSocket decorator that makes the network worse on purpose, for
-// tests: loss, duplication, latency with jitter, and reordering, all deterministic for a given
-// seed and driven by injected time. Test support: edgephys::protocol_testing.
+// NetworkSimulator: a DatagramSocket decorator that makes the network worse on purpose: loss,
+// duplication, latency with jitter, and reordering, all deterministic for a given seed and
+// driven by injected time. Part of edgephys::protocol so that the tests and the load
+// generator's impaired bots (loadgen ccu --impaired) share one model; nothing in the relay or
+// the SDK creates one. ImpairedSocket (below) impairs both directions of one socket.
 //
 // SendTo() decides the fate of each datagram at once (drawing from a std::mt19937_64 seeded
 // with NetworkConditions::seed) and queues every copy that survives with a delay; Update(now)
@@ -18,6 +20,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <random>
 #include <vector>
 
@@ -89,6 +92,53 @@ class NetworkSimulator final : public DatagramSocket {
   std::vector<size_t> free_;    // unused entry indices
   std::vector<size_t> heap_;    // min-heap of queued entry indices by (due, order)
   NetworkSimulatorStats stats_;
+};
+
+// ImpairedSocket: one socket whose two directions both cross a NetworkSimulator, as a client
+// on a bad link sees it: what it sends goes through `up`, what arrives through `down` (held in
+// an inbox until due). Update(now) releases both directions; ReceiveFrom() first takes every
+// datagram waiting in `inner` into the down simulator, then returns the next one due.
+// Arrival times are the read (ReceiveFromTimed reports 0: unknown).
+//
+// Ownership: `inner` is not owned and must outlive this socket. Memory: at most
+// NetworkSimulator::kDefaultMaxQueued datagrams per direction, plus those due and not yet read.
+// Thread-safety: none. Cost: a NetworkSimulator's per datagram and direction, plus one copy.
+class ImpairedSocket final : public DatagramSocket {
+ public:
+  ImpairedSocket(DatagramSocket* inner, const NetworkConditions& up,
+                 const NetworkConditions& down);
+
+  void Update(double now);  // seconds, monotonic, injected
+
+  Status SendTo(const Endpoint& to, std::span<const uint8_t> data) override;
+  size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override;
+  Endpoint LocalEndpoint() const override;
+
+  const NetworkSimulatorStats& up_stats() const { return up_.stats(); }
+  const NetworkSimulatorStats& down_stats() const { return down_.stats(); }
+
+ private:
+  // The down simulator's "network": due datagrams wait here for ReceiveFrom().
+  class Inbox final : public DatagramSocket {
+   public:
+    Status SendTo(const Endpoint& from, std::span<const uint8_t> data) override;
+    size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override;
+    Endpoint LocalEndpoint() const override { return {}; }
+
+   private:
+    struct Datagram {
+      Endpoint from;
+      std::vector<uint8_t> data;
+    };
+    std::deque<Datagram> due_;
+  };
+
+  DatagramSocket* inner_;
+  Inbox inbox_;
+  NetworkSimulator up_;
+  NetworkSimulator down_;
+  double now_ = 0;
+  std::vector<uint8_t> scratch_;
 };
 
 }  // namespace edgephys

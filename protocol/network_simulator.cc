@@ -1,4 +1,4 @@
-#include "protocol/testing/network_simulator.h"
+#include "protocol/network_simulator.h"
 
 #include <algorithm>
 
@@ -91,5 +91,49 @@ size_t NetworkSimulator::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) 
 }
 
 Endpoint NetworkSimulator::LocalEndpoint() const { return inner_->LocalEndpoint(); }
+
+ImpairedSocket::ImpairedSocket(DatagramSocket* inner, const NetworkConditions& up,
+                               const NetworkConditions& down)
+    : inner_(inner), up_(inner, up), down_(&inbox_, down), scratch_(65536) {}
+
+void ImpairedSocket::Update(double now) {
+  now_ = now;
+  up_.Update(now);
+  down_.Update(now);
+}
+
+Status ImpairedSocket::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
+  return up_.SendTo(to, data);
+}
+
+size_t ImpairedSocket::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) {
+  for (;;) {
+    Endpoint source;
+    const size_t n = inner_->ReceiveFrom(&source, scratch_);
+    if (n == 0) break;
+    // Oversized datagrams keep their true size only as far as the scratch buffer (64 KiB, the
+    // UDP maximum) holds them.
+    (void)down_.SendTo(source, std::span<const uint8_t>(scratch_.data(), std::min(n, scratch_.size())));
+  }
+  down_.Update(now_);  // those the conditions give no delay
+  return inbox_.ReceiveFrom(from, buffer);
+}
+
+Endpoint ImpairedSocket::LocalEndpoint() const { return inner_->LocalEndpoint(); }
+
+Status ImpairedSocket::Inbox::SendTo(const Endpoint& from, std::span<const uint8_t> data) {
+  due_.push_back({from, std::vector<uint8_t>(data.begin(), data.end())});
+  return Status::Ok();
+}
+
+size_t ImpairedSocket::Inbox::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) {
+  if (due_.empty()) return 0;
+  Datagram& d = due_.front();
+  *from = d.from;
+  const size_t n = d.data.size();
+  std::copy_n(d.data.begin(), std::min(n, buffer.size()), buffer.begin());
+  due_.pop_front();
+  return n;
+}
 
 }  // namespace edgephys
