@@ -445,16 +445,19 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
     for (auto& [id, buf] : b->buffers) delays.push_back(buf.target_delay_s() * 1000);
   }
   result.interpolation_delay_ms = Median(delays);
-  double cpu_sum = 0, egress_sum = 0;
+  double cpu_sum = 0, egress_sum = 0, updates_sum = 0;
   int n = 0;
   for (const CcuSample& s : result.series) {
     if (s.t < o.ramp_s) continue;
     cpu_sum += s.relay_cpu;
     egress_sum += s.egress_bytes_per_s;
+    updates_sum += s.updates_per_s;
     ++n;
   }
   result.relay_cpu_mean = n ? cpu_sum / n : 0;
   result.egress_bytes_per_s_per_user = n && users ? egress_sum / n / users : 0;
+  result.relay_us_per_update = updates_sum > 0 ? cpu_sum / updates_sum * 1e6 : 0;
+  result.bytes_per_update = updates_sum > 0 ? egress_sum / updates_sum : 0;
   // Each measuring bot watches every other bot's right hand in its room; owed are the poses
   // the publishers actually sent (their loop may publish below publish_hz) that moved the hand
   // by at least the lattice step (a hand resting over a box is rightly not resent).

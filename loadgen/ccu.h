@@ -94,6 +94,10 @@ struct CcuResult {
   double interpolation_delay_ms = 0;  // playout delay a jitter buffer chooses for these arrivals
   double relay_cpu_mean = 0;
   double egress_bytes_per_s_per_user = 0;
+  // Per entity update the relay delivered (updates_per_s), over the measured seconds: its CPU
+  // (microseconds; NaN when the CPU is unknown) and the sealed UDP payload bytes it sent.
+  double relay_us_per_update = 0;
+  double bytes_per_update = 0;
   double expected_update_ratio = 0;   // hand updates received / expected
   // Measurement soundness. Of the hand updates measured (new poses at a measuring bot), those
   // matched to their publish give the latency samples; unmatched ones matched no publish of

@@ -36,6 +36,8 @@ nlohmann::json Summary(const CcuResult& r) {
           {"latency_interpolation_ms", r.interpolation_delay_ms},
           {"relay_cpu_mean", r.relay_cpu_mean},
           {"egress_bytes_per_s_per_user", r.egress_bytes_per_s_per_user},
+          {"relay_us_per_update", r.relay_us_per_update},
+          {"bytes_per_update", r.bytes_per_update},
           {"hand_update_ratio", r.expected_update_ratio},
           {"hand_updates_measured", r.hand_updates_measured},
           {"hand_unmatched", r.hand_unmatched},
@@ -98,12 +100,13 @@ nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) 
 }
 
 void FillTable(const CcuOptions& o, const std::vector<CcuResult>& results, Table* t) {
-  t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s %9s\n", "users", "rooms",
-          "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50", "grab p99",
-          "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio", "unmatched");
+  t->Line("%6s %5s %9s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %8s %9s %8s %9s %8s %8s\n", "users",
+          "rooms", "connected", "lost", "lat p50", "lat p99", "arr p50", "arr p99", "grab p50",
+          "grab p99", "garr p50", "garr p99", "step p99", "cpu", "B/s/user", "upd ratio",
+          "unmatched", "us/upd", "B/upd");
   for (const CcuResult& r : results) {
     t->Line("%6u %5u %9u %8llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.2f %8.2f "
-            "%9.0f %8.2f %9.4f\n",
+            "%9.0f %8.2f %9.4f %8.3f %8.2f\n",
             r.users, r.rooms, r.connected, static_cast<unsigned long long>(r.reliable_lost),
             r.latency_ms_p50, r.latency_ms_p99, r.arrival_latency_ms_p50, r.arrival_latency_ms_p99,
             r.grab_latency_ms_p50, r.grab_latency_ms_p99, r.grab_arrival_latency_ms_p50,
@@ -111,12 +114,14 @@ void FillTable(const CcuOptions& o, const std::vector<CcuResult>& results, Table
             r.egress_bytes_per_s_per_user, r.expected_update_ratio,
             r.hand_updates_measured
                 ? static_cast<double>(r.hand_unmatched) / static_cast<double>(r.hand_updates_measured)
-                : 0.0);
+                : 0.0,
+            r.relay_us_per_update, r.bytes_per_update);
   }
   t->Text("(latencies in ms, user to user on loopback: lat/grab until the receiving bot's SDK "
           "read it, arr/garr until it reached that bot's socket (kernel timestamp); cpu = relay "
           "thread CPU / wall; unmatched = measured hand poses matched to no publish, not in the "
-          "percentiles)\n");
+          "percentiles; us/upd and B/upd = relay CPU microseconds and sealed UDP payload bytes "
+          "per entity update delivered)\n");
   if (o.impaired_fraction > 0) {
     for (const CcuResult& r : results) {
       t->Line("(%u bots on a %.0f %% loss, %.0f ms link: %llu datagrams dropped to the relay, %llu "

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reruns every figures-page scenario and rewrites docs/benchmarks.md's tables and charts.
 #
-#   scripts/bench.sh                  full mode: every scenario at the page's sizes (about 20 min
+#   scripts/bench.sh                  full mode: every scenario at the page's sizes (about 28 min
 #                                     on 2 cores), rewrites docs/benchmarks.md, docs/charts/
 #                                     figures.json and the charts in docs/charts/
 #   scripts/bench.sh --short --out D  short mode (under 3 minutes on 2 cores): small sizes and
@@ -13,6 +13,9 @@
 #                   `release` preset; the full mode also runs its bench/codec_bench when present)
 #   --loadgen PATH  the edgephys-loadgen binary (overrides --build's)
 #   --out DIR       where the page, the figures JSON, raw/ and the charts go
+#   --only LIST     run only these scenarios (comma separated: relay_compare, interp_sweep,
+#                   codec_sweep, multiobject_quarter, multiobject_full, softbody, ccu, ceiling,
+#                   messages, codec_bench); the page keeps the others' committed tables
 #
 # Needs python3 and gnuplot; `ceiling` needs iperf3 (scripts/setup.sh installs all three).
 # Exit status: 0 done, 1 a scenario or the check failed, 2 bad usage.
@@ -23,13 +26,15 @@ short=0
 build="$root/build/release"
 loadgen=""
 out=""
+only=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --short) short=1 ;;
     --build) build="$2"; shift ;;
     --loadgen) loadgen="$2"; shift ;;
     --out) out="$2"; shift ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    --only) only="$2"; shift ;;
+    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
     *) echo "bench.sh: unknown argument $1" >&2; exit 2 ;;
   esac
   shift
@@ -64,8 +69,12 @@ mkdir -p "$raw"
 rm -f "$raw"/*.json
 
 failed=0
+wanted() {  # NAME: whether --only (if given) lists NAME's scenario (NAME up to its first dot)
+  [ -z "$only" ] || [[ ",$only," == *",${1%%.*},"* ]]
+}
 run() {  # NAME ARGS...: one scenario into raw/NAME.json, its table on stdout
   local name="$1"; shift
+  wanted "$name" || return 0
   echo "== $name: edgephys-loadgen $*"
   local quiet=()  # offline scenarios have no progress line
   if "$loadgen" "$1" --help 2>/dev/null | grep -q -- --no-progress; then quiet=(--no-progress); fi
@@ -114,15 +123,20 @@ else
     --stirrer-speed 1.0 --duration 8
   run_charts multiobject_full multiobject --objects 500,1000,2000 --duration 8
   run_charts softbody softbody --bunnies 1,3
-  run_charts ccu.1 ccu --users 100 --rooms 1 --ramp 10 --duration 20
-  run_charts ccu.2 ccu --users 250 --rooms 1 --ramp 8 --duration 12
-  run_charts ccu.3 ccu --users 1000 --rooms 40 --ramp 20 --duration 15
+  for i in 1 2 3; do  # medians of 3; each configuration clean and with a tenth of the users lossy
+    run_charts ccu.$i.1 ccu --users 100 --rooms 1 --ramp 10 --duration 20
+    run_charts ccu.$i.2 ccu --users 100 --rooms 1 --ramp 10 --duration 20 --impaired 0.1
+    run_charts ccu.$i.3 ccu --users 250 --rooms 10 --ramp 8 --duration 15
+    run_charts ccu.$i.4 ccu --users 250 --rooms 10 --ramp 8 --duration 15 --impaired 0.1
+    run_charts ccu.$i.5 ccu --users 250 --rooms 1 --ramp 8 --duration 12
+    run_charts ccu.$i.6 ccu --users 1000 --rooms 40 --ramp 20 --duration 15
+  done
   run ceiling ceiling --io-threads 1,2 --repeat 3
   for i in 1 2 3; do  # medians of 3 (figures.py takes them)
     run messages.$i messages --users 25 --rate 200
     run messages.$((i + 3)) messages --users 25 --rate 200 --unreliable
   done
-  if [ -x "$build/bench/codec_bench" ]; then
+  if [ -x "$build/bench/codec_bench" ] && wanted codec_bench; then
     echo "== codec_bench"
     "$build/bench/codec_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true \
       --benchmark_format=json >"$raw/codec_bench.json" || { failed=1; rm -f "$raw/codec_bench.json"; }

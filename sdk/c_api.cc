@@ -7,6 +7,7 @@
 #include <time.h>
 
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -448,8 +449,12 @@ edgephys_status edgephys_client_get_state_format(edgephys_client* client, uint32
 edgephys_status edgephys_client_get_info(edgephys_client* client, edgephys_client_info* out) {
   EDGEPHYS_CHECK(client);
   if (out == nullptr) return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out is NULL");
-  if (out->struct_size != sizeof(edgephys_client_info)) {
-    return Fail(EDGEPHYS_E_INVALID_ARGUMENT, "out->struct_size is not sizeof(edgephys_client_info)");
+  // Callers built before state_payloads_refused pass the size that ended at state_bytes_received.
+  constexpr uint32_t kWithoutRefused = offsetof(edgephys_client_info, state_payloads_refused);
+  if (out->struct_size != sizeof(edgephys_client_info) && out->struct_size != kWithoutRefused) {
+    return Fail(EDGEPHYS_E_INVALID_ARGUMENT,
+                "out->struct_size is neither sizeof(edgephys_client_info) nor " +
+                    std::to_string(kWithoutRefused) + " (the size before state_payloads_refused)");
   }
   const edgephys::Client& c = *client->client;
   out->state = static_cast<uint32_t>(c.state());
@@ -462,6 +467,9 @@ edgephys_status edgephys_client_get_info(edgephys_client* client, edgephys_clien
   out->dropped_events = client->dropped;
   out->states_received = client->states_received;
   out->state_bytes_received = c.state_bytes_received();
+  if (out->struct_size == sizeof(edgephys_client_info)) {
+    out->state_payloads_refused = c.state_payloads_refused();
+  }
   return Ok();
 }
 

@@ -426,6 +426,7 @@ TEST_F(CApiClient, QueriesRejectNullsWrongSizesAndUnknownIds) {
   EXPECT_EQ(ev.type, static_cast<uint32_t>(EDGEPHYS_EVENT_NONE));
 
   edgephys_client_info info{};
+  static_assert(sizeof(info) == 64, "the C# and Python bindings declare 64 bytes");
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_info(c_, nullptr));
   info.struct_size = 4;
   EXPECT_STATUS(EDGEPHYS_E_INVALID_ARGUMENT, edgephys_client_get_info(c_, &info));
@@ -433,6 +434,7 @@ TEST_F(CApiClient, QueriesRejectNullsWrongSizesAndUnknownIds) {
   EXPECT_STATUS(EDGEPHYS_OK, edgephys_client_get_info(c_, &info));
   EXPECT_EQ(info.state, static_cast<uint32_t>(EDGEPHYS_STATE_IDLE));
   EXPECT_EQ(info.joined, 0u);
+  EXPECT_EQ(info.state_payloads_refused, 0u);
 
   edgephys_connection_status st;
   static_assert(sizeof(st) == 144, "the C# and Python bindings declare 144 bytes");

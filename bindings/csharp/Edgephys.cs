@@ -215,7 +215,7 @@ public unsafe struct Event {
 [StructLayout(LayoutKind.Sequential)]
 public struct ClientInfo {
   public uint StructSize, State, Joined, PlayerId, EntityIdBase, EntityCount, RejectReason, DisconnectReason;
-  public ulong DroppedEvents, StatesReceived, StateBytesReceived;
+  public ulong DroppedEvents, StatesReceived, StateBytesReceived, StatePayloadsRefused;
 }
 
 [StructLayout(LayoutKind.Sequential)]

@@ -71,6 +71,7 @@ class BindingTest(unittest.TestCase):
             self.assertIsNone(c.entity(1))
             self.assertEqual(list(c.events()), [])
             self.assertEqual(c.info().state, 0)
+            self.assertEqual(c.info().state_payloads_refused, 0)  # the struct's size matches the library's
             self.assertIsNone(c.state_format())  # not joined
             with self.assertRaises(ep.EdgephysError) as e:
                 c.sample_pose(1, ep.INTERP_AUTO)

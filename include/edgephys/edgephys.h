@@ -413,7 +413,9 @@ typedef enum edgephys_connection_state {
 } edgephys_connection_state;
 
 typedef struct edgephys_client_info {
-  uint32_t struct_size;       /* set to sizeof(edgephys_client_info) before the call */
+  uint32_t struct_size;       /* set to sizeof(edgephys_client_info) before the call; 56, the
+                               * size before state_payloads_refused, is accepted too (that field
+                               * is then not written) */
   uint32_t state;             /* edgephys_connection_state */
   uint32_t joined;            /* 0 or 1 */
   uint32_t player_id;
@@ -424,6 +426,9 @@ typedef struct edgephys_client_info {
   uint64_t dropped_events;    /* events lost to a full queue */
   uint64_t states_received;   /* entity states received */
   uint64_t state_bytes_received;
+  uint64_t state_payloads_refused; /* state payloads of a format the SDK does not decode, or not
+                                    * the room's: refused and counted, nothing applied (a relay
+                                    * sending an emulation format, a client without its plug-in) */
 } edgephys_client_info;
 
 EDGEPHYS_API edgephys_status edgephys_client_get_info(edgephys_client* client,

@@ -134,12 +134,14 @@ def t_softbody(j):
 
 def t_ccu(j):
     runs = j.get("runs") or [{"summary": j["summary"]}]
+    impaired = j["options"].get("impaired", {}).get("fraction", 0.0) * 100
     rows = []
     for run in runs:
         s = run.get("summary", run)
-        rows.append([s["users"], s["rooms"], s["reliable_lost"], s["hand_update_ratio"],
+        rows.append([s["users"], s["rooms"], impaired, s["reliable_lost"], s["hand_update_ratio"],
                      s["latency_arrival_ms_p50"], s["latency_arrival_ms_p99"],
                      s["latency_user_to_user_ms_p99"], s["relay_cpu_mean"] or 0.0,
+                     s.get("relay_us_per_update"), s.get("bytes_per_update"),
                      s["egress_bytes_per_s_per_user"]])
     return rows
 

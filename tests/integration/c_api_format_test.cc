@@ -1,14 +1,18 @@
 // edgephys_client_get_state_format and EDGEPHYS_INTERP_AUTO against a real relay on loopback
 // UDP: a receiver learns the room's state format (9, or 2 without shared encoding) from its
-// Joined, and AUTO draws with Hermite in both.
+// Joined, and AUTO draws with Hermite in both; a format the SDK does not decode is refused and
+// counted in edgephys_client_info.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstddef>
+#include <cstring>
 #include <functional>
 #include <string>
 
 #include "client/interpolation.h"
 #include "edgephys/edgephys.h"
+#include "loadgen/emulation/emulation_plugins.h"
 #include "protocol/join_token.h"
 #include "tests/integration/harness.h"
 
@@ -21,9 +25,10 @@ RelayConfig Format2Config() {
   return c;
 }
 
-class CApiFormat : public ::testing::TestWithParam<bool> {  // param: a format-2 room
+// Two C API clients in room "formats" of a relay with `config`; client 0 publishes `entity_`.
+class CApiRoom : public ::testing::Test {
  protected:
-  CApiFormat() : world_(GetParam() ? Format2Config() : LoopbackWorld::DefaultConfig()) {}
+  explicit CApiRoom(RelayConfig config) : world_(std::move(config)) {}
 
   void SetUp() override {
     for (int i = 0; i < 2; ++i) {
@@ -82,6 +87,64 @@ class CApiFormat : public ::testing::TestWithParam<bool> {  // param: a format-2
   bool joined_[2] = {false, false};
   uint32_t entity_ = 0;
 };
+
+class CApiFormat : public CApiRoom, public ::testing::WithParamInterface<bool> {  // a format-2 room
+ protected:
+  CApiFormat() : CApiRoom(GetParam() ? Format2Config() : LoopbackWorld::DefaultConfig()) {}
+};
+
+RelayConfig PhotonConfig() {
+  RelayConfig c = LoopbackWorld::DefaultConfig();
+  UseReplicationMode(ReplicationMode::kPhoton, &c.room_defaults.replication);
+  return c;
+}
+
+class CApiRefusal : public CApiRoom {
+ protected:
+  CApiRefusal() : CApiRoom(PhotonConfig()) {}
+};
+
+// A relay sending an emulation's format (loadgen/emulation/, Photon-style format 3) to a C API
+// client, which decodes none of it: every state payload is refused and counted in the info,
+// nothing is applied, the client stays connected. A caller built before the counter (struct
+// size 56) is still answered, and nothing is written past its struct.
+TEST_F(CApiRefusal, StatesOfAFormatTheSdkDoesNotDecodeAreCountedInTheInfo) {
+  ASSERT_TRUE(RunUntil([&] { return joined_[0] && joined_[1]; }, 5.0));
+  uint32_t format = 0;
+  ASSERT_EQ(edgephys_client_get_state_format(c_[1], &format), EDGEPHYS_OK);
+  EXPECT_EQ(format, 3u);
+  edgephys_spawn_desc d;
+  ASSERT_EQ(edgephys_spawn_desc_init(&d), EDGEPHYS_OK);
+  d.transform = On(world_.Now());
+  ASSERT_EQ(edgephys_client_spawn(c_[0], &d, &entity_), EDGEPHYS_OK) << edgephys_last_error();
+  edgephys_client_info info{};
+  info.struct_size = sizeof(info);
+  ASSERT_TRUE(RunUntil([&] {
+    EXPECT_EQ(edgephys_client_get_info(c_[1], &info), EDGEPHYS_OK);
+    return info.state_payloads_refused >= 20;
+  }, 5.0)) << "refused " << info.state_payloads_refused;
+  EXPECT_EQ(info.states_received, 0u);
+  EXPECT_GT(info.state_bytes_received, 0u);
+  EXPECT_EQ(info.state, static_cast<uint32_t>(EDGEPHYS_STATE_CONNECTED));
+  EXPECT_EQ(info.joined, 1u);
+  edgephys_transform t;
+  EXPECT_NE(edgephys_client_sample_pose(c_[1], entity_, world_.Now(), EDGEPHYS_INTERP_AUTO, &t),
+            EDGEPHYS_OK);
+
+  constexpr uint32_t kOldSize = 56;
+  static_assert(offsetof(edgephys_client_info, state_payloads_refused) == kOldSize);
+  alignas(edgephys_client_info) unsigned char old[sizeof(edgephys_client_info)];
+  std::memset(old, 0xCD, sizeof(old));
+  std::memcpy(old, &kOldSize, sizeof(kOldSize));
+  ASSERT_EQ(edgephys_client_get_info(c_[1], reinterpret_cast<edgephys_client_info*>(old)),
+            EDGEPHYS_OK)
+      << edgephys_last_error();
+  for (size_t i = kOldSize; i < sizeof(old); ++i) EXPECT_EQ(old[i], 0xCD) << "byte " << i;
+  info.struct_size = 60;
+  EXPECT_EQ(edgephys_client_get_info(c_[1], &info), EDGEPHYS_E_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(edgephys_last_error()).find("state_payloads_refused"), std::string::npos)
+      << edgephys_last_error();
+}
 
 TEST_P(CApiFormat, TheRoomsFormatReachesTheApiAndAutoDrawsWithWhatItCallsFor) {
   const bool format2 = GetParam();

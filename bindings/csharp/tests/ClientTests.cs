@@ -76,6 +76,8 @@ static class ClientTests {
       ConnectionStatus cs;
       Expect(!receiver.TryGetConnectionStatus(out cs), "no connection status before connecting");
       Expect(Marshal.SizeOf(typeof(ConnectionStatus)) == 144, "ConnectionStatus matches the C struct's 144 bytes");
+      Expect(Marshal.SizeOf(typeof(ClientInfo)) == 64, "ClientInfo matches the C struct's 64 bytes");
+      Expect(receiver.Info().StatePayloadsRefused == 0, "no state payload refused before connecting");
       sender.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_1"));
       receiver.Connect(relay, Environment.GetEnvironmentVariable("EDGEPHYS_TOKEN_2"));
       double end = Native.Now() + 5;

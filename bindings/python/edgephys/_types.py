@@ -122,7 +122,8 @@ class ClientInfo(ctypes.Structure):
                 ("player_id", ctypes.c_uint32), ("entity_id_base", ctypes.c_uint32),
                 ("entity_count", ctypes.c_uint32), ("reject_reason", ctypes.c_uint32),
                 ("disconnect_reason", ctypes.c_uint32), ("dropped_events", ctypes.c_uint64),
-                ("states_received", ctypes.c_uint64), ("state_bytes_received", ctypes.c_uint64)]
+                ("states_received", ctypes.c_uint64), ("state_bytes_received", ctypes.c_uint64),
+                ("state_payloads_refused", ctypes.c_uint64)]
 
 
 class ConnectionStatus(ctypes.Structure):
