@@ -7,5 +7,7 @@ set ylabel "hand latency (ms)"
 set grid
 set key top left
 set datafile missing '?'
-plot 'ccu.dat' index 0 using 1:2 with linespoints lw 2 title "socket p50 ms", \
-     'ccu.dat' index 0 using 1:3 with linespoints lw 2 title "socket p99 ms"
+plot 'ccu.dat' index 0 using 1:2 with linespoints lw 2 title "0.0 socket p50 ms", \
+     'ccu.dat' index 0 using 1:3 with linespoints lw 2 title "0.0 socket p99 ms", \
+     'ccu.dat' index 1 using 1:2 with linespoints lw 2 title "10.0 socket p50 ms", \
+     'ccu.dat' index 1 using 1:3 with linespoints lw 2 title "10.0 socket p99 ms"

@@ -240,6 +240,7 @@ def extract(raw_dir, machine_path, out_path, template_path):
         if not runs:
             continue
         table = dict(template["tables"][name])
+        table["commit"] = figures["machine"]["commit"]
         table["rows"] = [row for j in runs for row in fn(j)]
         if table.get("median_key_columns"):  # several runs of one configuration: medians
             table["rows"] = median_rows(table["rows"], table["median_key_columns"])
@@ -258,12 +259,23 @@ def markdown(table):
     return "\n".join(out)
 
 
-def machine_md(m):
-    return "\n".join([
+def machine_md(m, tables=None):
+    lines = [
         "| CPU | cores | kernel | compiler | build | commit |",
         "|---|---|---|---|---|---|",
         f"| {m['cpu']} | {m['cores']} | {m['kernel']} | {m['compiler']} | {m['build_type']} | {m['commit']} |",
-    ])
+    ]
+    older = {}  # tables a partial run (--only) kept from an earlier run: commit -> names
+    for name, table in (tables or {}).items():
+        if table.get("commit", m["commit"]) != m["commit"]:
+            older.setdefault(table["commit"], []).append(name)
+    if older:
+        lines.append("")
+        lines.append("Measured at " + m["commit"] + ": " +
+                     ", ".join(n for n, t in tables.items() if t.get("commit", m["commit"]) == m["commit"]) +
+                     ". Kept from earlier runs: " +
+                     "; ".join(f"{', '.join(names)} at {c}" for c, names in older.items()) + ".")
+    return "\n".join(lines)
 
 
 def replace_block(text, name, body):
@@ -331,12 +343,14 @@ def render(figures_path, doc_path, chart_dir, base_path=None, merged_path=None):
     if base_path:  # tables measured in this run override the committed ones
         with open(base_path) as f:
             base = json.load(f)
+        for table in base["tables"].values():  # tables kept from the run that measured them
+            table.setdefault("commit", base["machine"]["commit"])
         base["tables"].update(figures["tables"])
         base["machine"] = figures["machine"]
         figures = base
     with open(doc_path) as f:
         text = f.read()
-    text = replace_block(text, "machine", machine_md(figures["machine"]))
+    text = replace_block(text, "machine", machine_md(figures["machine"], figures["tables"]))
     for name, table in figures["tables"].items():
         text = replace_block(text, "table:" + name, markdown(table))
         chart(name, table, chart_dir)
