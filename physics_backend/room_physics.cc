@@ -81,6 +81,7 @@ void RoomPhysics::Drive(uint32_t id, const EntityState& s, double time) {
   auto role = roles_.find(id);
   if (role == roles_.end() || role->second != PhysicsRole::kMirrored) return;
   DrivenPoses& poses = driven_[id];
+  if (!poses.pending) pending_driven_.push_back(id);
   poses.pending = true;
   poses.time = time;
   poses.state = s;
@@ -124,11 +125,14 @@ Status RoomPhysics::Grab(uint32_t entity, uint32_t hand, bool require_hover) {
 }
 
 void RoomPhysics::CommitDrivenPoses() {
-  for (auto& [id, d] : driven_) {
-    if (!d.pending) continue;
+  for (uint32_t id : pending_driven_) {
+    auto it = driven_.find(id);
+    if (it == driven_.end() || !it->second.pending) continue;  // removed since
+    DrivenPoses& d = it->second;
     d.history.Add(d.time, d.state.position, d.state.rotation);
     d.pending = false;
   }
+  pending_driven_.clear();
 }
 
 Status RoomPhysics::Release(uint32_t entity) {

@@ -146,7 +146,8 @@ class RoomPhysics {
     physics::PoseHistory history;
   };
   std::unordered_map<uint32_t, DrivenPoses> driven_;
-  void CommitDrivenPoses();
+  std::vector<uint32_t> pending_driven_;  // ids Drive()n since the last Advance
+  void CommitDrivenPoses();  // O(entities driven since the last Advance)
   std::vector<EntityState> scratch_states_;
   std::vector<GrabResult> pending_grabs_;
 };
