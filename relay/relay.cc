@@ -139,6 +139,23 @@ void Relay::FlushSends() {
 
 void Relay::UpdateSessions(double now, bool sample_rtt) {
   removal_scratch_.clear();
+  if (!sample_rtt && now < sessions_deadline_) {
+    // No connection timer is due: only the sessions used since the last pass (Session::
+    // ServiceSoon) need servicing. Those made due while these are serviced wait for the next.
+    due_scratch_.swap(due_sessions_);
+    due_sessions_.clear();
+    double next = sessions_deadline_;
+    for (uint32_t id : due_scratch_) {
+      auto it = sessions_.find(id);
+      if (it == sessions_.end() || now < it->second->service_at()) continue;  // gone, or serviced
+      ServiceSession(id, *it->second, now, &next);
+    }
+    due_scratch_.clear();
+    for (uint32_t id : removal_scratch_) RemoveSession(id, now);
+    sessions_deadline_ = next;
+    return;
+  }
+  due_sessions_.clear();  // the pass below services them; any made due during it wait
   double next = std::numeric_limits<double>::infinity();
   for (auto& [id, s] : sessions_) {
     if (sample_rtt && s->connection().stats().rtt_s > 0) {
@@ -150,39 +167,44 @@ void Relay::UpdateSessions(double now, bool sample_rtt) {
       next = std::min(next, s->service_at());
       continue;
     }
-    s->set_now(now);
-    const auto work_start = RoomWorkLedger::Clock::now();
-    uint64_t resends = s->connection().stats().reliable_resends;
-    s->connection().Update(now, *s);
-    if (RoomHost* room = s->room(); room != nullptr) {
-      room_work_.Charge(room, &room->name(), RoomWorkLedger::SecondsSince(work_start));
-    }
-    RelayCounters::Inc(counters_->reliable_resends,
-                       s->connection().stats().reliable_resends - resends);
-    double at = s->connection().NextTimer();
-    if (s->closing()) at = std::min(at, s->close_deadline());
-    if (!s->is_worker() && !s->closing() && s->room() == nullptr &&
-        config_.limits.join_timeout_s > 0) {
-      at = std::min(at, s->connected_at() + config_.limits.join_timeout_s);
-    }
-    s->set_service_at(at);
-    next = std::min(next, at);
-    if (s->CloseDue(now) && s->connection().connected()) {  // an operator's close
-      s->connection().Disconnect(s->close_reason(), *s);
-    }
-    if (!s->connection().connected()) {
-      removal_scratch_.push_back(id);
-    } else if (!s->is_worker() && !s->closing() && s->room() == nullptr && config_.limits.join_timeout_s > 0 &&
-               now - s->connected_at() > config_.limits.join_timeout_s) {
-      // A connection that holds a slot without ever joining a room (slow or idle handshake).
-      Log().Note("connection dropped", "no room joined in time", s->endpoint(), now);
-      s->connection().Disconnect(DisconnectReason::kKicked, *s);
-      removal_scratch_.push_back(id);
-    }
+    ServiceSession(id, *s, now, &next);
   }
   for (uint32_t id : removal_scratch_) RemoveSession(id, now);
+  // Sessions made due during the pass are in due_sessions_ and are serviced at the next one.
   sessions_deadline_ = next;
 }
+
+void Relay::ServiceSession(uint32_t id, Session& s, double now, double* next) {
+  s.set_now(now);
+  const auto work_start = RoomWorkLedger::Clock::now();
+  uint64_t resends = s.connection().stats().reliable_resends;
+  s.connection().Update(now, s);
+  if (RoomHost* room = s.room(); room != nullptr) {
+    room_work_.Charge(room, &room->name(), RoomWorkLedger::SecondsSince(work_start));
+  }
+  RelayCounters::Inc(counters_->reliable_resends, s.connection().stats().reliable_resends - resends);
+  double at = s.connection().NextTimer();
+  if (s.closing()) at = std::min(at, s.close_deadline());
+  if (!s.is_worker() && !s.closing() && s.room() == nullptr && config_.limits.join_timeout_s > 0) {
+    at = std::min(at, s.connected_at() + config_.limits.join_timeout_s);
+  }
+  s.set_service_at(at);
+  *next = std::min(*next, at);
+  if (s.CloseDue(now) && s.connection().connected()) {  // an operator's close
+    s.connection().Disconnect(s.close_reason(), s);
+  }
+  if (!s.connection().connected()) {
+    removal_scratch_.push_back(id);
+  } else if (!s.is_worker() && !s.closing() && s.room() == nullptr && config_.limits.join_timeout_s > 0 &&
+             now - s.connected_at() > config_.limits.join_timeout_s) {
+    // A connection that holds a slot without ever joining a room (slow or idle handshake).
+    Log().Note("connection dropped", "no room joined in time", s.endpoint(), now);
+    s.connection().Disconnect(DisconnectReason::kKicked, s);
+    removal_scratch_.push_back(id);
+  }
+}
+
+void Relay::OnServiceSoon(Session& s) { due_sessions_.push_back(s.connection().id()); }
 
 void Relay::PublishGauges(bool physics) {
   if (physics) {  // once a second: PhyS gauges

@@ -175,6 +175,7 @@ class Relay final : private SessionHost {
   void OnWorkerResult(Session& s, const schema::WorkerResult& result) override;
   void OnWorkerStates(Session& s, std::span<const uint8_t> payload) override;
   void Transmit(const Endpoint& to, std::span<const uint8_t> data) override;
+  void OnServiceSoon(Session& s) override;
 
   // Services every connection (resends, keep-alives, timeouts), removes the closed ones, and
   // with `sample_rtt` records every connection's RTT.
@@ -246,7 +247,11 @@ class Relay final : private SessionHost {
   bool admitting_ = true;
   double last_rtt_sample_ = 0;
   // The earliest Session::service_at() after the last UpdateSessions (-infinity: at once).
+  // The earliest timer of any session at the last full pass over them: until then a pass
+  // services only the sessions made due since (due_sessions_, connection ids).
   double sessions_deadline_ = -std::numeric_limits<double>::infinity();
+  std::vector<uint32_t> due_sessions_, due_scratch_;
+  void ServiceSession(uint32_t id, Session& s, double now, double* next);
   std::vector<uint32_t> removal_scratch_;
   // Gauge values last published (shared_counters only).
   int64_t published_rooms_ = 0;

@@ -189,6 +189,7 @@ void Relay::Admit(const Endpoint& from, const JoinToken& token, std::span<const 
   Transmit(from, session->accept_packet());
   session_by_endpoint_[from] = connection_id;
   sessions_[connection_id] = std::move(session);
+  due_sessions_.push_back(connection_id);  // born due (Session::service_at)
   RelayCounters::Inc(counters_->connections_accepted);
   spdlog::info("player {} connected from {}:{} (connection {:08x})", token.player_id,
                from.address().to_string(), from.port(), connection_id);

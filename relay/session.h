@@ -39,6 +39,9 @@ class SessionHost {
   virtual void OnWorkerStates(Session& s, std::span<const uint8_t> payload) = 0;
   // Sends one datagram on the relay's socket (counted there).
   virtual void Transmit(const Endpoint& to, std::span<const uint8_t> datagram) = 0;
+  // `s` has something to send or a timer to rework: service it at the next sessions pass.
+  // Called once each time the session goes from waiting on a timer to due.
+  virtual void OnServiceSoon(Session& s) = 0;
 };
 
 class Session final : public ConnectionHandler,
@@ -135,7 +138,11 @@ class Session final : public ConnectionHandler,
   // queued, a replication tick, a close begun. The relay sets it after each service.
   double service_at() const { return service_at_; }
   void set_service_at(double at) { service_at_ = at; }
-  void ServiceSoon() { service_at_ = -std::numeric_limits<double>::infinity(); }
+  void ServiceSoon() {
+    if (service_at_ == -std::numeric_limits<double>::infinity()) return;  // already due
+    service_at_ = -std::numeric_limits<double>::infinity();
+    host_->OnServiceSoon(*this);
+  }
   // Reassembly bytes of this connection last added to RelayCounters::reassembly_held_bytes
   // (Connection::reliable_partial_bytes() when the relay last looked; 0 once evicted).
   size_t held_published() const { return held_published_; }
