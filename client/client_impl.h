@@ -17,13 +17,12 @@
 #include "edgephys/schema/control_generated.h"
 #include "protocol/connection.h"
 #include "protocol/datagram_socket.h"
-#include "protocol/delta_codec.h"
 #include "protocol/handshake.h"
 #include "protocol/packet_seal.h"
 #include "protocol/replication_tracker.h"
-#include "protocol/shared_delta_codec.h"
 #include "protocol/soft_delta_stream.h"
 #include "protocol/state_codec.h"
+#include "protocol/state_formats.h"
 
 namespace edgephys {
 
@@ -170,8 +169,9 @@ class Client::Impl final : private ConnectionHandler, private PacketWriter {
   std::vector<std::pair<uint32_t, uint32_t>> sent_scratch_;
   StateBatch batch_;
   FloatStateEncoder encoder_;
-  std::unique_ptr<DeltaDecoder> delta_decoder_;  // rooms using format 2
-  std::unique_ptr<SharedDeltaDecoder> shared_decoder_;  // rooms using format 9
+  // The decoder of the room's state format (protocol/state_formats.h); per room (reset on
+  // Joined); nullptr: the SDK does not decode the room's format.
+  std::unique_ptr<StateDecoder> decoder_;
   float position_step_m_ = QuantizationConfig{}.position_step_m;  // the room's quantisation step
   std::unique_ptr<SoftDeltaReceiver> soft_decoder_;  // format 11; per room (reset on Joined)
   uint64_t bytes_state_received_ = 0;

@@ -56,25 +56,20 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
       state_format_ = j->state_format();
       if (!resumed) next_local_id_ = 1;
       if (!resumed) players_.clear();  // a new room: its members are announced afresh
-      delta_decoder_.reset();
-      shared_decoder_.reset();
+      decoder_.reset();
       soft_decoder_.reset();
       position_step_m_ =
           j->position_step_m() > 0 ? j->position_step_m() : QuantizationConfig{}.position_step_m;
-      if (j->state_format() == kDeltaStateFormat || j->state_format() == kSharedDeltaStateFormat) {
-        QuantizationConfig q;
-        q.position_step_m = j->position_step_m();
-        q.rotation_error_deg = j->rotation_bound_deg();
-        if (j->bounds_min() && j->bounds_max()) {
-          q.bounds_min = {j->bounds_min()->x(), j->bounds_min()->y(), j->bounds_min()->z()};
-          q.bounds_max = {j->bounds_max()->x(), j->bounds_max()->y(), j->bounds_max()->z()};
-        }
-        auto params = MakeQuantizationParams(q);
-        if (params.ok() && j->state_format() == kSharedDeltaStateFormat) {
-          shared_decoder_ = std::make_unique<SharedDeltaDecoder>(*params);
-        } else if (params.ok()) {
-          delta_decoder_ = std::make_unique<DeltaDecoder>(*params);
-        }
+      QuantizationConfig q;
+      q.position_step_m = j->position_step_m();
+      q.rotation_error_deg = j->rotation_bound_deg();
+      if (j->bounds_min() && j->bounds_max()) {
+        q.bounds_min = {j->bounds_min()->x(), j->bounds_min()->y(), j->bounds_min()->z()};
+        q.bounds_max = {j->bounds_max()->x(), j->bounds_max()->y(), j->bounds_max()->z()};
+      }
+      // A format the SDK does not decode (a plug-in's) may announce no quantisation at all.
+      if (auto params = MakeQuantizationParams(q); params.ok()) {
+        decoder_ = NewStateDecoder(state_format_, *params);
       }
       if (resumed) {
         ++resumes_;
@@ -126,8 +121,7 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
     case schema::Body::Despawn: {
       uint32_t id = msg->body_as_Despawn()->entity_id();
       entities_.erase(id);
-      if (delta_decoder_) delta_decoder_->Forget(id);
-      if (shared_decoder_) shared_decoder_->Forget(id);
+      if (decoder_) decoder_->Forget(id);
       if (soft_decoder_) soft_decoder_->Forget(id);
       despawned_.insert(id);
       ForgetEntityProperties(id);
@@ -185,28 +179,24 @@ void Client::Impl::OnReliableMessage(std::span<const uint8_t> message) {
 Status Client::Impl::DecodeStates(std::span<const uint8_t> payload) {
   if (payload.empty()) return Status::Malformed("empty state payload");
   batch_.states.clear();
-  switch (payload[0]) {
-    case kSharedDeltaStateFormat:
-      if (!shared_decoder_) return Status::Malformed("format 9 in a room that announced another");
-      return shared_decoder_->Decode(payload, &batch_);
-    case kDeltaStateFormat:
-      if (!delta_decoder_) return Status::Malformed("format 2 in a room that announced another");
-      return delta_decoder_->Decode(payload, &batch_);
-    default:
-      if (config_.state_decoder == nullptr || payload[0] != state_format_) {
-        return Status::Malformed("state format " + std::to_string(payload[0]) +
-                                 " is not decoded by the SDK");
-      }
-      return config_.state_decoder->Decode(
-          payload,
-          [this](uint32_t id, EntityState* s) {
-            auto it = entities_.find(id);
-            if (it == entities_.end()) return false;
-            *s = it->second.state;
-            return true;
-          },
-          &batch_);
+  if (payload[0] != state_format_) {
+    return Status::Malformed("state format " + std::to_string(payload[0]) +
+                             " in a room that announced format " + std::to_string(state_format_));
   }
+  if (decoder_) return decoder_->Decode(payload, &batch_);
+  if (config_.state_decoder == nullptr) {
+    return Status::Malformed("state format " + std::to_string(payload[0]) +
+                             " is not decoded by the SDK");
+  }
+  return config_.state_decoder->Decode(
+      payload,
+      [this](uint32_t id, EntityState* s) {
+        auto it = entities_.find(id);
+        if (it == entities_.end()) return false;
+        *s = it->second.state;
+        return true;
+      },
+      &batch_);
 }
 
 void Client::Impl::OnUnreliablePayload(uint16_t /*sequence*/, std::span<const uint8_t> payload) {

@@ -158,12 +158,7 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) 
   if (keyframe) {
     ok = ok && w.WriteExpGolomb(1, 0);
     at_ref = at_mask = at_pos = w.bit_position();
-    for (int a = 0; a < 3; ++a) ok = ok && w.WriteBits(q.position[a], params_.position_bits[a]);
-    ok = ok && w.WriteBits(q.rotation.largest, 2);
-    for (int c = 0; c < 3; ++c) {
-      ok = ok && w.WriteBits(static_cast<uint32_t>(q.rotation.c[c] + params_.rotation_max),
-                             params_.rotation_bits);
-    }
+    ok = ok && WriteKeyframeState(w, params_, q);
   } else {
     distance = counter_ - base_entry->counter;
     const uint32_t sym =
@@ -177,70 +172,38 @@ bool DeltaEncoder::Add(const EntityState& truth, const PreparedState* prepared) 
     // in kStatsSampleEvery; otherwise only for the orders in use. Code the chosen one.
     const int po = order_[0], ro = order_[1];
     sample = records_added_++ % kStatsSampleEvery == 0;
-    std::array<int32_t, 3> pos_res[3];
-    std::array<int32_t, 3> rot_res[3];
-    bool pos_zero[3], rot_zero[3], rot_same[3];
-    for (int o = 0; o < 3; ++o) {
-      if (!sample && o != po) continue;
-      Prediction pp;
-      PredictPosition(params_, base_hist, MakeTiming(base_hist, o, record_time_ms), &pp);
-      pos_zero[o] = true;
-      for (int a = 0; a < 3; ++a) {
-        pos_res[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
-        pos_zero[o] = pos_zero[o] && pos_res[o][a] == 0;
-      }
-    }
-    for (int o = 0; o < 3; ++o) {
-      if (!sample && o != ro) continue;
-      Prediction pr;
-      PredictRotation(params_, base_hist, MakeTiming(base_hist, o, record_time_ms), &pr);
-      const int li = q.rotation.largest;
-      const std::array<int32_t, 3> pc = PredictedComponents(params_, pr, li);
-      rot_same[o] = li == pr.largest;
-      rot_zero[o] = rot_same[o];
-      for (int c = 0; c < 3; ++c) {
-        rot_res[o][c] = q.rotation.c[c] - pc[c];
-        rot_zero[o] = rot_zero[o] && rot_res[o][c] == 0;
-      }
-    }
+    Residuals res;
+    ComputeResiduals(params_, base_hist, q, record_time_ms, order_, sample, &res);
     if (sample) {
       for (int o = 0; o < 3; ++o) {
         for (int k = 0; k <= kMaxK; ++k) {
-          double pos_bits = 0, rot_bits = rot_same[o] ? 1 : 3;
+          double pos_bits = 0, rot_bits = res.rot_same[o] ? 1 : 3;
           for (int a = 0; a < 3; ++a) {
-            pos_bits += ExpGolombBits(ZigZag(pos_res[o][a]), k);
-            rot_bits += ExpGolombBits(ZigZag(rot_res[o][a]), k);
+            pos_bits += ExpGolombBits(ZigZag(res.pos[o][a]), k);
+            rot_bits += ExpGolombBits(ZigZag(res.rot[o][a]), k);
           }
           add_full[0][o][k] = pos_bits;
           add_full[1][o][k] = rot_bits;
-          add_masked[0][o][k] = 1 + (pos_zero[o] ? 0 : pos_bits);
-          add_masked[1][o][k] = 1 + (rot_zero[o] ? 0 : rot_bits);
+          add_masked[0][o][k] = 1 + (res.pos_zero[o] ? 0 : pos_bits);
+          add_masked[1][o][k] = 1 + (res.rot_zero[o] ? 0 : rot_bits);
         }
       }
     }
-    // With a reduced history the effective order is lower, but the residual is the same.
-    const bool pos_coded = !mask_[0] || !pos_zero[po];
-    const bool rot_coded = !mask_[1] || !rot_zero[ro];
-    if (mask_[0]) ok = ok && w.WriteBit(pos_coded);
-    if (mask_[1]) ok = ok && w.WriteBit(rot_coded);
-    at_mask = w.bit_position();
-    if (pos_coded) {
+    DeltaBodyMarks marks;
+    ok = ok && WriteDeltaBody(w, res, q, k_, mask_, order_, &marks);
+    at_mask = marks.at_mask;
+    at_pos = marks.at_pos;
+    if (marks.pos_coded) {
       for (int a = 0; a < 3; ++a) {
-        ok = ok && w.WriteSigned(pos_res[po][a], k_[0]);
-        eg_bits += ExpGolombBits(ZigZag(pos_res[po][a]), k_[0]);
-        max_zz[0] = std::max(max_zz[0], ZigZag(pos_res[po][a]));
+        eg_bits += ExpGolombBits(ZigZag(res.pos[po][a]), k_[0]);
+        max_zz[0] = std::max(max_zz[0], ZigZag(res.pos[po][a]));
       }
       n_residuals[0] = 3;
     }
-    at_pos = w.bit_position();
-    if (rot_coded) {
-      const bool same = rot_same[ro];
-      ok = ok && w.WriteBit(same);
-      if (!same) ok = ok && w.WriteBits(q.rotation.largest, 2);
+    if (marks.rot_coded) {
       for (int c = 0; c < 3; ++c) {
-        ok = ok && w.WriteSigned(rot_res[ro][c], k_[1]);
-        eg_bits += ExpGolombBits(ZigZag(rot_res[ro][c]), k_[1]);
-        max_zz[1] = std::max(max_zz[1], ZigZag(rot_res[ro][c]));
+        eg_bits += ExpGolombBits(ZigZag(res.rot[ro][c]), k_[1]);
+        max_zz[1] = std::max(max_zz[1], ZigZag(res.rot[ro][c]));
       }
       n_residuals[1] = 3;
     }
@@ -418,34 +381,73 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
 
 // ================================ Decoder ================================
 
+DeltaStreamDecoder::DeltaStreamDecoder(const Layout& layout, const QuantizationParams& params,
+                                       size_t max_entities)
+    : layout_(layout), params_(params), max_entities_(max_entities) {}
+
 DeltaDecoder::DeltaDecoder(const QuantizationParams& params, size_t max_entities)
-    : params_(params), max_entities_(max_entities) {}
+    : DeltaStreamDecoder({kDeltaStateFormat, kDeltaHeaderSize, 5, 2, 7,
+                          "malformed format-2 state payload"},
+                         params, max_entities) {}
 
-void DeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
+void DeltaStreamDecoder::Forget(uint32_t id) { tracks_.erase(id); }
 
-Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed = Status::Malformed("malformed format-2 state payload");
+const DeltaStreamDecoder::Entry* DeltaStreamDecoder::Resolve(Staged& s) {
+  auto it = tracks_.find(s.id);
+  if (it == tracks_.end()) {
+    s.unresolved = Unresolved::kUnknownEntity;
+    return nullptr;
+  }
+  s.track = &it->second;
+  const Entry* base = nullptr;
+  int64_t lo = INT64_MAX, hi = INT64_MIN;
+  for (const Entry& e : it->second.ring) {
+    if (!e.valid) continue;
+    if (e.version == s.reference) base = &e;
+    lo = std::min(lo, e.version);
+    hi = std::max(hi, e.version);
+  }
+  if (base == nullptr) {
+    s.unresolved = lo == INT64_MAX       ? Unresolved::kUnknownEntity
+                   : s.reference < lo    ? Unresolved::kStale
+                   : s.reference > hi    ? Unresolved::kFuture
+                                         : Unresolved::kMissing;
+  }
+  return base;
+}
+
+Status DeltaStreamDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
+  const Layout& L = layout_;
   auto fail = [&]() {
     ++stats_.malformed;
-    return malformed;
+    return Status::Malformed(L.malformed);
   };
-  if (payload.size() < kDeltaHeaderSize + 1 || payload[0] != kDeltaStateFormat) return fail();
+  if (payload.size() < L.header_size + 1 || payload[0] != L.format) return fail();
   const uint32_t time_ms = LoadU32LE(payload.data() + 1);
-  const uint16_t counter16 = LoadU16LE(payload.data() + 5);
   int k[2];
   bool mask[2];
   int order[2];
-  if (!UnpackParams(LoadU16LE(payload.data() + 7), k, mask, order)) return fail();
+  if (!UnpackParams(LoadU16LE(payload.data() + L.params_offset), k, mask, order)) return fail();
   uint32_t count = 0;
-  const size_t n = GetVarint32(payload.subspan(kDeltaHeaderSize), &count);
+  const size_t n = GetVarint32(payload.subspan(L.header_size), &count);
   if (n == 0 || count == 0) return fail();
-  const std::span<const uint8_t> stream = payload.subspan(kDeltaHeaderSize + n);
+  const std::span<const uint8_t> stream = payload.subspan(L.header_size + n);
   if (count > stream.size() * 8 / 2) return fail();  // every record takes >= 2 bits
 
-  const int64_t counter =
-      have_counter_ ? highest_counter_ +
-                          static_cast<int16_t>(counter16 - static_cast<uint16_t>(highest_counter_))
-                    : (int64_t{1} << 20) + counter16;
+  // The wire carries the version's low bytes; it is extended to the value nearest the highest
+  // version seen (the first payload's lands well above 0, so references stay positive).
+  int64_t version;
+  if (L.version_bytes == 2) {
+    const uint16_t v16 = LoadU16LE(payload.data() + L.version_offset);
+    version = have_version_ ? highest_version_ + static_cast<int16_t>(
+                                                     v16 - static_cast<uint16_t>(highest_version_))
+                            : (int64_t{1} << 20) + v16;
+  } else {
+    const uint32_t v32 = LoadU32LE(payload.data() + L.version_offset);
+    version = have_version_ ? highest_version_ + static_cast<int32_t>(
+                                                     v32 - static_cast<uint32_t>(highest_version_))
+                            : (int64_t{1} << 33) + v32;
+  }
 
   BitReader r(stream);
   staged_.clear();
@@ -456,27 +458,16 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
     RecordFields f;
     if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f)) return fail();
     s.id = f.id;
-    s.time_ms = time_ms;
     if (f.keyframe) {
       s.keyframe = true;
       s.q = f.q;
-      s.resolved = true;
-      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, s.time_ms));
+      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
     } else {
-      s.reference = counter - f.distance;
-      // Resolve the reference: exact payload counter match, or the record is skipped.
-      const Entry* base = nullptr;
-      auto it = tracks_.find(s.id);
-      if (it != tracks_.end()) {
-        s.track = &it->second;
-        for (const Entry& e : it->second.ring) {
-          if (e.valid && e.counter == s.reference) base = &e;
-        }
-      }
+      s.reference = version - f.distance;
+      const Entry* base = Resolve(s);
       if (base != nullptr) {
-        if (!ReconstructDelta(params_, base->hist, order, s.time_ms, f, &s.q)) return fail();
-        s.resolved = true;
-        s.hist = ExtendHistory(&base->hist, MakeSample(params_, s.q, s.time_ms));
+        if (!ReconstructDelta(params_, base->hist, order, time_ms, f, &s.q)) return fail();
+        s.hist = ExtendHistory(&base->hist, MakeSample(params_, s.q, time_ms));
       }
     }
     staged_.push_back(s);
@@ -485,16 +476,25 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
   const size_t rest = r.remaining_bits();
   uint64_t pad = 0;
   if (rest >= 8 || !r.ReadBits(static_cast<int>(rest), &pad) || pad != 0) return fail();
+  Commit(version, time_ms, out);
+  return Status::Ok();
+}
 
-  // Commit.
-  if (!have_counter_ || counter > highest_counter_) highest_counter_ = counter;
-  have_counter_ = true;
+void DeltaStreamDecoder::Commit(int64_t version, uint32_t time_ms, StateBatch* out) {
+  if (!have_version_ || version > highest_version_) highest_version_ = version;
+  have_version_ = true;
   ++stats_.payloads;
   out->time_ms = time_ms;
   last_references_.clear();
   for (const Staged& s : staged_) {
-    if (!s.resolved) {
+    if (s.unresolved != Unresolved::kNone) {
       ++stats_.unresolved_references;
+      switch (s.unresolved) {
+        case Unresolved::kUnknownEntity: ++stats_.unknown_entity; break;
+        case Unresolved::kStale: ++stats_.stale_references; break;
+        case Unresolved::kFuture: ++stats_.future_references; break;
+        default: ++stats_.missing_references; break;
+      }
       continue;
     }
     Track* track = s.track;  // unordered_map nodes stay put while others are inserted
@@ -509,18 +509,16 @@ Status DeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
       }
       track = &it->second;
     }
-    Track& t = *track;
     if (s.keyframe) ++stats_.keyframes;
-    last_references_.push_back({s.id, counter, s.keyframe ? -1 : s.reference});
-    // Keep the kDeltaBaselineWindow highest counters; output what is newer.
-    StoreVersion(t.ring, &Entry::counter, counter, s.hist);
-    if (OutputIfNewer(params_, s.id, s.q, counter, &t.newest_output, out)) {
+    last_references_.push_back({s.id, version, s.keyframe ? -1 : s.reference});
+    // Keep the kDeltaBaselineWindow highest versions; output what is newer.
+    StoreVersion(track->ring, &Entry::version, version, s.hist);
+    if (OutputIfNewer(params_, s.id, s.q, version, &track->newest_output, out)) {
       ++stats_.entities;
     } else {
       ++stats_.stale_skipped;
     }
   }
-  return Status::Ok();
 }
 
 }  // namespace edgephys

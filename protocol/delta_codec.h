@@ -279,66 +279,94 @@ struct DeltaDecoderStats {
   uint64_t malformed = 0;              // rejected payloads
   uint64_t entities = 0;               // states output
   uint64_t keyframes = 0;              // keyframe records accepted
-  uint64_t unresolved_references = 0;  // records skipped: reference not held (see header)
-  uint64_t stale_skipped = 0;          // records decoded but older than the output state
-  uint64_t capacity_dropped = 0;       // keyframes for new entities beyond max_entities
+  // Records skipped because their reference is not held (never decoded into a guess):
+  uint64_t unresolved_references = 0;  // all of the below
+  uint64_t unknown_entity = 0;         // no version of the entity held
+  uint64_t stale_references = 0;       // older than every version held
+  uint64_t future_references = 0;      // newer than every version held
+  uint64_t missing_references = 0;     // within the held range, but not held
+  uint64_t stale_skipped = 0;          // decoded, but older than the state output
+  uint64_t capacity_dropped = 0;       // keyframes of new entities beyond max_entities
 };
 
-// Receiver side, one per format-2 stream.
-class DeltaDecoder {
+// The receiver of formats 2 and 9, one per stream. Both formats carry the same records
+// (docs/protocol.md §5b) and differ only in their header: where the payload's version (format
+// 2's 16-bit payload counter, format 9's 32-bit room tick) and the params field stand. A
+// record's reference is a version of its entity this receiver decoded: a delta whose reference
+// is not held is skipped and counted by kind, never guessed.
+class DeltaStreamDecoder : public StateDecoder {
  public:
-  explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
-
-  // Decodes one format-2 payload (untrusted). On success sets out->time_ms and APPENDS the
-  // decoded states that are newer than any state output before for their entity (in
-  // increasing id order). Malformed input (truncation, trailing bits, bad header, values out
-  // of range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder are
-  // unchanged. Entities whose reference is not held are skipped (counted), never guessed.
-  // Cost O(payload); no allocation in steady state (new entities allocate once).
-  Status Decode(std::span<const uint8_t> payload, StateBatch* out);
-
+  // Decodes one payload of this decoder's format (untrusted). On success sets out->time_ms and
+  // APPENDS the decoded states that are newer than any state output before for their entity (in
+  // increasing id order). Malformed input (truncation, trailing bits, bad header, values out of
+  // range, references beyond kMaxReferenceDistance): kMalformed, `out` and the decoder
+  // unchanged. Cost O(payload); no allocation in steady state (new entities allocate once).
+  Status Decode(std::span<const uint8_t> payload, StateBatch* out) override;
   // Drops entity `id` (despawned).
-  void Forget(uint32_t id);
+  void Forget(uint32_t id) override;
 
-  // For tests and diagnostics: the (id, payload counter, reference counter or -1 for a
+  // For tests and diagnostics: the (id, payload version, reference version or -1 for a
   // keyframe) of every record resolved by the last successful Decode.
   struct Reference {
     uint32_t id;
-    int64_t counter;
+    int64_t version;
     int64_t reference;
   };
   std::span<const Reference> last_references() const { return last_references_; }
   const DeltaDecoderStats& stats() const { return stats_; }
 
+ protected:
+  // Where a format's header keeps its fields (the format byte is at 0, the time at 1..4).
+  struct Layout {
+    uint8_t format;
+    size_t header_size;     // bytes before the record count
+    size_t version_offset;  // the payload's version, little-endian
+    int version_bytes;      // 2 (wraps, extended against the highest seen) or 4
+    size_t params_offset;   // the 16-bit params field
+    const char* malformed;  // the error a malformed payload returns
+  };
+  DeltaStreamDecoder(const Layout& layout, const QuantizationParams& params, size_t max_entities);
+
  private:
   struct Entry {
     bool valid = false;
-    int64_t counter = 0;
+    int64_t version = 0;
     DeltaEncoder::History hist;
   };
   struct Track {
     std::array<Entry, kDeltaBaselineWindow> ring;
     int64_t newest_output = INT64_MIN;
   };
+  enum class Unresolved : uint8_t { kNone, kUnknownEntity, kStale, kFuture, kMissing };
   struct Staged {
-    bool resolved = false;
     bool keyframe = false;
+    Unresolved unresolved = Unresolved::kNone;
     uint32_t id = 0;
     int64_t reference = -1;
     Track* track = nullptr;  // the entity's track if it existed when resolved (node-stable)
     QuantizedState q;
     DeltaEncoder::History hist;
-    uint32_t time_ms = 0;  // the time the record holds
   };
+  // Resolves a delta record `s` against its entity's held versions, or says why not.
+  const Entry* Resolve(Staged& s);
+  // Applies the staged records of the payload with `version` at `time_ms` to the tracks and `out`.
+  void Commit(int64_t version, uint32_t time_ms, StateBatch* out);
 
+  Layout layout_;
   QuantizationParams params_;
   size_t max_entities_;
   std::unordered_map<uint32_t, Track> tracks_;
   std::vector<Staged> staged_;
   std::vector<Reference> last_references_;
-  bool have_counter_ = false;
-  int64_t highest_counter_ = 0;
+  bool have_version_ = false;
+  int64_t highest_version_ = 0;
   DeltaDecoderStats stats_;
+};
+
+// Receiver side of format 2.
+class DeltaDecoder final : public DeltaStreamDecoder {
+ public:
+  explicit DeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
 };
 
 }  // namespace edgephys

@@ -89,7 +89,7 @@ TEST(DeltaCodec, EncoderNeverReferencesUnackedStates) {
   const size_t n = enc.Finish();
   ASSERT_TRUE(dec.Decode({buf.data(), n}, &batch).ok());
   ASSERT_EQ(dec.last_references().size(), 1u);
-  EXPECT_EQ(dec.last_references()[0].counter - dec.last_references()[0].reference, 3);
+  EXPECT_EQ(dec.last_references()[0].version - dec.last_references()[0].reference, 3);
   EXPECT_EQ(enc.stats().acks_unmatched, 0u);
   enc.OnPacketAcked(77);  // never sent
   EXPECT_EQ(enc.stats().acks_unmatched, 1u);

@@ -141,6 +141,65 @@ bool UnpackParams(uint16_t v, int k[2], bool mask[2], int order[2]) {
   return order[0] <= 2 && order[1] <= 2 && (v >> 12) == 0;
 }
 
+void ComputeResiduals(const QuantizationParams& p, const History& h, const QuantizedState& q,
+                      uint32_t time_ms, const int order[2], bool all_orders, Residuals* out) {
+  for (int o = 0; o < 3; ++o) {
+    if (!all_orders && o != order[0]) continue;
+    Prediction pp;
+    PredictPosition(p, h, MakeTiming(h, o, time_ms), &pp);
+    out->pos_zero[o] = true;
+    for (int a = 0; a < 3; ++a) {
+      out->pos[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
+      out->pos_zero[o] = out->pos_zero[o] && out->pos[o][a] == 0;
+    }
+  }
+  for (int o = 0; o < 3; ++o) {
+    if (!all_orders && o != order[1]) continue;
+    Prediction pr;
+    PredictRotation(p, h, MakeTiming(h, o, time_ms), &pr);
+    const int li = q.rotation.largest;
+    const std::array<int32_t, 3> pc = PredictedComponents(p, pr, li);
+    out->rot_same[o] = li == pr.largest;
+    out->rot_zero[o] = out->rot_same[o];
+    for (int c = 0; c < 3; ++c) {
+      out->rot[o][c] = q.rotation.c[c] - pc[c];
+      out->rot_zero[o] = out->rot_zero[o] && out->rot[o][c] == 0;
+    }
+  }
+}
+
+bool WriteKeyframeState(BitWriter& w, const QuantizationParams& p, const QuantizedState& q) {
+  bool ok = true;
+  for (int a = 0; a < 3; ++a) ok = ok && w.WriteBits(q.position[a], p.position_bits[a]);
+  ok = ok && w.WriteBits(q.rotation.largest, 2);
+  for (int c = 0; c < 3; ++c) {
+    ok = ok && w.WriteBits(static_cast<uint32_t>(q.rotation.c[c] + p.rotation_max), p.rotation_bits);
+  }
+  return ok;
+}
+
+bool WriteDeltaBody(BitWriter& w, const Residuals& r, const QuantizedState& q, const int k[2],
+                    const bool mask[2], const int order[2], DeltaBodyMarks* marks) {
+  // With a reduced history the effective order is lower, but the residual is the same.
+  const int po = order[0], ro = order[1];
+  marks->pos_coded = !mask[0] || !r.pos_zero[po];
+  marks->rot_coded = !mask[1] || !r.rot_zero[ro];
+  bool ok = true;
+  if (mask[0]) ok = ok && w.WriteBit(marks->pos_coded);
+  if (mask[1]) ok = ok && w.WriteBit(marks->rot_coded);
+  marks->at_mask = w.bit_position();
+  if (marks->pos_coded) {
+    for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(r.pos[po][a], k[0]);
+  }
+  marks->at_pos = w.bit_position();
+  if (marks->rot_coded) {
+    ok = ok && w.WriteBit(r.rot_same[ro]);
+    if (!r.rot_same[ro]) ok = ok && w.WriteBits(q.rotation.largest, 2);
+    for (int c = 0; c < 3; ++c) ok = ok && w.WriteSigned(r.rot[ro][c], k[1]);
+  }
+  return ok;
+}
+
 bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const bool mask[2],
                 uint32_t i, uint32_t* prev_id, uint32_t* prev_distance, RecordFields* f) {
   uint32_t v;

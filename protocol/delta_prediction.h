@@ -71,6 +71,30 @@ bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const
 bool ReconstructDelta(const QuantizationParams& p, const History& h, const int order[2],
                       uint32_t time_ms, const RecordFields& f, QuantizedState* q);
 
+// Encoder side, both formats: a delta record's residuals against its reference's history
+// predicted at `time_ms`, for the orders in use (`order`: position, rotation) or, with
+// `all_orders`, for each of the three (the adaptive parameters' statistics).
+struct Residuals {
+  std::array<int32_t, 3> pos[3]{};
+  std::array<int32_t, 3> rot[3]{};
+  bool pos_zero[3] = {}, rot_zero[3] = {}, rot_same[3] = {};
+};
+void ComputeResiduals(const QuantizationParams& p, const History& h, const QuantizedState& q,
+                      uint32_t time_ms, const int order[2], bool all_orders, Residuals* out);
+// Writes a keyframe record's state (every field at full precision, after its reference symbol).
+bool WriteKeyframeState(BitWriter& w, const QuantizationParams& p, const QuantizedState& q);
+// Writes a delta record's body after its reference symbol: the mask bits, then the position
+// and rotation residuals of orders `order` (a field whose residuals are all zero is skipped
+// where `mask` allows). `*pos_coded`, `*rot_coded`: which were written; `*at_mask`: the bit
+// position after the mask bits, `*at_pos` after the position (record statistics). False: out
+// of room (the writer is then to be rewound by the caller).
+struct DeltaBodyMarks {
+  bool pos_coded = false, rot_coded = false;
+  size_t at_mask = 0, at_pos = 0;
+};
+bool WriteDeltaBody(BitWriter& w, const Residuals& r, const QuantizedState& q, const int k[2],
+                    const bool mask[2], const int order[2], DeltaBodyMarks* marks);
+
 // Decoder side, both formats: keeps the ring's highest versions. Stores (`version`, `hist`) in
 // a free entry or over the lowest version held, unless that version is already held or every
 // held one is newer. `field` names the entry's version member.

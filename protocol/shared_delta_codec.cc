@@ -166,12 +166,7 @@ bool SharedDeltaRoom::Encode(const SharedEntity& e, const SharedBaselineKey& key
   const QuantizedState& q = e.Newest().q;
   bool ok = true;
   if (key.depth == 0) {
-    for (int a = 0; a < 3; ++a) ok = ok && w.WriteBits(q.position[a], q_.position_bits[a]);
-    ok = ok && w.WriteBits(q.rotation.largest, 2);
-    for (int c = 0; c < 3; ++c) {
-      ok = ok && w.WriteBits(static_cast<uint32_t>(q.rotation.c[c] + q_.rotation_max),
-                             q_.rotation_bits);
-    }
+    ok = WriteKeyframeState(w, q_, q);
     *nbits = w.bit_position();
     return ok;
   }
@@ -190,55 +185,20 @@ bool SharedDeltaRoom::Encode(const SharedEntity& e, const SharedBaselineKey& key
   const bool sample =
       slot != nullptr &&
       stats_.encodes.load(std::memory_order_relaxed) % kStatsSampleEvery == 0;
-  const int po = params_.order[0], ro = params_.order[1];
-  std::array<int32_t, 3> pos_res[3];
-  std::array<int32_t, 3> rot_res[3];
-  bool pos_zero[3] = {}, rot_zero[3] = {}, rot_same[3] = {};
-  for (int o = 0; o < 3; ++o) {
-    if (!sample && o != po) continue;
-    Prediction pp;
-    PredictPosition(q_, h, MakeTiming(h, o, time_ms_), &pp);
-    pos_zero[o] = true;
-    for (int a = 0; a < 3; ++a) {
-      pos_res[o][a] = static_cast<int32_t>(static_cast<int64_t>(q.position[a]) - pp.pos[a]);
-      pos_zero[o] = pos_zero[o] && pos_res[o][a] == 0;
-    }
-  }
-  for (int o = 0; o < 3; ++o) {
-    if (!sample && o != ro) continue;
-    Prediction pr;
-    PredictRotation(q_, h, MakeTiming(h, o, time_ms_), &pr);
-    const int li = q.rotation.largest;
-    const std::array<int32_t, 3> pc = PredictedComponents(q_, pr, li);
-    rot_same[o] = li == pr.largest;
-    rot_zero[o] = rot_same[o];
-    for (int c = 0; c < 3; ++c) {
-      rot_res[o][c] = q.rotation.c[c] - pc[c];
-      rot_zero[o] = rot_zero[o] && rot_res[o][c] == 0;
-    }
-  }
+  Residuals res;
+  ComputeResiduals(q_, h, q, time_ms_, params_.order, sample, &res);
   if (sample) {
     slot->sampled = true;
     for (int o = 0; o < 3; ++o) {
-      slot->rot_same[o] = rot_same[o];
+      slot->rot_same[o] = res.rot_same[o];
       for (int a = 0; a < 3; ++a) {
-        slot->pos_res[o][a] = pos_res[o][a];
-        slot->rot_res[o][a] = rot_res[o][a];
+        slot->pos_res[o][a] = res.pos[o][a];
+        slot->rot_res[o][a] = res.rot[o][a];
       }
     }
   }
-  const bool pos_coded = !params_.mask[0] || !pos_zero[po];
-  const bool rot_coded = !params_.mask[1] || !rot_zero[ro];
-  if (params_.mask[0]) ok = ok && w.WriteBit(pos_coded);
-  if (params_.mask[1]) ok = ok && w.WriteBit(rot_coded);
-  if (pos_coded) {
-    for (int a = 0; a < 3; ++a) ok = ok && w.WriteSigned(pos_res[po][a], params_.k[0]);
-  }
-  if (rot_coded) {
-    ok = ok && w.WriteBit(rot_same[ro]);
-    if (!rot_same[ro]) ok = ok && w.WriteBits(q.rotation.largest, 2);
-    for (int c = 0; c < 3; ++c) ok = ok && w.WriteSigned(rot_res[ro][c], params_.k[1]);
-  }
+  DeltaBodyMarks marks;
+  ok = ok && WriteDeltaBody(w, res, q, params_.k, params_.mask, params_.order, &marks);
   *nbits = w.bit_position();
   return ok;
 }
@@ -308,125 +268,9 @@ bool SharedDeltaRoom::HeldWithin(const SharedEntity& e, uint32_t ref_tick,
   return ok;
 }
 
-// ================================ Decoder ================================
-
 SharedDeltaDecoder::SharedDeltaDecoder(const QuantizationParams& params, size_t max_entities)
-    : params_(params), max_entities_(max_entities) {}
-
-void SharedDeltaDecoder::Forget(uint32_t id) { tracks_.erase(id); }
-
-Status SharedDeltaDecoder::Decode(std::span<const uint8_t> payload, StateBatch* out) {
-  const Status malformed(StatusCode::kMalformed, "malformed format-9 state payload");
-  auto fail = [&]() {
-    ++stats_.malformed;
-    return malformed;
-  };
-  if (payload.size() < kSharedDeltaHeaderSize + 1 || payload[0] != kSharedDeltaStateFormat) {
-    return fail();
-  }
-  const uint32_t time_ms = LoadU32LE(payload.data() + 1);
-  const uint32_t tick32 = LoadU32LE(payload.data() + 5);
-  int k[2];
-  bool mask[2];
-  int order[2];
-  if (!UnpackParams(LoadU16LE(payload.data() + 9), k, mask, order)) return fail();
-  uint32_t count = 0;
-  const size_t n = GetVarint32(payload.subspan(kSharedDeltaHeaderSize), &count);
-  if (n == 0 || count == 0) return fail();
-  const std::span<const uint8_t> stream = payload.subspan(kSharedDeltaHeaderSize + n);
-  if (count > stream.size() * 8 / 2) return fail();
-
-  const int64_t tick =
-      have_tick_ ? highest_tick_ +
-                       static_cast<int32_t>(tick32 - static_cast<uint32_t>(highest_tick_))
-                 : (int64_t{1} << 33) + tick32;
-
-  BitReader r(stream);
-  staged_.clear();
-  uint32_t prev_id = 0;
-  uint32_t prev_distance = 1;
-  for (uint32_t i = 0; i < count; ++i) {
-    Staged s;
-    RecordFields f;
-    if (!ReadRecord(r, params_, k, mask, i, &prev_id, &prev_distance, &f)) return fail();
-    s.id = f.id;
-    if (f.keyframe) {
-      s.keyframe = true;
-      s.q = f.q;
-      s.resolved = true;
-      s.hist = ExtendHistory(nullptr, MakeSample(params_, s.q, time_ms));
-    } else {
-      s.reference = tick - f.distance;
-      // Resolve the reference by exact tick, or classify why not (the record is skipped).
-      const Entry* base = nullptr;
-      auto it = tracks_.find(s.id);
-      if (it == tracks_.end()) {
-        s.unresolved_kind = 1;
-      } else {
-        s.track = &it->second;
-        int64_t lo = INT64_MAX, hi = INT64_MIN;
-        for (const Entry& e : it->second.ring) {
-          if (!e.valid) continue;
-          if (e.tick == s.reference) base = &e;
-          lo = std::min(lo, e.tick);
-          hi = std::max(hi, e.tick);
-        }
-        if (base == nullptr) {
-          s.unresolved_kind = lo == INT64_MAX ? 1 : s.reference < lo ? 2 : s.reference > hi ? 3 : 4;
-        }
-      }
-      if (base != nullptr) {
-        if (!ReconstructDelta(params_, base->hist, order, time_ms, f, &s.q)) return fail();
-        s.resolved = true;
-        s.hist = ExtendHistory(&base->hist, MakeSample(params_, s.q, time_ms));
-      }
-    }
-    staged_.push_back(s);
-  }
-  const size_t rest = r.remaining_bits();
-  uint64_t pad = 0;
-  if (rest >= 8 || !r.ReadBits(static_cast<int>(rest), &pad) || pad != 0) return fail();
-
-  // Commit.
-  if (!have_tick_ || tick > highest_tick_) highest_tick_ = tick;
-  have_tick_ = true;
-  ++stats_.payloads;
-  out->time_ms = time_ms;
-  last_references_.clear();
-  for (const Staged& s : staged_) {
-    if (!s.resolved) {
-      ++stats_.unresolved_references;
-      switch (s.unresolved_kind) {
-        case 1: ++stats_.unknown_entity; break;
-        case 2: ++stats_.stale_references; break;
-        case 3: ++stats_.future_references; break;
-        default: ++stats_.missing_references; break;
-      }
-      continue;
-    }
-    Track* track = s.track;
-    if (track == nullptr) {
-      auto it = tracks_.find(s.id);
-      if (it == tracks_.end()) {
-        if (tracks_.size() >= max_entities_) {
-          ++stats_.capacity_dropped;
-          continue;
-        }
-        it = tracks_.try_emplace(s.id).first;
-      }
-      track = &it->second;
-    }
-    Track& t = *track;
-    if (s.keyframe) ++stats_.keyframes;
-    last_references_.push_back({s.id, tick, s.keyframe ? -1 : s.reference});
-    StoreVersion(t.ring, &Entry::tick, tick, s.hist);
-    if (OutputIfNewer(params_, s.id, s.q, tick, &t.newest_output, out)) {
-      ++stats_.entities;
-    } else {
-      ++stats_.stale_skipped;
-    }
-  }
-  return Status::Ok();
-}
+    : DeltaStreamDecoder({kSharedDeltaStateFormat, kSharedDeltaHeaderSize, 5, 4, 9,
+                          "malformed format-9 state payload"},
+                         params, max_entities) {}
 
 }  // namespace edgephys

@@ -406,69 +406,14 @@ class SharedDeltaStream final : public StateEncoder {
   size_t bit_pos_ = 0;
 };
 
-struct SharedDeltaDecoderStats {
-  uint64_t payloads = 0;
-  uint64_t malformed = 0;
-  uint64_t entities = 0;
-  uint64_t keyframes = 0;
-  // Records skipped because their reference is not held (never decoded into a guess):
-  uint64_t unresolved_references = 0;  // all of the below
-  uint64_t unknown_entity = 0;         // no version of the entity held
-  uint64_t stale_references = 0;       // older than every version held
-  uint64_t future_references = 0;      // newer than every version held
-  uint64_t missing_references = 0;     // within the held range, but not held
-  uint64_t stale_skipped = 0;          // decoded, but older than the state output
-  uint64_t capacity_dropped = 0;       // keyframes of new entities beyond max_entities
-};
+using SharedDeltaDecoderStats = DeltaDecoderStats;
 
-// Receiver side, one per format-9 stream. Untrusted input.
-class SharedDeltaDecoder {
+// Receiver side of format 9, one per stream (DeltaStreamDecoder, protocol/delta_codec.h):
+// references are room ticks. Untrusted input.
+class SharedDeltaDecoder final : public DeltaStreamDecoder {
  public:
-  explicit SharedDeltaDecoder(const QuantizationParams& params, size_t max_entities = 1 << 16);
-
-  // As DeltaDecoder::Decode: on success sets out->time_ms and APPENDS the states newer than
-  // any output before for their entity. Malformed input: kMalformed, nothing changed.
-  // Records whose reference is not held are skipped and counted by kind.
-  Status Decode(std::span<const uint8_t> payload, StateBatch* out);
-  void Forget(uint32_t id);
-
-  struct Reference {
-    uint32_t id;
-    int64_t tick;
-    int64_t reference;  // -1: keyframe
-  };
-  std::span<const Reference> last_references() const { return last_references_; }
-  const SharedDeltaDecoderStats& stats() const { return stats_; }
-
- private:
-  struct Entry {
-    bool valid = false;
-    int64_t tick = 0;
-    DeltaEncoder::History hist;
-  };
-  struct Track {
-    std::array<Entry, kDeltaBaselineWindow> ring;
-    int64_t newest_output = INT64_MIN;
-  };
-  struct Staged {
-    bool resolved = false;
-    bool keyframe = false;
-    uint32_t id = 0;
-    int64_t reference = -1;
-    int unresolved_kind = 0;  // 1 unknown entity, 2 stale, 3 future, 4 missing
-    Track* track = nullptr;
-    QuantizedState q;
-    DeltaEncoder::History hist;
-  };
-
-  QuantizationParams params_;
-  size_t max_entities_;
-  std::unordered_map<uint32_t, Track> tracks_;
-  std::vector<Staged> staged_;
-  std::vector<Reference> last_references_;
-  bool have_tick_ = false;
-  int64_t highest_tick_ = 0;
-  SharedDeltaDecoderStats stats_;
+  explicit SharedDeltaDecoder(const QuantizationParams& params,
+                              size_t max_entities = 1 << 16);
 };
 
 }  // namespace edgephys

@@ -90,6 +90,19 @@ struct StateBatch {
   std::vector<EntityState> states;  // reused by the caller between decodes
 };
 
+// The receiving end of a stateful format (one per receiver and stream): what the SDK holds
+// for the room's format (protocol/state_formats.h picks it by id).
+class StateDecoder {
+ public:
+  virtual ~StateDecoder() = default;
+  // Decodes one payload (untrusted; payload[0] is its format). On success sets out->time_ms
+  // and APPENDS the states it yields; kMalformed naming the cause otherwise, with `out` and the
+  // decoder unchanged. Values are validated by the caller (IsValidState).
+  virtual Status Decode(std::span<const uint8_t> payload, StateBatch* out) = 0;
+  // Drops what is held for `entity_id` (despawned).
+  virtual void Forget(uint32_t entity_id) = 0;
+};
+
 // Decodes format 1 (a client's states on their way up to the relay). Untrusted input: kMalformed on truncation,
 // trailing bytes, an unknown format or a count larger than the payload can hold; `batch` is
 // then unspecified. A format-2 payload returns kInvalidArgument ("needs a DeltaDecoder"):

@@ -3,7 +3,8 @@
 //
 // A format is one row of kFormats in entity_streams.cc: its id, when a room uses it, and its
 // stream; its codec lives in protocol/ (format 9: shared_delta_codec.h, format 2:
-// delta_codec.h) with its tests. Adding a format: a codec file with its test, and a row.
+// delta_codec.h) with its tests, and the client's decoder is a row of
+// protocol/state_formats.cc. Adding a format: a codec file with its test, and the two rows.
 //
 // Thread-safety: the streams belong to one receiver (its room's thread); the functions are pure.
 #pragma once

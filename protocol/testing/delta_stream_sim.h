@@ -312,7 +312,7 @@ inline SimResult RunStream(const SimConfig& c) {
       for (const auto& ref : dec.last_references()) {
         if (ref.reference < 0 || !c.check_references) continue;
         const Sent& base = sent[ref.reference - counter_base];
-        const Sent& cur = sent[ref.counter - counter_base];
+        const Sent& cur = sent[ref.version - counter_base];
         if (base.ack_event < 0 || base.ack_event > cur.encode_event) ++res.bad_references;
       }
       for (size_t j = 0; j < batch.states.size(); ++j) {

@@ -59,7 +59,7 @@ struct SharedDeltaHarness {
       if (s.entity_id == id) *state = s;
     }
     for (const auto& r : decoder.last_references()) {
-      if (r.id == id) return r.reference < 0 ? -1 : r.tick - r.reference;
+      if (r.id == id) return r.reference < 0 ? -1 : r.version - r.reference;
     }
     ADD_FAILURE() << "entity " << id << " not decoded";
     return -2;
