@@ -275,12 +275,8 @@ size_t DeltaEncoder::Finish() {
   StoreU32LE(p + 1, time_ms_);
   StoreU16LE(p + 5, static_cast<uint16_t>(counter_));
   StoreU16LE(p + 7, PackParams(k_, mask_, order_));
-  uint8_t cnt[5];
-  const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
-  std::memcpy(p + kDeltaHeaderSize, cnt, cnt_size);
-  const size_t body = writer_.byte_size();
-  const size_t dst = kDeltaHeaderSize + cnt_size;
-  std::memmove(p + dst, p + kStreamStart, body);
+  const size_t size = PlaceRecordStream(p, kDeltaHeaderSize, count_, kStreamStart,
+                                        writer_.byte_size());
 
   // Adaptive statistics (decayed) and the fixed-width comparison.
   for (int f = 0; f < 2; ++f) {
@@ -296,7 +292,7 @@ size_t DeltaEncoder::Finish() {
     }
   }
   ++stats_.payloads;
-  return dst + body;
+  return size;
 }
 
 void DeltaEncoder::OnSent(uint16_t packet_sequence, double now) {

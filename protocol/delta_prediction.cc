@@ -2,6 +2,7 @@
 #include "protocol/delta_prediction.h"
 
 #include <algorithm>
+#include <cstring>
 
 namespace edgephys {
 namespace {
@@ -198,6 +199,15 @@ bool WriteDeltaBody(BitWriter& w, const Residuals& r, const QuantizedState& q, c
     for (int c = 0; c < 3; ++c) ok = ok && w.WriteSigned(r.rot[ro][c], k[1]);
   }
   return ok;
+}
+
+size_t PlaceRecordStream(uint8_t* payload, size_t header_size, size_t count, size_t stream_start,
+                         size_t body) {
+  uint8_t cnt[5];
+  const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count), cnt);
+  std::memcpy(payload + header_size, cnt, cnt_size);
+  std::memmove(payload + header_size + cnt_size, payload + stream_start, body);
+  return header_size + cnt_size + body;
 }
 
 bool ReadRecord(BitReader& r, const QuantizationParams& p, const int k[2], const bool mask[2],

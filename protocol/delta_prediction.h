@@ -95,6 +95,12 @@ struct DeltaBodyMarks {
 bool WriteDeltaBody(BitWriter& w, const Residuals& r, const QuantizedState& q, const int k[2],
                     const bool mask[2], const int order[2], DeltaBodyMarks* marks);
 
+// Completes a payload of either format whose header (`header_size` bytes) is written and whose
+// record stream (`body` bytes) was written at `stream_start`: puts the record count's varint
+// after the header and moves the stream behind it. Returns the payload's size.
+size_t PlaceRecordStream(uint8_t* payload, size_t header_size, size_t count, size_t stream_start,
+                         size_t body);
+
 // Decoder side, both formats: keeps the ring's highest versions. Stores (`version`, `hist`) in
 // a free entry or over the lowest version held, unless that version is already held or every
 // held one is newer. `field` names the entry's version member.

@@ -238,14 +238,8 @@ size_t SharedDeltaStream::Finish() {
   StoreU32LE(p + 1, room_->time_ms());
   StoreU32LE(p + 5, tick_);
   StoreU16LE(p + 9, PackParams(prm.k, prm.mask, prm.order));
-  uint8_t cnt[5];
-  const size_t cnt_size = PutVarint32(static_cast<uint32_t>(count_), cnt);
-  std::memcpy(p + kSharedDeltaHeaderSize, cnt, cnt_size);
-  const size_t body = (bit_pos_ + 7) / 8;
-  const size_t dst = kSharedDeltaHeaderSize + cnt_size;
-  std::memmove(p + dst, p + kStreamStart, body);
   ++stats_.payloads;
-  return dst + body;
+  return PlaceRecordStream(p, kSharedDeltaHeaderSize, count_, kStreamStart, (bit_pos_ + 7) / 8);
 }
 
 void SharedDeltaStream::OnSent(uint16_t packet_sequence, double now) {
