@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <tuple>
+
 #include "protocol/redirect.h"
 #include "relay/relay.h"
 
@@ -11,46 +13,31 @@ namespace {
 // A placement answer not received after this long is asked again.
 constexpr double kPlacementRetryS = 1.0;
 
+// The fields Entity and cluster::EntitySnapshot hold under one name and type, as references: all
+// but the PhyS role (typed in Entity, a byte in the snapshot) and the two vectors (nodes, spawn),
+// which ToSnapshot copies and FromSnapshot moves.
+auto SharedFields(auto& x) {
+  return std::tie(x.id, x.owner, x.creator, x.flags, x.held_by, x.spawn_seq, x.state,
+                  x.linear_velocity, x.angular_velocity, x.authority_seq, x.former_owner,
+                  x.takeover_allowed, x.on_owner_leave);
+}
+
 cluster::EntitySnapshot ToSnapshot(const Entity& e) {
   cluster::EntitySnapshot s;
-  s.id = e.id;
-  s.owner = e.owner;
-  s.creator = e.creator;
-  s.flags = e.flags;
-  s.held_by = e.held_by;
+  SharedFields(s) = SharedFields(e);
   s.physics_role = static_cast<uint8_t>(e.physics);
-  s.spawn_seq = e.spawn_seq;
-  s.state = e.state;
-  s.linear_velocity = e.linear_velocity;
-  s.angular_velocity = e.angular_velocity;
   s.nodes = e.nodes;
   s.spawn = e.spawn;
-  s.authority_seq = e.authority_seq;
-  s.former_owner = e.former_owner;
-  s.takeover_allowed = e.takeover_allowed;
-  s.on_owner_leave = e.on_owner_leave;
   return s;
 }
 
 Entity FromSnapshot(cluster::EntitySnapshot s) {
   Entity e;
-  e.id = s.id;
-  e.owner = s.owner;
-  e.creator = s.creator;
-  e.flags = s.flags;
-  e.held_by = s.held_by;
+  SharedFields(e) = SharedFields(s);
   e.physics = static_cast<PhysicsRole>(s.physics_role);
-  e.spawn_seq = s.spawn_seq;
-  e.state = s.state;
   e.state.entity_id = s.id;
-  e.linear_velocity = s.linear_velocity;
-  e.angular_velocity = s.angular_velocity;
   e.nodes = std::move(s.nodes);
   e.spawn = std::move(s.spawn);
-  e.authority_seq = s.authority_seq;
-  e.former_owner = s.former_owner;
-  e.takeover_allowed = s.takeover_allowed;
-  e.on_owner_leave = s.on_owner_leave;
   return e;
 }
 
