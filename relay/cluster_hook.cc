@@ -74,6 +74,25 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
                                              uint64_t unix_now_s, std::vector<uint8_t>* packet) {
   if ((token.permissions & kPermissionWorker) != 0) return Route::kLocal;  // PhyS workers
   auto view = directory_->view();
+  // Asks for the room's placement (at most once per kPlacementRetryS) and defers the connect.
+  const auto defer_for_placement = [&](bool prefer_self) {
+    auto asked = asked_.find(token.room);
+    if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
+      asked_[token.room] = relay_->now_;
+      directory_->RequestPlacement(token.room, prefer_self);
+    }
+    ++counters_.connects_deferred;
+    return Route::kDeferred;
+  };
+  // Answers with a signed Redirect to `address`; `if_unsigned` when no ticket could be signed.
+  const auto redirect_to = [&](const std::string& address, Route if_unsigned) {
+    auto ticket = SignRedirect(token_bytes, token.session_secret, address,
+                               unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
+    if (!ticket.ok()) return if_unsigned;
+    *packet = BuildRedirectPacket(*ticket);
+    ++counters_.redirects_sent;
+    return Route::kRedirected;
+  };
   if (relay_->rooms_.count(token.room) != 0 || local_fallback_.count(token.room) != 0) {
     // Held here: admitted only while no other live relay holds the room's lease (a copy that
     // lost it admits nobody; it is handed over in Update()).
@@ -87,25 +106,14 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
       // Held here but not (or no longer) recorded in Redis (a room created here, or its key
       // deleted or replaced by garbage): registered first (get-or-set, this relay preferred),
       // admitted once the view shows the lease.
-      auto asked = asked_.find(token.room);
-      if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
-        asked_[token.room] = relay_->now_;
-        directory_->RequestPlacement(token.room, /*prefer_self=*/true);
-      }
-      ++counters_.connects_deferred;
-      return Route::kDeferred;
+      return defer_for_placement(/*prefer_self=*/true);
     }
     const cluster::RelayInfo* owner = view->OwnerOf(token.room);
     if (owner == nullptr) {  // the lease names another relay that is not live: wait
       ++counters_.connects_deferred;
       return Route::kDeferred;
     }
-    auto ticket = SignRedirect(token_bytes, token.session_secret, owner->address,
-                               unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
-    if (!ticket.ok()) return Route::kDeferred;
-    *packet = BuildRedirectPacket(*ticket);
-    ++counters_.redirects_sent;
-    return Route::kRedirected;
+    return redirect_to(owner->address, Route::kDeferred);
   }
   if (!view->healthy) {
     ++counters_.local_fallbacks;
@@ -115,26 +123,13 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
   if (owner != view->room_owner.end()) {
     if (owner->second == directory_->relay_id()) return Route::kLocal;
     auto relay = view->relays.find(owner->second);
-    if (relay != view->relays.end()) {
-      auto ticket = SignRedirect(token_bytes, token.session_secret, relay->second.address,
-                                 unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
-      if (!ticket.ok()) return Route::kLocal;
-      *packet = BuildRedirectPacket(*ticket);
-      ++counters_.redirects_sent;
-      return Route::kRedirected;
-    }
+    if (relay != view->relays.end()) return redirect_to(relay->second.address, Route::kLocal);
     // Owned by a relay that is gone (a live relay claims it on its next refresh), or alive
     // with an unusable entry: wait, never serve a second copy here.
     ++counters_.connects_deferred;
     return Route::kDeferred;
   }
-  auto asked = asked_.find(token.room);
-  if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
-    asked_[token.room] = relay_->now_;
-    directory_->RequestPlacement(token.room, /*prefer_self=*/false);
-  }
-  ++counters_.connects_deferred;
-  return Route::kDeferred;
+  return defer_for_placement(/*prefer_self=*/false);
 }
 
 void ClusterHook::Update(double now, uint64_t unix_now_s) {
