@@ -14,9 +14,13 @@ static_assert(kMaxUnreliableMessageBytes == kMaxUnreliableMessagePayload);
 
 namespace {
 
-// SendMessage's and SendMessageUnreliable's shared checks; `*to_player` is zeroed unless the
-// target is a player.
-Status CheckMessage(MessageTarget target, uint32_t* to_player) {
+// SendMessage's and SendMessageUnreliable's shared checks, in order: joined, the payload's size
+// (`too_large` when `oversized`), the target; `*to_player` is zeroed unless the target is a
+// player.
+Status CheckMessage(bool joined, bool oversized, const Status& too_large, MessageTarget target,
+                    uint32_t* to_player) {
+  if (!joined) return Status::NotConnected("not joined");
+  if (oversized) return too_large;
   if (target != MessageTarget::kRoom && target != MessageTarget::kOthers &&
       target != MessageTarget::kPlayer) {
     return Status::InvalidArgument("unknown message target");
@@ -32,11 +36,11 @@ Status CheckMessage(MessageTarget target, uint32_t* to_player) {
 
 Status Client::Impl::SendMessage(MessageTarget target, uint32_t to_player,
                                  std::span<const uint8_t> payload) {
-  if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
-  if (payload.size() > kMaxMessagePayload) {
-    return Status::InvalidArgument("message payload over 65536 bytes");
-  }
-  if (Status s = CheckMessage(target, &to_player); !s.ok()) return s;
+  const Status s = CheckMessage(state_ == ClientState::kConnected && joined_,
+                                payload.size() > kMaxMessagePayload,
+                                Status::InvalidArgument("message payload over 65536 bytes"),
+                                target, &to_player);
+  if (!s.ok()) return s;
   flatbuffers::FlatBufferBuilder fbb(64 + payload.size());
   const auto bytes = fbb.CreateVector(payload.data(), payload.size());
   FinishControl(fbb, schema::CreateAppMessage(fbb, static_cast<schema::MessageTarget>(target),
@@ -46,11 +50,11 @@ Status Client::Impl::SendMessage(MessageTarget target, uint32_t to_player,
 
 Status Client::Impl::SendMessageUnreliable(MessageTarget target, uint32_t to_player,
                                            std::span<const uint8_t> payload) {
-  if (state_ != ClientState::kConnected || !joined_) return Status::NotConnected("not joined");
-  if (payload.size() > kMaxUnreliableMessagePayload) {
-    return Status::TooLarge("unreliable message payload over 1165 bytes (one datagram)");
-  }
-  if (Status s = CheckMessage(target, &to_player); !s.ok()) return s;
+  const Status s = CheckMessage(
+      state_ == ClientState::kConnected && joined_, payload.size() > kMaxUnreliableMessagePayload,
+      Status::TooLarge("unreliable message payload over 1165 bytes (one datagram)"), target,
+      &to_player);
+  if (!s.ok()) return s;
   AppMessageHeader h;
   h.target = static_cast<uint8_t>(target);
   h.to_player = to_player;

@@ -7,6 +7,23 @@
 #include "protocol/property_codec.h"
 
 namespace edgephys {
+namespace {
+
+// The fields a PropertyChanged and a PropertyConflict both carry; `value` is the message's value
+// (PropertyChanged::value, PropertyConflict::current).
+template <typename Message>
+PropertyRecord ReadRecord(const Message& m, const schema::PropertyValue* value) {
+  PropertyRecord r;
+  r.entity_id = m.entity_id();
+  if (m.key() != nullptr) r.key = m.key()->str();
+  r.value = ReadPropertyValue(value);
+  r.version = m.version();
+  r.writer = m.writer();
+  r.request_id = m.request_id();
+  return r;
+}
+
+}  // namespace
 
 Result<uint32_t> Client::Impl::WriteProperty(uint32_t entity_id, std::string_view key,
                                              const PropertyValue& value,
@@ -37,16 +54,10 @@ Result<uint32_t> Client::Impl::WriteProperty(uint32_t entity_id, std::string_vie
 }
 
 void Client::Impl::OnPropertyMessage(const schema::ControlMessage& msg) {
-  PropertyRecord r;
   if (const auto* c = msg.body_as_PropertyChanged()) {
-    r.entity_id = c->entity_id();
-    if (c->key() != nullptr) r.key = c->key()->str();
-    r.value = ReadPropertyValue(c->value());
-    r.version = c->version();
-    r.writer = c->writer();
+    PropertyRecord r = ReadRecord(*c, c->value());
     r.owner = c->owner();
     r.authority = static_cast<PropertyAuthority>(c->authority());
-    r.request_id = c->request_id();
     // What a relay sends is checked like what it receives: a bad record is ignored.
     if (!ValidatePropertyKey(r.key).ok() || !ValidatePropertyValue(r.value).ok()) return;
     // An entity's properties follow its Spawn; one for an entity not (or no longer) known is
@@ -60,12 +71,7 @@ void Client::Impl::OnPropertyMessage(const schema::ControlMessage& msg) {
     return;
   }
   if (const auto* c = msg.body_as_PropertyConflict()) {
-    r.entity_id = c->entity_id();
-    if (c->key() != nullptr) r.key = c->key()->str();
-    r.value = ReadPropertyValue(c->current());
-    r.version = c->version();
-    r.writer = c->writer();
-    r.request_id = c->request_id();
+    PropertyRecord r = ReadRecord(*c, c->current());
     if (r.version != 0 && !ValidatePropertyValue(r.value).ok()) return;
     if (r.version == 0) r.value = PropertyValue{};
     if (const auto it = properties_.find(PropertyKey(r.entity_id, r.key)); it != properties_.end()) {

@@ -18,15 +18,11 @@ RedisReply Convert(const redisReply* r) {
   RedisReply out;
   switch (r->type) {
     case REDIS_REPLY_STRING:
-      out.kind = RedisReply::Kind::kString;
-      out.str.assign(r->str, r->len);
-      break;
     case REDIS_REPLY_STATUS:
-      out.kind = RedisReply::Kind::kStatus;
-      out.str.assign(r->str, r->len);
-      break;
     case REDIS_REPLY_ERROR:
-      out.kind = RedisReply::Kind::kError;
+      out.kind = r->type == REDIS_REPLY_STRING   ? RedisReply::Kind::kString
+                 : r->type == REDIS_REPLY_STATUS ? RedisReply::Kind::kStatus
+                                                 : RedisReply::Kind::kError;
       out.str.assign(r->str, r->len);
       break;
     case REDIS_REPLY_INTEGER:

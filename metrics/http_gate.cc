@@ -499,24 +499,8 @@ Status HttpGate::Start() {
   int yes = 1;
   // SO_REUSEADDR only: a restart binds at once, but a second process cannot share the port.
   setsockopt(g.listen_fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-  sockaddr_storage ss{};
-  socklen_t len = 0;
-  if (v6) {
-    auto& a = reinterpret_cast<sockaddr_in6&>(ss);
-    a.sin6_family = AF_INET6;
-    a.sin6_port = htons(endpoint->port());
-    auto bytes = endpoint->address().to_v6().to_bytes();
-    std::memcpy(&a.sin6_addr, bytes.data(), bytes.size());
-    len = sizeof(a);
-  } else {
-    auto& a = reinterpret_cast<sockaddr_in&>(ss);
-    a.sin_family = AF_INET;
-    a.sin_port = htons(endpoint->port());
-    auto bytes = endpoint->address().to_v4().to_bytes();
-    std::memcpy(&a.sin_addr, bytes.data(), bytes.size());
-    len = sizeof(a);
-  }
-  if (::bind(g.listen_fd, reinterpret_cast<sockaddr*>(&ss), len) != 0 ||
+  // The endpoint's native sockaddr (sockaddr_in or sockaddr_in6, port in network order).
+  if (::bind(g.listen_fd, endpoint->data(), static_cast<socklen_t>(endpoint->size())) != 0 ||
       ::listen(g.listen_fd, 512) != 0) {
     std::string why = std::strerror(errno);
     ::close(g.listen_fd);

@@ -3,7 +3,6 @@
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
-#include <openssl/kdf.h>
 #include <openssl/rand.h>
 
 #include <algorithm>
@@ -13,6 +12,7 @@
 #include <string>
 
 #include "protocol/byte_io.h"
+#include "protocol/hkdf.h"
 
 namespace edgephys {
 namespace {
@@ -46,17 +46,7 @@ struct TokenKeys {
 
 bool DeriveTokenKeys(std::string_view secret, TokenKeys* keys) {
   std::array<uint8_t, 64> okm{};
-  size_t okm_len = okm.size();
-  EVP_PKEY_CTX* ctx = EVP_PKEY_CTX_new_id(EVP_PKEY_HKDF, nullptr);
-  const bool ok =
-      ctx != nullptr && EVP_PKEY_derive_init(ctx) == 1 &&
-      EVP_PKEY_CTX_set_hkdf_md(ctx, EVP_sha256()) == 1 &&
-      EVP_PKEY_CTX_set1_hkdf_key(ctx, reinterpret_cast<const uint8_t*>(secret.data()),
-                                 static_cast<int>(secret.size())) == 1 &&
-      EVP_PKEY_CTX_add1_hkdf_info(ctx, reinterpret_cast<const uint8_t*>(kTokenKeyInfo.data()),
-                                  static_cast<int>(kTokenKeyInfo.size())) == 1 &&
-      EVP_PKEY_derive(ctx, okm.data(), &okm_len) == 1 && okm_len == okm.size();
-  EVP_PKEY_CTX_free(ctx);
+  const bool ok = HkdfSha256({}, Bytes(secret), Bytes(kTokenKeyInfo), okm);
   std::memcpy(keys->seal.data(), okm.data(), 32);
   std::memcpy(keys->nonce.data(), okm.data() + 32, 32);
   OPENSSL_cleanse(okm.data(), okm.size());

@@ -1,12 +1,17 @@
 #include "protocol/network_simulator.h"
 
 #include <algorithm>
+#include <limits>
 
 namespace edgephys {
 
 NetworkSimulator::NetworkSimulator(DatagramSocket* inner, const NetworkConditions& conditions,
                                    size_t max_queued)
-    : inner_(inner), conditions_(conditions), max_queued_(max_queued), rng_(conditions.seed) {}
+    : inner_(inner),
+      conditions_(conditions),
+      max_queued_(max_queued),
+      rng_(conditions.seed),
+      queue_(max_queued, std::numeric_limits<size_t>::max()) {}
 
 void NetworkSimulator::SetConditions(const NetworkConditions& conditions) {
   conditions_ = conditions;
@@ -16,12 +21,6 @@ void NetworkSimulator::SetConditions(const NetworkConditions& conditions) {
 double NetworkSimulator::Uniform() {
   // 53 random bits: the same sequence on every platform (unlike std::uniform_real_distribution).
   return static_cast<double>(rng_() >> 11) * 0x1.0p-53;
-}
-
-bool NetworkSimulator::Later(size_t a, size_t b) const {
-  const Entry& x = entries_[a];
-  const Entry& y = entries_[b];
-  return x.due > y.due || (x.due == y.due && x.order > y.order);
 }
 
 Status NetworkSimulator::SendTo(const Endpoint& to, std::span<const uint8_t> data) {
@@ -46,7 +45,7 @@ void NetworkSimulator::Enqueue(const Endpoint& to, std::span<const uint8_t> data
   double jitter = (2 * Uniform() - 1) * conditions_.jitter_s;
   bool reordered = Uniform() < conditions_.reorder;
   double extra = Uniform() * conditions_.reorder_delay_s;
-  if (heap_.size() >= max_queued_) {
+  if (queue_.size() >= max_queued_) {
     stats_.queue_full++;
     return;
   }
@@ -55,35 +54,15 @@ void NetworkSimulator::Enqueue(const Endpoint& to, std::span<const uint8_t> data
     stats_.delayed++;
     delay += extra;
   }
-  size_t index;
-  if (!free_.empty()) {
-    index = free_.back();
-    free_.pop_back();
-  } else {
-    index = entries_.size();
-    entries_.emplace_back();
-  }
-  Entry& entry = entries_[index];
-  entry.due = now_ + delay;
-  entry.order = next_order_++;
-  entry.to = to;
-  entry.data.assign(data.begin(), data.end());
-  heap_.push_back(index);
-  std::push_heap(heap_.begin(), heap_.end(), [this](size_t a, size_t b) { return Later(a, b); });
+  (void)queue_.Push(now_ + delay, to, data);  // room checked above; no byte cap
 }
 
 void NetworkSimulator::Update(double now) {
   now_ = now;
-  auto later = [this](size_t a, size_t b) { return Later(a, b); };
-  while (!heap_.empty() && entries_[heap_.front()].due <= now) {
-    std::pop_heap(heap_.begin(), heap_.end(), later);
-    size_t index = heap_.back();
-    heap_.pop_back();
-    Entry& entry = entries_[index];
+  queue_.PopDue(now, [this](const Endpoint& to, std::span<const uint8_t> data, double) {
     stats_.forwarded++;
-    if (!inner_->SendTo(entry.to, entry.data).ok()) stats_.inner_errors++;
-    free_.push_back(index);
-  }
+    if (!inner_->SendTo(to, data).ok()) stats_.inner_errors++;
+  });
 }
 
 size_t NetworkSimulator::ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) {

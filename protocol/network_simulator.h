@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "protocol/datagram_socket.h"
+#include "protocol/datagram_delay_queue.h"
 
 namespace edgephys {
 
@@ -68,29 +69,19 @@ class NetworkSimulator final : public DatagramSocket {
   size_t ReceiveFrom(Endpoint* from, std::span<uint8_t> buffer) override;
   Endpoint LocalEndpoint() const override;
 
-  size_t queued() const { return heap_.size(); }
+  size_t queued() const { return queue_.size(); }
   const NetworkSimulatorStats& stats() const { return stats_; }
 
  private:
-  struct Entry {
-    double due = 0;
-    uint64_t order = 0;  // send order, breaks ties
-    Endpoint to;
-    std::vector<uint8_t> data;  // capacity reused
-  };
   double Uniform();  // [0, 1)
   void Enqueue(const Endpoint& to, std::span<const uint8_t> data);
-  bool Later(size_t a, size_t b) const;  // heap order on entry indices
 
   DatagramSocket* inner_;
   NetworkConditions conditions_;
   size_t max_queued_;
   std::mt19937_64 rng_;
   double now_ = 0;
-  uint64_t next_order_ = 0;
-  std::vector<Entry> entries_;  // storage, grows up to max_queued
-  std::vector<size_t> free_;    // unused entry indices
-  std::vector<size_t> heap_;    // min-heap of queued entry indices by (due, order)
+  DatagramDelayQueue<Endpoint> queue_;  // copies waiting, by destination
   NetworkSimulatorStats stats_;
 };
 

@@ -2,7 +2,6 @@
 
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
-#include <openssl/kdf.h>
 #include <openssl/sha.h>
 
 #include <cstring>
@@ -10,6 +9,7 @@
 #include <vector>
 
 #include "protocol/byte_io.h"
+#include "protocol/hkdf.h"
 
 namespace edgephys {
 namespace {
@@ -105,16 +105,7 @@ Result<ConnectionKeys> KeyExchange::Derive(std::span<const uint8_t> peer_public,
   for (int i = 0; i < 4; ++i) info.push_back(static_cast<uint8_t>(connection_id >> (8 * i)));
 
   std::array<uint8_t, 64> okm{};
-  size_t okm_len = okm.size();
-  EVP_PKEY_CTX* kctx = EVP_PKEY_CTX_new_id(EVP_PKEY_HKDF, nullptr);
-  const bool expanded =
-      kctx != nullptr && EVP_PKEY_derive_init(kctx) == 1 &&
-      EVP_PKEY_CTX_set_hkdf_md(kctx, EVP_sha256()) == 1 &&
-      EVP_PKEY_CTX_set1_hkdf_salt(kctx, salt.data(), static_cast<int>(salt.size())) == 1 &&
-      EVP_PKEY_CTX_set1_hkdf_key(kctx, shared.data(), static_cast<int>(shared.size())) == 1 &&
-      EVP_PKEY_CTX_add1_hkdf_info(kctx, info.data(), static_cast<int>(info.size())) == 1 &&
-      EVP_PKEY_derive(kctx, okm.data(), &okm_len) == 1 && okm_len == okm.size();
-  EVP_PKEY_CTX_free(kctx);
+  const bool expanded = HkdfSha256(salt, shared, info, okm);
   OPENSSL_cleanse(shared.data(), shared.size());
   if (!expanded) return Status::Unauthenticated("key exchange: HKDF failed");
   ConnectionKeys keys;

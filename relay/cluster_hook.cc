@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <tuple>
+
 #include "protocol/redirect.h"
 #include "relay/relay.h"
 
@@ -11,46 +13,31 @@ namespace {
 // A placement answer not received after this long is asked again.
 constexpr double kPlacementRetryS = 1.0;
 
+// The fields Entity and cluster::EntitySnapshot hold under one name and type, as references: all
+// but the PhyS role (typed in Entity, a byte in the snapshot) and the two vectors (nodes, spawn),
+// which ToSnapshot copies and FromSnapshot moves.
+auto SharedFields(auto& x) {
+  return std::tie(x.id, x.owner, x.creator, x.flags, x.held_by, x.spawn_seq, x.state,
+                  x.linear_velocity, x.angular_velocity, x.authority_seq, x.former_owner,
+                  x.takeover_allowed, x.on_owner_leave);
+}
+
 cluster::EntitySnapshot ToSnapshot(const Entity& e) {
   cluster::EntitySnapshot s;
-  s.id = e.id;
-  s.owner = e.owner;
-  s.creator = e.creator;
-  s.flags = e.flags;
-  s.held_by = e.held_by;
+  SharedFields(s) = SharedFields(e);
   s.physics_role = static_cast<uint8_t>(e.physics);
-  s.spawn_seq = e.spawn_seq;
-  s.state = e.state;
-  s.linear_velocity = e.linear_velocity;
-  s.angular_velocity = e.angular_velocity;
   s.nodes = e.nodes;
   s.spawn = e.spawn;
-  s.authority_seq = e.authority_seq;
-  s.former_owner = e.former_owner;
-  s.takeover_allowed = e.takeover_allowed;
-  s.on_owner_leave = e.on_owner_leave;
   return s;
 }
 
 Entity FromSnapshot(cluster::EntitySnapshot s) {
   Entity e;
-  e.id = s.id;
-  e.owner = s.owner;
-  e.creator = s.creator;
-  e.flags = s.flags;
-  e.held_by = s.held_by;
+  SharedFields(e) = SharedFields(s);
   e.physics = static_cast<PhysicsRole>(s.physics_role);
-  e.spawn_seq = s.spawn_seq;
-  e.state = s.state;
   e.state.entity_id = s.id;
-  e.linear_velocity = s.linear_velocity;
-  e.angular_velocity = s.angular_velocity;
   e.nodes = std::move(s.nodes);
   e.spawn = std::move(s.spawn);
-  e.authority_seq = s.authority_seq;
-  e.former_owner = s.former_owner;
-  e.takeover_allowed = s.takeover_allowed;
-  e.on_owner_leave = s.on_owner_leave;
   return e;
 }
 
@@ -87,6 +74,25 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
                                              uint64_t unix_now_s, std::vector<uint8_t>* packet) {
   if ((token.permissions & kPermissionWorker) != 0) return Route::kLocal;  // PhyS workers
   auto view = directory_->view();
+  // Asks for the room's placement (at most once per kPlacementRetryS) and defers the connect.
+  const auto defer_for_placement = [&](bool prefer_self) {
+    auto asked = asked_.find(token.room);
+    if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
+      asked_[token.room] = relay_->now_;
+      directory_->RequestPlacement(token.room, prefer_self);
+    }
+    ++counters_.connects_deferred;
+    return Route::kDeferred;
+  };
+  // Answers with a signed Redirect to `address`; `if_unsigned` when no ticket could be signed.
+  const auto redirect_to = [&](const std::string& address, Route if_unsigned) {
+    auto ticket = SignRedirect(token_bytes, token.session_secret, address,
+                               unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
+    if (!ticket.ok()) return if_unsigned;
+    *packet = BuildRedirectPacket(*ticket);
+    ++counters_.redirects_sent;
+    return Route::kRedirected;
+  };
   if (relay_->rooms_.count(token.room) != 0 || local_fallback_.count(token.room) != 0) {
     // Held here: admitted only while no other live relay holds the room's lease (a copy that
     // lost it admits nobody; it is handed over in Update()).
@@ -100,25 +106,14 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
       // Held here but not (or no longer) recorded in Redis (a room created here, or its key
       // deleted or replaced by garbage): registered first (get-or-set, this relay preferred),
       // admitted once the view shows the lease.
-      auto asked = asked_.find(token.room);
-      if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
-        asked_[token.room] = relay_->now_;
-        directory_->RequestPlacement(token.room, /*prefer_self=*/true);
-      }
-      ++counters_.connects_deferred;
-      return Route::kDeferred;
+      return defer_for_placement(/*prefer_self=*/true);
     }
     const cluster::RelayInfo* owner = view->OwnerOf(token.room);
     if (owner == nullptr) {  // the lease names another relay that is not live: wait
       ++counters_.connects_deferred;
       return Route::kDeferred;
     }
-    auto ticket = SignRedirect(token_bytes, token.session_secret, owner->address,
-                               unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
-    if (!ticket.ok()) return Route::kDeferred;
-    *packet = BuildRedirectPacket(*ticket);
-    ++counters_.redirects_sent;
-    return Route::kRedirected;
+    return redirect_to(owner->address, Route::kDeferred);
   }
   if (!view->healthy) {
     ++counters_.local_fallbacks;
@@ -128,26 +123,13 @@ ClusterHook::Route ClusterHook::RouteConnect(const JoinToken& token,
   if (owner != view->room_owner.end()) {
     if (owner->second == directory_->relay_id()) return Route::kLocal;
     auto relay = view->relays.find(owner->second);
-    if (relay != view->relays.end()) {
-      auto ticket = SignRedirect(token_bytes, token.session_secret, relay->second.address,
-                                 unix_now_s + static_cast<uint64_t>(kRedirectLifetimeS));
-      if (!ticket.ok()) return Route::kLocal;
-      *packet = BuildRedirectPacket(*ticket);
-      ++counters_.redirects_sent;
-      return Route::kRedirected;
-    }
+    if (relay != view->relays.end()) return redirect_to(relay->second.address, Route::kLocal);
     // Owned by a relay that is gone (a live relay claims it on its next refresh), or alive
     // with an unusable entry: wait, never serve a second copy here.
     ++counters_.connects_deferred;
     return Route::kDeferred;
   }
-  auto asked = asked_.find(token.room);
-  if (asked == asked_.end() || relay_->now_ - asked->second > kPlacementRetryS) {
-    asked_[token.room] = relay_->now_;
-    directory_->RequestPlacement(token.room, /*prefer_self=*/false);
-  }
-  ++counters_.connects_deferred;
-  return Route::kDeferred;
+  return defer_for_placement(/*prefer_self=*/false);
 }
 
 void ClusterHook::Update(double now, uint64_t unix_now_s) {

@@ -53,31 +53,18 @@ void EmbeddedPhysicsLink::Remove(uint32_t id) {
   }
   if (admission_.RoleOf(id) == PhysicsRole::kNone) return;  // not in the world
   admission_.Removed(id);
-  PhysicsCommand command;
-  command.kind = PhysicsCommand::Kind::kRemove;
-  command.id = id;
-  room_->Post(std::move(command));
+  room_->Post({.kind = PhysicsCommand::Kind::kRemove, .id = id});
 }
 
 void EmbeddedPhysicsLink::Drive(uint32_t id, const EntityState& s, double time) {
   if (room_ == nullptr) return physics_->Drive(id, s, time);
   if (admission_.RoleOf(id) != PhysicsRole::kMirrored) return;  // the world ignores it
-  PhysicsCommand command;
-  command.kind = PhysicsCommand::Kind::kDrive;
-  command.id = id;
-  command.state = s;
-  command.time = time;
-  room_->Post(std::move(command));
+  room_->Post({.kind = PhysicsCommand::Kind::kDrive, .id = id, .state = s, .time = time});
 }
 
 void EmbeddedPhysicsLink::RequestGrab(uint32_t entity, uint32_t hand, bool force) {
   if (room_ == nullptr) return physics_->RequestGrab(entity, hand, !force);
-  PhysicsCommand command;
-  command.kind = PhysicsCommand::Kind::kGrab;
-  command.id = entity;
-  command.hand = hand;
-  command.force = force;
-  room_->Post(std::move(command));
+  room_->Post({.kind = PhysicsCommand::Kind::kGrab, .force = force, .id = entity, .hand = hand});
 }
 
 void EmbeddedPhysicsLink::Release(uint32_t entity) {
@@ -85,22 +72,14 @@ void EmbeddedPhysicsLink::Release(uint32_t entity) {
     (void)physics_->Release(entity);
     return;
   }
-  PhysicsCommand command;
-  command.kind = PhysicsCommand::Kind::kRelease;
-  command.id = entity;
-  room_->Post(std::move(command));
+  room_->Post({.kind = PhysicsCommand::Kind::kRelease, .id = entity});
 }
 
 void EmbeddedPhysicsLink::Restore(uint32_t id, const EntityState& s, const Vec3f& l,
                                   const Vec3f& a) {
   if (room_ == nullptr) return physics_->Restore(id, s, l, a);
-  PhysicsCommand command;
-  command.kind = PhysicsCommand::Kind::kRestore;
-  command.id = id;
-  command.state = s;
-  command.linear = l;
-  command.angular = a;
-  room_->Post(std::move(command));
+  room_->Post({.kind = PhysicsCommand::Kind::kRestore, .id = id, .state = s, .linear = l,
+               .angular = a});
 }
 
 void EmbeddedPhysicsLink::RestoreSoftBody(uint32_t id, std::span<const Vec3f> nodes) {
@@ -109,11 +88,8 @@ void EmbeddedPhysicsLink::RestoreSoftBody(uint32_t id, std::span<const Vec3f> no
     if (!st.ok()) spdlog::warn("PhyS: soft body {} not restored: {}", id, st.ToString());
     return;
   }
-  PhysicsCommand command;
-  command.kind = PhysicsCommand::Kind::kRestoreNodes;
-  command.id = id;
-  command.nodes.assign(nodes.begin(), nodes.end());
-  room_->Post(std::move(command));
+  room_->Post({.kind = PhysicsCommand::Kind::kRestoreNodes, .id = id,
+               .nodes = std::vector<Vec3f>(nodes.begin(), nodes.end())});
 }
 
 void EmbeddedPhysicsLink::Advance(double now, StepOutput* out) {

@@ -36,6 +36,17 @@ class TokenBucket {
   double last_ = -1;
 };
 
+// Takes one token at `now` from `key`'s bucket in `buckets`, made on the key's first request
+// with `rate_per_s` and a burst of two seconds' worth (e.g. a room's per-player request rates).
+// False (nothing taken) when the bucket is empty. Allocates once per new key.
+template <typename Map>
+bool TakeKeyedToken(Map& buckets, const typename Map::key_type& key, double rate_per_s,
+                    double now) {
+  auto [it, fresh] = buckets.try_emplace(key);
+  if (fresh) it->second = TokenBucket(rate_per_s, 2 * rate_per_s);
+  return it->second.Take(now);
+}
+
 // Token buckets keyed by source address, for handshake packets: IPv4 by the whole address
 // (/32), IPv6 by its /64 (one host's addresses), IPv4-mapped IPv6 as IPv4. Every address has a
 // bucket of its own: one address draining its bucket never limits another.

@@ -71,12 +71,7 @@ void RoomHost::Ownership(MemberLink& link, const schema::OwnershipRequest& reque
     link.SendError(reason, id, detail);
   };
   const RoomBudgets& budgets = room_.config().budgets;
-  auto [rate, fresh] = ownership_rates_.try_emplace(player);
-  if (fresh) {
-    rate->second = TokenBucket(budgets.ownership_requests_per_s_per_player,
-                               2 * budgets.ownership_requests_per_s_per_player);
-  }
-  if (!rate->second.Take(now)) {
+  if (!TakeKeyedToken(ownership_rates_, player, budgets.ownership_requests_per_s_per_player, now)) {
     return refuse(RejectReason::RateLimited, "too many ownership requests from this player; slow down");
   }
   const OwnershipAction action = request.action();

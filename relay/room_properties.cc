@@ -38,12 +38,7 @@ void RoomHost::SetProperty(MemberLink& link, const schema::PropertySet& set, dou
     return refuse(RejectReason::NotPermitted, "the join token does not allow writing properties");
   }
   const RoomBudgets& budgets = room_.config().budgets;
-  auto [rate, fresh] = property_rates_.try_emplace(player);
-  if (fresh) {
-    rate->second = TokenBucket(budgets.property_writes_per_s_per_player,
-                               2 * budgets.property_writes_per_s_per_player);
-  }
-  if (!rate->second.Take(now)) {
+  if (!TakeKeyedToken(property_rates_, player, budgets.property_writes_per_s_per_player, now)) {
     return refuse(RejectReason::RateLimited, "too many property writes from this player; slow down");
   }
   if (Status st = ValidatePropertyKey(key); !st.ok()) {

@@ -27,35 +27,31 @@ inline const char* ReasonName(const edgephys_event& ev) { return edgephys_reason
 
 // Property values (edgephys_property_value) from C++ types. String and Bytes point into `text`,
 // which must outlive the call they are passed to.
-inline edgephys_property_value BoolValue(bool v) {
+namespace detail {
+// A value of `type` whose member `kField` holds `v` (the others zero).
+template <auto kField, typename T>
+edgephys_property_value TypedValue(uint32_t type, const T& v) {
   edgephys_property_value p{};
-  p.type = EDGEPHYS_PROPERTY_BOOL;
-  p.int_value = v ? 1 : 0;
+  p.type = type;
+  p.*kField = v;
   return p;
+}
+}  // namespace detail
+inline edgephys_property_value BoolValue(bool v) {
+  return detail::TypedValue<&edgephys_property_value::int_value>(EDGEPHYS_PROPERTY_BOOL,
+                                                                 int64_t{v ? 1 : 0});
 }
 inline edgephys_property_value Int64Value(int64_t v) {
-  edgephys_property_value p{};
-  p.type = EDGEPHYS_PROPERTY_INT64;
-  p.int_value = v;
-  return p;
+  return detail::TypedValue<&edgephys_property_value::int_value>(EDGEPHYS_PROPERTY_INT64, v);
 }
 inline edgephys_property_value DoubleValue(double v) {
-  edgephys_property_value p{};
-  p.type = EDGEPHYS_PROPERTY_DOUBLE;
-  p.double_value = v;
-  return p;
+  return detail::TypedValue<&edgephys_property_value::double_value>(EDGEPHYS_PROPERTY_DOUBLE, v);
 }
 inline edgephys_property_value Vec3Value(edgephys_vec3 v) {
-  edgephys_property_value p{};
-  p.type = EDGEPHYS_PROPERTY_VEC3;
-  p.vec3 = v;
-  return p;
+  return detail::TypedValue<&edgephys_property_value::vec3>(EDGEPHYS_PROPERTY_VEC3, v);
 }
 inline edgephys_property_value QuatValue(edgephys_quat q) {
-  edgephys_property_value p{};
-  p.type = EDGEPHYS_PROPERTY_QUAT;
-  p.quat = q;
-  return p;
+  return detail::TypedValue<&edgephys_property_value::quat>(EDGEPHYS_PROPERTY_QUAT, q);
 }
 inline edgephys_property_value StringValue(const std::string& text, bool bytes = false) {
   edgephys_property_value p{};

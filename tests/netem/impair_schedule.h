@@ -25,6 +25,8 @@
 #include <span>
 #include <vector>
 
+#include "protocol/datagram_delay_queue.h"
+
 namespace edgephys::netem {
 
 struct ImpairParams {
@@ -68,81 +70,8 @@ class ImpairSchedule {
   std::mt19937_64 rng_;
 };
 
-// A bounded min-queue of datagrams by due time (ties: push order). `tag` is the caller's routing
-// key (udp_impair: client slot and generation). Buffers are reused once allocated.
-class DelayQueue {
- public:
-  DelayQueue(size_t max_items, size_t max_bytes) : max_items_(max_items), max_bytes_(max_bytes) {}
-
-  // False (and nothing queued) when max_items or max_bytes would be exceeded.
-  bool Push(double due, uint64_t tag, std::span<const uint8_t> data) {
-    if (heap_.size() >= max_items_ || bytes_ + data.size() > max_bytes_) return false;
-    size_t index;
-    if (!free_.empty()) {
-      index = free_.back();
-      free_.pop_back();
-    } else {
-      index = items_.size();
-      items_.emplace_back();
-    }
-    Item& item = items_[index];
-    item.due = due;
-    item.order = next_order_++;
-    item.tag = tag;
-    item.data.assign(data.begin(), data.end());
-    bytes_ += data.size();
-    heap_.push_back(index);
-    std::push_heap(heap_.begin(), heap_.end(), Later{this});
-    return true;
-  }
-
-  bool empty() const { return heap_.empty(); }
-  size_t size() const { return heap_.size(); }
-  size_t bytes() const { return bytes_; }
-  // Due time of the next datagram; only when !empty().
-  double next_due() const { return items_[heap_.front()].due; }
-
-  // Calls fn(tag, span<const uint8_t>, due) for every datagram due at `now`, in due order.
-  // Returns how many were released.
-  template <typename Fn>
-  size_t PopDue(double now, Fn&& fn) {
-    size_t n = 0;
-    while (!heap_.empty() && items_[heap_.front()].due <= now) {
-      std::pop_heap(heap_.begin(), heap_.end(), Later{this});
-      const size_t index = heap_.back();
-      heap_.pop_back();
-      Item& item = items_[index];
-      bytes_ -= item.data.size();
-      fn(item.tag, std::span<const uint8_t>(item.data), item.due);
-      free_.push_back(index);
-      ++n;
-    }
-    return n;
-  }
-
- private:
-  struct Item {
-    double due = 0;
-    uint64_t order = 0;
-    uint64_t tag = 0;
-    std::vector<uint8_t> data;
-  };
-  struct Later {
-    const DelayQueue* q;
-    bool operator()(size_t a, size_t b) const {
-      const Item& x = q->items_[a];
-      const Item& y = q->items_[b];
-      return x.due > y.due || (x.due == y.due && x.order > y.order);
-    }
-  };
-
-  size_t max_items_;
-  size_t max_bytes_;
-  size_t bytes_ = 0;
-  uint64_t next_order_ = 0;
-  std::vector<Item> items_;
-  std::vector<size_t> free_;
-  std::vector<size_t> heap_;
-};
+// The queue of datagrams waiting until their copies are due, tagged with the caller's routing
+// key (udp_impair: client slot and generation).
+using DelayQueue = edgephys::DatagramDelayQueue<uint64_t>;
 
 }  // namespace edgephys::netem
