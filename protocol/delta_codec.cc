@@ -375,6 +375,16 @@ DeltaEncoder::UpdateNeed DeltaEncoder::Need(uint32_t id, const EntityState& trut
   return UpdateNeed::kSend;
 }
 
+StreamNeed DeltaStateStream::Want(const StreamEntity& e, double now, double resend_after_s,
+                                  uint8_t*) {
+  return ToStreamNeed(codec_.Need(e.id, *e.state, thresholds_.position_m,
+                                  thresholds_.rotation_deg, now, resend_after_s));
+}
+
+bool DeltaStateStream::Add(const StreamEntity& e, uint8_t) {
+  return codec_.Add(*e.state, e.prepared);  // the room quantised the state once for all
+}
+
 // ================================ Decoder ================================
 
 DeltaStreamDecoder::DeltaStreamDecoder(const Layout& layout, const QuantizationParams& params,

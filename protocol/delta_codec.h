@@ -49,6 +49,7 @@
 #include "protocol/flat_id_map.h"
 #include "protocol/quantize.h"
 #include "protocol/state_codec.h"
+#include "protocol/state_stream.h"
 #include "protocol/status.h"
 
 namespace edgephys {
@@ -273,6 +274,26 @@ class DeltaEncoder final : public StateEncoder {
   int order_[2] = {2, 2};
   BitWriter writer_;  // over the current payload's bit stream
 };
+
+// Format 2 as one receiver's StateStream: quantized deltas against its own acknowledged
+// baselines. Add uses the entity's PreparedState when it has one.
+class DeltaStateStream final : public CodecStateStream<DeltaEncoder> {
+ public:
+  using CodecStateStream::CodecStateStream;  // (params, thresholds)
+  StreamNeed Want(const StreamEntity& e, double now, double resend_after_s,
+                  uint8_t* fields) override;
+  bool Add(const StreamEntity& e, uint8_t fields) override;
+};
+
+// The StreamNeed of an encoder's UpdateNeed (formats 2 and 9).
+inline StreamNeed ToStreamNeed(DeltaEncoder::UpdateNeed need) {
+  switch (need) {
+    case DeltaEncoder::UpdateNeed::kSend: return StreamNeed::kSend;
+    case DeltaEncoder::UpdateNeed::kAckedWithin: return StreamNeed::kSettled;
+    case DeltaEncoder::UpdateNeed::kInFlightWithin: return StreamNeed::kSkip;
+  }
+  return StreamNeed::kSend;
+}
 
 struct DeltaDecoderStats {
   uint64_t payloads = 0;               // accepted payloads

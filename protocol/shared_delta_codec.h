@@ -406,6 +406,24 @@ class SharedDeltaStream final : public StateEncoder {
   size_t bit_pos_ = 0;
 };
 
+// Format 9 as one receiver's StateStream: records reference versions the room coded once for
+// all receivers (StreamEntity::shared, prepared by its SharedDeltaRoom this tick); per receiver
+// only the choice of reference and a bit copy. An entity without `shared` is not sent.
+class SharedDeltaStateStream final : public CodecStateStream<SharedDeltaStream> {
+ public:
+  using CodecStateStream::CodecStateStream;  // (params, thresholds)
+  StreamNeed Want(const StreamEntity& e, double now, double resend_after_s,
+                  uint8_t* fields) override;
+  void Prefetch(uint32_t slot) const override { codec_.Prefetch(slot); }
+  bool Add(const StreamEntity& e, uint8_t fields) override;
+  // The bodies this stream's sent payloads took from the room's cache and coded itself.
+  void Count(bool sent, StreamCounts& counts) override;
+
+ private:
+  uint64_t hits_counted_ = 0;  // codec_'s stats already counted
+  uint64_t entities_counted_ = 0;
+};
+
 using SharedDeltaDecoderStats = DeltaDecoderStats;
 
 // Receiver side of format 9, one per stream (DeltaStreamDecoder, protocol/delta_codec.h):

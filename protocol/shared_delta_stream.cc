@@ -341,4 +341,26 @@ SharedDeltaStream::UpdateNeed SharedDeltaStream::Need(uint32_t id, const SharedE
   return UpdateNeed::kSend;
 }
 
+StreamNeed SharedDeltaStateStream::Want(const StreamEntity& e, double now, double resend_after_s,
+                                        uint8_t*) {
+  if (e.shared == nullptr) return StreamNeed::kSend;
+  return ToStreamNeed(codec_.Need(e.id, *e.shared, *e.state, thresholds_.position_m,
+                                  thresholds_.rotation_deg, now, resend_after_s));
+}
+
+bool SharedDeltaStateStream::Add(const StreamEntity& e, uint8_t) {
+  // The room codes the body once for every receiver.
+  return e.shared != nullptr && e.prepared != nullptr && codec_.Add(e.id, *e.shared);
+}
+
+void SharedDeltaStateStream::Count(bool sent, StreamCounts& counts) {
+  const SharedDeltaStreamStats& st = codec_.stats();
+  if (sent) {
+    counts.shared_bodies_cached += st.cache_hits - hits_counted_;
+    counts.shared_bodies_coded += (st.entities - entities_counted_) - (st.cache_hits - hits_counted_);
+  }
+  hits_counted_ = st.cache_hits;
+  entities_counted_ = st.entities;
+}
+
 }  // namespace edgephys

@@ -90,6 +90,11 @@ struct Entity {
   std::shared_ptr<SharedEntity> shared;
 };
 
+// What a receiver's state stream reads of `e` (protocol/state_stream.h); valid while `e` is.
+inline StreamEntity StreamView(const Entity& e) {
+  return {e.id, e.version, &e.state, e.prepared_valid ? &e.prepared : nullptr, e.shared.get()};
+}
+
 using EntityTable = std::unordered_map<uint32_t, Entity>;
 
 // The effective choice for `e` when its owner leaves: its on_owner_leave, with Default resolved

@@ -106,7 +106,7 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
     if (now + kEpsilon < v.next_due || v.settled_version == e.version) continue;
     PriorityClass cls = ClassOf(e, now);
     uint8_t fields = kFieldPosition | kFieldRotation;
-    const StreamNeed need = stream_->Want(e, now, resend_after, &fields);
+    const StreamNeed need = stream_->Want(StreamView(e), now, resend_after, &fields);
     if (need == StreamNeed::kSettled) v.settled_version = e.version;
     if (need != StreamNeed::kSend) continue;
     double waiting = std::max(now - v.last_sent, IntervalOf(cls));
@@ -137,10 +137,10 @@ void ClientReplicator::TickEntities(const ReplicationFrame& frame, uint32_t self
 
   BeginPayload();
   for (const Candidate& c : selected_) {
-    if (!stream_->Add(*c.entity, c.fields)) {
+    if (!stream_->Add(StreamView(*c.entity), c.fields)) {
       Flush(now, connection, out, counters);
       BeginPayload();
-      if (!stream_->Add(*c.entity, c.fields)) continue;
+      if (!stream_->Add(StreamView(*c.entity), c.fields)) continue;
     }
     View& v = views_[c.entity->slot];
     v.last_sent = now;
@@ -172,7 +172,14 @@ void ClientReplicator::Flush(double now, Connection& connection, PacketWriter& o
     stream_->OnSent(*seq, now);
     RelayCounters::Inc(counters.entity_updates_sent, entities);
   }
-  stream_->Count(seq.ok(), counters);
+  StreamCounts counts;
+  stream_->Count(seq.ok(), counts);
+  if (counts.shared_bodies_cached != 0) {
+    RelayCounters::Inc(counters.shared_bodies_cached, counts.shared_bodies_cached);
+  }
+  if (counts.shared_bodies_coded != 0) {
+    RelayCounters::Inc(counters.shared_bodies_coded, counts.shared_bodies_coded);
+  }
   budget_bytes_ -= static_cast<double>(size) + kPacketOverhead;
   if (entities > 0) {
     // Running estimate of one entity's encoded size, for budget decisions before encoding.

@@ -26,7 +26,7 @@ float AngleDeg(const Quatf& a, const Quatf& b) {
 // Format 1: exact floats, every version until acknowledged (ReplicationTracker).
 class FloatStream final : public EntityStream {
  public:
-  StreamNeed Want(const Entity& e, double now, double resend_after_s, uint8_t*) override {
+  StreamNeed Want(const StreamEntity& e, double now, double resend_after_s, uint8_t*) override {
     return tracker_.NeedsSend(e.id, e.version, now, resend_after_s) ? StreamNeed::kSend
                                                                     : StreamNeed::kSkip;
   }
@@ -34,8 +34,8 @@ class FloatStream final : public EntityStream {
     encoder_.Begin(out, time_ms);
     in_payload_.clear();
   }
-  bool Add(const Entity& e, uint8_t) override {
-    if (!encoder_.Add(e.state)) return false;
+  bool Add(const StreamEntity& e, uint8_t) override {
+    if (!encoder_.Add(*e.state)) return false;
     in_payload_.emplace_back(e.id, e.version);
     return true;
   }
@@ -56,9 +56,11 @@ class FloatStream final : public EntityStream {
 // Format 3: every due entity, changed or not (the fixed rate decides); no acknowledgements.
 class PhotonStream final : public EntityStream {
  public:
-  StreamNeed Want(const Entity&, double, double, uint8_t*) override { return StreamNeed::kSend; }
+  StreamNeed Want(const StreamEntity&, double, double, uint8_t*) override {
+    return StreamNeed::kSend;
+  }
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override { encoder_.Begin(out, time_ms); }
-  bool Add(const Entity& e, uint8_t) override { return encoder_.Add(e.state); }
+  bool Add(const StreamEntity& e, uint8_t) override { return encoder_.Add(*e.state); }
   size_t count() const override { return encoder_.count(); }
   size_t Finish() override { return encoder_.Finish(); }
   void OnSent(uint16_t, double) override {}
@@ -76,24 +78,24 @@ class PaperStream final : public EntityStream {
   explicit PaperStream(const ReplicationConfig& config)
       : position_threshold_m_(config.position_threshold_m),
         rotation_threshold_deg_(config.rotation_threshold_deg) {}
-  StreamNeed Want(const Entity& e, double, double, uint8_t* fields) override {
+  StreamNeed Want(const StreamEntity& e, double, double, uint8_t* fields) override {
     auto it = last_sent_.find(e.id);
     if (it == last_sent_.end()) return StreamNeed::kSend;  // never sent: both fields
     *fields = 0;
-    if (Distance(e.state.position, it->second.position) > position_threshold_m_) {
+    if (Distance(e.state->position, it->second.position) > position_threshold_m_) {
       *fields |= kFieldPosition;
     }
-    if (AngleDeg(e.state.rotation, it->second.rotation) > rotation_threshold_deg_) {
+    if (AngleDeg(e.state->rotation, it->second.rotation) > rotation_threshold_deg_) {
       *fields |= kFieldRotation;
     }
     return *fields != 0 ? StreamNeed::kSend : StreamNeed::kSkip;
   }
   void Begin(std::span<uint8_t> out, uint32_t time_ms) override { encoder_.Begin(out, time_ms); }
-  bool Add(const Entity& e, uint8_t fields) override {
-    if (!encoder_.AddFields(e.state, fields)) return false;
+  bool Add(const StreamEntity& e, uint8_t fields) override {
+    if (!encoder_.AddFields(*e.state, fields)) return false;
     EntityState& last = last_sent_[e.id];
-    if (fields & kFieldPosition) last.position = e.state.position;
-    if (fields & kFieldRotation) last.rotation = e.state.rotation;
+    if (fields & kFieldPosition) last.position = e.state->position;
+    if (fields & kFieldRotation) last.rotation = e.state->rotation;
     return true;
   }
   size_t count() const override { return encoder_.count(); }
