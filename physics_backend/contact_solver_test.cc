@@ -14,15 +14,11 @@
 namespace edgephys::physics {
 namespace {
 
-using namespace testing;  // physics_test_util.h: Add, Ground, Pos, Vel
+using namespace testing;  // physics_test_util.h: Add, ConfigWith, Ground, Pos, Vel
 
 constexpr double kG = 9.81;
 
-PhysicsConfig Patch(bool on) {
-  PhysicsConfig cfg;
-  cfg.patch_friction = on;
-  return cfg;
-}
+PhysicsConfig Patch(bool on) { return ConfigWith(&PhysicsConfig::patch_friction, on); }
 
 // With one solver batch (split_islands = false) Bullet hands the solver every manifold, also
 // those with a trigger; without the response filter the trigger stopped the sphere like a wall.

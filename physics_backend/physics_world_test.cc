@@ -29,6 +29,18 @@ struct InvalidCase {
   StatusCode code;
 };
 
+// A mutation that makes the entity static with a triangle-mesh first collider of `vertices`
+// (x, y, z floats) and `indices`.
+std::function<void(EntitySpec*)> StaticMesh(std::vector<float> vertices,
+                                            std::vector<uint32_t> indices) {
+  return [vertices, indices](EntitySpec* s) {
+    s->rigid_body.reset();
+    s->colliders[0].shape = schema::ColliderShape::TriangleMesh;
+    s->colliders[0].vertices = vertices;
+    s->colliders[0].indices = indices;
+  };
+}
+
 TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
   PhysicsConfig cfg;
   cfg.max_soft_nodes = 16;
@@ -51,21 +63,9 @@ TEST(PhysicsWorldTest, InvalidContainersRejectedWithReasonAndNoSideEffects) {
          s->colliders[0].vertices = {0, 0, 0, 1, 0, 0, 0, 0, 1, 1, 0, 1, 0.5f, 0, 0.5f};
        },
        InvalidReason::kDegenerateMesh, StatusCode::kInvalidArgument},
-      {"zero-area mesh",
-       [](EntitySpec* s) {
-         s->rigid_body.reset();
-         s->colliders[0].shape = schema::ColliderShape::TriangleMesh;
-         s->colliders[0].vertices = {0, 0, 0, 1, 0, 0, 2, 0, 0};
-         s->colliders[0].indices = {0, 1, 2};
-       },
+      {"zero-area mesh", StaticMesh({0, 0, 0, 1, 0, 0, 2, 0, 0}, {0, 1, 2}),
        InvalidReason::kDegenerateMesh, StatusCode::kInvalidArgument},
-      {"mesh index out of range",
-       [](EntitySpec* s) {
-         s->rigid_body.reset();
-         s->colliders[0].shape = schema::ColliderShape::TriangleMesh;
-         s->colliders[0].vertices = {0, 0, 0, 1, 0, 0, 0, 0, 1};
-         s->colliders[0].indices = {0, 1, 7};
-       },
+      {"mesh index out of range", StaticMesh({0, 0, 0, 1, 0, 0, 0, 0, 1}, {0, 1, 7}),
        InvalidReason::kDegenerateMesh, StatusCode::kInvalidArgument},
       {"too many soft nodes",
        [](EntitySpec* s) {

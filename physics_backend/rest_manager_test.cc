@@ -17,15 +17,11 @@
 namespace edgephys::physics {
 namespace {
 
-using namespace testing;  // physics_test_util.h: Add, Dist, Ground, Pos
+using namespace testing;  // physics_test_util.h: Add, ConfigWith, Dist, Ground, Pos
 
 constexpr float kG = 9.81f;
 
-PhysicsConfig Config(bool freeze) {
-  PhysicsConfig cfg;
-  cfg.rest_freeze = freeze;
-  return cfg;
-}
+PhysicsConfig Config(bool freeze) { return ConfigWith(&PhysicsConfig::rest_freeze, freeze); }
 
 // A tight pile: a 4 x 4 layer of 0.2 m boxes touching each other, a 3 x 3 layer on top.
 std::vector<uint32_t> AddPile(PhysicsWorld& world, float x0) {

@@ -35,6 +35,16 @@ Bytes TestMessage(uint32_t index, std::mt19937& rng) {
   return message;
 }
 
+// Both ends send one unreliable byte at every one of `steps` steps of `link` (a 1, b 2), so
+// each has packets to acknowledge and to be acknowledged. Fails fatally on a refused send.
+void ExchangeUnreliable(Link& link, int steps) {
+  for (int i = 0; i < steps; ++i) {
+    ASSERT_TRUE(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).ok());
+    ASSERT_TRUE(link.b.connection->SendUnreliable(Bytes{2}, link.now(), link.b).ok());
+    link.Step();
+  }
+}
+
 TEST(ConnectionTest, ThousandReliableMessagesArriveOnceInOrderUnderLoss) {
   Link link(Harsh(11));
   std::mt19937 rng(5);
@@ -369,11 +379,7 @@ TEST(ConnectionTest, RttTracksSimulatedLatency) {
   NetworkConditions c;
   c.latency_s = 0.05;
   Link link(c);
-  for (int i = 0; i < 300; ++i) {
-    ASSERT_TRUE(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).ok());
-    ASSERT_TRUE(link.b.connection->SendUnreliable(Bytes{2}, link.now(), link.b).ok());
-    link.Step();
-  }
+  ASSERT_NO_FATAL_FAILURE(ExchangeUnreliable(link, 300));
   // 100 ms round trip plus at most one 10 ms step before the ack leaves.
   EXPECT_GE(link.a.connection->stats().rtt_s, 0.095);
   EXPECT_LE(link.a.connection->stats().rtt_s, 0.115);
@@ -383,11 +389,7 @@ TEST(ConnectionTest, RttTracksSimulatedLatency) {
 
 TEST(ConnectionTest, RttAndLossUnderJitterAndLoss) {
   Link link(Harsh(14));
-  for (int i = 0; i < 1500; ++i) {
-    ASSERT_TRUE(link.a.connection->SendUnreliable(Bytes{1}, link.now(), link.a).ok());
-    ASSERT_TRUE(link.b.connection->SendUnreliable(Bytes{2}, link.now(), link.b).ok());
-    link.Step();
-  }
+  ASSERT_NO_FATAL_FAILURE(ExchangeUnreliable(link, 1500));
   EXPECT_GE(link.a.connection->stats().rtt_s, 0.075);
   EXPECT_LE(link.a.connection->stats().rtt_s, 0.15);
   // "Loss" is the share of our packets the peer did not take: lost ones, and reordered ones

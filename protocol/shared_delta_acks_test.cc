@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "protocol/shared_delta_codec.h"
@@ -23,6 +24,14 @@ EntityState At(float x) { return {0, {x, 1, 2}, {0, 0, 0, 1}}; }
 
 using Harness = testing_util::SharedDeltaHarness;
 
+// One tick of `h` with `e` at At(x), sent to receiver 5 and decoded there into *got: the
+// send's sequence and the reference distance Decode returns.
+std::pair<uint16_t, int64_t> SendOne(Harness& h, SharedEntity* e, float x, EntityState* got) {
+  h.Tick({{e, At(x)}});
+  auto [seq, payload] = h.Send({{5, e}});
+  return {seq, h.Decode(payload, 5, got)};
+}
+
 TEST(SharedDeltaAcks, ReorderedAndDuplicatedAcksKeepTheNewestSendAsBaseline) {
   Harness h;
   auto a = std::make_unique<SharedEntity>();
@@ -30,9 +39,7 @@ TEST(SharedDeltaAcks, ReorderedAndDuplicatedAcksKeepTheNewestSendAsBaseline) {
   std::vector<uint16_t> seqs;
   EntityState got;
   for (int i = 0; i < 3; ++i) {
-    h.Tick({{a.get(), At(0.01f * i)}});
-    auto [s, payload] = h.Send({{5, a.get()}});
-    (void)h.Decode(payload, 5, &got);
+    const uint16_t s = SendOne(h, a.get(), 0.01f * i, &got).first;
     seqs.push_back(s);
   }
   // Acks arrive newest first, then the older ones, then the newest again.
@@ -41,9 +48,8 @@ TEST(SharedDeltaAcks, ReorderedAndDuplicatedAcksKeepTheNewestSendAsBaseline) {
   h.stream.OnPacketAcked(seqs[1]);
   h.stream.OnPacketAcked(seqs[2]);
   EXPECT_EQ(h.stream.stats().acks_unmatched, 1u) << "the duplicate";
-  h.Tick({{a.get(), At(0.05f)}});
-  auto [s4, p4] = h.Send({{5, a.get()}});
-  EXPECT_EQ(h.Decode(p4, 5, &got), 1) << "not against the newest acknowledged send";
+  EXPECT_EQ(SendOne(h, a.get(), 0.05f, &got).second, 1)
+      << "not against the newest acknowledged send";
   EXPECT_LE(PositionError(At(0.05f).position, got.position), h.params.step);
   EXPECT_EQ(h.decoder.stats().unresolved_references, 0u);
 }
@@ -56,30 +62,22 @@ TEST(SharedDeltaAcks, AnAckAfterNewerSendsStillMakesItsSendTheBaseline) {
   uint16_t first = 0;
   // Four sends (all remembered); only the first is acknowledged, after the fourth left.
   for (int i = 0; i < 4; ++i) {
-    h.Tick({{a.get(), At(0.01f * i)}});
-    auto [s, payload] = h.Send({{5, a.get()}});
-    (void)h.Decode(payload, 5, &got);
+    const uint16_t s = SendOne(h, a.get(), 0.01f * i, &got).first;
     if (i == 0) first = s;
   }
   h.stream.OnPacketAcked(first);
-  h.Tick({{a.get(), At(0.08f)}});
-  auto [s5, p5] = h.Send({{5, a.get()}});
-  EXPECT_EQ(h.Decode(p5, 5, &got), 4) << "the late ack was not taken in";
+  EXPECT_EQ(SendOne(h, a.get(), 0.08f, &got).second, 4) << "the late ack was not taken in";
   EXPECT_LE(PositionError(At(0.08f).position, got.position), h.params.step);
 
   // An ack of a send older than the remembered ones counts as lost: the baseline stays the
   // acknowledged send at tick 1 (11 ticks back), not the one the late ack names (6 back).
   uint16_t old = 0;
   for (int i = 0; i < 6; ++i) {
-    h.Tick({{a.get(), At(0.1f + 0.01f * i)}});
-    auto [s, payload] = h.Send({{5, a.get()}});
-    (void)h.Decode(payload, 5, &got);
+    const uint16_t s = SendOne(h, a.get(), 0.1f + 0.01f * i, &got).first;
     if (i == 0) old = s;
   }
   h.stream.OnPacketAcked(old);
-  h.Tick({{a.get(), At(0.2f)}});
-  auto [s6, p6] = h.Send({{5, a.get()}});
-  EXPECT_EQ(h.Decode(p6, 5, &got), 11);
+  EXPECT_EQ(SendOne(h, a.get(), 0.2f, &got).second, 11);
   EXPECT_LE(PositionError(At(0.2f).position, got.position), h.params.step);
   EXPECT_EQ(h.decoder.stats().unresolved_references, 0u);
 }

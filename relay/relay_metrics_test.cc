@@ -90,6 +90,17 @@ std::map<std::string, double> ParseSamples(const std::string& text) {
   return samples;
 }
 
+// Expects every series of `expected` among `samples` (parsed from `text`) with its value; a
+// missing series fails fatally, naming it and showing `text`.
+void ExpectSamples(const std::map<std::string, double>& samples,
+                   const std::map<std::string, double>& expected, const std::string& text) {
+  for (const auto& [series, value] : expected) {
+    auto it = samples.find(series);
+    ASSERT_NE(it, samples.end()) << series << " missing from:\n" << text;
+    EXPECT_EQ(it->second, value) << series;
+  }
+}
+
 class MetricsExporterTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { curl_global_init(CURL_GLOBAL_DEFAULT); }
@@ -147,11 +158,7 @@ TEST_F(MetricsExporterTest, ExportsScalarCountersAndGauges) {
       {"edgephys_entities", 31},
       {"edgephys_build_info{version=\"0.1.0\"}", 1},
   };
-  for (const auto& [series, value] : expected) {
-    auto it = samples.find(series);
-    ASSERT_NE(it, samples.end()) << series << " missing from:\n" << text;
-    EXPECT_EQ(it->second, value) << series;
-  }
+  ASSERT_NO_FATAL_FAILURE(ExpectSamples(samples, expected, text));
 }
 
 TEST_F(MetricsExporterTest, TypeAndHelpLinesAndSingleTotalSuffix) {
@@ -260,11 +267,7 @@ TEST_F(MetricsExporterTest, RejectAndDisconnectReasonsInSnakeCase) {
       {"edgephys_disconnects_total{reason=\"server_shutdown\"}", 0},
       {"edgephys_disconnects_total{reason=\"reliable_overflow\"}", 0},
   };
-  for (const auto& [series, value] : expected) {
-    auto it = samples.find(series);
-    ASSERT_NE(it, samples.end()) << series << " missing from:\n" << text;
-    EXPECT_EQ(it->second, value) << series;
-  }
+  ASSERT_NO_FATAL_FAILURE(ExpectSamples(samples, expected, text));
   int reject_series = 0;
   int disconnect_series = 0;
   for (const auto& [series, value] : samples) {

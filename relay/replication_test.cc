@@ -25,8 +25,7 @@ class AckedStateTest : public RoomHostTest, public ::testing::WithParamInterface
   AckedStateTest() {
     config_.tick_rate_hz = 60;
     config_.replication.shared_encoding = GetParam();
-    host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                       0.0);
+    Rebuild();
   }
 
   // Sends of the box to one receiver over 3 s of 60 Hz ticks, acknowledging each if `ack`.
@@ -57,8 +56,7 @@ class AckedStateTest : public RoomHostTest, public ::testing::WithParamInterface
 TEST_P(AckedStateTest, AnAcknowledgedStateIsSentOnceAndAnUnacknowledgedOneAgain) {
   const size_t acked = SendsOverThreeSeconds(true);
   EXPECT_EQ(acked, 1u);
-  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                     0.0);
+  Rebuild();
   EXPECT_GE(SendsOverThreeSeconds(false), 3u);
 }
 

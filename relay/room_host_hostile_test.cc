@@ -15,10 +15,6 @@ using namespace room_host_testing;  // NOLINT: the test doubles
 
 class RoomHostHostileTest : public RoomHostTest {
  protected:
-  void Rebuild() {
-    host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                       0.0);
-  }
   uint64_t Refused(BudgetKind kind) const {
     return counters_.budget_refusals[static_cast<size_t>(kind)].load();
   }
@@ -310,8 +306,7 @@ using namespace room_host_testing;  // NOLINT: the test doubles
 // the room's live broadcasts held until the stream is through.
 TEST_F(RoomHostTest, ALateJoinStreamsWithinTheJoinersReliableBudget) {
   config_.max_entities_per_player = 64;
-  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                     0.0);
+  Rebuild();
   RecordingMember a(1), b(2);
   ASSERT_TRUE(host_->Join(a, 0));
   std::vector<uint32_t> order;
@@ -348,8 +343,7 @@ TEST_F(RoomHostTest, ALateJoinStreamsWithinTheJoinersReliableBudget) {
 // exceed its queue: held messages are bounded.
 TEST_F(RoomHostTest, AJoinerThatNeverAcknowledgesIsDroppedNotBufferedForever) {
   config_.max_entities_per_player = 1024;
-  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                     0.0);
+  Rebuild();
   RecordingMember a(1), b(2);
   ASSERT_TRUE(host_->Join(a, 0));
   EntitySpec big = LocalBox(Base(a) + 1, 1);

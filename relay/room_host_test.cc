@@ -72,10 +72,8 @@ TEST_F(RoomHostTest, SpawnRulesRefuseWhatThePlayerIsNotEntitledTo) {
 
 TEST_F(RoomHostTest, OnlyTheOwnerMovesAnEntityAndBadStatesAreDroppedAndCounted) {
   RecordingMember a(1), b(2);
-  ASSERT_TRUE(host_->Join(a, 0));
-  ASSERT_TRUE(host_->Join(b, 0));
-  const uint32_t id = Base(a) + 1;
-  Spawn(a, LocalBox(id, 1));
+  uint32_t id = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinBothAndSpawnBox(a, b, &id));
   const uint32_t version = Find(id)->version;
 
   host_->ApplyStates(b, StatePayload({{id, {9, 9, 9}, {0, 0, 0, 1}}}), 2.0);
@@ -148,10 +146,8 @@ TEST_F(RoomHostTest, LeavingDespawnsTheLeaversEntitiesExceptPersistentOnesWhichP
 
 TEST_F(RoomHostTest, OnlyTheOwnerDespawnsAndEveryMemberForgetsTheEntity) {
   RecordingMember a(1), b(2);
-  ASSERT_TRUE(host_->Join(a, 0));
-  ASSERT_TRUE(host_->Join(b, 0));
-  const uint32_t id = Base(a) + 1;
-  Spawn(a, LocalBox(id, 1));
+  uint32_t id = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinBothAndSpawnBox(a, b, &id));
   host_->Despawn(b, id);
   EXPECT_TRUE(b.HasError(RejectReason::NotOwner, id));
   host_->Despawn(b, 12345);
@@ -444,8 +440,7 @@ namespace {
 
 TEST_F(RoomHostTest, ARoomWithPhysicsOffRefusesPhysicsComponentsButNotPlainEntities) {
   config_.physics = false;  // the admin API's {"physics": false}
-  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                     0.0);
+  Rebuild();
   RecordingMember a(1);
   ASSERT_TRUE(host_->Join(a, 0));
   EntitySpec cube = DynamicBox(Base(a) + 1, {0, 1, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);

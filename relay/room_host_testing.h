@@ -192,8 +192,20 @@ class RoomHostTest : public ::testing::Test {
   RoomHostTest() {
     config_.capacity = 3;
     config_.max_entities_per_player = 4;
+    Rebuild();
+  }
+  // A new host of room "r" (no members, no entities) under config_ as it is now.
+  void Rebuild() {
     host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
                                        0.0);
+  }
+  // Joins `a` and then `b`, and spawns a box owned by `a` (LocalBox) at Base(a) + 1,
+  // stored in `*id`. Fails (fatally) if a join is refused.
+  void JoinBothAndSpawnBox(RecordingMember& a, RecordingMember& b, uint32_t* id) {
+    ASSERT_TRUE(host_->Join(a, 0));
+    ASSERT_TRUE(host_->Join(b, 0));
+    *id = Base(a) + 1;
+    Spawn(a, LocalBox(*id, a.player_id()));
   }
   // Spawns `spec` for `m` and returns the errors it got.
   void Spawn(RecordingMember& m, const EntitySpec& spec) {

@@ -70,10 +70,8 @@ TEST_F(RoomOwnershipTest, HandOverMovesAuthorityAndDropsTheOldOwnersStates) {
 
 TEST_F(RoomOwnershipTest, RequestIsGrantedForRoomEntitiesAndWhenTakeoverIsAllowed) {
   RecordingMember a(1), b(2);
-  ASSERT_TRUE(host_->Join(a, 0));
-  ASSERT_TRUE(host_->Join(b, 0));
-  const uint32_t id = Base(a) + 1;
-  Spawn(a, LocalBox(id, 1));
+  uint32_t id = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinBothAndSpawnBox(a, b, &id));
   Ask(b, id, OwnershipAction::Request);  // A forbids takeover (the default)
   EXPECT_TRUE(b.HasError(RejectReason::TakeoverRefused, id));
   EXPECT_EQ(Find(id)->owner, 1u);
@@ -271,13 +269,10 @@ TEST_F(RoomOwnershipTest, ReleaseOffloadsADynamicBodyToPhySAndARequestReclaimsIt
 
 TEST_F(RoomOwnershipTest, RequestsOverTheRateAreRefused) {
   config_.budgets.ownership_requests_per_s_per_player = 10;  // burst 20
-  host_ = std::make_unique<RoomHost>("r", config_, RoomHostEnv{&limits_, &counters_, &placement_},
-                                     0.0);
+  Rebuild();
   RecordingMember a(1), b(2);
-  ASSERT_TRUE(host_->Join(a, 0));
-  ASSERT_TRUE(host_->Join(b, 0));
-  const uint32_t id = Base(a) + 1;
-  Spawn(a, LocalBox(id, 1, 0));
+  uint32_t id = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinBothAndSpawnBox(a, b, &id));
   Ask(a, id, OwnershipAction::SetTakeover, 0, true);
   for (int i = 0; i < 100; ++i) Ask(b, id, OwnershipAction::Request, 0, false, 1.0);
   size_t limited = 0;

@@ -297,6 +297,18 @@ TEST_F(CApiClient, SpawnRejectsEveryBadField) {
   const float tri[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   const uint32_t tri_idx[3] = {0, 1, 2};
 
+  // Makes `c` a collider of `shape` over `floats` vertex floats and, when given, `count`
+  // triangle corners (otherwise c's indices stay as they are).
+  auto mesh = [](edgephys_collider& c, uint32_t shape, const float* vertices, uint32_t floats,
+                 const uint32_t* indices = nullptr, uint32_t count = 0) {
+    c.shape = shape;
+    c.vertices = vertices;
+    c.vertex_float_count = floats;
+    if (indices != nullptr) {
+      c.indices = indices;
+      c.index_count = count;
+    }
+  };
   struct Case {
     const char* what;
     std::function<void(edgephys_spawn_desc&, edgephys_collider&, edgephys_rigid_body&,
@@ -336,29 +348,17 @@ TEST_F(CApiClient, SpawnRejectsEveryBadField) {
        }},
       {"collider mesh index out of range", [&](auto&, auto& c, auto&, auto&, auto&) {
          static const uint32_t bad_idx[3] = {0, 1, 7};
-         c.shape = EDGEPHYS_SHAPE_TRIANGLE_MESH;
-         c.vertices = tri;
-         c.vertex_float_count = 9;
-         c.indices = bad_idx;
-         c.index_count = 3;
+         mesh(c, EDGEPHYS_SHAPE_TRIANGLE_MESH, tri, 9, bad_idx, 3);
        }},
       {"collider mesh without triangles", [&](auto&, auto& c, auto&, auto&, auto&) {
-         c.shape = EDGEPHYS_SHAPE_TRIANGLE_MESH;
-         c.vertices = tri;
-         c.vertex_float_count = 9;
+         mesh(c, EDGEPHYS_SHAPE_TRIANGLE_MESH, tri, 9);
        }},
       {"collider mesh NaN vertex", [&](auto&, auto& c, auto&, auto&, auto&) {
          static const float nan_tri[9] = {0, 0, 0, kNaN, 0, 0, 0, 1, 0};
-         c.shape = EDGEPHYS_SHAPE_TRIANGLE_MESH;
-         c.vertices = nan_tri;
-         c.vertex_float_count = 9;
-         c.indices = tri_idx;
-         c.index_count = 3;
+         mesh(c, EDGEPHYS_SHAPE_TRIANGLE_MESH, nan_tri, 9, tri_idx, 3);
        }},
       {"hull with too few points", [&](auto&, auto& c, auto&, auto&, auto&) {
-         c.shape = EDGEPHYS_SHAPE_CONVEX_HULL;
-         c.vertices = tri;
-         c.vertex_float_count = 6;
+         mesh(c, EDGEPHYS_SHAPE_CONVEX_HULL, tri, 6);
        }},
       {"body NaN mass", [](auto&, auto&, auto& b, auto&, auto&) { b.mass = kNaN; }},
       {"body negative mass", [](auto&, auto&, auto& b, auto&, auto&) { b.mass = -1; }},

@@ -2,6 +2,7 @@
 crash the interpreter; reasons reach the game named and explained. Run:
 EDGEPHYS_LIBRARY=.../libedgephys.so python3 -m unittest test_edgephys; the relay tests need a
 relay (tests/with_relay.sh sets EDGEPHYS_RELAY and tokens for players 1-4) and are skipped without."""
+import contextlib
 import ctypes
 import math
 import os
@@ -37,6 +38,17 @@ class _RoomPair:
             self.pump()
         self.test.assertEqual(len(self.joined), 2, "both clients joined")
         return self.pump
+
+
+@contextlib.contextmanager
+def _connecting_pair(player):
+    """Two clients on 127.0.0.1 connecting to the relay of tests/with_relay.sh with the tokens of
+    `player` and `player` + 1 (EDGEPHYS_TOKEN_<n>); yields (a, b) and closes both after."""
+    relay = os.environ["EDGEPHYS_RELAY"]
+    with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
+        a.connect(relay, os.environ["EDGEPHYS_TOKEN_%d" % player])
+        b.connect(relay, os.environ["EDGEPHYS_TOKEN_%d" % (player + 1)])
+        yield a, b
 
 
 class BindingTest(unittest.TestCase):
@@ -130,10 +142,8 @@ class BindingTest(unittest.TestCase):
 
     @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
     def test_messages_reach_the_addressed_players_with_the_senders_id(self):
-        relay, room = os.environ["EDGEPHYS_RELAY"], os.environ["EDGEPHYS_ROOM"]
-        with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
-            a.connect(relay, os.environ["EDGEPHYS_TOKEN_3"])
-            b.connect(relay, os.environ["EDGEPHYS_TOKEN_4"])
+        room = os.environ["EDGEPHYS_ROOM"]
+        with _connecting_pair(3) as (a, b):
             got = {a: [], b: []}
             unreliable = {a: [], b: []}
             deadline = time.monotonic() + 10
@@ -179,10 +189,8 @@ class BindingTest(unittest.TestCase):
 
     @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
     def test_properties_converge_and_one_compare_and_set_wins(self):
-        relay, room = os.environ["EDGEPHYS_RELAY"], os.environ["EDGEPHYS_ROOM"]
-        with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
-            a.connect(relay, os.environ["EDGEPHYS_TOKEN_5"])
-            b.connect(relay, os.environ["EDGEPHYS_TOKEN_6"])
+        room = os.environ["EDGEPHYS_ROOM"]
+        with _connecting_pair(5) as (a, b):
             changed = {a: [], b: []}
             conflicts = {a: [], b: []}
             errors = {a: [], b: []}
@@ -240,10 +248,8 @@ class BindingTest(unittest.TestCase):
 
     @unittest.skipUnless(os.environ.get("EDGEPHYS_RELAY"), "needs a relay (tests/with_relay.sh)")
     def test_ownership_hand_over_and_refused_request(self):
-        relay, room = os.environ["EDGEPHYS_RELAY"], os.environ["EDGEPHYS_ROOM"]
-        with ep.Client(bind_address="127.0.0.1:0") as a, ep.Client(bind_address="127.0.0.1:0") as b:
-            a.connect(relay, os.environ["EDGEPHYS_TOKEN_7"])
-            b.connect(relay, os.environ["EDGEPHYS_TOKEN_8"])
+        room = os.environ["EDGEPHYS_ROOM"]
+        with _connecting_pair(7) as (a, b):
             changes = {a: [], b: []}
             errors = {a: [], b: []}
             spawned = {a: set(), b: set()}

@@ -12,6 +12,13 @@
 
 namespace edgephys::physics::testing {
 
+// The default PhysicsConfig with one switch (e.g. &PhysicsConfig::rest_freeze) set to `on`.
+inline PhysicsConfig ConfigWith(bool PhysicsConfig::*option, bool on) {
+  PhysicsConfig cfg;
+  cfg.*option = on;
+  return cfg;
+}
+
 // After the step that broke entity `id`: the world reported exactly one event, a guard reset
 // of `id` for a non-finite state.
 inline ::testing::AssertionResult OneNonFiniteGuardReset(PhysicsWorld& world, uint32_t id) {

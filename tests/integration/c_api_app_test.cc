@@ -25,34 +25,11 @@
 namespace edgephys::testing {
 namespace {
 
-// One C API client of a LoopbackWorld's relay, pumped with the world.
-class CClient {
+// A C API client that keeps every event and the application messages it got.
+class CClient : public CClientBase {
  public:
-  CClient(LoopbackWorld& world, const std::vector<uint8_t>& token)
-      : c_(ConnectCClient(world, token)), world_(world) {}
+  using CClientBase::CClientBase;
 
-  ~CClient() { edgephys_client_destroy(c_); }
-
-  // Updates the client and keeps its events; joins `room` on CONNECTED when asked to.
-  void Update(const char* join_room) {
-    ASSERT_EQ(edgephys_client_update(c_, world_.Now()), EDGEPHYS_OK);
-    edgephys_event ev;
-    while (edgephys_client_poll_event(c_, &ev) == EDGEPHYS_OK && ev.type != EDGEPHYS_EVENT_NONE) {
-      if (ev.type == EDGEPHYS_EVENT_CONNECTED && join_room != nullptr) {
-        EXPECT_EQ(edgephys_client_join(c_, join_room), EDGEPHYS_OK);
-      }
-      if (ev.type == EDGEPHYS_EVENT_CONNECTED) player_id = ev.player_id;
-      if (ev.type == EDGEPHYS_EVENT_JOINED) joined = true;
-      if (ev.type == EDGEPHYS_EVENT_MESSAGE) {
-        std::vector<uint8_t> payload(ev.code);
-        size_t n = 0;
-        EXPECT_EQ(edgephys_client_get_message(c_, payload.data(), payload.size(), &n), EDGEPHYS_OK);
-        EXPECT_EQ(n, payload.size());
-        messages.push_back({ev.player_id, std::string(payload.begin(), payload.end())});
-      }
-      events.push_back(ev);
-    }
-  }
   const edgephys_event* Find(uint32_t type) const {
     for (const auto& e : events) {
       if (e.type == type) return &e;
@@ -60,24 +37,31 @@ class CClient {
     return nullptr;
   }
 
-  edgephys_client* c_ = nullptr;
   std::vector<edgephys_event> events;
   std::vector<std::pair<uint32_t, std::string>> messages;  // sender, payload
-  uint32_t player_id = 0;
-  bool joined = false;
 
  private:
-  LoopbackWorld& world_;
+  void OnEvent(const edgephys_event& ev) override {
+    if (ev.type == EDGEPHYS_EVENT_MESSAGE) {
+      std::vector<uint8_t> payload(ev.code);
+      size_t n = 0;
+      EXPECT_EQ(edgephys_client_get_message(c, payload.data(), payload.size(), &n), EDGEPHYS_OK);
+      EXPECT_EQ(n, payload.size());
+      messages.push_back({ev.player_id, std::string(payload.begin(), payload.end())});
+    }
+    events.push_back(ev);
+  }
 };
 
-bool Pump(LoopbackWorld& world, std::vector<CClient*> clients, const char* room,
-          const std::function<bool()>& done, double timeout_s) {
-  return world.RunUntil(
-      [&] {
-        for (CClient* c : clients) c->Update(room);
-        return done();
-      },
-      timeout_s);
+// Pumps `watched` and `others` (joining nothing) until `watched` has an event of `type`, for at
+// most 5 s; returns that event, or nullptr when none came.
+const edgephys_event* AwaitEvent(LoopbackWorld& world, CClient& watched, uint32_t type,
+                                 std::vector<CClientBase*> others = {}) {
+  others.insert(others.begin(), &watched);
+  if (!Pump(world, others, nullptr, [&] { return watched.Find(type) != nullptr; }, 5.0)) {
+    return nullptr;
+  }
+  return watched.Find(type);
 }
 
 TEST(CApiReasons, AKickArrivesWithItsReasonAndTheOperatorsText) {
@@ -85,9 +69,8 @@ TEST(CApiReasons, AKickArrivesWithItsReasonAndTheOperatorsText) {
   CClient a(world, MintToken("ward", 1)), b(world, MintToken("ward", 2));
   ASSERT_TRUE(Pump(world, {&a, &b}, "ward", [&] { return a.joined && b.joined; }, 5.0));
   ASSERT_TRUE(world.relay().Kick("ward", 1, "abusive chat, 10 minute ban", world.Now()).ok());
-  ASSERT_TRUE(Pump(world, {&a, &b}, nullptr,
-                   [&] { return a.Find(EDGEPHYS_EVENT_DISCONNECTED) != nullptr; }, 5.0));
-  const edgephys_event* ev = a.Find(EDGEPHYS_EVENT_DISCONNECTED);
+  const edgephys_event* ev = AwaitEvent(world, a, EDGEPHYS_EVENT_DISCONNECTED, {&b});
+  ASSERT_NE(ev, nullptr);
   EXPECT_EQ(ev->code, static_cast<uint32_t>(EDGEPHYS_DISCONNECT_KICKED));
   EXPECT_STREQ(ev->detail, "abusive chat, 10 minute ban");
   EXPECT_STREQ(edgephys_reason_name(ev->type, ev->code), "Kicked");
@@ -95,7 +78,7 @@ TEST(CApiReasons, AKickArrivesWithItsReasonAndTheOperatorsText) {
   EXPECT_EQ(b.Find(EDGEPHYS_EVENT_DISCONNECTED), nullptr);  // only the kicked player
   edgephys_client_info info{};
   info.struct_size = sizeof(info);
-  ASSERT_EQ(edgephys_client_get_info(a.c_, &info), EDGEPHYS_OK);
+  ASSERT_EQ(edgephys_client_get_info(a.c, &info), EDGEPHYS_OK);
   EXPECT_EQ(info.disconnect_reason, static_cast<uint32_t>(EDGEPHYS_DISCONNECT_KICKED));
 }
 
@@ -122,9 +105,8 @@ TEST(CApiReasons, AKickWithoutTextCarriesTheReasonsMeaning) {
   CClient a(world, MintToken("quiet", 1));
   ASSERT_TRUE(Pump(world, {&a}, "quiet", [&] { return a.joined; }, 5.0));
   ASSERT_TRUE(world.relay().Kick("quiet", 1, "", world.Now()).ok());
-  ASSERT_TRUE(Pump(world, {&a}, nullptr,
-                   [&] { return a.Find(EDGEPHYS_EVENT_DISCONNECTED) != nullptr; }, 5.0));
-  const edgephys_event* ev = a.Find(EDGEPHYS_EVENT_DISCONNECTED);
+  const edgephys_event* ev = AwaitEvent(world, a, EDGEPHYS_EVENT_DISCONNECTED);
+  ASSERT_NE(ev, nullptr);
   EXPECT_EQ(ev->code, static_cast<uint32_t>(EDGEPHYS_DISCONNECT_KICKED));
   EXPECT_STRNE(ev->detail, "");
 }
@@ -134,9 +116,8 @@ TEST(CApiReasons, ADrainReachesTheGameAsServerShutdownWithTheText) {
   CClient a(world, MintToken("ward", 1));
   ASSERT_TRUE(Pump(world, {&a}, "ward", [&] { return a.joined; }, 5.0));
   world.relay().CloseAllSessions("maintenance at 02:00 UTC", world.Now());
-  ASSERT_TRUE(Pump(world, {&a}, nullptr,
-                   [&] { return a.Find(EDGEPHYS_EVENT_DISCONNECTED) != nullptr; }, 5.0));
-  const edgephys_event* ev = a.Find(EDGEPHYS_EVENT_DISCONNECTED);
+  const edgephys_event* ev = AwaitEvent(world, a, EDGEPHYS_EVENT_DISCONNECTED);
+  ASSERT_NE(ev, nullptr);
   EXPECT_EQ(ev->code, static_cast<uint32_t>(EDGEPHYS_DISCONNECT_SERVER_SHUTDOWN));
   EXPECT_STREQ(ev->detail, "maintenance at 02:00 UTC");
   EXPECT_STREQ(edgephys_reason_name(ev->type, ev->code), "ServerShutdown");
@@ -164,10 +145,9 @@ TEST(CApiReasons, ARefusedCommandIsAnErrorWithReasonAndDetail) {
   CClient a(world, MintToken("ward", 1));
   ASSERT_TRUE(Pump(world, {&a}, "ward", [&] { return a.joined; }, 5.0));
   // Grab an entity the room does not hold.
-  ASSERT_EQ(edgephys_client_grab(a.c_, 424242, 1), EDGEPHYS_OK) << edgephys_last_error();
-  ASSERT_TRUE(Pump(world, {&a}, nullptr,
-                   [&] { return a.Find(EDGEPHYS_EVENT_ERROR) != nullptr; }, 5.0));
-  const edgephys_event* ev = a.Find(EDGEPHYS_EVENT_ERROR);
+  ASSERT_EQ(edgephys_client_grab(a.c, 424242, 1), EDGEPHYS_OK) << edgephys_last_error();
+  const edgephys_event* ev = AwaitEvent(world, a, EDGEPHYS_EVENT_ERROR);
+  ASSERT_NE(ev, nullptr);
   EXPECT_NE(ev->code, 0u);
   EXPECT_STRNE(edgephys_reason_name(ev->type, ev->code), "unknown");
   EXPECT_STRNE(ev->detail, "") << edgephys_reason_name(ev->type, ev->code);
@@ -181,22 +161,22 @@ TEST(CApiMessages, ReachTheAddressedPlayersWithTheSendersIdAndPayload) {
                    [&] { return a.joined && b.joined && c.joined; }, 5.0));
   const std::string line = "hello from 1";
   const std::string big(50000, 'x');
-  ASSERT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_ROOM, 0, line.data(), line.size()),
+  ASSERT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_ROOM, 0, line.data(), line.size()),
             EDGEPHYS_OK);
-  ASSERT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_OTHERS, 0, big.data(), big.size()),
+  ASSERT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_OTHERS, 0, big.data(), big.size()),
             EDGEPHYS_OK);
-  ASSERT_EQ(edgephys_client_send_message(b.c_, EDGEPHYS_TO_PLAYER, 3, "psst", 4), EDGEPHYS_OK);
+  ASSERT_EQ(edgephys_client_send_message(b.c, EDGEPHYS_TO_PLAYER, 3, "psst", 4), EDGEPHYS_OK);
   // Refused before sending: too large, unknown target, a player target of 0, NULL data.
   std::vector<char> huge(EDGEPHYS_MAX_MESSAGE_BYTES + 1);
-  EXPECT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_ROOM, 0, huge.data(), huge.size()),
+  EXPECT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_ROOM, 0, huge.data(), huge.size()),
             EDGEPHYS_E_TOO_LARGE);
-  EXPECT_EQ(edgephys_client_send_message(a.c_, 3, 0, "x", 1), EDGEPHYS_E_INVALID_ARGUMENT);
-  EXPECT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_PLAYER, 0, "x", 1),
+  EXPECT_EQ(edgephys_client_send_message(a.c, 3, 0, "x", 1), EDGEPHYS_E_INVALID_ARGUMENT);
+  EXPECT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_PLAYER, 0, "x", 1),
             EDGEPHYS_E_INVALID_ARGUMENT);
-  EXPECT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_ROOM, 0, nullptr, 1),
+  EXPECT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_ROOM, 0, nullptr, 1),
             EDGEPHYS_E_INVALID_ARGUMENT);
   // Refused by the relay: a player not in the room.
-  ASSERT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_PLAYER, 77, "?", 1), EDGEPHYS_OK);
+  ASSERT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_PLAYER, 77, "?", 1), EDGEPHYS_OK);
   ASSERT_TRUE(Pump(world, {&a, &b, &c}, nullptr,
                    [&] {
                      return a.messages.size() >= 1 && b.messages.size() >= 2 &&
@@ -218,7 +198,7 @@ TEST(CApiMessages, ReachTheAddressedPlayersWithTheSendersIdAndPayload) {
   EXPECT_STREQ(edgephys_reason_name(err->type, err->code), "UnknownPlayer");
   // After a non-MESSAGE poll there is no payload to read.
   size_t n = 0;
-  EXPECT_EQ(edgephys_client_get_message(a.c_, nullptr, 0, &n), EDGEPHYS_E_NOT_FOUND);
+  EXPECT_EQ(edgephys_client_get_message(a.c, nullptr, 0, &n), EDGEPHYS_E_NOT_FOUND);
 }
 
 // Unreliable messages: edgephys_client_send_message_unreliable arrives as a MESSAGE event with
@@ -229,18 +209,18 @@ TEST(CApiMessages, UnreliableArriveFlaggedAndTheOversizedAreRefused) {
   ASSERT_TRUE(Pump(world, {&a, &b}, "chat", [&] { return a.joined && b.joined; }, 5.0));
   world.RunFor(0.3);  // both have acknowledged their Joined
   const std::string ray(EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES, 'r');
-  ASSERT_EQ(edgephys_client_send_message_unreliable(a.c_, EDGEPHYS_TO_OTHERS, 0, ray.data(),
+  ASSERT_EQ(edgephys_client_send_message_unreliable(a.c, EDGEPHYS_TO_OTHERS, 0, ray.data(),
                                                     ray.size()),
             EDGEPHYS_OK);
   std::vector<char> huge(EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES + 1);
-  EXPECT_EQ(edgephys_client_send_message_unreliable(a.c_, EDGEPHYS_TO_ROOM, 0, huge.data(),
+  EXPECT_EQ(edgephys_client_send_message_unreliable(a.c, EDGEPHYS_TO_ROOM, 0, huge.data(),
                                                     huge.size()),
             EDGEPHYS_E_TOO_LARGE);
   EXPECT_NE(std::string(edgephys_last_error()).find("EDGEPHYS_MAX_UNRELIABLE_MESSAGE_BYTES"),
             std::string::npos);
-  EXPECT_EQ(edgephys_client_send_message_unreliable(a.c_, 3, 0, "x", 1),
+  EXPECT_EQ(edgephys_client_send_message_unreliable(a.c, 3, 0, "x", 1),
             EDGEPHYS_E_INVALID_ARGUMENT);
-  ASSERT_EQ(edgephys_client_send_message(a.c_, EDGEPHYS_TO_OTHERS, 0, "reliable", 8), EDGEPHYS_OK);
+  ASSERT_EQ(edgephys_client_send_message(a.c, EDGEPHYS_TO_OTHERS, 0, "reliable", 8), EDGEPHYS_OK);
   ASSERT_TRUE(Pump(world, {&a, &b}, nullptr, [&] { return b.messages.size() >= 2; }, 5.0));
   world.RunFor(0.2);
   ASSERT_EQ(b.messages.size(), 2u);
@@ -264,12 +244,12 @@ TEST(CApiScenery, AnOffloadedBoxRestsOnStaticGround) {
   ground.half_extents = {5, 0.5f, 5};
   const edgephys_transform at{{0, -0.5f, 0}, {0, 0, 0, 1}};
   uint32_t ground_id = 0;
-  ASSERT_EQ(edgephys_client_spawn_static(a.c_, &at, &ground, 1, "ground", &ground_id),
+  ASSERT_EQ(edgephys_client_spawn_static(a.c, &at, &ground, 1, "ground", &ground_id),
             EDGEPHYS_OK)
       << edgephys_last_error();
-  EXPECT_EQ(edgephys_client_spawn_static(a.c_, &at, &ground, 0, "none", &ground_id),
+  EXPECT_EQ(edgephys_client_spawn_static(a.c, &at, &ground, 0, "none", &ground_id),
             EDGEPHYS_E_INVALID_ARGUMENT);
-  EXPECT_EQ(edgephys_client_spawn_static(a.c_, &at, nullptr, 1, "none", &ground_id),
+  EXPECT_EQ(edgephys_client_spawn_static(a.c, &at, nullptr, 1, "none", &ground_id),
             EDGEPHYS_E_INVALID_ARGUMENT);
   edgephys_collider cube;
   ASSERT_EQ(edgephys_collider_init(&cube), EDGEPHYS_OK);
@@ -284,17 +264,17 @@ TEST(CApiScenery, AnOffloadedBoxRestsOnStaticGround) {
   d.colliders = &cube;
   d.collider_count = 1;
   uint32_t box = 0;
-  ASSERT_EQ(edgephys_client_spawn(a.c_, &d, &box), EDGEPHYS_OK) << edgephys_last_error();
+  ASSERT_EQ(edgephys_client_spawn(a.c, &d, &box), EDGEPHYS_OK) << edgephys_last_error();
   edgephys_entity e{};
   const bool rested = Pump(world, {&a}, nullptr, [&] {
-    if (edgephys_client_get_entity(a.c_, box, &e) != EDGEPHYS_OK || e.has_state == 0) return false;
+    if (edgephys_client_get_entity(a.c, box, &e) != EDGEPHYS_OK || e.has_state == 0) return false;
     return std::fabs(e.transform.position.y - 0.25f) < 0.02f;
   }, 8.0);
   EXPECT_TRUE(rested) << "box at y " << e.transform.position.y;
   EXPECT_EQ(a.Find(EDGEPHYS_EVENT_ERROR), nullptr);
   world.RunFor(0.5);
   for (int i = 0; i < 5; ++i) a.Update(nullptr);
-  ASSERT_EQ(edgephys_client_get_entity(a.c_, box, &e), EDGEPHYS_OK);
+  ASSERT_EQ(edgephys_client_get_entity(a.c, box, &e), EDGEPHYS_OK);
   EXPECT_NEAR(e.transform.position.y, 0.25f, 0.02f);  // still resting, not sinking
 }
 

@@ -26,38 +26,11 @@ struct Seen {
   std::string bytes;  // a string/bytes value
 };
 
-class CClient {
+// A C API client that keeps the spawns, errors and property events it got.
+class CClient : public CClientBase {
  public:
-  CClient(LoopbackWorld& world, const std::vector<uint8_t>& token)
-      : c(ConnectCClient(world, token)), world_(world) {}
+  using CClientBase::CClientBase;
 
-  ~CClient() { edgephys_client_destroy(c); }
-
-  void Update(const char* room) {
-    ASSERT_EQ(edgephys_client_update(c, world_.Now()), EDGEPHYS_OK);
-    edgephys_event ev;
-    while (edgephys_client_poll_event(c, &ev) == EDGEPHYS_OK && ev.type != EDGEPHYS_EVENT_NONE) {
-      if (ev.type == EDGEPHYS_EVENT_CONNECTED && room != nullptr) {
-        EXPECT_EQ(edgephys_client_join(c, room), EDGEPHYS_OK);
-      }
-      if (ev.type == EDGEPHYS_EVENT_JOINED) joined = true;
-      if (ev.type == EDGEPHYS_EVENT_SPAWNED) spawned.push_back(ev.entity_id);
-      if (ev.type == EDGEPHYS_EVENT_ERROR) errors.push_back(ev);
-      if (ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED || ev.type == EDGEPHYS_EVENT_PROPERTY_CONFLICT) {
-        Seen s{ev, {}, {}};
-        s.property.struct_size = sizeof(s.property);
-        char buffer[256];
-        EXPECT_EQ(edgephys_client_get_event_property(c, &s.property, buffer, sizeof(buffer)),
-                  EDGEPHYS_OK)
-            << edgephys_last_error();
-        if (s.property.value.data != nullptr) {
-          s.bytes.assign(static_cast<const char*>(s.property.value.data), s.property.value.size);
-        }
-        s.property.value.data = nullptr;
-        (ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED ? changed : conflicts).push_back(s);
-      }
-    }
-  }
   std::vector<Seen> Changes(uint32_t entity, const char* key) const {
     std::vector<Seen> out;
     for (const Seen& s : changed) {
@@ -66,23 +39,29 @@ class CClient {
     return out;
   }
 
-  edgephys_client* c = nullptr;
-  bool joined = false;
   std::vector<uint32_t> spawned;
   std::vector<Seen> changed, conflicts;
   std::vector<edgephys_event> errors;
 
  private:
-  LoopbackWorld& world_;
+  void OnEvent(const edgephys_event& ev) override {
+    if (ev.type == EDGEPHYS_EVENT_SPAWNED) spawned.push_back(ev.entity_id);
+    if (ev.type == EDGEPHYS_EVENT_ERROR) errors.push_back(ev);
+    if (ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED || ev.type == EDGEPHYS_EVENT_PROPERTY_CONFLICT) {
+      Seen s{ev, {}, {}};
+      s.property.struct_size = sizeof(s.property);
+      char buffer[256];
+      EXPECT_EQ(edgephys_client_get_event_property(c, &s.property, buffer, sizeof(buffer)),
+                EDGEPHYS_OK)
+          << edgephys_last_error();
+      if (s.property.value.data != nullptr) {
+        s.bytes.assign(static_cast<const char*>(s.property.value.data), s.property.value.size);
+      }
+      s.property.value.data = nullptr;
+      (ev.type == EDGEPHYS_EVENT_PROPERTY_CHANGED ? changed : conflicts).push_back(s);
+    }
+  }
 };
-
-bool Pump(LoopbackWorld& world, std::vector<CClient*> clients, const char* room,
-          const std::function<bool()>& done, double timeout_s = 5.0) {
-  return world.RunUntil([&] {
-    for (CClient* c : clients) c->Update(room);
-    return done();
-  }, timeout_s);
-}
 
 edgephys_property_value Int(int64_t v) {
   edgephys_property_value p{};

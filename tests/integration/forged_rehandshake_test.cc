@@ -77,14 +77,8 @@ TEST(ForgedRehandshake, AConnectFromTheVictimsAddressWithAnotherTokenChangesNoth
       return done();
     }, seconds);
   };
-  ASSERT_TRUE(pump(3.0, [&] { return victim.state() == ClientState::kConnected &&
-                                     other.state() == ClientState::kConnected; }));
-  ASSERT_TRUE(victim.JoinRoom("r").ok());
-  ASSERT_TRUE(other.JoinRoom("r").ok());
-  ASSERT_TRUE(pump(3.0, [&] { return victim.joined() && other.joined(); }));
-  auto id = victim.Spawn({.position = {1, 2, 3}});
-  ASSERT_TRUE(id.ok());
-  ASSERT_TRUE(pump(3.0, [&] { return other.entities().count(*id) == 1; }));
+  uint32_t id = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinVictimAndSpawn(pump, victim, other, "r", &id));
 
   // The attacker: a real SDK client on the victim's very socket, with its own valid token
   // (another player, another room). It reads the Challenge meant for that address and
@@ -103,12 +97,12 @@ TEST(ForgedRehandshake, AConnectFromTheVictimsAddressWithAnotherTokenChangesNoth
   pump(0.5, [] { return false; });
   EXPECT_EQ(victim.state(), ClientState::kConnected);
   EXPECT_EQ(world.relay().session_count(), 2u);
-  EXPECT_EQ(world.relay().FindRoom("r")->entities().count(*id), 1u);
-  EXPECT_EQ(other.entities().count(*id), 1u);
+  EXPECT_EQ(world.relay().FindRoom("r")->entities().count(id), 1u);
+  EXPECT_EQ(other.entities().count(id), 1u);
   EXPECT_EQ(world.counters().disconnects[static_cast<size_t>(DisconnectReason::kKicked)].load(), 0u);
-  ASSERT_TRUE(victim.PublishTransform(*id, {4, 5, 6}, {}).ok());
+  ASSERT_TRUE(victim.PublishTransform(id, {4, 5, 6}, {}).ok());
   EXPECT_TRUE(pump(3.0, [&] {
-    auto it = other.entities().find(*id);
+    auto it = other.entities().find(id);
     return it != other.entities().end() && std::abs(it->second.state.position.x - 4) < 0.01f;
   }));
 

@@ -154,6 +154,25 @@ template <typename World>
   return ::testing::AssertionSuccess();
 }
 
+// The set-up of the tests where a victim client the test pumps itself and another client share
+// `room`: `pump(seconds, done)` pumps both (and the relay) until done() or `seconds` pass, and
+// returns done(). Waits (3 s each) until both are connected, joins both to `room`, has the
+// victim spawn a box at (1, 2, 3) and waits until the other has it; its id in *id. Fails
+// fatally at the first step that does not finish.
+template <typename Pump>
+void JoinVictimAndSpawn(Pump& pump, Client& victim, Client& other, const char* room,
+                        uint32_t* id) {
+  ASSERT_TRUE(pump(3.0, [&] { return victim.state() == ClientState::kConnected &&
+                                     other.state() == ClientState::kConnected; }));
+  ASSERT_TRUE(victim.JoinRoom(room).ok());
+  ASSERT_TRUE(other.JoinRoom(room).ok());
+  ASSERT_TRUE(pump(3.0, [&] { return victim.joined() && other.joined(); }));
+  Result<uint32_t> spawned = victim.Spawn({.position = {1, 2, 3}});
+  ASSERT_TRUE(spawned.ok());
+  *id = *spawned;
+  ASSERT_TRUE(pump(3.0, [&] { return other.entities().count(*id) == 1; }));
+}
+
 // True if `a` is within the default edgephys encoder's stated precision of `b`: position
 // step 1 mm (Euclidean error <= sqrt(3)/2 mm) and rotation error <= 0.1 degree.
 inline bool WithinPrecision(const EntityState& a, const EntityState& b) {

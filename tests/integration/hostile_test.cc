@@ -196,14 +196,8 @@ TEST(Hostile, ForgedAndReplayedPacketsFromTheVictimsAddressChangeNothing) {
       return done();
     }, seconds);
   };
-  ASSERT_TRUE(pump(3.0, [&] { return victim.state() == ClientState::kConnected &&
-                                     other.state() == ClientState::kConnected; }));
-  ASSERT_TRUE(victim.JoinRoom("r").ok());
-  ASSERT_TRUE(other.JoinRoom("r").ok());
-  ASSERT_TRUE(pump(3.0, [&] { return victim.joined() && other.joined(); }));
-  auto id = victim.Spawn({.position = {1, 2, 3}});
-  ASSERT_TRUE(id.ok());
-  ASSERT_TRUE(pump(3.0, [&] { return other.entities().count(*id) == 1; }));
+  uint32_t id = 0;
+  ASSERT_NO_FATAL_FAILURE(JoinVictimAndSpawn(pump, victim, other, "r", &id));
   ASSERT_FALSE(victim_socket.sent.empty());
   const std::vector<uint8_t> real = victim_socket.sent.back();
   const uint32_t connection_id = real[6] | real[7] << 8 | real[8] << 16 | uint32_t(real[9]) << 24;
@@ -231,12 +225,12 @@ TEST(Hostile, ForgedAndReplayedPacketsFromTheVictimsAddressChangeNothing) {
   EXPECT_EQ(Rejected(world.counters(), DropReason::kReplayed) - replayed, replays);
   EXPECT_EQ(victim.state(), ClientState::kConnected);
   EXPECT_EQ(world.relay().session_count(), 2u);
-  EXPECT_EQ(world.relay().FindRoom("r")->entities().count(*id), 1u);
-  EXPECT_EQ(other.entities().count(*id), 1u);
+  EXPECT_EQ(world.relay().FindRoom("r")->entities().count(id), 1u);
+  EXPECT_EQ(other.entities().count(id), 1u);
   // The victim's session still works.
-  ASSERT_TRUE(victim.PublishTransform(*id, {4, 5, 6}, {}).ok());
+  ASSERT_TRUE(victim.PublishTransform(id, {4, 5, 6}, {}).ok());
   EXPECT_TRUE(pump(3.0, [&] {
-    auto it = other.entities().find(*id);
+    auto it = other.entities().find(id);
     return it != other.entities().end() && std::abs(it->second.state.position.x - 4) < 0.01f;
   }));
 }

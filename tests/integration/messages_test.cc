@@ -45,10 +45,7 @@ constexpr uint8_t kToRoom = 1, kToOthers = 2, kToPlayer = 3, kBig = 4;
 TEST(Messages, ArriveOnceInOrderAtExactlyTheAddressedPlayersUnderLossReorderingDuplication) {
   SimWorld world(LossyLink());
   Inbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("chat", 1), &ia);
-  Client& b = world.AddClient(MintToken("chat", 2), &ib);
-  Client& c = world.AddClient(MintToken("chat", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "chat");
+  auto [a, b, c] = AddJoined(world, "chat", ia, ib, ic);
   world.RunFor(0.5);  // the join streams have drained
   constexpr uint32_t kN = 60;
   for (uint32_t i = 0; i < kN; ++i) {
@@ -92,9 +89,8 @@ TEST(Messages, ArriveOnceInOrderAtExactlyTheAddressedPlayersUnderLossReorderingD
 TEST(Messages, UnpermittedMisaddressedAndMalformedAreRefusedCountedAndReachNobody) {
   SimWorld world;
   Inbox ia, ib;
-  Client& a = world.AddClient(MintToken("r", 1, 3600, kPermissionSpawn), &ia);  // no messages
-  Client& b = world.AddClient(MintToken("r", 2), &ib);
-  JoinAll(world, {&a, &b}, "r");
+  // a may spawn but not send messages
+  auto [a, b] = AddJoined(world, "r", Joiner{&ia, kPermissionSpawn}, ib);
   ASSERT_TRUE(a.SendMessage(MessageTarget::kRoom, 0, Payload(kToRoom, 0)).ok());
   ASSERT_TRUE(b.SendMessage(MessageTarget::kPlayer, 99, Payload(kToPlayer, 0)).ok());
   // Malformed: an unknown target, and a buffer that fails verification.
@@ -125,9 +121,7 @@ TEST(Messages, OversizedAndOverRateAreRefusedAndCountedTheRestDelivered) {
   config.room_defaults.budgets.messages_per_s_per_player = 50;  // burst 100
   SimWorld world({}, config);
   Inbox ia, ib;
-  Client& a = world.AddClient(MintToken("r", 1), &ia);
-  Client& b = world.AddClient(MintToken("r", 2), &ib);
-  JoinAll(world, {&a, &b}, "r");
+  auto [a, b] = AddJoined(world, "r", ia, ib);
   ASSERT_TRUE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kBig, 0, 1001)).ok());
   EXPECT_FALSE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kBig, 1, 65537)).ok());
   constexpr uint32_t kFlood = 400;  // at once: over the 100-message burst

@@ -47,10 +47,7 @@ constexpr uint8_t kToRoom = 1, kToOthers = 2, kToPlayer = 3, kFull = 4;
 TEST(UnreliableMessages, AtMostOnceInOrderAtExactlyTheAddressedPlayersUnderLossReorderingDuplication) {
   SimWorld world(LossyLink());
   Inbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("chat", 1), &ia);
-  Client& b = world.AddClient(MintToken("chat", 2), &ib);
-  Client& c = world.AddClient(MintToken("chat", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "chat");
+  auto [a, b, c] = AddJoined(world, "chat", ia, ib, ic);
   world.RunFor(1.0);  // every member has acknowledged its Joined (ready for datagrams)
   constexpr uint32_t kN = 100;
   for (uint32_t i = 0; i < kN; ++i) {
@@ -109,10 +106,8 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
   config.room_defaults.budgets.messages_per_s_per_player = 50;  // burst 100
   SimWorld world({}, config);
   Inbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("r", 1), &ia);
-  Client& b = world.AddClient(MintToken("r", 2), &ib);
-  Client& c = world.AddClient(MintToken("r", 3, 3600, kPermissionSpawn), &ic);  // no messages
-  JoinAll(world, {&a, &b, &c}, "r");
+  // c may spawn but not send messages
+  auto [a, b, c] = AddJoined(world, "r", ia, ib, Joiner{&ic, kPermissionSpawn});
   world.RunFor(1.0);
   // Oversized: over one datagram, refused by the SDK naming the limit; over the room's budget,
   // refused by the relay.
@@ -194,9 +189,7 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
 TEST(UnreliableMessages, ReceiverDropsDuplicatesAndOlderPerSenderAndCountsThem) {
   SimWorld world;
   Inbox ia, ib;
-  Client& a = world.AddClient(MintToken("r", 1), &ia);
-  Client& b = world.AddClient(MintToken("r", 2), &ib);
-  JoinAll(world, {&a, &b}, "r");
+  auto [a, b] = AddJoined(world, "r", ia, ib);
   world.RunFor(1.0);
   for (uint32_t i = 0; i < 3; ++i) {
     ASSERT_TRUE(a.SendMessageUnreliable(MessageTarget::kOthers, 0, Payload(kToOthers, i)).ok());

@@ -170,6 +170,14 @@ class MitmTest : public ::testing::Test {
       return done();
     }, timeout_s);
   }
+  // Starts the proxy in `mode` and waits (3 s) until the victim's handshake ends, which must
+  // be refused with BadProof. Fails fatally if the handshake does not end.
+  void StartAndExpectBadProof(MitmProxy::Mode mode) {
+    Start(mode);
+    ASSERT_TRUE(Run([&] { return victim_->state() != ClientState::kHandshaking; }, 3.0));
+    EXPECT_EQ(victim_->state(), ClientState::kRejected);
+    EXPECT_EQ(victim_->reject_reason(), static_cast<uint16_t>(RejectReason::BadProof));
+  }
   size_t RoomSize() {
     const Room* room = world_.relay().FindRoom("r");
     return room ? room->size() : 0;
@@ -207,11 +215,8 @@ TEST_F(MitmTest, APlainForwardingProxyStillConnectsAndStatesArriveIntact) {
 // The man in the middle shows each side its own key: the relay refuses the Connect (its proof
 // was made for the client's key) and the victim hears that refusal.
 TEST_F(MitmTest, SubstitutingBothKeysGetsTheConnectRefused) {
-  Start(MitmProxy::Mode::kSwapBoth);
-  ASSERT_TRUE(Run([&] { return victim_->state() != ClientState::kHandshaking; }, 3.0));
+  ASSERT_NO_FATAL_FAILURE(StartAndExpectBadProof(MitmProxy::Mode::kSwapBoth));
   EXPECT_GE(proxy_->connects_rewritten, 1);
-  EXPECT_EQ(victim_->state(), ClientState::kRejected);
-  EXPECT_EQ(victim_->reject_reason(), static_cast<uint16_t>(RejectReason::BadProof));
   EXPECT_GE(RequestsRejected(world_.counters(), RejectReason::BadProof), 1u);
   EXPECT_EQ(world_.relay().session_count(), 1u);  // the watcher's only
   EXPECT_EQ(proxy_->InjectAsClient("r"), 0);     // no Accept ever passed
@@ -221,10 +226,7 @@ TEST_F(MitmTest, SubstitutingBothKeysGetsTheConnectRefused) {
 
 // The same with only the client's key swapped (the relay's Accept would have been passed on).
 TEST_F(MitmTest, SubstitutingTheClientKeyGetsTheConnectRefused) {
-  Start(MitmProxy::Mode::kSwapClientKey);
-  ASSERT_TRUE(Run([&] { return victim_->state() != ClientState::kHandshaking; }, 3.0));
-  EXPECT_EQ(victim_->state(), ClientState::kRejected);
-  EXPECT_EQ(victim_->reject_reason(), static_cast<uint16_t>(RejectReason::BadProof));
+  ASSERT_NO_FATAL_FAILURE(StartAndExpectBadProof(MitmProxy::Mode::kSwapClientKey));
   EXPECT_EQ(world_.relay().session_count(), 1u);
 }
 
@@ -232,11 +234,8 @@ TEST_F(MitmTest, SubstitutingTheClientKeyGetsTheConnectRefused) {
 // refuses the Accept, and what the man in the middle then sends the relay as the client, sealed
 // with every key it can derive, is dropped: the room never sees the victim.
 TEST_F(MitmTest, SubstitutingTheRelayKeyGetsTheAcceptRefusedAndNothingApplied) {
-  Start(MitmProxy::Mode::kSwapRelayKey);
-  ASSERT_TRUE(Run([&] { return victim_->state() != ClientState::kHandshaking; }, 3.0));
+  ASSERT_NO_FATAL_FAILURE(StartAndExpectBadProof(MitmProxy::Mode::kSwapRelayKey));
   EXPECT_GE(proxy_->accepts_rewritten, 1);
-  EXPECT_EQ(victim_->state(), ClientState::kRejected);
-  EXPECT_EQ(victim_->reject_reason(), static_cast<uint16_t>(RejectReason::BadProof));
   const uint64_t bad_auth = Rejected(world_.counters(), DropReason::kBadAuth);
   ASSERT_GT(proxy_->InjectAsClient("r"), 0);
   ASSERT_TRUE(Run([&] { return Rejected(world_.counters(), DropReason::kBadAuth) > bad_auth; }, 2.0));

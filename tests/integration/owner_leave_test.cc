@@ -41,9 +41,7 @@ TEST_P(OwnerLeave, EachEntityGoesWhereItsOwnerChose) {
   config.physics_threads = 1;  // PhyS steps on the relay's thread: in step with the fake clock
   SimWorld world({}, config);
   PropertyInbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("leave", 1), &ia);
-  Client& b = world.AddClient(MintToken("leave", 2), &ib);
-  JoinAll(world, {&a, &b}, "leave");
+  auto [a, b] = AddJoined(world, "leave", ia, ib);
   // Stay chosen at spawn; PhyS chosen later by the owner; Despawn overriding Persistent.
   Result<uint32_t> stay = a.Spawn(FloatingBox({-2, 1, 0}, 1));
   Result<uint32_t> phys = a.Spawn(FloatingBox({0, 1, 0}, 0));
@@ -126,10 +124,7 @@ INSTANTIATE_TEST_SUITE_P(LeaveAndTimeout, OwnerLeave, ::testing::Values(Exit::kL
 TEST(OwnerLeaveChoice, DefaultFollowsPersistentAndTheChoiceStaysWithTheEntityAcrossOwners) {
   SimWorld world;
   PropertyInbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("leave2", 1), &ia);
-  Client& b = world.AddClient(MintToken("leave2", 2), &ib);
-  Client& c = world.AddClient(MintToken("leave2", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "leave2");
+  auto [a, b, c] = AddJoined(world, "leave2", ia, ib, ic);
   Result<uint32_t> kept = a.Spawn({.position = {0, 1, 0}, .flags = entity_flags::kPersistent});
   Result<uint32_t> plain = a.Spawn({.position = {1, 1, 0}});
   Result<uint32_t> handed = a.Spawn({.position = {2, 1, 0}});
@@ -151,9 +146,7 @@ TEST(OwnerLeaveChoice, DefaultFollowsPersistentAndTheChoiceStaysWithTheEntityAcr
 TEST(OwnerLeaveChoice, BadChoicesAreRefusedAndCounted) {
   SimWorld world;
   PropertyInbox ia, ib;
-  Client& a = world.AddClient(MintToken("leave3", 1), &ia);
-  Client& b = world.AddClient(MintToken("leave3", 2), &ib);
-  JoinAll(world, {&a, &b}, "leave3");
+  auto [a, b] = AddJoined(world, "leave3", ia, ib);
   Result<uint32_t> id = a.Spawn({.position = {0, 1, 0}});
   ASSERT_TRUE(id.ok());
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*id) != nullptr; }, 5.0));

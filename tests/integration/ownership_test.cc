@@ -55,10 +55,7 @@ TEST(Ownership, HandOverAcceptsTheNewOwnerWithinOneRoundTripAndDropsTheOldOwners
   double now = 0;
   OwnershipInbox ia, ib, ic;
   ia.clock = ib.clock = ic.clock = &now;
-  Client& a = world.AddClient(MintToken("own", 1), &ia);
-  Client& b = world.AddClient(MintToken("own", 2), &ib);
-  Client& c = world.AddClient(MintToken("own", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "own");
+  auto [a, b, c] = AddJoined(world, "own", ia, ib, ic);
   Result<uint32_t> id = a.Spawn({.position = {0, 1, 0}});
   ASSERT_TRUE(id.ok());
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*id) && c.FindEntity(*id); }, 10.0));
@@ -121,10 +118,7 @@ TEST(Ownership, HandOverAcceptsTheNewOwnerWithinOneRoundTripAndDropsTheOldOwners
 TEST(Ownership, RequestsTakeoverReleaseAndLateJoinersUnderLoss) {
   SimWorld world(LossyLink());
   OwnershipInbox ia, ib, ic, id_in;
-  Client& a = world.AddClient(MintToken("own2", 1), &ia);
-  Client& b = world.AddClient(MintToken("own2", 2), &ib);
-  Client& c = world.AddClient(MintToken("own2", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "own2");
+  auto [a, b, c] = AddJoined(world, "own2", ia, ib, ic);
   Result<uint32_t> tool = a.Spawn({.position = {0, 1, 0}});
   Result<uint32_t> free_box = a.Spawn({.position = {2, 1, 0}});
   ASSERT_TRUE(tool.ok() && free_box.ok());
@@ -241,9 +235,7 @@ TEST(Ownership, ReleaseOffloadsToPhySAndARequestReclaimsKeepingPoseAndVelocity) 
   config.physics_threads = 1;  // PhyS steps on the relay's thread: in step with the fake clock
   SimWorld world({}, config);
   OwnershipInbox ia, ib;
-  Client& a = world.AddClient(MintToken("switch", 1), &ia);
-  Client& b = world.AddClient(MintToken("switch", 2), &ib);
-  JoinAll(world, {&a, &b}, "switch");
+  auto [a, b] = AddJoined(world, "switch", ia, ib);
   EntitySpec box = DynamicBox(0, {0, 5, 0}, {0.1f, 0.1f, 0.1f}, 1.0f);
   box.rigid_body->use_gravity = false;
   Result<uint32_t> id = a.Spawn(box);
@@ -306,10 +298,7 @@ TEST(Ownership, ReleaseOffloadsToPhySAndARequestReclaimsKeepingPoseAndVelocity) 
 TEST(Ownership, HostileRequestsAreRefusedAndCounted) {
   SimWorld world;
   OwnershipInbox ia, ib, is;
-  Client& a = world.AddClient(MintToken("own3", 1), &ia);
-  Client& b = world.AddClient(MintToken("own3", 2), &ib);
-  Client& spectator = world.AddClient(MintToken("own3", 3, 3600, kPermissionMessage), &is);
-  JoinAll(world, {&a, &b, &spectator}, "own3");
+  auto [a, b, spectator] = AddJoined(world, "own3", ia, ib, Joiner{&is, kPermissionMessage});
   Result<uint32_t> id = a.Spawn({.position = {0, 1, 0}});
   ASSERT_TRUE(id.ok());
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*id) && spectator.FindEntity(*id); }, 10.0));

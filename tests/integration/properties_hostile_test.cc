@@ -32,9 +32,7 @@ uint64_t BudgetRefusals(RelayCounters& c, BudgetKind kind) {
 TEST(PropertiesHostile, OwnerOnlyPropertiesRefuseOthersAnyoneMayWriteTheRest) {
   SimWorld world;
   PropertyInbox ia, ib;
-  Client& a = world.AddClient(MintToken("auth", 1), &ia);
-  Client& b = world.AddClient(MintToken("auth", 2), &ib);
-  JoinAll(world, {&a, &b}, "auth");
+  auto [a, b] = AddJoined(world, "auth", ia, ib);
   Result<uint32_t> box = a.Spawn({});
   ASSERT_TRUE(box.ok());
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*box) != nullptr; }, 5.0));
@@ -78,10 +76,7 @@ TEST(PropertiesHostile, BudgetsPermissionAndRateAreRefusedAndCounted) {
   config.room_defaults.budgets.property_writes_per_s_per_player = 20;  // burst 40
   SimWorld world({}, config);
   PropertyInbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("budget", 1), &ia);
-  Client& b = world.AddClient(MintToken("budget", 2), &ib);
-  Client& c = world.AddClient(MintToken("budget", 3, 3600, kPermissionSpawn | kPermissionMessage), &ic);
-  JoinAll(world, {&a, &b, &c}, "budget");
+  auto [a, b, c] = AddJoined(world, "budget", ia, ib, Joiner{&ic, kPermissionSpawn | kPermissionMessage});
   ASSERT_TRUE(a.SetProperty(0, "v", PropertyValue::String(std::string(101, 'x'))).ok());  // value
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(a.SetProperty(0, "k" + std::to_string(i), PropertyValue::Int64(i)).ok());
   ASSERT_TRUE(a.SetProperty(0, "k4", PropertyValue::Int64(4)).ok());  // the fifth: count
@@ -137,10 +132,8 @@ std::vector<uint8_t> RawSet(uint32_t entity, const std::string& key, uint8_t typ
 TEST(PropertiesHostile, MalformedWritesAreRefusedCountedAndHarmNoOne) {
   SimWorld world;
   PropertyInbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("bad", 1), &ia);
-  Client& b = world.AddClient(MintToken("bad", 2), &ib);  // honest
-  Client& c = world.AddClient(MintToken("bad", 3), &ic);  // watches
-  JoinAll(world, {&a, &b, &c}, "bad");
+  // b writes honestly, c watches
+  auto [a, b, c] = AddJoined(world, "bad", ia, ib, ic);
   const schema::Vec3 nan_vec(0, std::nanf(""), 0), good_vec(1, 2, 3);
   const std::vector<std::vector<uint8_t>> bad = {
       RawSet(0, "t", 8, 0, nullptr),                      // unknown type tag

@@ -41,10 +41,7 @@ namespace {
 TEST(Properties, ConvergeInOrderUnderLossAndLateJoinersGetThemAll) {
   SimWorld world(LossyLink());
   PropertyInbox ia, ib, ic, id;
-  Client& a = world.AddClient(MintToken("props", 1), &ia);
-  Client& b = world.AddClient(MintToken("props", 2), &ib);
-  Client& c = world.AddClient(MintToken("props", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "props");
+  auto [a, b, c] = AddJoined(world, "props", ia, ib, ic);
   Result<uint32_t> tool = a.Spawn({.position = {0, 1, 0}});
   ASSERT_TRUE(tool.ok());
   ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) && c.FindEntity(*tool); }, 10.0));
@@ -119,10 +116,7 @@ TEST(Properties, ConvergeInOrderUnderLossAndLateJoinersGetThemAll) {
 TEST(Properties, OfTwoCompareAndSetWritersExactlyOneWinsAndTheOtherSeesTheCurrentValue) {
   SimWorld world(LossyLink());
   PropertyInbox ia, ib, ic;
-  Client& a = world.AddClient(MintToken("cas", 1), &ia);
-  Client& b = world.AddClient(MintToken("cas", 2), &ib);
-  Client& c = world.AddClient(MintToken("cas", 3), &ic);
-  JoinAll(world, {&a, &b, &c}, "cas");
+  auto [a, b, c] = AddJoined(world, "cas", ia, ib, ic);
   // Created once: the second create (expected version 0) loses.
   Result<uint32_t> made = a.CompareAndSetProperty(0, "turn", PropertyValue::Int64(0), 0,
                                                   PropertyAuthority::kAnyone);
@@ -177,9 +171,7 @@ TEST(Properties, OfTwoCompareAndSetWritersExactlyOneWinsAndTheOtherSeesTheCurren
 TEST(Properties, BytesOnTheWirePerUpdate) {
   SimWorld world;
   PropertyInbox ia, ib;
-  Client& a = world.AddClient(MintToken("wire", 1), &ia);
-  Client& b = world.AddClient(MintToken("wire", 2), &ib);
-  JoinAll(world, {&a, &b}, "wire");
+  auto [a, b] = AddJoined(world, "wire", ia, ib);
   world.RunFor(1.0);
   struct Case {
     const char* name;
