@@ -183,7 +183,7 @@ int main(int argc, char** argv) {
     cc.handshake_timeout_s = join_timeout_s;
     b.client = std::make_unique<Client>(cc, b.socket.get());
     (void)b.client->Connect(ToRelayAddress(endpoints[via]),
-                            ClusterJoinToken(b.room, b.player, secret), now_s());
+                            MintJoinToken(secret, b.room, b.player), now_s());
     return b;
   };
   for (int i = 0; i < users; ++i) add_bot("room" + std::to_string(i % rooms), 1000 + i, i % relays);

@@ -88,7 +88,7 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
     p.client =
         std::make_unique<Client>(ClusterClientConfig(endpoints), p.socket.get(), &p.listener);
     (void)p.client->Connect(ToRelayAddress(endpoints[i % o.relays]),
-                            ClusterJoinToken(kRoom, p.id, secret), now_s());
+                            MintJoinToken(secret, kRoom, p.id), now_s());
   }
   Player& observer = players.back();
   bool spawning = false;

@@ -66,11 +66,11 @@ ClientConfig ClusterClientConfig(const std::vector<Endpoint>& relays) {
   return cc;
 }
 
-std::vector<uint8_t> ClusterJoinToken(const std::string& room, uint32_t player,
-                                      const std::string& secret) {
+std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
+                                   uint32_t player_id) {
   JoinToken t;
   t.room = room;
-  t.player_id = player;
+  t.player_id = player_id;
   t.expiry_unix_s = UnixNow() + 3600;
   t.nonce = SecureRandom64();
   return *SignJoinToken(t, secret);

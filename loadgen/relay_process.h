@@ -1,6 +1,7 @@
 // Child relay processes for the cluster benchmarks: start one edgephys-relay binary with a
 // given argv, and stop a set of them; the free port and wall-clock second they are started
-// with. Single-threaded use; the caller owns the pids.
+// with, and the join tokens their clients present. Single-threaded use; the caller owns the
+// pids.
 #pragma once
 
 #include <sys/types.h>
@@ -46,9 +47,10 @@ ClusterRelays StartClusterRelays(
 // 0.5 s.
 ClientConfig ClusterClientConfig(const std::vector<Endpoint>& relays);
 
-// A join token for `player` in `room`, valid for an hour, signed with `secret`.
-std::vector<uint8_t> ClusterJoinToken(const std::string& room, uint32_t player,
-                                      const std::string& secret);
+// A join token for `player_id` in `room`, valid for an hour, signed with `secret` (the load
+// generator's bots and the cluster benchmarks' clients alike).
+std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
+                                   uint32_t player_id);
 
 // Seconds since the Unix epoch, system clock (join-token expiry times).
 uint64_t UnixNow();
