@@ -164,11 +164,11 @@ ChartSet Charts(const CcuOptions&, const std::vector<CcuResult>& results, const 
   return {dat.str(), {{.stem = prefix, .body = gp.str()}}};
 }
 
-class CcuScenario final : public Scenario {
+class CcuScenario final : public MeasuringScenario<CcuOptions, std::vector<CcuResult>> {
  public:
-  CcuScenario() : Scenario("ccu", "Concurrent users: bots with hands and grabbed objects", "ccu") {
-    SetProgressFlag(&o_.progress);
-  }
+  CcuScenario()
+      : MeasuringScenario("ccu", "Concurrent users: bots with hands and grabbed objects",
+                          {Json, FillTable, Charts}, "ccu") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--users", users_, "User counts (comma separated; one run each)");
@@ -210,12 +210,9 @@ class CcuScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
-    return MakeReport(o_, RunCcu(o_), Json, FillTable, Charts);
-  }
+  std::optional<std::vector<CcuResult>> Measure() override { return RunCcu(o_); }
 
  private:
-  CcuOptions o_;
   std::string users_ = "100";
 };
 

@@ -95,10 +95,11 @@ void FillTable(const CeilingOptions&, const CeilingResults& results, Table* t) {
   }
 }
 
-class CeilingScenario final : public Scenario {
+class CeilingScenario final : public MeasuringScenario<CeilingOptions, CeilingResults> {
  public:
   CeilingScenario()
-      : Scenario("ceiling", "Relay packets/s and bytes/s vs the iperf3 -u loopback ceiling") {
+      : MeasuringScenario("ceiling", "Relay packets/s and bytes/s vs the iperf3 -u loopback ceiling",
+                          {Json, FillTable}) {
     SetProgressFlag(&o_.progress, "Hide progress lines");
   }
 
@@ -138,16 +139,14 @@ class CeilingScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
+  std::optional<CeilingResults> Measure() override {
     CeilingResults results;
     results.reps = RunCeiling(o_);
     results.summary = SummarizeCeiling(o_, results.reps);
-    return MakeReport<CeilingOptions, CeilingResults>(o_, std::move(results), Json, FillTable,
-                                                      nullptr);
+    return results;
   }
 
  private:
-  CeilingOptions o_;
   std::string threads_ = "1,2";
 };
 

@@ -153,23 +153,19 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "cannot start redis-server\n");
     return 1;
   }
-  std::vector<pid_t> pids;
-  std::vector<Endpoint> endpoints;
-  std::map<std::string, int> relay_index;  // relay id -> index
-  for (int i = 0; i < relays; ++i) {
-    uint16_t port = FreeUdpPort();
-    std::string bind = "127.0.0.1:" + std::to_string(port);
-    endpoints.push_back(*ParseEndpoint(bind));
-    relay_index["127.0.0.1-" + std::to_string(port)] = i;
+  ClusterRelays cluster = StartClusterRelays(relays, [&](const std::string& bind) {
     std::vector<std::string> args = ClusterRelayArgs(relay_binary, bind, secret, redis.port(),
                                                      relay_timeout_s, ttl_ms, heartbeat_ms,
                                                      snapshot_ms, 600);
     // Every bot joins from 127.0.0.1 at once: lift the per-address and handshake-rate limits.
     args.insert(args.end(), {"--max-handshakes-per-s", "100000",
                              "--max-connections-per-address", "100000"});
-    const pid_t pid = StartRelayProcess(args);
-    pids.push_back(pid);
-  }
+    return args;
+  });
+  std::vector<pid_t>& pids = cluster.pids;
+  const std::vector<Endpoint>& endpoints = cluster.endpoints;
+  std::map<std::string, int> relay_index;  // relay id -> index
+  for (int i = 0; i < relays; ++i) relay_index[cluster.ids[i]] = i;
   auto stop_all = [&] { KillRelayProcesses(pids); };
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // relays register
 
@@ -182,19 +178,12 @@ int main(int argc, char** argv) {
     b.room = room;
     b.player = player;
     b.socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
-    ClientConfig cc;
+    ClientConfig cc = ClusterClientConfig(endpoints);
     cc.publish_rate_hz = publish_hz;
-    cc.resume = true;
-    for (const Endpoint& e : endpoints) cc.relays.push_back(ToRelayAddress(e));
-    cc.resume_attempt_s = 0.5;
     cc.handshake_timeout_s = join_timeout_s;
     b.client = std::make_unique<Client>(cc, b.socket.get());
-    JoinToken t;
-    t.room = b.room;
-    t.player_id = b.player;
-    t.expiry_unix_s = UnixNow() + 3600;
-    t.nonce = SecureRandom64();
-    (void)b.client->Connect(ToRelayAddress(endpoints[via]), *SignJoinToken(t, secret), now_s());
+    (void)b.client->Connect(ToRelayAddress(endpoints[via]),
+                            MintJoinToken(secret, b.room, b.player), now_s());
     return b;
   };
   for (int i = 0; i < users; ++i) add_bot("room" + std::to_string(i % rooms), 1000 + i, i % relays);

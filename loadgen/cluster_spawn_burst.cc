@@ -66,20 +66,13 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
     std::fprintf(stderr, "cannot start redis-server\n");
     return 1;
   }
-  std::vector<pid_t> pids;
-  std::vector<Endpoint> endpoints;
-  std::vector<std::string> relay_ids;
-  for (int i = 0; i < o.relays; ++i) {
-    const uint16_t port = FreeUdpPort();
-    const std::string bind = "127.0.0.1:" + std::to_string(port);
-    endpoints.push_back(*ParseEndpoint(bind));
-    relay_ids.push_back("127.0.0.1-" + std::to_string(port));
-    const std::vector<std::string> args =
-        ClusterRelayArgs(o.relay_binary, bind, secret, redis.port(), o.relay_timeout_s, o.ttl_ms,
-                         o.heartbeat_ms, o.snapshot_ms, 120);
-    const pid_t pid = StartRelayProcess(args);
-    pids.push_back(pid);
-  }
+  ClusterRelays cluster = StartClusterRelays(o.relays, [&](const std::string& bind) {
+    return ClusterRelayArgs(o.relay_binary, bind, secret, redis.port(), o.relay_timeout_s, o.ttl_ms,
+                            o.heartbeat_ms, o.snapshot_ms, 120);
+  });
+  std::vector<pid_t>& pids = cluster.pids;
+  const std::vector<Endpoint>& endpoints = cluster.endpoints;
+  const std::vector<std::string>& relay_ids = cluster.ids;
   auto stop_all = [&] { KillRelayProcesses(pids); };
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // relays register
 
@@ -92,18 +85,10 @@ int RunKillDuringSpawns(const SpawnBurstOptions& o) {
     p.id = 100 + i;
     p.spawner = i < o.spawners;
     p.socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
-    ClientConfig cc;
-    cc.resume = true;
-    for (const Endpoint& e : endpoints) cc.relays.push_back(ToRelayAddress(e));
-    cc.resume_attempt_s = 0.5;
-    p.client = std::make_unique<Client>(cc, p.socket.get(), &p.listener);
-    JoinToken t;
-    t.room = kRoom;
-    t.player_id = p.id;
-    t.expiry_unix_s = UnixNow() + 3600;
-    t.nonce = SecureRandom64();
-    (void)p.client->Connect(ToRelayAddress(endpoints[i % o.relays]), *SignJoinToken(t, secret),
-                            now_s());
+    p.client =
+        std::make_unique<Client>(ClusterClientConfig(endpoints), p.socket.get(), &p.listener);
+    (void)p.client->Connect(ToRelayAddress(endpoints[i % o.relays]),
+                            MintJoinToken(secret, kRoom, p.id), now_s());
   }
   Player& observer = players.back();
   bool spawning = false;

@@ -145,11 +145,12 @@ ChartSet Charts(const CodecSweepOptions& o, const std::vector<CodecSweepResult>&
   return set;
 }
 
-class CodecSweepScenario final : public Scenario {
+class CodecSweepScenario final
+    : public MeasuringScenario<CodecSweepOptions, std::vector<CodecSweepResult>> {
  public:
   CodecSweepScenario()
-      : Scenario("codec-sweep", "Quantized delta codec: bandwidth vs accuracy (offline)",
-                 "codec_sweep") {}
+      : MeasuringScenario("codec-sweep", "Quantized delta codec: bandwidth vs accuracy (offline)",
+                          {Json, FillTable, Charts}, "codec_sweep") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--steps", steps_, "Position steps (m) to sweep");
@@ -184,14 +185,11 @@ class CodecSweepScenario final : public Scenario {
     return "";
   }
 
-  std::optional<Report> Run() override {
-    auto results = RunCodecSweep(o_);
-    if (results.empty()) return std::nullopt;
-    return MakeReport(o_, std::move(results), Json, FillTable, Charts);
+  std::optional<std::vector<CodecSweepResult>> Measure() override {
+    return NonEmpty(RunCodecSweep(o_));
   }
 
  private:
-  CodecSweepOptions o_;
   std::string steps_ = "0.0005,0.001,0.002,0.005", bounds_ = "0.05,0.1,0.2,0.5";
   std::string thresholds_ = "0,0.0005,0.001,0.005";
 };

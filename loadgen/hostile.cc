@@ -423,15 +423,32 @@ HostileAttackResult RunOne(const HostileOptions& o, const HostileAttackInfo& inf
     if (!e.empty()) *metrics_error = e;
     return s;
   };
+  // A phase: both honest rooms' figures and the metrics that moved from `begin` on.
+  struct PhaseStart {
+    decltype(scrape()) metrics;
+    double at;
+  };
+  auto begin_phase = [&](const char* name) {
+    progress(name);
+    PhaseStart s{scrape(), now()};
+    a.BeginPhase(s.at);
+    b.BeginPhase(s.at);
+    return s;
+  };
+  auto end_phase = [&](const char* name, const PhaseStart& begin, HostilePhase* phase) {
+    const double end = now();
+    phase->name = name;
+    phase->seconds = end - begin.at;
+    phase->same = a.EndPhase(end, &phase->probe);
+    phase->other = b.EndPhase(end, nullptr);
+    Differences(begin.metrics, scrape(), phase);
+  };
   const double half = o.phase_s / 2;
   // Baseline: the attacker idles; the probe joins halfway.
   {
     for (double end = now() + 1.0; now() < end;) attack->Idle(now()), Sleep();  // settle
-    progress("baseline");
-    const auto m0 = scrape();
-    const double start = now();
-    a.BeginPhase(start);
-    b.BeginPhase(start);
+    const PhaseStart begin = begin_phase("baseline");
+    const double start = begin.at;
     bool probe = false;
     while (true) {
       const double t = now();
@@ -440,21 +457,13 @@ HostileAttackResult RunOne(const HostileOptions& o, const HostileAttackInfo& inf
       if (t >= start + o.phase_s && (a.ProbeFinished() || t >= start + o.phase_s + 10)) break;
       Sleep();
     }
-    const double end = now();
-    r.baseline.name = "baseline";
-    r.baseline.seconds = end - start;
-    r.baseline.same = a.EndPhase(end, &r.baseline.probe);
-    r.baseline.other = b.EndPhase(end, nullptr);
-    Differences(m0, scrape(), &r.baseline);
+    end_phase("baseline", begin, &r.baseline);
   }
   // Attack: lasts --phase after the attack has run its course (continuous attacks: from the
   // start; at most --attack-max in), the probe joining halfway through that.
   {
-    progress("attack");
-    const auto m1 = scrape();
-    const double start = now();
-    a.BeginPhase(start);
-    b.BeginPhase(start);
+    const PhaseStart begin = begin_phase("attack");
+    const double start = begin.at;
     double done_at = -1, probe_at = -1;
     while (true) {
       const double t = now();
@@ -468,12 +477,7 @@ HostileAttackResult RunOne(const HostileOptions& o, const HostileAttackInfo& inf
       Sleep();
     }
     r.attack_done_s = done_at - start;
-    const double end = now();
-    r.attack_phase.name = "attack";
-    r.attack_phase.seconds = end - start;
-    r.attack_phase.same = a.EndPhase(end, &r.attack_phase.probe);
-    r.attack_phase.other = b.EndPhase(end, nullptr);
-    Differences(m1, scrape(), &r.attack_phase);
+    end_phase("attack", begin, &r.attack_phase);
   }
   attack->Finish();
   r.notes = attack->Notes();

@@ -103,14 +103,13 @@ void FillTable(const HostileOptions& o, const HostileResult& r, Table* t) {
           "baseline/attack)\n");
 }
 
-class HostileScenario final : public Scenario {
+class HostileScenario final : public MeasuringScenario<HostileOptions, HostileResult> {
  public:
   HostileScenario()
-      : Scenario("hostile",
-                 "One hostile player per attack class of issue 14; honest clients' update rate "
-                 "in its room and another, and the relay's refusals by reason") {
-    SetProgressFlag(&o_.progress);
-  }
+      : MeasuringScenario("hostile",
+                          "One hostile player per attack class of issue 14; honest clients' update "
+                          "rate in its room and another, and the relay's refusals by reason",
+                          {Json, FillTable}) {}
 
   void AddOptions(CLI::App& cmd) override {
     std::string names;
@@ -155,20 +154,17 @@ class HostileScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
-    HostileResult r = RunHostile(o_);
+  std::optional<HostileResult> Measure() override { return RunHostile(o_); }
+
+  bool Succeeded(const HostileResult& r) const override {
     bool ok = r.metrics_error.empty();
     for (const HostileAttackResult& a : r.attacks) {
       ok = ok && (a.ran || a.error.rfind("skipped", 0) == 0);
     }
-    Report report = MakeReport<HostileOptions, HostileResult>(o_, std::move(r), Json, FillTable,
-                                                              nullptr);
-    report.ok = ok;
-    return report;
+    return ok;
   }
 
  private:
-  HostileOptions o_;
   std::string attacks_;
 };
 

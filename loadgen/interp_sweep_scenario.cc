@@ -152,10 +152,12 @@ ChartSet Charts(const InterpSweepOptions& options, const std::vector<InterpSweep
   return set;
 }
 
-class InterpSweepScenario final : public Scenario {
+class InterpSweepScenario final
+    : public MeasuringScenario<InterpSweepOptions, std::vector<InterpSweepResult>> {
  public:
   InterpSweepScenario()
-      : Scenario("interp-sweep", "Interpolation error vs send rate (offline)", "interp_sweep") {}
+      : MeasuringScenario("interp-sweep", "Interpolation error vs send rate (offline)",
+                          {Json, FillTable, Charts}, "interp_sweep") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--rates", rates_, "Send rates in Hz (comma separated)");
@@ -193,14 +195,11 @@ class InterpSweepScenario final : public Scenario {
     return "";
   }
 
-  std::optional<Report> Run() override {
-    auto results = RunInterpSweep(o_);
-    if (results.empty()) return std::nullopt;
-    return MakeReport(o_, std::move(results), Json, FillTable, Charts);
+  std::optional<std::vector<InterpSweepResult>> Measure() override {
+    return NonEmpty(RunInterpSweep(o_));
   }
 
  private:
-  InterpSweepOptions o_;
   std::string rates_ = "6,12,24,30,48,60";
   std::string methods_ = "lerp-slerp,dq-dlb,dq-sclerp,hermite,none";
   double latency_s_ = 0.030, jitter_s_ = 0.020, loss_ = 0.05;  // the impaired condition

@@ -120,14 +120,12 @@ ChartSet Charts(const IsolationOptions&, const IsolationResult& r, const std::st
   return {dat.str(), {{.stem = prefix, .body = gp.str()}}};
 }
 
-class IsolationScenario final : public Scenario {
+class IsolationScenario final : public MeasuringScenario<IsolationOptions, IsolationResult> {
  public:
   IsolationScenario()
-      : Scenario("isolation",
-                 "Room A's hand latency alone, beside a heavy PhyS room B, and after B leaves",
-                 "isolation") {
-    SetProgressFlag(&o_.progress);
-  }
+      : MeasuringScenario("isolation",
+                          "Room A's hand latency alone, beside a heavy PhyS room B, and after B leaves",
+                          {Json, FillTable, Charts}, "isolation") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--users", o_.users, "Room A's users (ccu-style bots)");
@@ -185,16 +183,13 @@ class IsolationScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
-    IsolationResult r = RunIsolation(o_);
-    const bool ok = r.connected == r.users && r.b_ok;
-    Report report = MakeReport(o_, std::move(r), Json, FillTable, Charts);
-    report.ok = ok;
-    return report;
+  std::optional<IsolationResult> Measure() override { return RunIsolation(o_); }
+
+  bool Succeeded(const IsolationResult& r) const override {
+    return r.connected == r.users && r.b_ok;
   }
 
  private:
-  IsolationOptions o_;
   std::string b_mode_ = "scene", b_decode_ = "all";
 };
 

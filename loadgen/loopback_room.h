@@ -54,6 +54,26 @@ class LoopbackRoom {
   std::vector<std::unique_ptr<Client>> clients_;
 };
 
+// The receiving clients' listeners of a room (LoopbackRoom or ExternalRoom), owned here, and the
+// listener list the room takes: the host's first, then each receiver's.
+template <typename Receiver>
+struct ReceiverSet {
+  std::vector<std::unique_ptr<Receiver>> receivers;
+  std::vector<ClientListener*> listeners;
+};
+
+// `count` receivers, each Receiver(arg); `host` (may be null) listens to the host.
+template <typename Receiver, typename Arg>
+ReceiverSet<Receiver> MakeReceiverSet(uint32_t count, ClientListener* host, Arg arg) {
+  ReceiverSet<Receiver> set;
+  set.listeners.push_back(host);
+  for (uint32_t i = 0; i < count; ++i) {
+    set.receivers.push_back(std::make_unique<Receiver>(arg));
+    set.listeners.push_back(set.receivers.back().get());
+  }
+  return set;
+}
+
 // Counted observations of RelayCounters::physics_step_seconds (all buckets).
 uint64_t HistogramCount(const AtomicHistogram<10>& h);
 

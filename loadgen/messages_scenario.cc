@@ -79,13 +79,13 @@ void FillTable(const MessagesOptions& o, const MessagesResult& r, Table* t) {
           r.property_received_net_bytes);
 }
 
-class MessagesScenario final : public Scenario {
+class MessagesScenario final : public MeasuringScenario<MessagesOptions, MessagesResult> {
  public:
   MessagesScenario()
-      : Scenario("messages",
-                 "Application messages one relay core forwards in a room; bytes per property update") {
-    SetProgressFlag(&o_.progress);
-  }
+      : MeasuringScenario(
+            "messages",
+            "Application messages one relay core forwards in a room; bytes per property update",
+            {Json, FillTable}) {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--users", o_.users, "Bots in the room");
@@ -113,15 +113,11 @@ class MessagesScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
-    MessagesResult r = RunMessages(o_);
-    Report report = MakeReport<MessagesOptions, MessagesResult>(o_, r, Json, FillTable, nullptr);
-    report.ok = r.joined == o_.users && r.received > 0;
-    return report;
-  }
+  std::optional<MessagesResult> Measure() override { return RunMessages(o_); }
 
- private:
-  MessagesOptions o_;
+  bool Succeeded(const MessagesResult& r) const override {
+    return r.joined == o_.users && r.received > 0;
+  }
 };
 
 }  // namespace

@@ -312,12 +312,7 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
       config.connection.max_pending_reliable_bytes, static_cast<size_t>(n) * 1024);
 
   BoxTable boxes;
-  std::vector<std::unique_ptr<BoxReceiver>> receivers;
-  std::vector<ClientListener*> listeners = {nullptr};
-  for (uint32_t i = 0; i < o.receivers; ++i) {
-    receivers.push_back(std::make_unique<BoxReceiver>(&boxes));
-    listeners.push_back(receivers.back().get());
-  }
+  auto [receivers, listeners] = MakeReceiverSet<BoxReceiver>(o.receivers, nullptr, &boxes);
   ClientConfig host_config;
   host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
   LoopbackRoom world(config, "multiobject", o.receivers + 1, host_config, listeners);

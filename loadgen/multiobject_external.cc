@@ -55,13 +55,9 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   const double dt = p.config.fixed_dt;
   RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> box_index;
-  std::vector<std::unique_ptr<ExternalReceiver>> receivers;
   RefusalWatch host_watch;
-  std::vector<ClientListener*> listeners = {&host_watch};  // the host
-  for (uint32_t i = 0; i < o.receivers; ++i) {
-    receivers.push_back(std::make_unique<ExternalReceiver>(&box_index));
-    listeners.push_back(receivers.back().get());
-  }
+  auto [receivers, listeners] =
+      MakeReceiverSet<ExternalReceiver>(o.receivers, &host_watch, &box_index);
   ClientConfig cc;
   cc.handshake_timeout_s = 10;
   ClientConfig host_config = cc;

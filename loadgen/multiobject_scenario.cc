@@ -166,13 +166,13 @@ ChartSet Charts(const MultiObjectOptions&, const std::vector<MultiObjectResult>&
            {.stem = prefix + "_error", .body = er.str()}}};
 }
 
-class MultiObjectScenario final : public Scenario {
+class MultiObjectScenario final
+    : public MeasuringScenario<MultiObjectOptions, std::vector<MultiObjectResult>> {
  public:
   MultiObjectScenario()
-      : Scenario("multiobject", "PhyS MultiObject: step time vs raw Bullet, egress vs the paper",
-                 "multiobject") {
-    SetProgressFlag(&o_.progress);
-  }
+      : MeasuringScenario("multiobject",
+                          "PhyS MultiObject: step time vs raw Bullet, egress vs the paper",
+                          {Json, FillTable, Charts}, "multiobject") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--objects", objects_, "Box counts (comma separated)");
@@ -235,17 +235,13 @@ class MultiObjectScenario final : public Scenario {
     return "";
   }
 
-  std::optional<Report> Run() override {
-    auto results = RunMultiObject(o_);
-    const bool ok = !o_.relay || std::all_of(results.begin(), results.end(),
-                                             [](const auto& r) { return r.relay_ok; });
-    Report report = MakeReport(o_, std::move(results), Json, FillTable, Charts);
-    report.ok = ok;
-    return report;
+  std::optional<std::vector<MultiObjectResult>> Measure() override { return RunMultiObject(o_); }
+
+  bool Succeeded(const std::vector<MultiObjectResult>& results) const override {
+    return !o_.relay || AllRelayRunsOk(results);
   }
 
  private:
-  MultiObjectOptions o_;
   std::string objects_ = "500,1000,2000,5000,10000";
 };
 

@@ -141,11 +141,13 @@ void FillTable(const PhysicsBurnOptions& o, const PhysicsBurnResult& r, Table* t
           static_cast<unsigned long long>(r.steps), r.seconds, r.step_ms_mean, r.niceness);
 }
 
-class PhysicsBurnScenario final : public Scenario {
+class PhysicsBurnScenario final : public MeasuringScenario<PhysicsBurnOptions, PhysicsBurnResult> {
  public:
   PhysicsBurnScenario()
-      : Scenario("physics-burn",
-                 "Control for isolation: step the multiobject scene back to back in this process, no relay") {}
+      : MeasuringScenario("physics-burn",
+                          "Control for isolation: step the multiobject scene back to back in this "
+                          "process, no relay",
+                          {Json, FillTable}) {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--boxes", o_.boxes, "Boxes in the scene");
@@ -157,12 +159,7 @@ class PhysicsBurnScenario final : public Scenario {
     if (o_.boxes == 0 || !(o_.seconds > 0)) return "--boxes and --seconds must be positive";
     return "";
   }
-  std::optional<Report> Run() override {
-    return MakeReport<PhysicsBurnOptions, PhysicsBurnResult>(o_, RunPhysicsBurn(o_), Json, FillTable, nullptr);
-  }
-
- private:
-  PhysicsBurnOptions o_;
+  std::optional<PhysicsBurnResult> Measure() override { return RunPhysicsBurn(o_); }
 };
 
 }  // namespace

@@ -120,12 +120,12 @@ ChartSet Charts(const RelayCompareOptions&, const std::vector<RelayCompareResult
   return set;
 }
 
-class RelayCompareScenario final : public Scenario {
+class RelayCompareScenario final
+    : public MeasuringScenario<RelayCompareOptions, std::vector<RelayCompareResult>> {
  public:
   RelayCompareScenario()
-      : Scenario("relay-compare", "The paper's relay bandwidth experiment", "relay_compare") {
-    SetProgressFlag(&o_.progress);
-  }
+      : MeasuringScenario("relay-compare", "The paper's relay bandwidth experiment",
+                          {Json, FillTable, Charts}, "relay_compare") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--objects", objects_, "Object counts (comma separated)");
@@ -161,12 +161,11 @@ class RelayCompareScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
-    return MakeReport(o_, RunRelayCompare(o_), Json, FillTable, Charts);
+  std::optional<std::vector<RelayCompareResult>> Measure() override {
+    return RunRelayCompare(o_);
   }
 
  private:
-  RelayCompareOptions o_;
   std::string objects_ = "32,64,128,256,512", modes_ = "photon,paper,edgephys";
 };
 

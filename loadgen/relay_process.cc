@@ -6,7 +6,9 @@
 
 #include <chrono>
 
-#include "protocol/endpoint.h"
+#include "client/client_endpoint.h"
+#include "protocol/handshake.h"
+#include "protocol/join_token.h"
 #include "protocol/udp_socket.h"
 
 namespace edgephys {
@@ -41,6 +43,37 @@ std::vector<std::string> ClusterRelayArgs(const std::string& binary, const std::
           "--cluster-heartbeat-ms", std::to_string(heartbeat_ms),
           "--cluster-snapshot-ms", std::to_string(snapshot_ms),
           "--admin-addr", "off", "--log-level", "warn", "--run-for", std::to_string(run_for_s)};
+}
+
+ClusterRelays StartClusterRelays(
+    int count, const std::function<std::vector<std::string>(const std::string& bind)>& args) {
+  ClusterRelays relays;
+  for (int i = 0; i < count; ++i) {
+    const uint16_t port = FreeUdpPort();
+    const std::string bind = "127.0.0.1:" + std::to_string(port);
+    relays.endpoints.push_back(*ParseEndpoint(bind));
+    relays.ids.push_back("127.0.0.1-" + std::to_string(port));
+    relays.pids.push_back(StartRelayProcess(args(bind)));
+  }
+  return relays;
+}
+
+ClientConfig ClusterClientConfig(const std::vector<Endpoint>& relays) {
+  ClientConfig cc;
+  cc.resume = true;
+  for (const Endpoint& e : relays) cc.relays.push_back(ToRelayAddress(e));
+  cc.resume_attempt_s = 0.5;
+  return cc;
+}
+
+std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
+                                   uint32_t player_id) {
+  JoinToken t;
+  t.room = room;
+  t.player_id = player_id;
+  t.expiry_unix_s = UnixNow() + 3600;
+  t.nonce = SecureRandom64();
+  return *SignJoinToken(t, secret);
 }
 
 uint64_t UnixNow() {

@@ -1,13 +1,18 @@
 // Child relay processes for the cluster benchmarks: start one edgephys-relay binary with a
 // given argv, and stop a set of them; the free port and wall-clock second they are started
-// with. Single-threaded use; the caller owns the pids.
+// with, and the join tokens their clients present. Single-threaded use; the caller owns the
+// pids.
 #pragma once
 
 #include <sys/types.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
+
+#include "client/client.h"
+#include "protocol/endpoint.h"
 
 namespace edgephys {
 
@@ -25,6 +30,27 @@ std::vector<std::string> ClusterRelayArgs(const std::string& binary, const std::
                                           const std::string& secret, int redis_port, double timeout_s,
                                           double ttl_ms, double heartbeat_ms, double snapshot_ms,
                                           int run_for_s);
+
+// Relays of a Redis cluster started as child processes on free loopback ports.
+struct ClusterRelays {
+  std::vector<pid_t> pids;          // the caller stops them (KillRelayProcesses)
+  std::vector<Endpoint> endpoints;  // 127.0.0.1:<port>
+  std::vector<std::string> ids;     // their cluster ids, "127.0.0.1-<port>"
+};
+
+// Starts `count` relays, each with the argv `args(bind)` for its bind address
+// "127.0.0.1:<port>" (e.g. ClusterRelayArgs). A relay that could not be forked has pid -1.
+ClusterRelays StartClusterRelays(
+    int count, const std::function<std::vector<std::string>(const std::string& bind)>& args);
+
+// A client of the cluster that resumes its session through any of `relays`, retrying every
+// 0.5 s.
+ClientConfig ClusterClientConfig(const std::vector<Endpoint>& relays);
+
+// A join token for `player_id` in `room`, valid for an hour, signed with `secret` (the load
+// generator's bots and the cluster benchmarks' clients alike).
+std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
+                                   uint32_t player_id);
 
 // Seconds since the Unix epoch, system clock (join-token expiry times).
 uint64_t UnixNow();

@@ -214,16 +214,6 @@ RelayTarget::RelayTarget(const ExternalRelayOptions& options,
 
 RelayTarget::~RelayTarget() = default;
 
-std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
-                                   uint32_t player_id) {
-  JoinToken t;
-  t.room = room;
-  t.player_id = player_id;
-  t.expiry_unix_s = UnixNow() + 3600;
-  t.nonce = SecureRandom64();
-  return *SignJoinToken(t, secret);
-}
-
 std::vector<uint8_t> RelayTarget::Token(const std::string& room, uint32_t player_id) const {
   return MintJoinToken(secret_, room, player_id);
 }

@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "loadgen/relay_process.h"  // MintJoinToken
 #include "protocol/datagram_socket.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
@@ -48,9 +49,6 @@ struct ExternalRelayOptions {
 void AddExternalRelayOptions(CLI::App& cmd, ExternalRelayOptions* options);
 // "" or an error message (unparsable endpoints, --relay without --secret, ...).
 std::string ValidateExternalRelay(const ExternalRelayOptions& options);
-// A join token for `player_id` in `room`, valid for an hour, signed with `secret`.
-std::vector<uint8_t> MintJoinToken(const std::string& secret, const std::string& room,
-                                   uint32_t player_id);
 // A report's "relay" block for an external relay: external (true), address, metrics ("(relay
 // host):9464" without --metrics) and cpu_source ("/proc/<pid>/stat", or "unknown" without
 // --relay-pid).

@@ -3,6 +3,7 @@
 // stdout, the --json file and the --charts files, the same way for every scenario.
 #pragma once
 
+#include <algorithm>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -88,22 +89,64 @@ class Scenario {
   const char* progress_help_ = "";
 };
 
-// The report of a run from the scenario's formatters, each given the options and the results:
+// The formatters of a scenario's report, each given the options and the results:
 // json(o, results), table(o, results, &table) and, unless null, charts(o, results, prefix).
 template <typename Options, typename Results>
-Report MakeReport(const Options& o, Results results,
-                  nlohmann::json (*json)(const Options&, const Results&),
-                  void (*table)(const Options&, const Results&, Table*),
-                  ChartSet (*charts)(const Options&, const Results&, const std::string&)) {
-  Report report;
-  report.json = json(o, results);
-  table(o, results, &report.table);
-  if (charts != nullptr) {
-    report.charts = [o, results = std::move(results), charts](const std::string& prefix) {
-      return charts(o, results, prefix);
-    };
+struct ReportFormat {
+  nlohmann::json (*json)(const Options&, const Results&);
+  void (*table)(const Options&, const Results&, Table*);
+  ChartSet (*charts)(const Options&, const Results&, const std::string&) = nullptr;
+};
+
+// A scenario that measures Results from the Options its flags fill (o_) and reports them
+// through its ReportFormat. Options with a `bool progress` member get the --no-progress switch
+// (the default help; a scenario may call SetProgressFlag again for its own).
+template <typename Options, typename Results>
+class MeasuringScenario : public Scenario {
+ public:
+  MeasuringScenario(const char* name, const char* description,
+                    ReportFormat<Options, Results> format, const char* chart_prefix = "")
+      : Scenario(name, description, chart_prefix), format_(format) {
+    if constexpr (requires(Options& o) { o.progress = true; }) SetProgressFlag(&o_.progress);
   }
-  return report;
+
+  std::optional<Report> Run() final {
+    std::optional<Results> results = Measure();
+    if (!results) return std::nullopt;
+    Report report;
+    report.ok = Succeeded(*results);
+    report.json = format_.json(o_, *results);
+    format_.table(o_, *results, &report.table);
+    if (format_.charts != nullptr) {
+      report.charts = [o = o_, r = std::move(*results), charts = format_.charts](
+                          const std::string& prefix) { return charts(o, r, prefix); };
+    }
+    return report;
+  }
+
+ protected:
+  // The run, after Validate(); nullopt: nothing to report (exit status 1, no outputs).
+  virtual std::optional<Results> Measure() = 0;
+  // False: the run itself failed (Report::ok).
+  virtual bool Succeeded(const Results&) const { return true; }
+
+  Options o_;
+
+ private:
+  ReportFormat<Options, Results> format_;
+};
+
+// The results of a run, or nullopt (nothing to report) where there are none.
+template <typename Result>
+std::optional<std::vector<Result>> NonEmpty(std::vector<Result> results) {
+  if (results.empty()) return std::nullopt;
+  return results;
+}
+
+// True if the relay run behind every result succeeded (each Result's `relay_ok`).
+template <typename Result>
+bool AllRelayRunsOk(const std::vector<Result>& results) {
+  return std::all_of(results.begin(), results.end(), [](const Result& r) { return r.relay_ok; });
 }
 
 // a / b, or 0 where b is not positive (a ratio to a Decoupled Edge Physics figure it lacks).

@@ -115,12 +115,7 @@ void RelayRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r) {
   const double dt = config.physics.fixed_dt;
 
   BunnyTable bunnies;
-  std::vector<std::unique_ptr<SoftReceiver>> receivers;
-  std::vector<ClientListener*> listeners = {nullptr};
-  for (uint32_t i = 0; i < o.receivers; ++i) {
-    receivers.push_back(std::make_unique<SoftReceiver>(&bunnies));
-    listeners.push_back(receivers.back().get());
-  }
+  auto [receivers, listeners] = MakeReceiverSet<SoftReceiver>(o.receivers, nullptr, &bunnies);
   ClientConfig host_config;
   host_config.publish_rate_hz = 120;
   LoopbackRoom world(config, "softbody", o.receivers + 1, host_config, listeners);

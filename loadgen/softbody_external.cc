@@ -36,13 +36,9 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
   const double dt = 1.0 / 60.0;  // PhysicsConfig::fixed_dt, the relay's default
   RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> bunny_index;
-  std::vector<std::unique_ptr<ExternalSoftReceiver>> receivers;
   RefusalWatch host_watch;
-  std::vector<ClientListener*> listeners = {&host_watch};  // the host
-  for (uint32_t i = 0; i < o.receivers; ++i) {
-    receivers.push_back(std::make_unique<ExternalSoftReceiver>(&bunny_index));
-    listeners.push_back(receivers.back().get());
-  }
+  auto [receivers, listeners] =
+      MakeReceiverSet<ExternalSoftReceiver>(o.receivers, &host_watch, &bunny_index);
   ClientConfig cc;
   cc.handshake_timeout_s = 10;
   ClientConfig host_config = cc;

@@ -97,12 +97,12 @@ ChartSet Charts(const SoftBodyOptions&, const std::vector<SoftBodyResult>& resul
            {.stem = prefix + "_steptime", .body = st.str()}}};
 }
 
-class SoftBodyScenario final : public Scenario {
+class SoftBodyScenario final
+    : public MeasuringScenario<SoftBodyOptions, std::vector<SoftBodyResult>> {
  public:
   SoftBodyScenario()
-      : Scenario("softbody", "PhyS soft bodies: egress vs the paper, step time, error", "softbody") {
-    SetProgressFlag(&o_.progress);
-  }
+      : MeasuringScenario("softbody", "PhyS soft bodies: egress vs the paper, step time, error",
+                          {Json, FillTable, Charts}, "softbody") {}
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--bunnies", bunnies_, "Bunny counts (comma separated)");
@@ -132,17 +132,13 @@ class SoftBodyScenario final : public Scenario {
     return ValidateExternalRelay(o_.external);
   }
 
-  std::optional<Report> Run() override {
-    auto results = RunSoftBody(o_);
-    const bool ok =
-        std::all_of(results.begin(), results.end(), [](const auto& r) { return r.relay_ok; });
-    Report report = MakeReport(o_, std::move(results), Json, FillTable, Charts);
-    report.ok = ok;
-    return report;
+  std::optional<std::vector<SoftBodyResult>> Measure() override { return RunSoftBody(o_); }
+
+  bool Succeeded(const std::vector<SoftBodyResult>& results) const override {
+    return AllRelayRunsOk(results);
   }
 
  private:
-  SoftBodyOptions o_;
   std::string bunnies_ = "1,3";
 };
 
