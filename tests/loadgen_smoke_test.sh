@@ -9,7 +9,15 @@ lg="$1"
 relay_bin="${2:-}"
 source "$(dirname "$0")/lib.sh"  # $work, relay_pid, stop_on_exit, start_relay
 cd "$work"
-fail() { echo "FAIL: $*"; exit 1; }
+# On failure, the tail of each external relay's log (it names a relay's own error or abort).
+fail() {
+  echo "FAIL: $*"
+  local log
+  for log in "$work"/relay*.log; do
+    [ -f "$log" ] && { echo "--- last lines of $(basename "$log")"; tail -n 30 "$log"; }
+  done
+  exit 1
+}
 num() { jq -r "$1" "$2"; }
 le() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a <= b) }'; }
 # near_socket WHAT RELAY SOCKET HIGH [PLUS]: an external relay's /metrics egress RELAY lies within
