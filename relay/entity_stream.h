@@ -20,8 +20,6 @@ namespace edgephys {
 
 struct ReplicationConfig;
 
-using EntityStream = StateStream;
-
 class ReplicationPlugin {
  public:
   virtual ~ReplicationPlugin() = default;
@@ -30,7 +28,7 @@ class ReplicationPlugin {
   // a format it does not decode unless the client was given a matching decoder,
   // client/state_decoder_plugin.h).
   virtual uint8_t state_format() const = 0;
-  virtual std::unique_ptr<EntityStream> NewStream(const ReplicationConfig& config) const = 0;
+  virtual std::unique_ptr<StateStream> NewStream(const ReplicationConfig& config) const = 0;
 };
 
 }  // namespace edgephys

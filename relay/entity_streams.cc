@@ -6,7 +6,7 @@
 
 namespace edgephys {
 
-std::unique_ptr<EntityStream> NewEntityStream(const ReplicationConfig& config) {
+std::unique_ptr<StateStream> NewEntityStream(const ReplicationConfig& config) {
   if (config.plugin != nullptr) return config.plugin->NewStream(config);
   auto params = MakeQuantizationParams(QuantizationOf(config));
   if (!params.ok()) params = MakeQuantizationParams(QuantizationConfig{});

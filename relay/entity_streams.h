@@ -19,7 +19,7 @@ struct ReplicationConfig;
 // The stream a receiver in a room with `config` gets: the plug-in's if it has one, else the
 // one of StateFormatOf(config). A quantisation MakeQuantizationParams refuses (the relay's flags
 // and the admin API refuse them first) is replaced by the default one.
-std::unique_ptr<EntityStream> NewEntityStream(const ReplicationConfig& config);
+std::unique_ptr<StateStream> NewEntityStream(const ReplicationConfig& config);
 // The format id rooms with `config` send and announce in Joined.
 uint8_t StateFormatOf(const ReplicationConfig& config);
 

@@ -188,7 +188,7 @@ class ClientReplicator {
   ReplicationConfig config_;
   std::vector<uint8_t> payload_;
   // The receiver's rigid-body format (relay/entity_streams.h: format 9, 2 or a plug-in's).
-  std::unique_ptr<EntityStream> stream_;
+  std::unique_ptr<StateStream> stream_;
   std::vector<View> views_;            // by entity slot: walked densely, no lookups
   FlatIdMap<uint32_t> view_slot_of_;   // entity id -> slot of its live view (Forget)
   size_t live_views_ = 0;

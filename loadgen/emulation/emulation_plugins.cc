@@ -24,7 +24,7 @@ float AngleDeg(const Quatf& a, const Quatf& b) {
 }
 
 // Format 1: exact floats, every version until acknowledged (ReplicationTracker).
-class FloatStream final : public EntityStream {
+class FloatStream final : public StateStream {
  public:
   StreamNeed Want(const StreamEntity& e, double now, double resend_after_s, uint8_t*) override {
     return tracker_.NeedsSend(e.id, e.version, now, resend_after_s) ? StreamNeed::kSend
@@ -54,7 +54,7 @@ class FloatStream final : public EntityStream {
 };
 
 // Format 3: every due entity, changed or not (the fixed rate decides); no acknowledgements.
-class PhotonStream final : public EntityStream {
+class PhotonStream final : public StateStream {
  public:
   StreamNeed Want(const StreamEntity&, double, double, uint8_t*) override {
     return StreamNeed::kSend;
@@ -73,7 +73,7 @@ class PhotonStream final : public EntityStream {
 
 // Format 4: the fields that moved beyond the thresholds since the last SENT state (the paper's
 // significance test; nothing is acknowledged).
-class PaperStream final : public EntityStream {
+class PaperStream final : public StateStream {
  public:
   explicit PaperStream(const ReplicationConfig& config)
       : position_threshold_m_(config.position_threshold_m),
@@ -122,7 +122,7 @@ class EmulationPlugin final : public ReplicationPlugin {
       default: return static_cast<uint8_t>(StateFormat::kFloat);
     }
   }
-  std::unique_ptr<EntityStream> NewStream(const ReplicationConfig& config) const override {
+  std::unique_ptr<StateStream> NewStream(const ReplicationConfig& config) const override {
     switch (mode_) {
       case ReplicationMode::kPhoton: return std::make_unique<PhotonStream>();
       case ReplicationMode::kPaper: return std::make_unique<PaperStream>(config);
