@@ -196,6 +196,10 @@ void Session::Replicate(const ReplicationFrame& frame, double now, RelayCounters
 
 void Session::FlushReplication() {
   buffering_ = false;
+  if (due_at_flush_) {
+    due_at_flush_ = false;
+    host_->OnServiceSoon(*this);
+  }
   for (size_t i = 0; i < outbox_size_; ++i) host_->Transmit(endpoint_, outbox_[i]);
   outbox_size_ = 0;
 }

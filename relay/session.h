@@ -40,7 +40,8 @@ class SessionHost {
   // Sends one datagram on the relay's socket (counted there).
   virtual void Transmit(const Endpoint& to, std::span<const uint8_t> datagram) = 0;
   // `s` has something to send or a timer to rework: service it at the next sessions pass.
-  // Called once each time the session goes from waiting on a timer to due.
+  // Called once each time the session goes from waiting on a timer to due, always on the
+  // relay thread (a session made due in a parallel room tick reports it at its flush).
   virtual void OnServiceSoon(Session& s) = 0;
 };
 
@@ -141,6 +142,12 @@ class Session final : public ConnectionHandler,
   void ServiceSoon() {
     if (service_at_ == -std::numeric_limits<double>::infinity()) return;  // already due
     service_at_ = -std::numeric_limits<double>::infinity();
+    // In a buffered (parallel) Replicate this runs on a pool thread beside other rooms' ticks:
+    // the relay's list is told at FlushReplication, which runs on the relay thread.
+    if (buffering_) {
+      due_at_flush_ = true;
+      return;
+    }
     host_->OnServiceSoon(*this);
   }
   // Reassembly bytes of this connection last added to RelayCounters::reassembly_held_bytes
@@ -175,6 +182,7 @@ class Session final : public ConnectionHandler,
   uint64_t close_acked_end_ = 0;
   double close_deadline_ = 0;
   bool buffering_ = false;
+  bool due_at_flush_ = false;  // made due in a buffered Replicate: tell the host at the flush
   std::vector<std::vector<uint8_t>> outbox_;  // capacity reused between ticks
   size_t outbox_size_ = 0;
   double now_;
