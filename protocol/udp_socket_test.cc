@@ -7,6 +7,7 @@
 
 #include <array>
 #include <chrono>
+#include <ostream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -162,6 +163,7 @@ struct Family {
   const char* loopback;
   bool optional;
 };
+void PrintTo(const Family& family, std::ostream* os) { *os << family.name; }
 
 class UdpSocketFamily : public ::testing::TestWithParam<Family> {
  protected:

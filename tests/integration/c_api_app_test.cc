@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <ostream>
 #include <utility>
 #include <string>
 #include <vector>
@@ -110,6 +111,7 @@ struct LoneDisconnect {
   const char* reason_name;
   const char* detail;  // nullptr: no text given, the detail is the reason's meaning
 };
+void PrintTo(const LoneDisconnect& k, std::ostream* os) { *os << k.name; }
 
 class CApiLoneDisconnect : public ::testing::TestWithParam<LoneDisconnect> {};
 
