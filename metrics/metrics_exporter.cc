@@ -113,12 +113,12 @@ Result<std::unique_ptr<MetricsExporter>> MetricsExporter::Start(const std::strin
   auto gate = std::make_unique<http::HttpGate>(std::move(options));
   std::weak_ptr<prometheus::Collectable> weak = collectable;
   gate->routes().Get("/metrics", [weak](const httplib::Request&, httplib::Response& res) {
-    auto source = weak.lock();
-    if (!source) {
+    auto live = weak.lock();
+    if (!live) {
       res.status = 503;
       return;
     }
-    res.set_content(prometheus::TextSerializer().Serialize(source->Collect()),
+    res.set_content(prometheus::TextSerializer().Serialize(live->Collect()),
                     "text/plain; version=0.0.4; charset=utf-8");
   });
   if (Status st = gate->Start(); !st.ok()) {

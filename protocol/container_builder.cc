@@ -126,4 +126,12 @@ EntitySpec DynamicSphere(uint32_t id, Vec3f position, float radius, float mass) 
   return OneCollider(id, position, Quatf{}, SphereCollider(radius), mass);
 }
 
+EntitySpec TriggerHand(uint32_t id, Vec3f position, float radius) {
+  ColliderSpec trigger = SphereCollider(radius);
+  trigger.is_trigger = true;
+  EntitySpec e = OneCollider(id, position, Quatf{}, std::move(trigger), 0.0f);
+  e.rigid_body->kinematic = true;
+  return e;
+}
+
 }  // namespace edgephys

@@ -34,5 +34,8 @@ ColliderSpec SphereCollider(float radius);
 EntitySpec StaticBox(uint32_t id, Vec3f position, Vec3f half_extents, Quatf rotation = {});
 EntitySpec DynamicBox(uint32_t id, Vec3f position, Vec3f half_extents, float mass);
 EntitySpec DynamicSphere(uint32_t id, Vec3f position, float radius, float mass);
+// A hand's grab zone: a kinematic, massless body whose one collider is a trigger sphere of
+// `radius` (flags and owner are the caller's to set).
+EntitySpec TriggerHand(uint32_t id, Vec3f position, float radius);
 
 }  // namespace edgephys

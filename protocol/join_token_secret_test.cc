@@ -174,7 +174,9 @@ TEST(JoinTokenSecret, RandomInputsAreRefusedWithANamedCauseNeverACrash) {
         << cause;
     // The split that an SDK does never crashes either, and never yields a verified token.
     auto split = SplitClientToken(bytes);
-    if (split.ok()) EXPECT_FALSE(VerifyJoinToken(split->relay_token, kSecret, 1'000).ok());
+    if (split.ok()) {
+      EXPECT_FALSE(VerifyJoinToken(split->relay_token, kSecret, 1'000).ok());
+    }
   }
 }
 

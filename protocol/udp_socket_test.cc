@@ -7,6 +7,8 @@
 
 #include <array>
 #include <chrono>
+#include <ostream>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -47,13 +49,6 @@ void RoundTrip(const char* loopback) {
   ASSERT_EQ(ReceiveWithin(**a, &from, buffer), pong.size());
   EXPECT_EQ(from, (*b)->LocalEndpoint());
   EXPECT_EQ(buffer[0], 9);
-}
-
-TEST(UdpSocketTest, LoopbackRoundTripIPv4) { RoundTrip("127.0.0.1"); }
-
-TEST(UdpSocketTest, LoopbackRoundTripIPv6) {
-  if (!UdpSocket::Open(At("::1", 0)).ok()) GTEST_SKIP() << "IPv6 loopback unavailable";
-  RoundTrip("::1");
 }
 
 TEST(UdpSocketTest, NothingPendingReturnsZeroWithoutBlocking) {
@@ -161,12 +156,34 @@ void BatchRoundTrip(const char* loopback) {
   EXPECT_EQ((*r)->ReceiveBatch(slots), 0u);  // nothing left, and no blocking
 }
 
-TEST(UdpSocketTest, BatchSendAndReceiveIPv4) { BatchRoundTrip("127.0.0.1"); }
+// The round trips over each address family's loopback; IPv6 is skipped on a machine without
+// it, IPv4 never.
+struct Family {
+  const char* name;
+  const char* loopback;
+  bool optional;
+};
+void PrintTo(const Family& family, std::ostream* os) { *os << family.name; }
 
-TEST(UdpSocketTest, BatchSendAndReceiveIPv6) {
-  if (!UdpSocket::Open(At("::1", 0)).ok()) GTEST_SKIP() << "IPv6 loopback unavailable";
-  BatchRoundTrip("::1");
-}
+class UdpSocketFamily : public ::testing::TestWithParam<Family> {
+ protected:
+  void SetUp() override {
+    if (GetParam().optional && !UdpSocket::Open(At(GetParam().loopback, 0)).ok()) {
+      GTEST_SKIP() << GetParam().name << " loopback unavailable";
+    }
+  }
+};
+
+TEST_P(UdpSocketFamily, LoopbackRoundTrip) { RoundTrip(GetParam().loopback); }
+
+TEST_P(UdpSocketFamily, BatchSendAndReceive) { BatchRoundTrip(GetParam().loopback); }
+
+INSTANTIATE_TEST_SUITE_P(Loopback, UdpSocketFamily,
+                         ::testing::Values(Family{"IPv4", "127.0.0.1", false},
+                                           Family{"IPv6", "::1", true}),
+                         [](const ::testing::TestParamInfo<Family>& param_info) {
+                           return std::string(param_info.param.name);
+                         });
 
 TEST(UdpSocketTest, BatchCountsInvalidDatagramsAsRefusedAndSendsTheRest) {
   auto a = UdpSocket::Open(At("127.0.0.1", 0));

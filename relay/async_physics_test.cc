@@ -208,11 +208,7 @@ TEST(AsyncPhysics, AddAcceptsAndRefusesExactlyAsTheWorld) {
   EntitySpec to_node = dyn(7);
   to_node.joints.push_back({.connected_entity = 3});
   cases.push_back({"joint to a node", to_node, PhysicsRole::kSimulated});
-  EntitySpec trigger_hand{.id = 8};
-  trigger_hand.rigid_body = RigidBodySpec{.mass = 0, .kinematic = true};
-  ColliderSpec trigger = SphereCollider(0.2f);
-  trigger.is_trigger = true;
-  trigger_hand.colliders.push_back(trigger);
+  EntitySpec trigger_hand = TriggerHand(8, {}, 0.2f);
   cases.push_back({"trigger hand", trigger_hand, PhysicsRole::kMirrored});
   EntitySpec to_trigger = dyn(9);
   to_trigger.joints.push_back({.connected_entity = 8});
@@ -276,11 +272,7 @@ TEST(AsyncPhysics, SameOutputAsSynchronousForTheSameCommands) {
     ASSERT_TRUE(AddSpec(l, ball, PhysicsRole::kSimulated).ok());
     EntitySpec box = DynamicBox(3, {2, 1, 0}, {0.1f, 0.1f, 0.1f}, 1);
     ASSERT_TRUE(AddSpec(l, box, PhysicsRole::kSimulated).ok());
-    EntitySpec hand{.id = 4, .position = {-1, 0.1f, 0}};
-    hand.rigid_body = RigidBodySpec{.mass = 0, .kinematic = true};
-    ColliderSpec trigger = SphereCollider(0.3f);
-    trigger.is_trigger = true;
-    hand.colliders.push_back(trigger);
+    EntitySpec hand = TriggerHand(4, {-1, 0.1f, 0}, 0.3f);
     ASSERT_TRUE(AddSpec(l, hand, PhysicsRole::kMirrored).ok());
   });
   // Synchronous until the first step has run, as a relay's new room is.

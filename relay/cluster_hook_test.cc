@@ -23,6 +23,7 @@
 #include "protocol/redirect.h"
 #include "protocol/udp_socket.h"
 #include "relay/relay.h"
+#include "relay/testing/cluster_world.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys {
@@ -46,70 +47,30 @@ struct CountingListener : ClientListener {
 };
 
 // N relays (each its own UDP socket and Relay) and clients, pumped from the test thread.
-class ClusterWorld {
+class ClusterWorld : public testing::Pumped<ClusterWorld> {
  public:
-  ClusterWorld(uint16_t redis_port, int relays) : start_(std::chrono::steady_clock::now()) {
+  ClusterWorld(uint16_t redis_port, int relays) {
     for (int i = 0; i < relays; ++i) AddRelay(redis_port, "r" + std::to_string(i));
   }
 
   void AddRelay(uint16_t redis_port, const std::string& id) {
-    auto node = std::make_unique<Node>();
-    node->socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
-    RelayConfig config;
-    config.secret = kSecret;
-    config.room_defaults.tick_rate_hz = 30;
-    config.connection.timeout_s = 1.0;
-    node->relay = std::make_unique<Relay>(config, node->socket.get(), &node->counters);
-    ClusterOptions o;
-    o.directory.redis_port = redis_port;
-    o.directory.relay_id = id;
-    o.directory.public_address = FormatEndpoint(node->socket->LocalEndpoint());
-    o.directory.heartbeat_s = 0.05;
-    o.directory.ttl_s = 0.4;
-    o.directory.refresh_s = 0.05;
-    o.directory.redis_timeout_s = 0.3;
-    o.snapshot_interval_s = 0.1;
-    EXPECT_TRUE(node->relay->EnableCluster(o).ok());
-    nodes_.push_back(std::move(node));
+    const int i = nodes_.AddNode();
+    nodes_.StartRelay(i, testing::ClusterNodes::Config(kSecret), redis_port, id, 0.1);
   }
 
-  double Now() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
+  double Now() const { return clock_.Now(); }
 
   Client& AddClient(int via, const std::vector<uint8_t>& token, CountingListener* listener) {
-    client_sockets_.push_back(std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"))));
-    ClientConfig cc;
-    cc.resume = true;
-    cc.resume_attempt_s = 0.5;
-    for (auto& n : nodes_) cc.relays.push_back(ToRelayAddress(n->socket->LocalEndpoint()));
-    clients_.push_back(std::make_unique<Client>(cc, client_sockets_.back().get(), listener));
-    (void)clients_.back()->Connect(ToRelayAddress(endpoint(via)), token, Now());
-    return *clients_.back();
+    return clients_.Add(nodes_.ResumingClientConfig(), listener, ToRelayAddress(endpoint(via)),
+                        token, Now());
   }
 
   void Step() {
     double now = Now();
-    for (auto& n : nodes_) {
-      if (n->relay) n->relay->Update(now, UnixNow());
-    }
-    for (auto& c : clients_) {
-      c->Update(now);
-      // The game: join once connected (the SDK rejoins by itself after a failover).
-      if (c->state() == ClientState::kConnected && !c->joined() && !c->resuming() &&
-          joins_.insert(c.get()).second) {
-        (void)c->JoinRoom(rooms_[c.get()]);
-      }
-    }
+    nodes_.Update(now);
+    // The game: join once connected (the SDK rejoins by itself after a failover).
+    clients_.Update(now, [this](Client* c) { return rooms_[c]; });
     std::this_thread::sleep_for(std::chrono::microseconds(500));
-  }
-  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
-    double deadline = Now() + timeout_s;
-    while (Now() < deadline) {
-      Step();
-      if (done()) return true;
-    }
-    return done();
   }
   void set_room(Client& c, const std::string& room) { rooms_[&c] = room; }
 
@@ -120,7 +81,7 @@ class ClusterWorld {
     std::vector<Client*> clients;
     for (size_t i = 0; i < listeners->size(); ++i) {
       const std::string room = prefix + std::to_string(i % rooms);
-      Client& c = AddClient(static_cast<int>(i % nodes_.size()),
+      Client& c = AddClient(static_cast<int>(i % size()),
                             Token(room, first_player + static_cast<uint32_t>(i)), &(*listeners)[i]);
       set_room(c, room);
       clients.push_back(&c);
@@ -129,11 +90,11 @@ class ClusterWorld {
   }
 
   // Destroys relay `i` (its UDP port goes silent; clean directory stop).
-  void Kill(int i) { nodes_[i]->relay.reset(); }
-  Relay* relay(int i) { return nodes_[i]->relay.get(); }
-  const RelayCounters& counters(int i) const { return nodes_[i]->counters; }
-  Endpoint endpoint(int i) const { return nodes_[i]->socket->LocalEndpoint(); }
-  int size() const { return static_cast<int>(nodes_.size()); }
+  void Kill(int i) { nodes_.Kill(i); }
+  Relay* relay(int i) { return nodes_.relay(i); }
+  const RelayCounters& counters(int i) const { return nodes_.counters(i); }
+  Endpoint endpoint(int i) const { return nodes_.endpoint(i); }
+  int size() const { return nodes_.size(); }
   // Index of the live relay holding `room`, -1 if none.
   int Holder(const std::string& room) {
     for (int i = 0; i < size(); ++i) {
@@ -143,38 +104,60 @@ class ClusterWorld {
   }
 
  private:
-  struct Node {
-    RelayCounters counters;
-    std::unique_ptr<UdpSocket> socket;
-    std::unique_ptr<Relay> relay;
-  };
-  std::chrono::steady_clock::time_point start_;
-  std::vector<std::unique_ptr<Node>> nodes_;
-  std::vector<std::unique_ptr<UdpSocket>> client_sockets_;
-  std::vector<std::unique_ptr<Client>> clients_;
+  testing::WallClock clock_;
+  testing::ClusterNodes nodes_;
+  testing::AutoJoiningClients clients_;
   std::map<Client*, std::string> rooms_;
-  std::set<Client*> joins_;
 };
-
-// a and b join `room`; a spawns a persistent entity and b sees it: its id in *tool. Fails the
-// test (fatally) otherwise.
-void JoinPairAndSpawnPersistent(ClusterWorld& world, Client& a, Client& b, const char* room,
-                                uint32_t* tool) {
-  world.set_room(a, room);
-  world.set_room(b, room);
-  ASSERT_TRUE(world.RunUntil([&] { return a.joined() && b.joined(); }, 15.0));
-  SpawnDesc d;
-  d.flags = kPersistent;
-  auto spawned = a.Spawn(d);
-  ASSERT_TRUE(spawned.ok());
-  *tool = *spawned;
-  ASSERT_TRUE(world.RunUntil([&] { return b.FindEntity(*tool) != nullptr; }, 5.0));
-}
 
 class ClusterTest : public ::testing::Test {
  protected:
   void SetUp() override { ASSERT_TRUE(redis_.Start()) << "redis-server did not start"; }
+
+  // The start of the tests of a room that outlives its relay: three relays register; a (player
+  // `first`, through relay 0) and b (`first + 1`, through relay 1) join `room`; a spawns a
+  // persistent entity (tool_) and b sees it. Fails the test (fatally) at the first step that
+  // does not finish.
+  void StartPairWithTool(const char* room, uint32_t first) {
+    world_ = std::make_unique<ClusterWorld>(redis_.port(), 3);
+    world_->RunUntil([] { return false; }, 0.3);
+    a_ = &world_->AddClient(0, Token(room, first), &la_);
+    b_ = &world_->AddClient(1, Token(room, first + 1), &lb_);
+    world_->set_room(*a_, room);
+    world_->set_room(*b_, room);
+    ASSERT_TRUE(world_->RunUntil([&] { return a_->joined() && b_->joined(); }, 15.0));
+    SpawnDesc d;
+    d.flags = kPersistent;
+    auto spawned = a_->Spawn(d);
+    ASSERT_TRUE(spawned.ok());
+    tool_ = *spawned;
+    ASSERT_TRUE(world_->RunUntil([&] { return b_->FindEntity(tool_) != nullptr; }, 5.0));
+  }
+
+  // Lets a snapshot be written (a snapshot interval or more), kills the relay holding `room`,
+  // and pumps (5 s at most) until another relay holds the room and `restored` (if given) is
+  // true of its host there. Fails the test (fatally) at the first step that does not finish.
+  void KillTheRoomsRelay(const std::string& room,
+                         const std::function<bool(const RoomHost&)>& restored = nullptr) {
+    ClusterWorld& world = *world_;
+    world.RunUntil([] { return false; }, 0.4);
+    const int victim = world.Holder(room);
+    ASSERT_GE(victim, 0);
+    world.Kill(victim);
+    ASSERT_TRUE(world.RunUntil([&] {
+      const int h = world.Holder(room);
+      return h >= 0 && world.relay(h)->rooms().count(room) != 0 &&
+             (!restored || restored(*world.relay(h)->rooms().at(room)));
+    }, 5.0));
+  }
+
   cluster::testing::RedisServer redis_;
+  // StartPairWithTool's (the listeners outlive the world's clients).
+  CountingListener la_, lb_;
+  std::unique_ptr<ClusterWorld> world_;
+  Client* a_ = nullptr;
+  Client* b_ = nullptr;
+  uint32_t tool_ = 0;
 };
 
 TEST_F(ClusterTest, PlayersJoiningThroughAnyRelayLandOnTheirRoomsRelay) {
@@ -329,13 +312,10 @@ TEST_F(ClusterTest, ADeadRelaysRoomsComeBackWithTheirEntitiesAndSessionsResume) 
 // them, the relay that claims the room restores them (values, versions, writers, authority),
 // the resumed members are told them again, and compare-and-set goes on from the same versions.
 TEST_F(ClusterTest, PropertiesComeBackWithTheRoomAfterItsRelayDies) {
-  ClusterWorld world(redis_.port(), 3);
-  world.RunUntil([] { return false; }, 0.3);
-  CountingListener la, lb;
-  Client& a = world.AddClient(0, Token("pr", 301), &la);
-  Client& b = world.AddClient(1, Token("pr", 302), &lb);
-  uint32_t tool = 0;
-  ASSERT_NO_FATAL_FAILURE(JoinPairAndSpawnPersistent(world, a, b, "pr", &tool));
+  ASSERT_NO_FATAL_FAILURE(StartPairWithTool("pr", 301));
+  ClusterWorld& world = *world_;
+  Client &a = *a_, &b = *b_;
+  const uint32_t tool = tool_;
   ASSERT_TRUE(a.CompareAndSetProperty(0, "step", PropertyValue::Int64(1), 0,
                                       PropertyAuthority::kAnyone).ok());
   ASSERT_TRUE(a.SetProperty(tool, "tip", PropertyValue::Vec3({1, 2, 3})).ok());
@@ -348,15 +328,8 @@ TEST_F(ClusterTest, PropertiesComeBackWithTheRoomAfterItsRelayDies) {
   ASSERT_TRUE(b.CompareAndSetProperty(0, "step", PropertyValue::Int64(2), 1).ok());
   ASSERT_TRUE(world.RunUntil([&] { return a.FindProperty(0, "step")->version == 2; }, 5.0));
   const std::map<PropertyKey, PropertyRecord> before = a.properties();
-  world.RunUntil([] { return false; }, 0.4);  // a snapshot interval or more
-  const int victim = world.Holder("pr");
-  ASSERT_GE(victim, 0);
-  world.Kill(victim);
-  ASSERT_TRUE(world.RunUntil([&] {
-    const int h = world.Holder("pr");
-    return h >= 0 && world.relay(h)->rooms().count("pr") != 0 &&
-           world.relay(h)->rooms().at("pr")->properties().count() == 3;
-  }, 5.0));
+  ASSERT_NO_FATAL_FAILURE(KillTheRoomsRelay(
+      "pr", [](const RoomHost& restored) { return restored.properties().count() == 3; }));
   const RoomHost& host = *world.relay(world.Holder("pr"))->rooms().at("pr");
   for (const auto& [k, want] : before) {
     const StoredProperty* got = host.properties().Find(k.first, k.second);
@@ -394,13 +367,10 @@ TEST_F(ClusterTest, PropertiesComeBackWithTheRoomAfterItsRelayDies) {
 // authority sequence, former owner, takeover setting and leave choice, so the former owner's
 // late states are still dropped and counted as stale, and the owner's are taken.
 TEST_F(ClusterTest, OwnershipComesBackWithTheRoomAndStaleStatesStayStale) {
-  ClusterWorld world(redis_.port(), 3);
-  world.RunUntil([] { return false; }, 0.3);
-  CountingListener la, lb;
-  Client& a = world.AddClient(0, Token("ow", 311), &la);
-  Client& b = world.AddClient(1, Token("ow", 312), &lb);
-  uint32_t tool = 0;
-  ASSERT_NO_FATAL_FAILURE(JoinPairAndSpawnPersistent(world, a, b, "ow", &tool));
+  ASSERT_NO_FATAL_FAILURE(StartPairWithTool("ow", 311));
+  ClusterWorld& world = *world_;
+  Client &a = *a_, &b = *b_;
+  const uint32_t tool = tool_;
   ASSERT_TRUE(a.HandOver(tool, 312).ok());
   ASSERT_TRUE(world.RunUntil([&] { return b.Owns(tool); }, 5.0));
   ASSERT_TRUE(b.SetTakeoverAllowed(tool, true).ok());
@@ -410,14 +380,7 @@ TEST_F(ClusterTest, OwnershipComesBackWithTheRoomAndStaleStatesStayStale) {
     const auto it = entities.find(tool);
     return it != entities.end() && it->second.takeover_allowed && it->second.on_owner_leave == 2;
   }, 5.0));
-  world.RunUntil([] { return false; }, 0.4);  // a snapshot interval or more
-  const int victim = world.Holder("ow");
-  ASSERT_GE(victim, 0);
-  world.Kill(victim);
-  ASSERT_TRUE(world.RunUntil([&] {
-    const int h = world.Holder("ow");
-    return h >= 0 && world.relay(h)->rooms().count("ow") != 0;
-  }, 5.0));
+  ASSERT_NO_FATAL_FAILURE(KillTheRoomsRelay("ow"));
   const RoomHost& host = *world.relay(world.Holder("ow"))->rooms().at("ow");
   const Entity* e = host.room().entities().count(tool) ? &host.room().entities().at(tool) : nullptr;
   ASSERT_NE(e, nullptr);

@@ -16,6 +16,7 @@
 #include "protocol/udp_socket.h"
 #include "relay/cluster_hook.h"
 #include "relay/relay.h"
+#include "relay/testing/cluster_world.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys {
@@ -39,92 +40,44 @@ struct LossListener : ClientListener {
   }
 };
 
-class RespawnWorld {
+class RespawnWorld : public testing::Pumped<RespawnWorld> {
  public:
   // `relays` relay addresses (sockets), started one by one (StartRelay); clients know them all.
   RespawnWorld(uint16_t redis_port, int relays) : redis_port_(redis_port) {
-    for (int i = 0; i < relays; ++i) {
-      nodes_.push_back(std::make_unique<Node>());
-      nodes_.back()->socket = std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0")));
-    }
+    for (int i = 0; i < relays; ++i) nodes_.AddNode();
   }
 
   // Starts relay `i`, its rooms allowing `max_entities_per_player` per player, writing
   // snapshots every `snapshot_s`.
   void StartRelay(int i, uint32_t max_entities_per_player, double snapshot_s = 0.1) {
-    Node* node = nodes_[i].get();
-    RelayConfig config;
-    config.secret = kSecret;
-    config.room_defaults.tick_rate_hz = 30;
+    RelayConfig config = testing::ClusterNodes::Config(kSecret);
     config.room_defaults.max_entities_per_player = max_entities_per_player;
-    config.connection.timeout_s = 1.0;
-    node->relay = std::make_unique<Relay>(config, node->socket.get(), &node->counters);
-    ClusterOptions o;
-    o.directory.redis_port = redis_port_;
-    o.directory.relay_id = "relay" + std::to_string(i);
-    o.directory.public_address = FormatEndpoint(node->socket->LocalEndpoint());
-    o.directory.heartbeat_s = 0.05;
-    o.directory.ttl_s = 0.4;
-    o.directory.refresh_s = 0.05;
-    o.directory.redis_timeout_s = 0.3;
-    o.snapshot_interval_s = snapshot_s;
-    EXPECT_TRUE(node->relay->EnableCluster(o).ok());
+    nodes_.StartRelay(i, config, redis_port_, "relay" + std::to_string(i), snapshot_s);
   }
 
   Client& AddClient(uint32_t player, LossListener* listener) {
-    sockets_.push_back(std::move(*UdpSocket::Open(*ParseEndpoint("127.0.0.1:0"))));
-    ClientConfig cc;
-    cc.resume = true;
-    cc.resume_attempt_s = 0.5;
-    for (auto& n : nodes_) cc.relays.push_back(ToRelayAddress(n->socket->LocalEndpoint()));
-    clients_.push_back(std::make_unique<Client>(cc, sockets_.back().get(), listener));
     auto token = testing::MintToken(kRoom, player, 3600, kDefaultPermissions, kSecret);
-    (void)clients_.back()->Connect(ToRelayAddress(nodes_[0]->socket->LocalEndpoint()), token, Now());
-    return *clients_.back();
+    return clients_.Add(nodes_.ResumingClientConfig(), listener,
+                        ToRelayAddress(nodes_.endpoint(0)), token, Now());
   }
 
-  double Now() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
+  double Now() const { return clock_.Now(); }
   void Step() {
     const double now = Now();
-    for (auto& n : nodes_) {
-      if (n->relay) n->relay->Update(now, testing::UnixNow());
-    }
-    for (auto& c : clients_) {
-      c->Update(now);
-      if (c->state() == ClientState::kConnected && !c->joined() && !c->resuming() &&
-          joins_.insert(c.get()).second) {
-        (void)c->JoinRoom(kRoom);
-      }
-    }
+    nodes_.Update(now);
+    clients_.Update(now, [](Client*) { return std::string(kRoom); });
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
-  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
-    const double deadline = Now() + timeout_s;
-    while (Now() < deadline) {
-      Step();
-      if (done()) return true;
-    }
-    return done();
-  }
   // Destroys relay `i` at once: nothing more is read from its socket, no last snapshot.
-  void Kill(int i) { nodes_[i]->relay.reset(); }
-  Relay* relay(int i) { return nodes_[i]->relay.get(); }
-  const RelayCounters& counters(int i) const { return nodes_[i]->counters; }
+  void Kill(int i) { nodes_.Kill(i); }
+  Relay* relay(int i) { return nodes_.relay(i); }
+  const RelayCounters& counters(int i) const { return nodes_.counters(i); }
 
  private:
-  struct Node {
-    RelayCounters counters;
-    std::unique_ptr<UdpSocket> socket;
-    std::unique_ptr<Relay> relay;
-  };
   uint16_t redis_port_;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-  std::vector<std::unique_ptr<Node>> nodes_;
-  std::vector<std::unique_ptr<UdpSocket>> sockets_;
-  std::vector<std::unique_ptr<Client>> clients_;
-  std::set<Client*> joins_;
+  testing::WallClock clock_;
+  testing::ClusterNodes nodes_;
+  testing::AutoJoiningClients clients_;
 };
 
 Result<uint32_t> SpawnAt(Client& c, float x) {
@@ -243,9 +196,10 @@ TEST(ClusterRespawnNoSnapshotTest, AnotherIdBlockReportsEveryOwnedEntityLost) {
 INSTANTIATE_TEST_SUITE_P(Budgets, ClusterRespawnTest,
                          ::testing::Values(Case{1024, 0},  // both spawned again
                                            Case{3, 2}),    // the new relay refuses both
-                         [](const ::testing::TestParamInfo<Case>& info) {
-                           return std::string(info.param.expect_lost == 0 ? "TakenBack"
-                                                                          : "RefusedAndReported");
+                         [](const ::testing::TestParamInfo<Case>& param_info) {
+                           return std::string(param_info.param.expect_lost == 0
+                                                  ? "TakenBack"
+                                                  : "RefusedAndReported");
                          });
 
 }  // namespace

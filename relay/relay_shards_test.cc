@@ -25,27 +25,16 @@
 #include "protocol/packet.h"
 #include "protocol/udp_socket.h"
 #include "relay/spsc_ring.h"
+#include "tests/integration/harness.h"
 
 namespace edgephys {
 namespace {
 
 constexpr char kSecret[] = "shard-test-secret";
 
-uint64_t UnixNow() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
-
-std::vector<uint8_t> MintToken(const std::string& room, uint32_t player,
-                               uint32_t permissions = kDefaultPermissions) {
-  JoinToken t;
-  t.room = room;
-  t.player_id = player;
-  t.permissions = permissions;
-  t.expiry_unix_s = UnixNow() + 3600;
-  t.nonce = SecureRandom64();
-  return *SignJoinToken(t, kSecret);
+// A join token for `player` in `room`, valid for an hour, signed with the relay's secret.
+std::vector<uint8_t> MintToken(const std::string& room, uint32_t player) {
+  return testing::MintToken(room, player, 3600, kDefaultPermissions, kSecret);
 }
 
 Endpoint At(const std::string& address, uint16_t port) {
@@ -59,13 +48,13 @@ uint64_t Sum(const std::array<RelayCounters::Counter, static_cast<size_t>(DropRe
 }
 
 // A relay of `shards` shards on 127.0.0.1 and clients pumped from the test thread.
-class ShardedWorld {
+class ShardedWorld : public testing::LoopbackWorldBase, public testing::Pumped<ShardedWorld> {
  public:
   // `tweak` may adjust the relay configuration and shard options before the start.
   explicit ShardedWorld(
       size_t shards,
-      const std::function<void(RelayConfig&, RelayShardsOptions&)>& tweak = nullptr) {
-    socket_ = std::move(*UdpSocket::Open(At("127.0.0.1", 0)));
+      const std::function<void(RelayConfig&, RelayShardsOptions&)>& tweak = nullptr)
+      : LoopbackWorldBase(asio::ip::make_address("127.0.0.1")) {
     RelayConfig config;
     config.secret = kSecret;
     config.physics_threads = 1;
@@ -76,33 +65,19 @@ class ShardedWorld {
     auto started = RelayShards::Start(config, socket_.get(), &counters_, options);
     EXPECT_TRUE(started.ok());
     shards_ = std::move(*started);
-    start_ = std::chrono::steady_clock::now();
+    RestartClock();
   }
   ~ShardedWorld() { shards_->Stop(); }
 
-  double Now() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
   // A client bound to `address` (any 127.0.0.0/8 address is loopback on Linux).
   Client& AddClient(const std::vector<uint8_t>& token, const std::string& address = "127.0.0.1") {
-    auto socket = UdpSocket::Open(At(address, 0));
-    EXPECT_TRUE(socket.ok()) << address;
-    sockets_.push_back(std::move(*socket));
-    clients_.push_back(std::make_unique<Client>(ClientConfig{}, sockets_.back().get()));
-    (void)clients_.back()->Connect(ToRelayAddress(socket_->LocalEndpoint()), token, Now());
-    return *clients_.back();
+    return Connect(ClientConfig{}, nullptr, asio::ip::make_address(address), token);
   }
-  UdpSocket& client_socket(size_t i) { return *sockets_[i]; }
 
-  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
-    const double deadline = Now() + timeout_s;
-    while (Now() < deadline) {
-      for (auto& c : clients_) c->Update(Now());
-      if (done()) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    return done();
+  // The shards run on their own threads: a step updates the clients only.
+  void Step() {
+    UpdateClients(Now());
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
 
   // Shards (by index) that hold room `name`.
@@ -118,16 +93,9 @@ class ShardedWorld {
   }
 
   RelayShards& shards() { return *shards_; }
-  RelayCounters& counters() { return counters_; }
-  Endpoint relay_endpoint() const { return socket_->LocalEndpoint(); }
 
  private:
-  RelayCounters counters_;
-  std::unique_ptr<UdpSocket> socket_;
   std::unique_ptr<RelayShards> shards_;
-  std::vector<std::unique_ptr<UdpSocket>> sockets_;
-  std::vector<std::unique_ptr<Client>> clients_;
-  std::chrono::steady_clock::time_point start_;
 };
 
 // The first room name "<prefix><k>" that the shards route to `shard`.
@@ -196,6 +164,16 @@ void SendUnknownSessionData(const Endpoint& relay, size_t count, size_t shard, s
 uint64_t QueuedOrDropped(const RelayShards& shards, size_t shard) {
   const RelayShards::ShardStats st = shards.stats(shard);
   return st.datagrams_queued + st.queue_drops;
+}
+
+// While `blocker` holds shard 0: sends `count` datagrams of unknown sessions routed to shard 0
+// of `n` (SendUnknownSessionData) and pumps until `arrived()`, for at most 5 s. Fails fatally
+// at the first step that does not succeed.
+void FloodHeldShard(ShardedWorld& world, const ShardBlocker& blocker, size_t count, size_t n,
+                    const std::function<bool()>& arrived) {
+  ASSERT_TRUE(blocker.started());
+  ASSERT_NO_FATAL_FAILURE(SendUnknownSessionData(world.relay_endpoint(), count, 0, n));
+  ASSERT_TRUE(world.RunUntil(arrived, 5.0));
 }
 
 TEST(SpscRing, FillsDrainsAndRefusesWhenFull) {
@@ -624,9 +602,8 @@ TEST(RelayShards, FullRingDropsAndCountsWhileTheShardIsBusy) {
   constexpr size_t kSent = 20;
   {
     ShardBlocker blocker(shards, 0);
-    ASSERT_TRUE(blocker.started());
-    ASSERT_NO_FATAL_FAILURE(SendUnknownSessionData(world.relay_endpoint(), kSent, 0, 2));
-    ASSERT_TRUE(world.RunUntil([&] { return QueuedOrDropped(shards, 0) == kSent; }, 5.0));
+    ASSERT_NO_FATAL_FAILURE(FloodHeldShard(world, blocker, kSent, 2,
+                                           [&] { return QueuedOrDropped(shards, 0) == kSent; }));
     EXPECT_EQ(shards.stats(0).datagrams_queued, 4u);
     EXPECT_EQ(shards.stats(0).queue_drops, kSent - 4);
     EXPECT_EQ(world.counters().io_queue_drops.load(), kSent - 4);
@@ -647,9 +624,8 @@ TEST(RelayShards, StopHandlesEverythingQueued) {
   const uint64_t rejected_before = Sum(world.counters().packets_rejected);
   constexpr size_t kSent = 30;
   ShardBlocker blocker(shards, 0);
-  ASSERT_TRUE(blocker.started());
-  ASSERT_NO_FATAL_FAILURE(SendUnknownSessionData(world.relay_endpoint(), kSent, 0, 1));
-  ASSERT_TRUE(world.RunUntil([&] { return shards.stats(0).datagrams_queued == kSent; }, 5.0));
+  ASSERT_NO_FATAL_FAILURE(FloodHeldShard(world, blocker, kSent, 1,
+                                         [&] { return shards.stats(0).datagrams_queued == kSent; }));
   // Stop while the shard is still busy: it finds the whole batch queued when it stops.
   std::thread stopper([&] { shards.Stop(); });
   std::this_thread::sleep_for(std::chrono::milliseconds(100));

@@ -94,11 +94,7 @@ Throw CarryAndRelease(Path path, float window_s, unsigned seed, double release_t
                               {0.05f, 0.05f, 0.05f}, 1);
   box.flags = kInteractable;
   add(box, PhysicsRole::kSimulated);
-  EntitySpec hand{.id = kHand, .position = h0};
-  hand.rigid_body = RigidBodySpec{.mass = 0, .kinematic = true};
-  ColliderSpec trigger = SphereCollider(0.4f);
-  trigger.is_trigger = true;
-  hand.colliders.push_back(trigger);
+  EntitySpec hand = TriggerHand(kHand, h0, 0.4f);
   add(hand, PhysicsRole::kMirrored);
 
   std::mt19937 rng(seed);

@@ -309,6 +309,18 @@ TEST_F(CApiClient, SpawnRejectsEveryBadField) {
       c.index_count = count;
     }
   };
+  // `ok` with one collider `c`, the body `b`, one joint `j` and the soft body `s`.
+  auto full = [&ok](const edgephys_collider& c, const edgephys_rigid_body& b,
+                    const edgephys_joint& j, const edgephys_soft_body& s) {
+    edgephys_spawn_desc d = ok;
+    d.colliders = &c;
+    d.collider_count = 1;
+    d.rigid_body = &b;
+    d.joints = &j;
+    d.joint_count = 1;
+    d.soft_body = &s;
+    return d;
+  };
   struct Case {
     const char* what;
     std::function<void(edgephys_spawn_desc&, edgephys_collider&, edgephys_rigid_body&,
@@ -390,17 +402,11 @@ TEST_F(CApiClient, SpawnRejectsEveryBadField) {
       {"soft NaN stiffness", [](auto&, auto&, auto&, auto&, auto& s) { s.stiffness = kNaN; }},
   };
   for (const Case& k : cases) {
-    edgephys_spawn_desc d = ok;
     edgephys_collider c = box;
     edgephys_rigid_body b = body;
     edgephys_joint j = joint;
     edgephys_soft_body s = soft;
-    d.colliders = &c;
-    d.collider_count = 1;
-    d.rigid_body = &b;
-    d.joints = &j;
-    d.joint_count = 1;
-    d.soft_body = &s;
+    edgephys_spawn_desc d = full(c, b, j, s);
     k.mutate(d, c, b, j, s);
     id = 12345;
     EXPECT_EQ(edgephys_client_spawn(c_, &d, &id), EDGEPHYS_E_INVALID_ARGUMENT) << k.what;
@@ -408,13 +414,7 @@ TEST_F(CApiClient, SpawnRejectsEveryBadField) {
     EXPECT_EQ(id, 12345u) << k.what << ": out-param written on failure";
   }
   // The unmutated full description passes validation (and stops at "not joined").
-  edgephys_spawn_desc d = ok;
-  d.colliders = &box;
-  d.collider_count = 1;
-  d.rigid_body = &body;
-  d.joints = &joint;
-  d.joint_count = 1;
-  d.soft_body = &soft;
+  edgephys_spawn_desc d = full(box, body, joint, soft);
   EXPECT_STATUS(EDGEPHYS_E_NOT_CONNECTED, edgephys_client_spawn(c_, &d, &id));
 }
 

@@ -1,6 +1,7 @@
 // The HTTP front over a recording backend: the key, the body limit, JSON errors, routing and
 // parameter checks. The real relay behind it is tested in tests/admin/admin_api_test.sh.
 #include "relay/admin/admin_http.h"
+#include "relay/admin/testing/loopback_admin.h"
 
 #include <gtest/gtest.h>
 #include <httplib.h>
@@ -58,15 +59,11 @@ class AdminHttpTest : public ::testing::Test {
  protected:
   void SetUp() override {
     AdminHttpOptions options;
-    options.address = "127.0.0.1:0";
     options.key = "s3cret";
     options.max_body_bytes = 1024;
-    auto started = AdminHttpServer::Start(options, &backend_);
-    ASSERT_TRUE(started.ok()) << started.status().ToString();
-    server_ = std::move(*started);
-    auto colon = server_->address().rfind(':');
-    client_ = std::make_unique<httplib::Client>("127.0.0.1",
-                                                std::stoi(server_->address().substr(colon + 1)));
+    server_ = testing::StartLoopbackAdmin(options, &backend_);
+    ASSERT_NE(server_, nullptr);
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", testing::AdminPort(*server_));
     client_->set_connection_timeout(5);
     client_->set_read_timeout(5);
   }
@@ -171,12 +168,12 @@ TEST_F(AdminHttpTest, RoutesAndParameters) {
 // What `curl -X POST` sends: no body and no Content-Length; the key check and the handler
 // must see it (the body is optional), not "malformed HTTP request".
 TEST_F(AdminHttpTest, PostWithoutBodyReachesTheKeyCheck) {
-  const std::string port = server_->address().substr(server_->address().rfind(':') + 1);
+  const int port = testing::AdminPort(*server_);
   auto raw = [&](const std::string& request) {
     int fd = ::socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in to{};
     to.sin_family = AF_INET;
-    to.sin_port = htons(static_cast<uint16_t>(std::stoi(port)));
+    to.sin_port = htons(static_cast<uint16_t>(port));
     inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
     EXPECT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof(to)), 0);
     (void)::send(fd, request.data(), request.size(), MSG_NOSIGNAL);

@@ -14,6 +14,7 @@
 #include "relay/admin/admin_http.h"
 #include "relay/admin/relay_admin.h"
 #include "relay/admin/room_map.h"
+#include "relay/admin/testing/loopback_admin.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::admin {
@@ -29,12 +30,10 @@ class AdminRoomMap : public ::testing::Test {
  protected:
   void SetUp() override {
     AdminHttpOptions options;
-    options.address = "127.0.0.1:0";
     options.key = "map-key";
-    auto started = AdminHttpServer::Start(options, &admin_);
-    ASSERT_TRUE(started.ok()) << started.status().ToString();
-    server_ = std::move(*started);
-    port_ = std::stoi(server_->address().substr(server_->address().rfind(':') + 1));
+    server_ = testing::StartLoopbackAdmin(options, &admin_);
+    ASSERT_NE(server_, nullptr);
+    port_ = testing::AdminPort(*server_);
   }
   void TearDown() override {
     admin_.Close();

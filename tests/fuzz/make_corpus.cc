@@ -119,17 +119,9 @@ EntitySpec Cube(uint32_t slot, uint32_t owner) {
   return s;
 }
 EntitySpec HandSpec(uint32_t slot, uint32_t owner) {
-  EntitySpec s;
-  s.id = slot * kEntityIdBlock + 3;
+  EntitySpec s = TriggerHand(slot * kEntityIdBlock + 3, {0, 0.3f, 0}, 0.3f);
   s.owner = owner;
   s.flags = kOffloaded | kHand;
-  s.position = {0, 0.3f, 0};
-  s.rigid_body = RigidBodySpec{};
-  s.rigid_body->kinematic = true;
-  s.rigid_body->mass = 0;
-  ColliderSpec trigger = SphereCollider(0.3f);
-  trigger.is_trigger = true;
-  s.colliders.push_back(trigger);
   return s;
 }
 EntitySpec Plain(uint32_t slot, uint32_t owner) {

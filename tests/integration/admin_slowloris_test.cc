@@ -19,6 +19,7 @@
 #include "relay/relay_metrics.h"
 #include "relay/admin/admin_http.h"
 #include "relay/admin/relay_admin.h"
+#include "relay/admin/testing/loopback_admin.h"
 #include "tests/integration/harness.h"
 
 namespace edgephys::testing {
@@ -136,12 +137,10 @@ TEST(AdminSlowloris, HealthMetricsAndRoomsSurviveSlowClients) {
   LoopbackWorld world;
   admin::RelayAdmin backend(&world.relay(), LoopbackWorld::DefaultConfig().room_defaults);
   admin::AdminHttpOptions options;
-  options.address = "127.0.0.1:0";
   options.key = "k";
-  auto admin_http = admin::AdminHttpServer::Start(options, &backend);
-  ASSERT_TRUE(admin_http.ok()) << admin_http.status().ToString();
-  const uint16_t admin_port = static_cast<uint16_t>(
-      std::stoi((*admin_http)->address().substr((*admin_http)->address().rfind(':') + 1)));
+  const std::unique_ptr<admin::AdminHttpServer> admin_http = StartLoopbackAdmin(options, &backend);
+  ASSERT_NE(admin_http, nullptr);
+  const uint16_t admin_port = static_cast<uint16_t>(AdminPort(*admin_http));
   auto metrics = MetricsExporter::Start("127.0.0.1:0", RelayMetrics(&world.counters()));
   ASSERT_TRUE(metrics.ok()) << metrics.status().ToString();
   const uint16_t metrics_port = (*metrics)->port();

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <ostream>
 #include <utility>
 #include <string>
 #include <vector>
@@ -100,28 +101,54 @@ TEST(CApiReasons, ARoomCloseReachesEveryMemberWithTheText) {
   }
 }
 
-TEST(CApiReasons, AKickWithoutTextCarriesTheReasonsMeaning) {
+// The relay ends a lone player's session: the game gets DISCONNECTED with the reason, its name
+// and the operator's text, or the reason's meaning when there was none.
+struct LoneDisconnect {
+  const char* name;
+  const char* room;
+  std::function<void(LoopbackWorld&)> end;  // what the relay does, the player being joined
+  edgephys_disconnect_reason reason;
+  const char* reason_name;
+  const char* detail;  // nullptr: no text given, the detail is the reason's meaning
+};
+void PrintTo(const LoneDisconnect& k, std::ostream* os) { *os << k.name; }
+
+class CApiLoneDisconnect : public ::testing::TestWithParam<LoneDisconnect> {};
+
+TEST_P(CApiLoneDisconnect, ReachesTheGameWithItsReasonAndText) {
+  const LoneDisconnect& k = GetParam();
   LoopbackWorld world;
-  CClient a(world, MintToken("quiet", 1));
-  ASSERT_TRUE(Pump(world, {&a}, "quiet", [&] { return a.joined; }, 5.0));
-  ASSERT_TRUE(world.relay().Kick("quiet", 1, "", world.Now()).ok());
+  CClient a(world, MintToken(k.room, 1));
+  ASSERT_TRUE(Pump(world, {&a}, k.room, [&] { return a.joined; }, 5.0));
+  ASSERT_NO_FATAL_FAILURE(k.end(world));
   const edgephys_event* ev = AwaitEvent(world, a, EDGEPHYS_EVENT_DISCONNECTED);
   ASSERT_NE(ev, nullptr);
-  EXPECT_EQ(ev->code, static_cast<uint32_t>(EDGEPHYS_DISCONNECT_KICKED));
-  EXPECT_STRNE(ev->detail, "");
+  EXPECT_EQ(ev->code, static_cast<uint32_t>(k.reason));
+  EXPECT_STREQ(edgephys_reason_name(ev->type, ev->code), k.reason_name);
+  if (k.detail != nullptr) {
+    EXPECT_STREQ(ev->detail, k.detail);
+  } else {
+    EXPECT_STRNE(ev->detail, "");
+  }
 }
 
-TEST(CApiReasons, ADrainReachesTheGameAsServerShutdownWithTheText) {
-  LoopbackWorld world;
-  CClient a(world, MintToken("ward", 1));
-  ASSERT_TRUE(Pump(world, {&a}, "ward", [&] { return a.joined; }, 5.0));
-  world.relay().CloseAllSessions("maintenance at 02:00 UTC", world.Now());
-  const edgephys_event* ev = AwaitEvent(world, a, EDGEPHYS_EVENT_DISCONNECTED);
-  ASSERT_NE(ev, nullptr);
-  EXPECT_EQ(ev->code, static_cast<uint32_t>(EDGEPHYS_DISCONNECT_SERVER_SHUTDOWN));
-  EXPECT_STREQ(ev->detail, "maintenance at 02:00 UTC");
-  EXPECT_STREQ(edgephys_reason_name(ev->type, ev->code), "ServerShutdown");
-}
+INSTANTIATE_TEST_SUITE_P(
+    CApiReasons, CApiLoneDisconnect,
+    ::testing::Values(
+        LoneDisconnect{"AKickWithoutTextCarriesTheReasonsMeaning", "quiet",
+                       [](LoopbackWorld& world) {
+                         ASSERT_TRUE(world.relay().Kick("quiet", 1, "", world.Now()).ok());
+                       },
+                       EDGEPHYS_DISCONNECT_KICKED, "Kicked", nullptr},
+        LoneDisconnect{"ADrainReachesTheGameAsServerShutdownWithTheText", "ward",
+                       [](LoopbackWorld& world) {
+                         world.relay().CloseAllSessions("maintenance at 02:00 UTC", world.Now());
+                       },
+                       EDGEPHYS_DISCONNECT_SERVER_SHUTDOWN, "ServerShutdown",
+                       "maintenance at 02:00 UTC"}),
+    [](const ::testing::TestParamInfo<LoneDisconnect>& param_info) {
+      return std::string(param_info.param.name);
+    });
 
 TEST(CApiReasons, ABadTokenIsRejectedWithItsReasonAndMeaning) {
   LoopbackWorld world;

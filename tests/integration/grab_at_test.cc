@@ -44,13 +44,8 @@ TEST(GrabAt, MovingTheHandAndGrabbingInOneFrameIsGrantedAndAForgedPoseRefused) {
   cube.colliders.push_back(BoxCollider({0.1f, 0.1f, 0.1f}));
   // The hand's trigger (0.15 m) reaches 0.25 m from its centre to the cube's: at 0.45 m it
   // does not hover the cube.
-  SpawnDesc hand{.position = {0.45f, 1, 0}, .flags = kOffloaded | entity_flags::kHand};
-  hand.rigid_body = RigidBodySpec{};
-  hand.rigid_body->kinematic = true;
-  hand.rigid_body->mass = 0;
-  ColliderSpec trigger = SphereCollider(0.15f);
-  trigger.is_trigger = true;
-  hand.colliders.push_back(trigger);
+  SpawnDesc hand = TriggerHand(0, {0.45f, 1, 0}, 0.15f);
+  hand.flags = kOffloaded | entity_flags::kHand;
   Result<uint32_t> cube_id = a.Spawn(cube), hand_id = a.Spawn(hand);
   ASSERT_TRUE(cube_id.ok() && hand_id.ok());
   ASSERT_TRUE(world.RunUntil([&] {

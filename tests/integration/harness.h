@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "client/client.h"
@@ -56,16 +57,112 @@ inline SessionSecret SecretOf(std::span<const uint8_t> client_token) {
   return split.ok() ? split->session_secret : SessionSecret{};
 }
 
+// The pumping loops of a test world (CRTP): Derived has Now() (seconds on its clock, real or
+// fake) and Step() (one pump of the relay(s) and clients).
+template <typename Derived>
+class Pumped {
+ public:
+  // Pumps until `done` returns true or `timeout_s` passes; returns done().
+  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
+    const double deadline = self().Now() + timeout_s;
+    while (self().Now() < deadline) {
+      self().Step();
+      if (done()) return true;
+    }
+    return done();
+  }
+
+  // Pumps for `seconds`, calling `each(now)` (if given) before every step.
+  void RunFor(double seconds, const std::function<void(double)>& each = nullptr) {
+    const double end = self().Now() + seconds;
+    while (self().Now() < end) {
+      if (each) each(self().Now());
+      self().Step();
+    }
+  }
+
+ private:
+  Derived& self() { return static_cast<Derived&>(*this); }
+};
+
+// Seconds of the real monotonic clock since construction (or the last Restart()).
+class WallClock {
+ public:
+  double Now() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  void Restart() { start_ = std::chrono::steady_clock::now(); }
+
+ private:
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+// Clients on loopback UDP sockets of their own, pumped from the test thread.
+class LoopbackClients {
+ public:
+  // A client with `config` on a socket bound to an ephemeral port of `bind`, connecting to
+  // `relay` with `token` at `now`.
+  Client& Add(const ClientConfig& config, ClientListener* listener, const asio::ip::address& bind,
+              const RelayAddress& relay, const std::vector<uint8_t>& token, double now) {
+    auto opened = UdpSocket::Open(Endpoint(bind, 0));
+    EXPECT_TRUE(opened.ok()) << bind.to_string();
+    sockets_.push_back(std::move(*opened));
+    clients_.push_back(std::make_unique<Client>(config, sockets_.back().get(), listener));
+    (void)clients_.back()->Connect(relay, token, now);
+    return *clients_.back();
+  }
+
+  void Update(double now) {
+    for (auto& c : clients_) c->Update(now);
+  }
+
+  UdpSocket& socket(size_t i) { return *sockets_[i]; }
+  const std::vector<std::unique_ptr<Client>>& all() const { return clients_; }
+
+ private:
+  std::vector<std::unique_ptr<UdpSocket>> sockets_;
+  std::vector<std::unique_ptr<Client>> clients_;
+};
+
+// What the loopback worlds (LoopbackWorld, the sharded relay's) share: the relay's socket on an
+// ephemeral loopback port and its counters, clients on sockets of their own, and the real
+// clock. The derived world starts its relay on socket_ and counters_, then RestartClock().
+class LoopbackWorldBase {
+ public:
+  double Now() const { return clock_.Now(); }
+  RelayCounters& counters() { return counters_; }
+  Endpoint relay_endpoint() const { return socket_->LocalEndpoint(); }
+  UdpSocket& client_socket(size_t i) { return clients_.socket(i); }
+
+ protected:
+  explicit LoopbackWorldBase(const asio::ip::address& address)
+      : socket_(std::move(*UdpSocket::Open(Endpoint(address, 0)))) {}
+
+  // A client with `config` on a socket bound to `bind`, connecting to the relay with `token`.
+  Client& Connect(const ClientConfig& config, ClientListener* listener,
+                  const asio::ip::address& bind, const std::vector<uint8_t>& token) {
+    return clients_.Add(config, listener, bind, ToRelayAddress(relay_endpoint()), token, Now());
+  }
+  void UpdateClients(double now) { clients_.Update(now); }
+  void RestartClock() { clock_.Restart(); }
+
+  RelayCounters counters_;
+  std::unique_ptr<UdpSocket> socket_;
+
+ private:
+  LoopbackClients clients_;
+  WallClock clock_;
+};
+
 // A relay on an ephemeral loopback UDP port plus clients, all pumped from the test thread with
 // the real monotonic clock.
-class LoopbackWorld {
+class LoopbackWorld : public LoopbackWorldBase, public Pumped<LoopbackWorld> {
  public:
-  explicit LoopbackWorld(RelayConfig config = DefaultConfig(), const char* host = "127.0.0.1") {
-    auto address = asio::ip::make_address(host);
-    relay_socket_ = std::move(*UdpSocket::Open(Endpoint(address, 0)));
-    relay_ = std::make_unique<Relay>(config, relay_socket_.get(), &counters_);
+  explicit LoopbackWorld(RelayConfig config = DefaultConfig(), const char* host = "127.0.0.1")
+      : LoopbackWorldBase(asio::ip::make_address(host)) {
+    relay_ = std::make_unique<Relay>(config, socket_.get(), &counters_);
     client_config_.require_packet_auth = config.packet_auth;  // a relay without it: accept that
-    start_ = std::chrono::steady_clock::now();
+    RestartClock();
   }
 
   static RelayConfig DefaultConfig() {
@@ -75,56 +172,23 @@ class LoopbackWorld {
     return c;
   }
 
-  double Now() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
   // A client with its own loopback socket, connecting with `token`.
   Client& AddClient(const std::vector<uint8_t>& token, ClientListener* listener = nullptr) {
-    auto address = relay_socket_->LocalEndpoint().address();
-    sockets_.push_back(std::move(*UdpSocket::Open(Endpoint(address, 0))));
-    clients_.push_back(std::make_unique<Client>(client_config_, sockets_.back().get(), listener));
-    (void)clients_.back()->Connect(ToRelayAddress(relay_socket_->LocalEndpoint()), token, Now());
-    return *clients_.back();
+    return Connect(client_config_, listener, relay_endpoint().address(), token);
   }
 
   void Step() {
     double now = Now();
     relay_->Update(now, UnixNow());
-    for (auto& c : clients_) c->Update(now);
+    UpdateClients(now);
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
 
-  // Pumps until `done` returns true or `timeout_s` passes; returns done().
-  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
-    double deadline = Now() + timeout_s;
-    while (Now() < deadline) {
-      Step();
-      if (done()) return true;
-    }
-    return done();
-  }
-
-  void RunFor(double seconds, const std::function<void(double)>& each = nullptr) {
-    double end = Now() + seconds;
-    while (Now() < end) {
-      if (each) each(Now());
-      Step();
-    }
-  }
-
   Relay& relay() { return *relay_; }
-  RelayCounters& counters() { return counters_; }
-  Endpoint relay_endpoint() const { return relay_socket_->LocalEndpoint(); }
 
  private:
-  RelayCounters counters_;
-  std::unique_ptr<UdpSocket> relay_socket_;
   std::unique_ptr<Relay> relay_;
   ClientConfig client_config_;  // AddClient's
-  std::vector<std::unique_ptr<UdpSocket>> sockets_;
-  std::vector<std::unique_ptr<Client>> clients_;
-  std::chrono::steady_clock::time_point start_;
 };
 
 // Pumps `world` (a LoopbackWorld or a SimWorld) until every client is connected, has each join
@@ -192,6 +256,14 @@ inline uint64_t UpdatesRejected(const RelayCounters& c, DropReason r) {
 }
 inline uint64_t RequestsRejected(const RelayCounters& c, schema::RejectReason r) {
   return c.requests_rejected[static_cast<size_t>(r)].load();
+}
+// Expects exactly `count` requests rejected for each reason of `expected`.
+inline void ExpectRequestsRejected(
+    const RelayCounters& c,
+    std::initializer_list<std::pair<schema::RejectReason, uint64_t>> expected) {
+  for (const auto& [reason, count] : expected) {
+    EXPECT_EQ(RequestsRejected(c, reason), count) << schema::EnumNameRejectReason(reason);
+  }
 }
 
 }  // namespace edgephys::testing

@@ -108,8 +108,8 @@ TEST(Messages, UnpermittedMisaddressedAndMalformedAreRefusedCountedAndReachNobod
   EXPECT_EQ(ib.Count(schema::RejectReason::InvalidMessage), 2u);
   EXPECT_TRUE(ia.got.empty());
   EXPECT_TRUE(ib.got.empty());
-  EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::NotPermitted), 1u);
-  EXPECT_EQ(RequestsRejected(world.counters(), schema::RejectReason::UnknownPlayer), 1u);
+  ExpectRequestsRejected(world.counters(), {{schema::RejectReason::NotPermitted, 1},
+                                            {schema::RejectReason::UnknownPlayer, 1}});
   // The unverifiable one is refused by the session, before any room.
   EXPECT_EQ(world.relay().rooms().at("r")->message_stats().refused, 3u);
   EXPECT_EQ(world.relay().rooms().at("r")->message_stats().forwarded, 0u);

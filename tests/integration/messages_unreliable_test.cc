@@ -120,7 +120,7 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
   ASSERT_TRUE(c.SendMessageUnreliable(MessageTarget::kRoom, 0, Payload(kToRoom, 0)).ok());
   ASSERT_TRUE(b.SendMessageUnreliable(MessageTarget::kPlayer, 99, Payload(kToPlayer, 0)).ok());
   // Malformed: shorter than the header; an unknown target.
-  const double now = world.now();
+  const double now = world.Now();
   const std::vector<uint8_t> short_payload = {kAppMessageFormat, 0, 0, 0};
   ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, short_payload, now).ok());
   std::vector<uint8_t> bad_target(kAppMessageHeaderSize + 5);
@@ -128,7 +128,7 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
   h.target = 7;
   ASSERT_EQ(EncodeAppMessage(h, Payload(kToRoom, 1), bad_target), bad_target.size());
   world.RunFor(0.1);
-  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, bad_target, world.now()).ok());
+  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, bad_target, world.Now()).ok());
   world.RunFor(0.5);
   EXPECT_EQ(ia.Count(schema::RejectReason::OverBudget), 1u);
   EXPECT_EQ(ic.Count(schema::RejectReason::NotPermitted), 1u);
@@ -144,12 +144,12 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
   // the refill (50/s) pass, the rest is refused; the relay forwards no more than that. Then 50
   // reliable messages at once: the budget is shared, so nearly all are refused too.
   constexpr uint32_t kFlood = 400, kReliable = 50;
-  const double started = world.now();
+  const double started = world.Now();
   for (uint32_t i = 0; i < kFlood; ++i) {
     ASSERT_TRUE(a.SendMessageUnreliable(MessageTarget::kOthers, 0, Payload(kToOthers, i)).ok());
     world.RunFor(0.002);
   }
-  const double elapsed = world.now() - started;
+  const double elapsed = world.Now() - started;
   for (uint32_t i = 0; i < kReliable; ++i) {
     ASSERT_TRUE(a.SendMessage(MessageTarget::kOthers, 0, Payload(kToOthers, 1000 + i)).ok());
   }
@@ -174,11 +174,11 @@ TEST(UnreliableMessages, OversizedOverRateUnpermittedMisaddressedMalformedRefuse
   std::vector<uint8_t> numbered(kAppMessageHeaderSize + 5);
   h = AppMessageHeader{.target = 1, .sequence = 1000};  // Others
   ASSERT_EQ(EncodeAppMessage(h, Payload(kToOthers, 5000), numbered), numbered.size());
-  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, numbered, world.now()).ok());
+  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, numbered, world.Now()).ok());
   world.RunFor(0.1);
   h.sequence = 999;
   ASSERT_EQ(EncodeAppMessage(h, Payload(kToOthers, 5001), numbered), numbered.size());
-  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, numbered, world.now()).ok());
+  ASSERT_TRUE(ClientTesting::SendUnreliableRaw(b, numbered, world.Now()).ok());
   world.RunFor(0.5);
   EXPECT_EQ(ia.Stream(2, kToOthers), std::vector<uint32_t>{5000});
   EXPECT_EQ(UpdatesRejected(world.counters(), DropReason::kStale), 1u);

@@ -116,8 +116,9 @@ TEST_P(OwnerLeave, EachEntityGoesWhereItsOwnerChose) {
 }
 
 INSTANTIATE_TEST_SUITE_P(LeaveAndTimeout, OwnerLeave, ::testing::Values(Exit::kLeave, Exit::kTimeout),
-                         [](const auto& info) {
-                           return info.param == Exit::kLeave ? std::string("Leave") : std::string("Timeout");
+                         [](const auto& param_info) {
+                           return param_info.param == Exit::kLeave ? std::string("Leave")
+                                                                   : std::string("Timeout");
                          });
 
 // Without a choice, the Persistent flag decides as before; a choice survives a hand over.

@@ -73,14 +73,14 @@ TEST(Ownership, HandOverAcceptsTheNewOwnerWithinOneRoundTripAndDropsTheOldOwners
   double changed_at = -1, accepted_at = -1;
   float a_x = 1;
   ASSERT_TRUE(world.RunUntil([&] {
-    now = world.now();
+    now = world.Now();
     if (a.Owns(*id)) {
       a_x += 0.001f;
       EXPECT_TRUE(a.PublishTransform(*id, {a_x, 1, 0}, {0, 0, 0, 1}).ok());
     }
     const Entity* e = RelayEntity(world, "own", *id);
-    if (changed_at < 0 && e->authority_seq == 1) changed_at = world.now();
-    if (accepted_at < 0 && e->state.position.x == -5.f) accepted_at = world.now();
+    if (changed_at < 0 && e->authority_seq == 1) changed_at = world.Now();
+    if (accepted_at < 0 && e->state.position.x == -5.f) accepted_at = world.Now();
     return accepted_at >= 0 && !a.Owns(*id);
   }, 5.0));
   const double rtt = 2 * link.latency_s;
@@ -103,7 +103,7 @@ TEST(Ownership, HandOverAcceptsTheNewOwnerWithinOneRoundTripAndDropsTheOldOwners
   // state sent now (a stale sender) is too, and changes nothing.
   const uint64_t stale_before = world.counters().stale_owner_states.load();
   EXPECT_GE(stale_before, 1u);
-  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {*id, {42, 1, 0}, {0, 0, 0, 1}}, world.now()).ok());
+  ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {*id, {42, 1, 0}, {0, 0, 0, 1}}, world.Now()).ok());
   world.RunFor(0.5);
   EXPECT_EQ(world.counters().stale_owner_states.load(), stale_before + 1);
   EXPECT_EQ(RelayEntity(world, "own", *id)->state.position.x, -5.f);
@@ -158,7 +158,7 @@ TEST(Ownership, RequestsTakeoverReleaseAndLateJoinersUnderLoss) {
   // A stale state of A's for the tool (it owned it before): dropped and counted.
   const uint64_t stale = world.counters().stale_owner_states.load();
   for (int i = 0; i < 20; ++i) {  // 20 % loss: several, so that some arrive
-    ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {*tool, {7, 7, 7}, {0, 0, 0, 1}}, world.now()).ok());
+    ASSERT_TRUE(ClientTesting::SendStateUnchecked(a, {*tool, {7, 7, 7}, {0, 0, 0, 1}}, world.Now()).ok());
     world.RunFor(0.01);
   }
   world.RunFor(1.0);

@@ -149,9 +149,9 @@ TEST(RelayHandshake, BadExpiredAndReplayedTokensAreRejectedWithReason) {
   RawPeer other(world);
   EXPECT_EQ(other.Handshake(token), -static_cast<int64_t>(RejectReason::ReplayedToken));
 
-  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::BadToken), 3u);
-  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::ExpiredToken), 1u);
-  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::ReplayedToken), 1u);
+  ExpectRequestsRejected(world.counters(), {{RejectReason::BadToken, 3},
+                                            {RejectReason::ExpiredToken, 1},
+                                            {RejectReason::ReplayedToken, 1}});
   EXPECT_EQ(world.relay().session_count(), 1u);
 }
 
@@ -185,8 +185,8 @@ TEST(RelayHandshake, OldVersionsAndBadProofsAreRejectedWithReason) {
                                              fbb.CreateVector(proof.data(), proof.size())));
     return BuildHandshakePacket(PacketType::kConnect, fbb);
   }), -static_cast<int64_t>(RejectReason::BadProof));
-  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::BadVersion), 1u);
-  EXPECT_EQ(RequestsRejected(world.counters(), RejectReason::BadProof), 2u);
+  ExpectRequestsRejected(world.counters(),
+                         {{RejectReason::BadVersion, 1}, {RejectReason::BadProof, 2}});
   EXPECT_EQ(world.relay().session_count(), 0u);
   // None of them used the token up: the genuine Connect is admitted.
   EXPECT_GT(peer.Handshake(token), 0);

@@ -31,12 +31,23 @@ void ConnectAndJoin(LoopbackWorld& world, Client& c, const std::string& room) {
   ASSERT_TRUE(world.RunUntil([&] { return c.joined(); }, 5.0)) << "join did not finish";
 }
 
+// Players 1 (a) and 2 (b) connect to `world`; a joins `room`, then b (ConnectAndJoin each).
+struct Pair {
+  Client& a;
+  Client& b;
+};
+Pair JoinTwo(LoopbackWorld& world, const std::string& room) {
+  Client& a = world.AddClient(MintToken(room, 1));
+  Client& b = world.AddClient(MintToken(room, 2));
+  ConnectAndJoin(world, a, room);
+  ConnectAndJoin(world, b, room);
+  return {a, b};
+}
+
 TEST(RelayLoopback, FanOutLateJoinAndOwnership) {
   LoopbackWorld world;
-  Client& a = world.AddClient(MintToken("arena", 1));
-  Client& b = world.AddClient(MintToken("arena", 2));
-  ConnectAndJoin(world, a, "arena");
-  ConnectAndJoin(world, b, "arena");
+  const Pair p = JoinTwo(world, "arena");
+  Client &a = p.a, &b = p.b;
   EXPECT_NE(a.entity_id_base(), b.entity_id_base());
 
   std::vector<uint32_t> ids;
@@ -110,10 +121,8 @@ TEST(RelayLoopback, FanOutLateJoinAndOwnership) {
 
 TEST(RelayLoopback, DespawnAndLeavePropagate) {
   LoopbackWorld world;
-  Client& a = world.AddClient(MintToken("r", 1));
-  Client& b = world.AddClient(MintToken("r", 2));
-  ConnectAndJoin(world, a, "r");
-  ConnectAndJoin(world, b, "r");
+  const Pair p = JoinTwo(world, "r");
+  Client &a = p.a, &b = p.b;
   auto keep = a.Spawn({.flags = 1 /* Persistent */});
   auto gone = a.Spawn({});
   auto despawned = a.Spawn({});
@@ -137,10 +146,8 @@ TEST(RelayLoopback, WorksOverIpv6Loopback) {
   auto probe = UdpSocket::Open(Endpoint(asio::ip::make_address("::1"), 0));
   if (!probe.ok()) GTEST_SKIP() << "no IPv6 loopback on this machine";
   world = std::make_unique<LoopbackWorld>(LoopbackWorld::DefaultConfig(), "::1");
-  Client& a = world->AddClient(MintToken("v6", 1));
-  Client& b = world->AddClient(MintToken("v6", 2));
-  ConnectAndJoin(*world, a, "v6");
-  ConnectAndJoin(*world, b, "v6");
+  const Pair p = JoinTwo(*world, "v6");
+  Client &a = p.a, &b = p.b;
   auto id = a.Spawn({.position = {1, 2, 3}});
   ASSERT_TRUE(id.ok());
   ASSERT_TRUE(a.PublishTransform(*id, {4, 5, 6}, {}).ok());

@@ -34,16 +34,16 @@ TEST(RelayRooms, EmptyRoomClosesAfterItsTtlAndOperatorRoomsKeepTheirSettings) {
   custom.capacity = 3;
   custom.tick_rate_hz = 10;
   custom.idle_ttl_s = 1.0;
-  ASSERT_TRUE(world.relay().CreateRoom("stage", custom, world.now()).ok());
-  EXPECT_FALSE(world.relay().CreateRoom("", custom, world.now()).ok());
+  ASSERT_TRUE(world.relay().CreateRoom("stage", custom, world.Now()).ok());
+  EXPECT_FALSE(world.relay().CreateRoom("", custom, world.Now()).ok());
   RoomConfig bad = custom;
   bad.tick_rate_hz = 0;
-  EXPECT_FALSE(world.relay().CreateRoom("x", bad, world.now()).ok());
+  EXPECT_FALSE(world.relay().CreateRoom("x", bad, world.Now()).ok());
 
   Client& a = world.AddClient(MintToken("stage", 1));
   Join(world, a, "stage");
   EXPECT_EQ(world.relay().FindRoom("stage")->config().capacity, 3u);
-  EXPECT_EQ(world.relay().CreateRoom("stage", custom, world.now()).code(), StatusCode::kAlreadyExists);
+  EXPECT_EQ(world.relay().CreateRoom("stage", custom, world.Now()).code(), StatusCode::kAlreadyExists);
   ASSERT_TRUE(a.Spawn({.flags = 1 /* Persistent */}).ok());
   world.RunFor(0.2);
   ASSERT_TRUE(a.LeaveRoom().ok());

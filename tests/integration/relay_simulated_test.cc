@@ -23,7 +23,7 @@ TEST(RelaySimulated, StateConvergesUnderLossDuplicationReorderingAndDelay) {
   std::vector<uint32_t> ids;
   for (int k = 0; k < 8; ++k) ids.push_back(*a.Spawn({.position = {float(k), 0, 0}}));
   std::vector<EntityState> last(ids.size());
-  double next = world.now();
+  double next = world.Now();
   world.RunFor(5.0, [&](double now) {
     if (now < next) return;
     next += 1.0 / 12.0;

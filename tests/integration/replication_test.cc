@@ -46,7 +46,7 @@ struct Room2 {
   }
   // A moves every entity in `ids` at `hz` for `seconds`.
   void Move(const std::vector<uint32_t>& ids, double hz, double seconds) {
-    double next = world.now();
+    double next = world.Now();
     world.RunFor(seconds, [&](double now) {
       if (now < next) return;
       next += 1.0 / hz;
@@ -285,7 +285,7 @@ TEST(Replication, ATenthOfTheReceiversOnALossyLinkAllConverge) {
   }, 10.0));
   std::vector<uint32_t> ids;
   for (int i = 0; i < 40; ++i) ids.push_back(*a.Spawn({}));
-  double next = world.now();
+  double next = world.Now();
   world.RunFor(4.0, [&](double now) {
     if (now < next) return;
     next += 1.0 / 30;

@@ -25,7 +25,8 @@ inline NetworkConditions LossyLink() {
   return c;
 }
 
-class SimWorld {
+// RunUntil / RunFor (Pumped) advance the fake clock by Step()'s default 5 ms a step.
+class SimWorld : public Pumped<SimWorld> {
  public:
   explicit SimWorld(const NetworkConditions& conditions = {},
                     RelayConfig config = LoopbackWorld::DefaultConfig())
@@ -73,27 +74,10 @@ class SimWorld {
     }
   }
 
-  bool RunUntil(const std::function<bool()>& done, double timeout_s) {
-    double deadline = now_ + timeout_s;
-    while (now_ < deadline) {
-      Step();
-      if (done()) return true;
-    }
-    return done();
-  }
-
-  void RunFor(double seconds, const std::function<void(double)>& each = nullptr) {
-    double end = now_ + seconds;
-    while (now_ < end) {
-      if (each) each(now_);
-      Step();
-    }
-  }
-
   // Stops pumping client `i` (it goes silent, as if the process died).
   void Freeze(size_t i) { frozen_.push_back(i); clients_[i].reset(); }
 
-  double now() const { return now_; }
+  double Now() const { return now_; }
   Relay& relay() { return *relay_; }
   RelayCounters& counters() { return counters_; }
 
