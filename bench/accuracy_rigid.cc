@@ -234,14 +234,9 @@ StackRun Stack(const StackSetting& s, double seconds, OutFile* series, int sampl
   cfg.sleep_linear_threshold = s.sleep_lin;
   cfg.sleep_angular_threshold = s.sleep_ang;
   PhysicsWorld world(cfg);
-  AddSpec(world, testing::Ground(1, 0.5f, 0.0f));
-  const float h = 0.25f;
-  std::vector<Vec3f> start;
-  for (uint32_t i = 0; i < 10; ++i) {
-    const Vec3f p{0, h + 2 * h * static_cast<float>(i), 0};
-    AddSpec(world, DynamicBox(10 + i, p, {h, h, h}, 1.0f));
-    start.push_back(p);
-  }
+  const testing::BoxStack stack = testing::MakeBoxStack();
+  for (const EntitySpec& spec : stack.specs) AddSpec(world, spec);
+  const std::vector<Vec3f>& start = stack.start;
   StackRun r;
   const int steps = static_cast<int>(std::lround(seconds / cfg.fixed_dt));
   for (int n = 1; n <= steps; ++n) {

@@ -139,14 +139,9 @@ std::pair<double, double> Slope(const PhysicsConfig& base, double angle, double 
 
 double StackDrift(const PhysicsConfig& cfg, double seconds) {
   PhysicsWorld w(cfg);
-  Add(w, Ground(1, 0.5f));
-  const float h = 0.25f;
-  std::vector<Vec3f> start;
-  for (uint32_t i = 0; i < 10; ++i) {
-    const Vec3f p{0, h + 2 * h * static_cast<float>(i), 0};
-    Add(w, DynamicBox(10 + i, p, {h, h, h}, 1.0f));
-    start.push_back(p);
-  }
+  const testing::BoxStack stack = testing::MakeBoxStack();
+  for (const EntitySpec& spec : stack.specs) Add(w, spec);
+  const std::vector<Vec3f>& start = stack.start;
   double drift = 0;
   for (int s = 0; s < static_cast<int>(seconds / cfg.fixed_dt + 0.5); ++s) {
     w.Step();

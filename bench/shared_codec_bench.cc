@@ -36,78 +36,88 @@ void ReportPerUpdate(benchmark::State& state, int receivers, int n, size_t bytes
   state.counters["payload_bytes_per_update"] = static_cast<double>(bytes) / updates;
 }
 
+// What both benchmarks share: `receivers` (range 0) and `n` entities (range 1), the frames,
+// format 2's quantisation, each receiver's next sequence number, the tick's prepared states,
+// the packet buffer and the payload bytes sent so far.
+struct PerReceiverRun {
+  explicit PerReceiverRun(const benchmark::State& state)
+      : receivers(static_cast<int>(state.range(0))),
+        n(static_cast<int>(state.range(1))),
+        frames(MakeFrames(n, 256)),
+        params(*MakeQuantizationParams(QuantizationConfig{})),
+        seq(receivers, 0),
+        prepared(n),
+        buf(kMaxUnreliablePayload) {}
+
+  // Sends entities 0..n-1 to receiver r through `stream` in as many packets as they take
+  // (`add(i)` false: entity i did not fit), each sent and acknowledged at `now` at once.
+  template <typename Stream, typename Add>
+  void SendAll(Stream& stream, int r, uint32_t time_ms, double now, Add add) {
+    int i = 0;
+    while (i < n) {
+      stream.Begin(buf, time_ms);
+      while (i < n && add(i)) ++i;
+      bytes += stream.Finish();
+      stream.OnSent(seq[r], now);
+      stream.OnPacketAcked(seq[r]++);
+    }
+  }
+
+  const int receivers, n;
+  const std::vector<std::vector<EntityState>> frames;
+  const QuantizationParams params;
+  std::vector<uint16_t> seq;
+  std::vector<PreparedState> prepared;
+  std::vector<uint8_t> buf;
+  size_t bytes = 0;
+};
+
 void BM_Format2PerReceiver(benchmark::State& state) {
-  const int receivers = static_cast<int>(state.range(0));
-  const int n = static_cast<int>(state.range(1));
-  auto frames = MakeFrames(n, 256);
-  auto params = MakeQuantizationParams(QuantizationConfig{});
+  PerReceiverRun run(state);
   std::vector<std::unique_ptr<DeltaEncoder>> enc;
-  for (int r = 0; r < receivers; ++r) enc.push_back(std::make_unique<DeltaEncoder>(*params));
-  std::vector<uint16_t> seq(receivers, 0);
-  std::vector<PreparedState> prepared(n);
-  std::vector<uint8_t> buf(kMaxUnreliablePayload);
-  size_t f = 0, bytes = 0;
+  for (int r = 0; r < run.receivers; ++r) enc.push_back(std::make_unique<DeltaEncoder>(run.params));
+  size_t f = 0;
   for (auto _ : state) {
-    const auto& frame = frames[f % frames.size()];
+    const auto& frame = run.frames[f % run.frames.size()];
     const uint32_t time_ms = static_cast<uint32_t>(f * 1000 / kTickHz);
     const double now = static_cast<double>(f) / kTickHz;
     ++f;
-    for (int i = 0; i < n; ++i) prepared[i] = PrepareState(*params, frame[i]);
-    for (int r = 0; r < receivers; ++r) {
+    for (int i = 0; i < run.n; ++i) run.prepared[i] = PrepareState(run.params, frame[i]);
+    for (int r = 0; r < run.receivers; ++r) {
       DeltaEncoder& e = *enc[r];
-      int i = 0;
-      while (i < n) {
-        e.Begin(buf, time_ms);
-        while (i < n && e.Add(frame[i], &prepared[i])) ++i;
-        bytes += e.Finish();
-        e.OnSent(seq[r], now);
-        e.OnPacketAcked(seq[r]++);
-      }
+      run.SendAll(e, r, time_ms, now, [&](int i) { return e.Add(frame[i], &run.prepared[i]); });
     }
-    benchmark::DoNotOptimize(buf.data());
+    benchmark::DoNotOptimize(run.buf.data());
   }
-  ReportPerUpdate(state, receivers, n, bytes);
+  ReportPerUpdate(state, run.receivers, run.n, run.bytes);
 }
 
 void BM_Format9PerReceiver(benchmark::State& state) {
-  const int receivers = static_cast<int>(state.range(0));
-  const int n = static_cast<int>(state.range(1));
-  auto frames = MakeFrames(n, 256);
-  auto params = MakeQuantizationParams(QuantizationConfig{});
-  SharedDeltaRoom room(*params);
+  PerReceiverRun run(state);
+  SharedDeltaRoom room(run.params);
   std::vector<std::unique_ptr<SharedEntity>> entities;
-  for (int i = 0; i < n; ++i) entities.push_back(std::make_unique<SharedEntity>());
+  for (int i = 0; i < run.n; ++i) entities.push_back(std::make_unique<SharedEntity>());
   std::vector<std::unique_ptr<SharedDeltaStream>> streams;
-  for (int r = 0; r < receivers; ++r) {
-    streams.push_back(std::make_unique<SharedDeltaStream>(*params));
+  for (int r = 0; r < run.receivers; ++r) {
+    streams.push_back(std::make_unique<SharedDeltaStream>(run.params));
   }
-  std::vector<uint16_t> seq(receivers, 0);
-  std::vector<PreparedState> prepared(n);
-  std::vector<uint8_t> buf(kMaxUnreliablePayload);
-  size_t f = 0, bytes = 0;
+  size_t f = 0;
   for (auto _ : state) {
-    const auto& frame = frames[f % frames.size()];
+    const auto& frame = run.frames[f % run.frames.size()];
     const double now = static_cast<double>(f) / kTickHz;
     room.BeginTick(static_cast<uint32_t>(f * 1000 / kTickHz));
     ++f;
-    for (int i = 0; i < n; ++i) {
-      prepared[i] = PrepareState(*params, frame[i]);
-      room.PrepareEntity(*entities[i], prepared[i]);
+    for (int i = 0; i < run.n; ++i) {
+      run.prepared[i] = PrepareState(run.params, frame[i]);
+      room.PrepareEntity(*entities[i], run.prepared[i]);
     }
-    for (int r = 0; r < receivers; ++r) {
+    for (int r = 0; r < run.receivers; ++r) {
       SharedDeltaStream& s = *streams[r];
-      int i = 0;
-      while (i < n) {
-        s.Begin(buf, 0);
-        while (i < n && s.Add(frame[i].entity_id, *entities[i])) ++i;
-        bytes += s.Finish();
-        s.OnSent(seq[r], now);
-        s.OnPacketAcked(seq[r]++);
-      }
+      run.SendAll(s, r, 0, now, [&](int i) { return s.Add(frame[i].entity_id, *entities[i]); });
     }
-    benchmark::DoNotOptimize(buf.data());
+    benchmark::DoNotOptimize(run.buf.data());
   }
-  ReportPerUpdate(state, receivers, n, bytes);
+  ReportPerUpdate(state, run.receivers, run.n, run.bytes);
   double hits = 0;
   for (const auto& s : streams) hits += static_cast<double>(s->stats().cache_hits);
   state.counters["cache_hit_ratio"] =

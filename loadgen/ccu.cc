@@ -15,7 +15,6 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
-#include "loadgen/avatar.h"
 #include "client/snapshot_buffer.h"
 #include "loadgen/motion.h"
 #include "loadgen/pose_history.h"
@@ -420,14 +419,12 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
       if (it == receiver->events_seen.end()) ++result.reliable_lost;
     }
   }
-  result.latency_ms_p50 = Percentile(world.latencies_ms, 50);
-  result.latency_ms_p99 = Percentile(world.latencies_ms, 99);
-  result.grab_latency_ms_p50 = Percentile(world.grab_latencies_ms, 50);
-  result.grab_latency_ms_p99 = Percentile(world.grab_latencies_ms, 99);
-  result.arrival_latency_ms_p50 = Percentile(world.arrival_latencies_ms, 50);
-  result.arrival_latency_ms_p99 = Percentile(world.arrival_latencies_ms, 99);
-  result.grab_arrival_latency_ms_p50 = Percentile(world.grab_arrival_latencies_ms, 50);
-  result.grab_arrival_latency_ms_p99 = Percentile(world.grab_arrival_latencies_ms, 99);
+  SetP50P99(world.latencies_ms, &result.latency_ms_p50, &result.latency_ms_p99);
+  SetP50P99(world.grab_latencies_ms, &result.grab_latency_ms_p50, &result.grab_latency_ms_p99);
+  SetP50P99(world.arrival_latencies_ms, &result.arrival_latency_ms_p50,
+            &result.arrival_latency_ms_p99);
+  SetP50P99(world.grab_arrival_latencies_ms, &result.grab_arrival_latency_ms_p50,
+            &result.grab_arrival_latency_ms_p99);
   for (auto& b : world.bots) {
     if (b->client) result.arrival_time_fallbacks += b->client->arrival_time_fallbacks();
     if (b->link) {
@@ -438,8 +435,7 @@ CcuResult RunOne(const CcuOptions& o, uint32_t users) {
   }
   result.relay_wait_ms_mean = 500.0 / o.tick_rate_hz;
   result.physics_step_ms_p99 = Percentile(step_ms, 99);
-  result.bot_pass_ms_p50 = Percentile(loop_ms, 50);
-  result.bot_pass_ms_p99 = Percentile(loop_ms, 99);
+  SetP50P99(loop_ms, &result.bot_pass_ms_p50, &result.bot_pass_ms_p99);
   std::vector<double> delays;
   for (auto& b : world.bots) {
     for (auto& [id, buf] : b->buffers) delays.push_back(buf.target_delay_s() * 1000);

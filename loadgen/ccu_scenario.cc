@@ -10,6 +10,10 @@ namespace edgephys::loadgen {
 // The JSON of a sample: one field per member, named as the member (nlohmann::json sorts keys).
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CcuSample, t, users, egress_bytes_per_s, ingress_bytes_per_s,
                                    updates_per_s, resends_per_s, relay_cpu, physics_step_ms)
+// The options a report echoes, named as the members (impaired and measure_every added where
+// they apply).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CcuOptions, rooms, ramp_s, duration_s, relay_threads,
+                                   shared_encoding, tick_rate_hz, publish_hz)
 
 namespace {
 
@@ -70,11 +74,7 @@ nlohmann::json Series(const CcuResult& r) {
 
 // One run: "summary" and "series" at the top level too (what single-count tools read).
 nlohmann::json Json(const CcuOptions& o, const std::vector<CcuResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "ccu";
-  j["options"] = {{"rooms", o.rooms}, {"ramp_s", o.ramp_s}, {"duration_s", o.duration_s},
-                  {"relay_threads", o.relay_threads}, {"shared_encoding", o.shared_encoding},
-                  {"tick_rate_hz", o.tick_rate_hz}, {"publish_hz", o.publish_hz}};
+  nlohmann::json j = {{"options", o}};
   if (results.size() == 1) {
     j["summary"] = Summary(results[0]);
     AddExternalNotes(o, results[0], &j["summary"]);
@@ -175,15 +175,13 @@ class CcuScenario final : public MeasuringScenario<CcuOptions, std::vector<CcuRe
     cmd.add_option("--rooms", o_.rooms, "Rooms the users spread over");
     cmd.add_option("--ramp", o_.ramp_s, "Seconds over which users join");
     cmd.add_option("--duration", o_.duration_s, "Measured seconds after the ramp");
-    cmd.add_option("--tick-rate", o_.tick_rate_hz, "Relay room tick rate");
+    AddRelayRoomOptions(cmd, &o_.tick_rate_hz, &o_.packet_auth);
     cmd.add_option("--relay-threads", o_.relay_threads,
                    "Relay threads for ticks and PhyS (1: the relay keeps to one core; the bots use "
                    "the other)");
     cmd.add_flag("--shared-encoding,!--no-shared-encoding", o_.shared_encoding,
                  "In-process relay: rooms use the shared-delta state format 9 (the relay's "
                  "default); --no-shared-encoding: format 2");
-    cmd.add_option("--packet-auth", o_.packet_auth,
-                   "In-process relay: seal packets after the handshake (false: measure without)");
     cmd.add_option("--measure-every", o_.measure_every,
                    "Only every K-th bot matches poses for latency (all still decode; 1: all)")
         ->check(CLI::Range(1u, 1000000u));

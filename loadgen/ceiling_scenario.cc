@@ -30,9 +30,7 @@ struct CeilingResults {
 
 nlohmann::json Json(const CeilingOptions& o, const CeilingResults& results) {
   const auto& [reps, summary] = results;
-  nlohmann::json j;
-  j["scenario"] = "ceiling";
-  j["options"] = o;
+  nlohmann::json j = {{"options", o}};
   j["options"]["hardware_concurrency"] = std::thread::hardware_concurrency();
   j["summary"] = nlohmann::json::array();
   for (const CeilingSummary& s : summary) {
@@ -107,14 +105,11 @@ class CeilingScenario final : public MeasuringScenario<CeilingOptions, CeilingRe
     cmd.add_option("--io-threads", threads_,
                    "Relay --io-threads values (comma separated; one run each)");
     cmd.add_option("--clients", o_.clients, "Bot clients");
-    cmd.add_option("--packet-auth", o_.packet_auth,
-                   "Seal packets after the handshake (false: measure without)");
     cmd.add_option("--rooms", o_.rooms, "Rooms the clients spread over");
     cmd.add_option("--entities", o_.entities_per_client, "Entities each client moves");
     cmd.add_option("--publish-hz", o_.publish_hz, "Client publish rate");
-    cmd.add_option("--tick-rate", o_.tick_rate_hz, "Relay room tick rate");
-    cmd.add_option("--warmup", o_.warmup_s, "Seconds of load before measuring");
-    cmd.add_option("--duration", o_.duration_s, "Measured seconds per relay run");
+    AddRelayRoomOptions(cmd, &o_.tick_rate_hz, &o_.packet_auth);
+    AddWindowOptions(cmd, &o_.warmup_s, &o_.duration_s, " per relay run");
     cmd.add_option("--iperf-seconds", o_.iperf_seconds, "iperf3 -t");
     cmd.add_option("--iperf-length", o_.iperf_length,
                    "iperf3 -l (bytes; 0: the relay's mean datagram size)");

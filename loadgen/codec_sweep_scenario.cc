@@ -40,9 +40,7 @@ std::string LabelOf(const CodecSweepResult& r) {
 }
 
 nlohmann::json Json(const CodecSweepOptions& o, const std::vector<CodecSweepResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "codec-sweep";
-  j["options"] = o;
+  nlohmann::json j = {{"options", o}};
   j["options"].update(o.motion);
   j["options"].update({{"slow_speed_mps", o.slow_motion.speed_mps},
                        {"slow_spin_dps", o.slow_motion.spin_dps},

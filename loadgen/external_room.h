@@ -19,9 +19,11 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "client/client.h"
+#include "loadgen/loopback_room.h"
 #include "loadgen/relay_target.h"
 
 namespace edgephys::loadgen {
@@ -81,6 +83,46 @@ class ExternalRoom {
   std::chrono::steady_clock::time_point t0_;
   bool disconnected_ = false;
   double steps_base_ = 0, steps_at_ = -1, steps_rate_ = 0;
+};
+
+// What a PhyS scene run (multiobject, softbody) on an external relay holds beside its room: the
+// relay's /metrics, the host's RefusalWatch and `receiver_count` receivers, each Receiver(index),
+// with the room's listener list (the host's first).
+template <typename Receiver>
+struct ExternalSceneClients {
+  ExternalSceneClients(const ExternalRelayOptions& external, uint32_t receiver_count,
+                       const std::unordered_map<uint32_t, size_t>* index)
+      : relay(external, std::chrono::steady_clock::now()) {
+    ReceiverSet<Receiver> set = MakeReceiverSet<Receiver>(receiver_count, &host_watch, index);
+    receivers = std::move(set.receivers);
+    listeners = std::move(set.listeners);
+  }
+
+  RelayTarget relay;
+  RefusalWatch host_watch;
+  std::vector<std::unique_ptr<Receiver>> receivers;
+  std::vector<ClientListener*> listeners;
+};
+
+// A PhyS scene run's room on an external relay: the host and the receivers of
+// ExternalSceneClients. The host publishes at 120 Hz, so the kinematic bodies it drives (a
+// stirrer, hands) reach PhyS with little delay; every member gives up a handshake after 10 s.
+template <typename Receiver>
+class ExternalSceneRoom : public ExternalSceneClients<Receiver>, public ExternalRoom {
+ public:
+  ExternalSceneRoom(const ExternalRelayOptions& external, const std::string& prefix,
+                    uint32_t receiver_count, const std::unordered_map<uint32_t, size_t>* index)
+      : ExternalSceneClients<Receiver>(external, receiver_count, index),
+        ExternalRoom(&this->relay, prefix, receiver_count + 1, Config(true), Config(false),
+                     this->listeners) {}
+
+ private:
+  static ClientConfig Config(bool host) {
+    ClientConfig c;
+    c.handshake_timeout_s = 10;
+    if (host) c.publish_rate_hz = 120;
+    return c;
+  }
 };
 
 }  // namespace edgephys::loadgen

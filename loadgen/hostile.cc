@@ -165,8 +165,7 @@ class HonestRoom {
     for (double r : rates) sum += r;
     f.rate = rates.empty() ? 0 : sum / static_cast<double>(rates.size());
     f.min_pair_rate = rates.empty() ? 0 : *std::min_element(rates.begin(), rates.end());
-    f.latency_ms_p50 = Percentile(latencies_, 50);
-    f.latency_ms_p99 = Percentile(latencies_, 99);
+    SetP50P99(latencies_, &f.latency_ms_p50, &f.latency_ms_p99);
     if (probe != nullptr) {
       *probe = probe_;
       if (probe_requested_ && !probe_done_) probe->failure = "not complete at the phase's end";

@@ -16,18 +16,15 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(ProbeFigures, started, joined, complete, join
                                    entities, target, failure)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(HostilePhase, name, seconds, same, other, probe, refusals,
                                    physics_step_ms_mean, entities_gauge_end)
+// The options a report echoes, named as the members (the in-process relay's added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(HostileOptions, attacks, honest, attack_max_s, phase_s,
+                                   publish_hz, soft_bodies, particles, huge_names, name_bytes,
+                                   flood_rate, flood_address)
 
 namespace {
 
 nlohmann::json Json(const HostileOptions& o, const HostileResult& r) {
-  nlohmann::json j;
-  j["scenario"] = "hostile";
-  j["options"] = {{"attacks", o.attacks},       {"honest", o.honest},
-                  {"attack_max_s", o.attack_max_s},
-                  {"phase_s", o.phase_s},       {"publish_hz", o.publish_hz},
-                  {"soft_bodies", o.soft_bodies}, {"particles", o.particles},
-                  {"huge_names", o.huge_names}, {"name_bytes", o.name_bytes},
-                  {"flood_rate", o.flood_rate}, {"flood_address", o.flood_address}};
+  nlohmann::json j = {{"options", o}};
   if (o.external.enabled()) {
     j["relay"] = {{"external", true}, {"address", o.external.relay}};
   } else {

@@ -15,6 +15,10 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(InterpSweepResult, network, rate_hz, pos_err_
                                    pos_err_p99_m, pos_err_mean_m, rot_err_max_deg,
                                    rot_err_p99_deg, rot_err_mean_deg, display_delay_ms,
                                    buffer_delay_ms, extrapolated_frac, snapshots_lost_frac, frames)
+// The options a report echoes, named as the members (with the motion's, the quantisation's and
+// the networks added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(InterpSweepOptions, rates_hz, duration_s, warmup_s, render_hz,
+                                   objects, quantize)
 
 namespace {
 
@@ -45,7 +49,6 @@ const char* StyleOf(Interpolator m) {
 
 nlohmann::json Json(const InterpSweepOptions& o, const std::vector<InterpSweepResult>& results) {
   nlohmann::json j;
-  j["scenario"] = "interp-sweep";
   nlohmann::json nets = nlohmann::json::array();
   for (const auto& n : o.networks) {
     nets.push_back({{"name", n.name},
@@ -53,14 +56,9 @@ nlohmann::json Json(const InterpSweepOptions& o, const std::vector<InterpSweepRe
                     {"jitter_ms", n.jitter_s * 1000},
                     {"loss", n.loss}});
   }
-  j["options"] = o.motion;
-  j["options"].update({{"rates_hz", o.rates_hz},
-                       {"duration_s", o.duration_s},
-                       {"warmup_s", o.warmup_s},
-                       {"render_hz", o.render_hz},
-                       {"objects", o.objects},
-                       {"quantize", o.quantize},
-                       {"position_step_m", o.quantize ? o.position_step_m : 0.0f},
+  j["options"] = o;
+  j["options"].update(o.motion);
+  j["options"].update({{"position_step_m", o.quantize ? o.position_step_m : 0.0f},
                        {"rotation_bound_deg", o.quantize ? o.rotation_bound_deg : 0.0f},
                        {"networks", nets}});
   j["results"] = nlohmann::json::array();
@@ -162,8 +160,7 @@ class InterpSweepScenario final
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--rates", rates_, "Send rates in Hz (comma separated)");
     cmd.add_option("--interpolators", methods_, "lerp-slerp,dq-dlb,dq-sclerp,hermite,none");
-    cmd.add_option("--duration", o_.duration_s, "Measured seconds per rate and network");
-    cmd.add_option("--warmup", o_.warmup_s, "Rendered but unmeasured seconds first");
+    AddWindowOptions(cmd, &o_.warmup_s, &o_.duration_s, " per rate and network");
     cmd.add_option("--objects", o_.objects, "Objects (independent streams)");
     cmd.add_option("--render-hz", o_.render_hz, "Receiver frame rate");
     AddMotionOptions(cmd, &o_.motion, "Motion and network seed");
@@ -171,8 +168,7 @@ class InterpSweepScenario final
     cmd.add_option("--jitter", jitter_s_, "Impaired condition: uniform +- jitter (s)");
     cmd.add_option("--loss", loss_, "Impaired condition: loss probability");
     cmd.add_flag("--quantize,!--no-quantize", o_.quantize, "Quantise snapshots like state format 2");
-    cmd.add_option("--position-step", o_.position_step_m, "Quantisation step (m)");
-    cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "Quantisation rotation bound (deg)");
+    AddQuantisationOptions(cmd, &o_.position_step_m, &o_.rotation_bound_deg);
   }
 
   std::string Validate() override {

@@ -21,9 +21,8 @@
 
 #include "client/client.h"
 #include "client/client_endpoint.h"
-#include "loadgen/avatar.h"
 #include "loadgen/loopback_room.h"
-#include "loadgen/physics_burn.h"
+#include "loadgen/motion.h"
 #include "loadgen/pose_history.h"
 #include "loadgen/stats.h"
 #include "loadgen/scenes/scenes.h"
@@ -431,10 +430,8 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
         arr.push_back(world.samples[i].arrival_ms);
       }
       p.samples = sdk.size();
-      p.latency_ms_p50 = Percentile(sdk, 50);
-      p.latency_ms_p99 = Percentile(sdk, 99);
-      p.arrival_latency_ms_p50 = Percentile(arr, 50);
-      p.arrival_latency_ms_p99 = Percentile(arr, 99);
+      SetP50P99(sdk, &p.latency_ms_p50, &p.latency_ms_p99);
+      SetP50P99(arr, &p.arrival_latency_ms_p50, &p.arrival_latency_ms_p99);
       const double expected = measuring_bots * (o.users > 0 ? o.users - 1.0 : 0.0) * o.publish_hz *
                               (p.end_s - p.start_s);
       p.delivered_fraction = expected > 0 ? w.hand_updates / expected : 0;
@@ -577,10 +574,8 @@ IsolationResult RunIsolation(const IsolationOptions& o) {
       IsolationBin b;
       b.t = t0 + i * o.bin_s;
       b.samples = sdk[i].size();
-      b.latency_ms_p50 = Percentile(sdk[i], 50);
-      b.latency_ms_p99 = Percentile(sdk[i], 99);
-      b.arrival_latency_ms_p50 = Percentile(arr[i], 50);
-      b.arrival_latency_ms_p99 = Percentile(arr[i], 99);
+      SetP50P99(sdk[i], &b.latency_ms_p50, &b.latency_ms_p99);
+      SetP50P99(arr[i], &b.arrival_latency_ms_p50, &b.arrival_latency_ms_p99);
       result.bins.push_back(b);
     }
   }

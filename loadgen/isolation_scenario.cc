@@ -24,9 +24,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(IsolationBin, t, samples, latency_ms_p50, lat
 namespace {
 
 nlohmann::json Json(const IsolationOptions& o, const IsolationResult& r) {
-  nlohmann::json j;
-  j["scenario"] = "isolation";
-  j["options"] = o;
+  nlohmann::json j = {{"options", o}};
   j["options"].update({{"b_mode", o.b_burn ? "burn" : "scene"},
                        {"b_decode", o.b_decode ? "all" : "joiner"}});
   if (o.external.enabled()) {

@@ -50,24 +50,31 @@ bool LoopbackRoom::ConnectAndJoin(double timeout_s) {
     t.nonce = SecureRandom64();
     (void)clients_[i]->Connect(ToRelayAddress(relay_socket_->LocalEndpoint()), *SignJoinToken(t, secret_), Now());
   }
-  auto run_until = [&](auto&& done, double timeout) {
-    const double end = Now() + timeout;
-    while (Now() < end && !done()) {
-      Step();
+  return ConnectAndJoinAll(clients_, room_, timeout_s, [this] { return Now(); },
+                           [this] { Step(); });
+}
+
+bool ConnectAndJoinAll(const std::vector<std::unique_ptr<Client>>& clients, const std::string& room,
+                       double timeout_s, const std::function<double()>& now,
+                       const std::function<void()>& step) {
+  auto run_until = [&](auto&& done) {
+    const double end = now() + timeout_s;
+    while (now() < end && !done()) {
+      step();
       std::this_thread::sleep_for(std::chrono::microseconds(300));
     }
     return done();
   };
   bool ok = run_until([&] {
-    for (auto& c : clients_) if (c->state() != ClientState::kConnected) return false;
+    for (auto& c : clients) if (c->state() != ClientState::kConnected) return false;
     return true;
-  }, timeout_s);
+  });
   if (!ok) return false;
-  for (auto& c : clients_) (void)c->JoinRoom(room_);
+  for (auto& c : clients) (void)c->JoinRoom(room);
   return run_until([&] {
-    for (auto& c : clients_) if (!c->joined()) return false;
+    for (auto& c : clients) if (!c->joined()) return false;
     return true;
-  }, timeout_s);
+  });
 }
 
 void LoopbackRoom::UpdateRelay() { relay_->Update(Now(), UnixNow()); }

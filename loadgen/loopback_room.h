@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,6 +17,13 @@
 #include "relay/relay.h"
 
 namespace edgephys::loadgen {
+
+// Runs `step()` (then sleeps 300 us) until every one of `clients` (Connect already called) is
+// connected, then has each join `room` and runs until every one has joined; false as soon as a
+// phase outlasts `timeout_s` seconds of `now()`. Shared by LoopbackRoom and relay-compare.
+bool ConnectAndJoinAll(const std::vector<std::unique_ptr<Client>>& clients, const std::string& room,
+                       double timeout_s, const std::function<double()>& now,
+                       const std::function<void()>& step);
 
 // An in-process relay on a loopback UDP socket with `clients` clients (client 0 the host),
 // each with its own socket; player ids 1..clients. Shared by multiobject and softbody.

@@ -15,6 +15,10 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MessagesResult, joined, window_s, sent, send_
                                    duplicates, property_writes, property_message_bytes,
                                    property_sent_bytes, property_received_bytes,
                                    property_sent_net_bytes, property_received_net_bytes)
+// The options a report echoes, named as the members.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MessagesOptions, users, rate_hz, payload_bytes, unreliable,
+                                   warmup_s, duration_s, tick_rate_hz, property_hz,
+                                   property_seconds, packet_auth)
 
 namespace {
 
@@ -22,18 +26,7 @@ namespace {
 nlohmann::json OrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
 nlohmann::json Json(const MessagesOptions& o, const MessagesResult& r) {
-  nlohmann::json j;
-  j["scenario"] = "messages";
-  j["options"] = {{"users", o.users},
-                  {"rate_hz", o.rate_hz},
-                  {"payload_bytes", o.payload_bytes},
-                  {"unreliable", o.unreliable},
-                  {"warmup_s", o.warmup_s},
-                  {"duration_s", o.duration_s},
-                  {"tick_rate_hz", o.tick_rate_hz},
-                  {"property_hz", o.property_hz},
-                  {"property_seconds", o.property_seconds},
-                  {"packet_auth", o.packet_auth}};
+  nlohmann::json j = {{"options", o}};
   j["summary"] = r;
   j["summary"]["relay_cpu"] = OrNull(r.relay_cpu);
   j["summary"]["delivered_per_core_s"] = OrNull(r.delivered_per_core_s);
@@ -94,11 +87,9 @@ class MessagesScenario final : public MeasuringScenario<MessagesOptions, Message
     cmd.add_flag("--unreliable", o_.unreliable, "Send unreliable messages (one datagram each)");
     cmd.add_option("--warmup", o_.warmup_s, "Seconds of messages before measuring");
     cmd.add_option("--seconds,--duration", o_.duration_s, "Measured seconds");
-    cmd.add_option("--tick-rate", o_.tick_rate_hz, "Relay room tick rate");
+    AddRelayRoomOptions(cmd, &o_.tick_rate_hz, &o_.packet_auth);
     cmd.add_option("--property-hz", o_.property_hz, "Property writes per second (phase 2)");
     cmd.add_option("--property-seconds", o_.property_seconds, "Seconds of property writes");
-    cmd.add_option("--packet-auth", o_.packet_auth,
-                   "Seal packets after the handshake (false: measure without)");
     AddExternalRelayOptions(cmd, &o_.external);
   }
 

@@ -528,19 +528,14 @@ void RelayRun(const MultiObjectOptions& o, uint32_t n, MultiObjectResult* r) {
   r->pos_err_sent_max_m = Max(sent);
   r->pos_err_sent_p99_m = Percentile(sent, 99);
   r->error_samples = same_errors.size();
-  r->display_err_p50_m = Percentile(probe.lerp_errors, 50);
-  r->display_err_p99_m = Percentile(probe.lerp_errors, 99);
-  r->display_err_state_p50_m = Percentile(probe.state_errors, 50);
-  r->display_err_state_p99_m = Percentile(probe.state_errors, 99);
-  r->display_err_hermite_p50_m = Percentile(probe.hermite_errors, 50);
-  r->display_err_hermite_p99_m = Percentile(probe.hermite_errors, 99);
-  r->display_err_adaptive_p50_m = Percentile(probe.adaptive_errors, 50);
-  r->display_err_adaptive_p99_m = Percentile(probe.adaptive_errors, 99);
+  SetP50P99(probe.lerp_errors, &r->display_err_p50_m, &r->display_err_p99_m);
+  SetP50P99(probe.state_errors, &r->display_err_state_p50_m, &r->display_err_state_p99_m);
+  SetP50P99(probe.hermite_errors, &r->display_err_hermite_p50_m, &r->display_err_hermite_p99_m);
+  SetP50P99(probe.adaptive_errors, &r->display_err_adaptive_p50_m, &r->display_err_adaptive_p99_m);
   r->display_adaptive_playout_ms_median = Percentile(probe.adaptive_playout_ms, 50);
   r->display_delay_ms_median = Percentile(probe.delays_ms, 50);
   r->display_playout_ms_median = Percentile(probe.playout_ms, 50);
-  r->display_rot_err_p50_deg = Percentile(probe.rot_errors_deg, 50);
-  r->display_rot_err_p99_deg = Percentile(probe.rot_errors_deg, 99);
+  SetP50P99(probe.rot_errors_deg, &r->display_rot_err_p50_deg, &r->display_rot_err_p99_deg);
   r->display_samples = probe.lerp_errors.size();
 }
 

@@ -14,6 +14,7 @@
 #include "loadgen/loopback_room.h"
 #include "loadgen/multiobject.h"
 #include "loadgen/relay_target.h"
+#include "loadgen/relay_window_result.h"
 #include "loadgen/stats.h"
 #include "loadgen/scenes/scenes.h"
 
@@ -53,18 +54,11 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   Unknown(r);
   const physics::MultiObjectParams p = MultiObjectSceneParams(o, n);
   const double dt = p.config.fixed_dt;
-  RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> box_index;
-  RefusalWatch host_watch;
-  auto [receivers, listeners] =
-      MakeReceiverSet<ExternalReceiver>(o.receivers, &host_watch, &box_index);
-  ClientConfig cc;
-  cc.handshake_timeout_s = 10;
-  ClientConfig host_config = cc;
-  host_config.publish_rate_hz = 120;  // the stirrer's pose reaches PhyS with little delay
-  ExternalRoom world(&relay, "multiobject-" + std::to_string(n), o.receivers + 1, host_config, cc,
-                     listeners);
+  ExternalSceneRoom<ExternalReceiver> world(o.external, "multiobject-" + std::to_string(n),
+                                            o.receivers, &box_index);
   if (!world.JoinAll(15)) return;
+  const auto& receivers = world.receivers;
   auto now = [&] { return world.Now(); };
 
   // The host dissects the scene as in the in-process run.
@@ -103,9 +97,9 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
     spawned = std::all_of(receivers.begin(), receivers.end(),
                           [&](const auto& l) { return l->spawned >= box_index.size(); });
     if (spawned) break;
-    if (host_watch.refused()) {
+    if (world.host_watch.refused()) {
       std::fprintf(stderr, "\nmultiobject: the relay refused the scene: %s (raise its budgets: "
-                   "docs/operations.md, \"Room budgets\")\n", host_watch.what().c_str());
+                   "docs/operations.md, \"Room budgets\")\n", world.host_watch.what().c_str());
       return;
     }
     if (o.progress) {
@@ -134,7 +128,7 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
     state0[k] = world.client(k + 1).state_bytes_received();
     receivers[k]->measuring = true;
   }
-  const RelayFigures a = relay.Read();
+  const RelayFigures a = world.relay.Read();
   const double m0 = now();
   std::vector<Vec3f> prev(box_index.size());
   double prev_steps = -1, next_moving = m0;
@@ -158,7 +152,7 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
     prev = std::move(pos);
     prev_steps = steps;
   }
-  const RelayFigures b = relay.Read();
+  const RelayFigures b = world.relay.Read();
   const double elapsed = now() - m0;
   if (!world.AllConnected()) {
     std::fprintf(stderr, "\nmultiobject: %u objects: a client lost its connection; results void\n", n);
@@ -174,22 +168,14 @@ void ExternalMultiObjectRun(const MultiObjectOptions& o, uint32_t n, MultiObject
   world.DisconnectAll();
   const double per = static_cast<double>(R) * elapsed;
   const bool metrics = a.ok && b.ok;
-  // The relay's bytes sent over the window, per member: PhyS drives the boxes, so the host is
-  // sent the scene as the receivers are (the in-process run counts the receivers' connections
-  // only; the two agree within the host's acks). Any other traffic on that relay counts too.
+  // Egress counts the host's connection too (SetExternalWindowRates); the in-process run counts
+  // the receivers' connections only: the two agree within the host's acks.
+  SetExternalWindowRates(r, a, b, R, elapsed, socket_total, dt);
   const double relay_bytes = metrics ? b.bytes_sent - a.bytes_sent : kUnknown;
-  r->relay_ok = true;
-  r->egress_mbit_per_s_per_client = relay_bytes * 8 / 1e6 / (static_cast<double>(R + 1) * elapsed);
-  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
-  r->ip_udp_mbit_per_s_per_client = kUnknown;
   r->updates_per_s_per_client = updates / per;
   r->bytes_per_update = updates > 0 ? relay_bytes / updates : kUnknown;
   r->state_mbit_per_s_per_client = state_total * 8 / 1e6 / per;
   r->events_per_s_per_client = events / per;
-  const double step_count = metrics ? b.physics_step_count - a.physics_step_count : 0;
-  r->relay_step_ms_mean =
-      step_count > 0 ? (b.physics_step_seconds_sum - a.physics_step_seconds_sum) / step_count * 1e3 : kUnknown;
-  r->sim_speed = metrics ? (b.physics_steps - a.physics_steps) * dt / elapsed : kUnknown;
   double sum = 0;
   for (double x : moving) sum += x;
   r->relay_moving_fraction = moving.empty() ? 0 : sum / static_cast<double>(moving.size());

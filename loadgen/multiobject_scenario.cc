@@ -22,9 +22,7 @@ namespace {
 
 // Options echoed; per size the standalone figures if they ran, the relay figures if it ran.
 nlohmann::json Json(const MultiObjectOptions& o, const std::vector<MultiObjectResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "multiobject";
-  j["options"] = o;
+  nlohmann::json j = {{"options", o}};
   j["options"].update({{"tick_rate_hz", 60}, {"mode", "edgephys"}});
   if (o.external.enabled()) {
     j["relay"] = {{"external", true},
@@ -176,14 +174,11 @@ class MultiObjectScenario final
 
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--objects", objects_, "Box counts (comma separated)");
-    cmd.add_option("--duration", o_.duration_s, "Relay run: measured seconds per size");
-    cmd.add_option("--receivers", o_.receivers, "Relay run: receiving clients");
-    cmd.add_option("--settle-steps", o_.relay_settle_steps, "Relay run: PhyS steps before measuring");
+    AddSceneRelayRunOptions(cmd, &o_.duration_s, &o_.receivers, &o_.relay_settle_steps, "size");
     cmd.add_option("--settle-max", o_.relay_settle_max_s, "Relay run: wall cap on settling (s)");
     cmd.add_option("--relay-max-substeps", o_.relay_max_substeps,
                    "Relay run: PhysicsConfig::max_substeps (steps per relay update)");
-    cmd.add_option("--bench-warmup", o_.bench_warmup_steps, "Standalone: settling steps");
-    cmd.add_option("--bench-steps", o_.bench_steps, "Standalone: measured steps per scene (at most)");
+    AddStandaloneStepOptions(cmd, &o_.bench_warmup_steps, &o_.bench_steps);
     cmd.add_option("--bench-max", o_.bench_max_s, "Standalone: wall cap on measuring (s)");
     cmd.add_option("--bench-min-steps", o_.bench_min_steps, "Standalone: measured steps at least");
     cmd.add_option("--moving-speed", o_.moving_speed_mps, "Moving: speed above (m/s)");
@@ -199,8 +194,7 @@ class MultiObjectScenario final
                    "PhyS sleeping thresholds (m/s, rad/s); the raw Bullet run keeps Bullet's 0.8 / 1.0");
     cmd.add_option("--rest-freeze", o_.rest_freeze,
                    "PhyS freezes resting bodies (PhysicsConfig::rest_freeze; false: off)");
-    cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
-    cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "edgephys rotation bound (deg)");
+    AddQuantisationOptions(cmd, &o_.position_step_m, &o_.rotation_bound_deg);
     cmd.add_option("--position-threshold", o_.position_threshold_m,
                    "Send when the client's copy is off by more than this (m; <0: relay default 0.001)");
     cmd.add_option("--rotation-threshold", o_.rotation_threshold_deg,

@@ -37,6 +37,34 @@ void AddMotionOptions(CLI::App& cmd, MotionParams* motion, const char* seed_help
   cmd.add_option("--seed", motion->seed, seed_help);
 }
 
+void AddWindowOptions(CLI::App& cmd, double* warmup_s, double* duration_s, const std::string& per) {
+  cmd.add_option("--warmup", *warmup_s, "Seconds run before measuring");
+  cmd.add_option("--duration", *duration_s, "Measured seconds" + per);
+}
+
+void AddQuantisationOptions(CLI::App& cmd, float* position_step_m, float* rotation_bound_deg) {
+  cmd.add_option("--position-step", *position_step_m, "Position quantisation step (m)");
+  cmd.add_option("--rotation-bound", *rotation_bound_deg, "Rotation quantisation bound (deg)");
+}
+
+void AddRelayRoomOptions(CLI::App& cmd, double* tick_rate_hz, bool* packet_auth) {
+  cmd.add_option("--tick-rate", *tick_rate_hz, "Relay room tick rate");
+  cmd.add_option("--packet-auth", *packet_auth,
+                 "In-process relay: seal packets after the handshake (false: measure without)");
+}
+
+void AddSceneRelayRunOptions(CLI::App& cmd, double* duration_s, uint32_t* receivers,
+                             int* settle_steps, const char* size) {
+  cmd.add_option("--duration", *duration_s, std::string("Relay run: measured seconds per ") + size);
+  cmd.add_option("--receivers", *receivers, "Relay run: receiving clients");
+  cmd.add_option("--settle-steps", *settle_steps, "Relay run: PhyS steps before measuring");
+}
+
+void AddStandaloneStepOptions(CLI::App& cmd, int* warmup_steps, int* steps) {
+  cmd.add_option("--bench-warmup", *warmup_steps, "Standalone: settling steps");
+  cmd.add_option("--bench-steps", *steps, "Standalone: measured steps per scene (at most)");
+}
+
 std::vector<std::unique_ptr<Scenario>> AllScenarios() {
   std::vector<std::unique_ptr<Scenario>> all;
   all.push_back(MakeRelayCompareScenario());

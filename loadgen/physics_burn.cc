@@ -1,4 +1,4 @@
-#include "loadgen/physics_burn.h"
+#include "loadgen/isolation.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -130,10 +130,13 @@ bool PhysicsBurnProcess::Stop(PhysicsBurnResult* result, std::string* error) {
 namespace {
 
 nlohmann::json Json(const PhysicsBurnOptions& o, const PhysicsBurnResult& r) {
-  return {{"scenario", "physics-burn"},
-          {"options", {{"boxes", o.boxes}, {"seconds", o.seconds}, {"nice", o.nice}, {"seed", o.seed}}},
-          {"summary",
-           {{"steps", r.steps}, {"seconds", r.seconds}, {"step_ms_mean", r.step_ms_mean}, {"niceness", r.niceness}}}};
+  return {
+      {"options", {{"boxes", o.boxes}, {"seconds", o.seconds}, {"nice", o.nice}, {"seed", o.seed}}},
+      {"summary",
+       {{"steps", r.steps},
+        {"seconds", r.seconds},
+        {"step_ms_mean", r.step_ms_mean},
+        {"niceness", r.niceness}}}};
 }
 
 void FillTable(const PhysicsBurnOptions& o, const PhysicsBurnResult& r, Table* t) {

@@ -11,6 +11,7 @@
 #include "client/client.h"
 #include "client/client_endpoint.h"
 #include "loadgen/emulation/emulation_plugins.h"
+#include "loadgen/loopback_room.h"
 #include "loadgen/paper_figures.h"
 #include "loadgen/stats.h"
 #include "protocol/handshake.h"
@@ -157,23 +158,7 @@ RelayCompareResult RunOne(const RelayCompareOptions& o, ReplicationMode mode, ui
     if (relay_owned) relay_owned->Update(now, UnixNow());
     for (auto& c : clients) c->Update(now);
   };
-  auto run_until = [&](auto&& done, double timeout) {
-    double end = Now(start) + timeout;
-    while (Now(start) < end && !done()) {
-      step();
-      std::this_thread::sleep_for(std::chrono::microseconds(300));
-    }
-    return done();
-  };
-  bool ok = run_until([&] {
-    for (auto& c : clients) if (c->state() != ClientState::kConnected) return false;
-    return true;
-  }, 5.0);
-  for (auto& c : clients) (void)c->JoinRoom(room);
-  ok = ok && run_until([&] {
-    for (auto& c : clients) if (!c->joined()) return false;
-    return true;
-  }, 5.0);
+  const bool ok = ConnectAndJoinAll(clients, room, 5.0, [&] { return Now(start); }, step);
   RelayCompareResult result;
   result.mode = mode;
   result.objects = objects;

@@ -15,20 +15,16 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RelayCompareResult, objects, rate_hz,
                                    updates_per_s_per_receiver,
                                    bytes_per_update, pos_err_max_m, pos_err_p99_m,
                                    rot_err_max_deg, rot_err_p99_deg, paper_bytes_per_s, samples)
+// The options a report echoes, named as the members (with the motion's added).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RelayCompareOptions, rate_hz, duration_s, receivers,
+                                   position_step_m, rotation_bound_deg, shared_encoding)
 
 namespace {
 
 // {"scenario":"relay-compare","options":{...},"results":[...]}.
 nlohmann::json Json(const RelayCompareOptions& o, const std::vector<RelayCompareResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "relay-compare";
-  j["options"] = o.motion;
-  j["options"].update({{"rate_hz", o.rate_hz},
-                       {"duration_s", o.duration_s},
-                       {"receivers", o.receivers},
-                       {"position_step_m", o.position_step_m},
-                       {"rotation_bound_deg", o.rotation_bound_deg},
-                       {"shared_encoding", o.shared_encoding}});
+  nlohmann::json j = {{"options", o}};
+  j["options"].update(o.motion);
   j["results"] = nlohmann::json::array();
   for (const auto& r : results) {
     nlohmann::json e = r;
@@ -131,12 +127,10 @@ class RelayCompareScenario final
     cmd.add_option("--objects", objects_, "Object counts (comma separated)");
     cmd.add_option("--modes", modes_, "Modes: photon,paper,edgephys,float");
     cmd.add_option("--rate", o_.rate_hz, "Sends per second per object");
-    cmd.add_option("--duration", o_.duration_s, "Measured seconds per mode and size");
-    cmd.add_option("--warmup", o_.warmup_s, "Seconds before measuring");
+    AddWindowOptions(cmd, &o_.warmup_s, &o_.duration_s, " per mode and size");
     cmd.add_option("--receivers", o_.receivers, "Receiving clients");
     AddMotionOptions(cmd, &o_.motion, "Motion seed");
-    cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
-    cmd.add_option("--rotation-bound", o_.rotation_bound_deg, "edgephys rotation bound (deg)");
+    AddQuantisationOptions(cmd, &o_.position_step_m, &o_.rotation_bound_deg);
     cmd.add_option("--position-threshold", o_.position_threshold_m, "Selective sync threshold (m)");
     cmd.add_flag("--shared-encoding,!--no-shared-encoding", o_.shared_encoding,
                  "edgephys mode: state format 9 (the relay's default); --no-shared-encoding: 2");

@@ -91,6 +91,7 @@ class Scenario {
 
 // The formatters of a scenario's report, each given the options and the results:
 // json(o, results), table(o, results, &table) and, unless null, charts(o, results, prefix).
+// json gives an object; MeasuringScenario adds its "scenario" (the subcommand's name).
 template <typename Options, typename Results>
 struct ReportFormat {
   nlohmann::json (*json)(const Options&, const Results&);
@@ -116,6 +117,7 @@ class MeasuringScenario : public Scenario {
     Report report;
     report.ok = Succeeded(*results);
     report.json = format_.json(o_, *results);
+    report.json["scenario"] = name();
     format_.table(o_, *results, &report.table);
     if (format_.charts != nullptr) {
       report.charts = [o = o_, r = std::move(*results), charts = format_.charts](
@@ -155,8 +157,31 @@ inline double RatioOr0(double a, double b) { return b > 0 ? a / b : 0.0; }
 // The JSON of a Motion's parameters: speed_mps, spin_dps and seed.
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MotionParams, speed_mps, spin_dps, seed)
 
+// Option groups several scenarios share: each declares its options' names and help once.
+
 // --speed, --spin and --seed of the objects' Motion (loadgen/motion.h).
 void AddMotionOptions(CLI::App& cmd, MotionParams* motion, const char* seed_help);
+
+// --warmup (seconds run before measuring) and --duration (measured seconds; `per` says what
+// one measured window covers, e.g. " per mode and size").
+void AddWindowOptions(CLI::App& cmd, double* warmup_s, double* duration_s, const std::string& per);
+
+// --position-step (m) and --rotation-bound (deg): the quantisation of positions and rotations.
+void AddQuantisationOptions(CLI::App& cmd, float* position_step_m, float* rotation_bound_deg);
+
+// --tick-rate (the relay's room tick rate) and --packet-auth (the in-process relay seals
+// packets after the handshake; false: measure without).
+void AddRelayRoomOptions(CLI::App& cmd, double* tick_rate_hz, bool* packet_auth);
+
+// The relay run of a PhyS scene (multiobject, softbody): --duration (measured seconds per
+// `size`, e.g. "size"), --receivers (receiving clients) and --settle-steps (PhyS steps before
+// measuring).
+void AddSceneRelayRunOptions(CLI::App& cmd, double* duration_s, uint32_t* receivers,
+                             int* settle_steps, const char* size);
+
+// The standalone step-time run of a PhyS scene: --bench-warmup (settling steps) and
+// --bench-steps (measured steps, at most).
+void AddStandaloneStepOptions(CLI::App& cmd, int* warmup_steps, int* steps);
 
 // Every scenario, in the order of `edgephys-loadgen --help`.
 std::vector<std::unique_ptr<Scenario>> AllScenarios();
@@ -169,7 +194,7 @@ std::unique_ptr<Scenario> MakeSoftBodyScenario();
 std::unique_ptr<Scenario> MakeCcuScenario();
 std::unique_ptr<Scenario> MakeCeilingScenario();
 std::unique_ptr<Scenario> MakeIsolationScenario();
-std::unique_ptr<Scenario> MakePhysicsBurnScenario();  // isolation's control (physics_burn.h)
+std::unique_ptr<Scenario> MakePhysicsBurnScenario();  // isolation's control (isolation.h)
 std::unique_ptr<Scenario> MakeHostileScenario();
 std::unique_ptr<Scenario> MakeMessagesScenario();
 

@@ -11,6 +11,7 @@
 
 #include "loadgen/external_room.h"
 #include "loadgen/loopback_room.h"
+#include "loadgen/relay_window_result.h"
 #include "loadgen/softbody.h"
 #include "loadgen/softbody_scene.h"
 #include "loadgen/stats.h"
@@ -34,18 +35,11 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
   r->node_err_max_m = r->node_err_p99_m = r->node_err_sent_max_m = r->node_err_sent_p99_m = kUnknown;
   SoftBodyScene scene = MakeSoftBodyScene(o, n);
   const double dt = 1.0 / 60.0;  // PhysicsConfig::fixed_dt, the relay's default
-  RelayTarget relay(o.external, std::chrono::steady_clock::now());
   std::unordered_map<uint32_t, size_t> bunny_index;
-  RefusalWatch host_watch;
-  auto [receivers, listeners] =
-      MakeReceiverSet<ExternalSoftReceiver>(o.receivers, &host_watch, &bunny_index);
-  ClientConfig cc;
-  cc.handshake_timeout_s = 10;
-  ClientConfig host_config = cc;
-  host_config.publish_rate_hz = 120;
-  ExternalRoom world(&relay, "softbody-" + std::to_string(n), o.receivers + 1, host_config, cc,
-                     listeners);
+  ExternalSceneRoom<ExternalSoftReceiver> world(o.external, "softbody-" + std::to_string(n),
+                                                o.receivers, &bunny_index);
   if (!world.JoinAll(15)) return;
+  const auto& receivers = world.receivers;
   Client& host = world.client(0);
   std::vector<uint32_t> bunny_ids, hand_ids;
   for (const EntitySpec& s : scene.specs) {
@@ -86,9 +80,9 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
     round();
     ready = true;
     for (size_t c = 0; c < world.size() && ready; ++c) ready = has_bunnies(world.client(c));
-    if (host_watch.refused()) {
+    if (world.host_watch.refused()) {
       std::fprintf(stderr, "softbody: the relay refused the scene: %s (its particle budgets: "
-                   "docs/operations.md, \"Room budgets\")\n", host_watch.what().c_str());
+                   "docs/operations.md, \"Room budgets\")\n", world.host_watch.what().c_str());
       return;
     }
   }
@@ -113,7 +107,7 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
     socket0[k] = world.ReceivedBytes(k + 1);
     receivers[k]->measuring = true;
   }
-  const RelayFigures a = relay.Read();
+  const RelayFigures a = world.relay.Read();
   const double m0 = world.Now();
   double next_sample = m0;
   std::vector<double> deformation;
@@ -125,7 +119,7 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
       deformation.push_back(scene.Deformation(0, e->nodes));
     }
   }
-  const RelayFigures b = relay.Read();
+  const RelayFigures b = world.relay.Read();
   const double elapsed = world.Now() - m0;
   if (!world.AllConnected()) {
     std::fprintf(stderr, "softbody: %u bunnies: a client lost its connection; results void\n", n);
@@ -137,20 +131,8 @@ void ExternalSoftBodyRun(const SoftBodyOptions& o, uint32_t n, SoftBodyResult* r
     updates += static_cast<double>(receivers[k]->updates);
   }
   world.DisconnectAll();
-  const double per = static_cast<double>(R) * elapsed;
-  const bool metrics = a.ok && b.ok;
-  r->relay_ok = true;
-  // Per member: the host is sent the PhyS-driven bunnies as the receivers are (see
-  // multiobject_external.cc); other traffic on that relay counts too.
-  r->egress_mbit_per_s_per_client =
-      metrics ? (b.bytes_sent - a.bytes_sent) * 8 / 1e6 / (static_cast<double>(R + 1) * elapsed) : kUnknown;
-  r->socket_mbit_per_s_per_client = socket_total * 8 / 1e6 / per;
-  r->ip_udp_mbit_per_s_per_client = kUnknown;
-  r->soft_updates_per_s_per_client = updates / per;
-  const double step_count = metrics ? b.physics_step_count - a.physics_step_count : 0;
-  r->relay_step_ms_mean =
-      step_count > 0 ? (b.physics_step_seconds_sum - a.physics_step_seconds_sum) / step_count * 1e3 : kUnknown;
-  r->sim_speed = metrics ? (b.physics_steps - a.physics_steps) * dt / elapsed : kUnknown;
+  SetExternalWindowRates(r, a, b, R, elapsed, socket_total, dt);
+  r->soft_updates_per_s_per_client = updates / (static_cast<double>(R) * elapsed);
   r->deformation_min_m = deformation.empty() ? 0 : *std::min_element(deformation.begin(), deformation.end());
   r->deformation_max_m = Max(deformation);
 }

@@ -27,9 +27,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SoftBodyResult, bunnies, particles, step_ms_m
 namespace {
 
 nlohmann::json Json(const SoftBodyOptions& o, const std::vector<SoftBodyResult>& results) {
-  nlohmann::json j;
-  j["scenario"] = "softbody";
-  j["options"] = o;
+  nlohmann::json j = {{"options", o}};
   j["options"].update(
       {{"particles_per_bunny_target", o.particles}, {"tick_rate_hz", 60}, {"mode", "edgephys"}});
   j["relay"] = {{"external", o.external.enabled()}};
@@ -107,12 +105,10 @@ class SoftBodyScenario final
   void AddOptions(CLI::App& cmd) override {
     cmd.add_option("--bunnies", bunnies_, "Bunny counts (comma separated)");
     cmd.add_option("--particles", o_.particles, "Target particles per bunny");
-    cmd.add_option("--duration", o_.duration_s, "Relay run: measured seconds per count");
-    cmd.add_option("--receivers", o_.receivers, "Relay run: receiving clients");
-    cmd.add_option("--settle-steps", o_.relay_settle_steps, "Relay run: PhyS steps before measuring");
+    AddSceneRelayRunOptions(cmd, &o_.duration_s, &o_.receivers, &o_.relay_settle_steps,
+                            "bunny count");
     cmd.add_option("--poke-period", o_.poke_period_s, "Seconds per poke");
-    cmd.add_option("--bench-warmup", o_.bench_warmup_steps, "Standalone: settling steps");
-    cmd.add_option("--bench-steps", o_.bench_steps, "Standalone: measured steps");
+    AddStandaloneStepOptions(cmd, &o_.bench_warmup_steps, &o_.bench_steps);
     cmd.add_option("--position-step", o_.position_step_m, "edgephys quantisation step (m)");
     AddExternalRelayOptions(cmd, &o_.external);
     cmd.add_option("--soft-touched-hz", o_.soft_touched_hz,

@@ -19,6 +19,12 @@ inline double Percentile(std::vector<double> v, double p) {
 
 inline double Median(std::vector<double> v) { return Percentile(std::move(v), 50); }
 
+// The median and the 99th percentile of `v` into *p50 and *p99 (Percentile's nearest rank).
+inline void SetP50P99(const std::vector<double>& v, double* p50, double* p99) {
+  *p50 = Percentile(v, 50);
+  *p99 = Percentile(v, 99);
+}
+
 inline double Max(const std::vector<double>& v) {
   return v.empty() ? 0 : *std::max_element(v.begin(), v.end());
 }

@@ -42,6 +42,24 @@ inline EntitySpec Ground(uint32_t id, float friction = 0.5f, float restitution =
   return g;
 }
 
+// The ten-box stack: 1 kg cubes 0.5 m wide, ids 10 to 19 from the bottom, stacked in exact
+// contact from y = 0 up, on a Ground (id 1, friction 0.5).
+struct BoxStack {
+  std::vector<EntitySpec> specs;  // the ground, then the boxes from the bottom
+  std::vector<Vec3f> start;       // the boxes' initial positions: start[i] is id 10 + i's
+};
+
+inline BoxStack MakeBoxStack() {
+  constexpr float h = 0.25f;
+  BoxStack stack;
+  stack.specs.push_back(Ground(1, 0.5f));
+  for (uint32_t i = 0; i < 10; ++i) {
+    stack.start.push_back({0, h + 2 * h * static_cast<float>(i), 0});
+    stack.specs.push_back(DynamicBox(10 + i, stack.start.back(), {h, h, h}, 1.0f));
+  }
+  return stack;
+}
+
 struct BounceRun {
   Status added;                 // adding the ground and the ball; heights is empty if not ok
   std::vector<double> heights;  // apex heights (m, the ball's bottom above the ground), h0 first
