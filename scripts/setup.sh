@@ -16,10 +16,11 @@ PACKAGES=(
   ccache  # optional: developers build with -DCMAKE_CXX_COMPILER_LAUNCHER=ccache
 )
 # deploy/: the compose stack (podman-compose 1.0.3; netavark + aardvark-dns so services find
-# each other by name; runc as the OCI runtime) and its base image (debootstrap, above).
+# each other by name, iptables as netavark's firewall driver; runc as the OCI runtime) and its
+# base image (debootstrap, above).
 # EDGEPHYS_SETUP_NO_CONTAINERS=1 leaves them out (the Dockerfile's build stage does).
 if [ "${EDGEPHYS_SETUP_NO_CONTAINERS:-0}" != 1 ]; then
-  PACKAGES+=(podman podman-compose runc netavark aardvark-dns uidmap)
+  PACKAGES+=(podman podman-compose runc netavark aardvark-dns iptables uidmap)
 fi
 
 # The monitor page's browser test (tests/browser) runs on node with npm; a machine that has
