@@ -6,7 +6,6 @@
 // the targets never let the fuzzer depend on their values).
 #pragma once
 
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -75,8 +74,6 @@ inline void PutRecord(std::vector<uint8_t>* out, uint8_t tag, std::span<const ui
 inline constexpr char kFuzzSecret[] = "fuzz-secret";
 inline constexpr char kFuzzRoom[] = "fuzz";
 inline constexpr uint64_t kUnixNow = 1'700'000'000;  // fake wall clock (token expiry)
-
-inline void QuietLogs() { spdlog::set_level(spdlog::level::off); }
 
 inline std::vector<uint8_t> MintToken(uint32_t player, uint32_t permissions,
                                       const std::string& room = kFuzzRoom) {

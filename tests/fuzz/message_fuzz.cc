@@ -235,11 +235,6 @@ void RunClient(Reader& in, uint8_t mode) {
 }  // namespace
 }  // namespace edgephys::fuzz
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  edgephys::fuzz::QuietLogs();
-  return 0;
-}
-
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace edgephys::fuzz;
   Reader in(data, size);

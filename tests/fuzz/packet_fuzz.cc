@@ -108,11 +108,6 @@ std::vector<uint8_t> WithPrefix(PacketType type, uint32_t connection_id,
 }  // namespace
 }  // namespace edgephys::fuzz
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  edgephys::fuzz::QuietLogs();
-  return 0;
-}
-
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace edgephys;
   using namespace edgephys::fuzz;
