@@ -10,7 +10,7 @@ constexpr size_t kPhotonMaxCommands = 255;
 constexpr size_t kPaperHeader = 1 + 4 + 2;
 }  // namespace
 
-PhotonEmulationEncoder::PhotonEmulationEncoder() : ByteStateEncoder(kPhotonHeader) {}
+PhotonEmulationEncoder::PhotonEmulationEncoder() : FixedHeaderEncoder(kPhotonHeader) {}
 
 bool PhotonEmulationEncoder::Add(const EntityState& s) {
   if (count_ >= kPhotonMaxCommands || pos_ + kPhotonMessage > out_.size()) return false;
@@ -28,24 +28,19 @@ bool PhotonEmulationEncoder::Add(const EntityState& s) {
   const float f[7] = {s.position.x, s.position.y, s.position.z, s.rotation.x,
                       s.rotation.y, s.rotation.z, s.rotation.w};
   for (int i = 0; i < 7; ++i) StoreF32LE(m + 15 + 4 * i, f[i]);
-  pos_ += kPhotonMessage;
-  ++count_;
-  return true;
+  return Appended(kPhotonMessage);
 }
 
-size_t PhotonEmulationEncoder::Finish() {
-  if (count_ == 0) return 0;
-  uint8_t* p = out_.data();
+void PhotonEmulationEncoder::WriteHeader(uint8_t* p) const {
   p[0] = kFormatPhoton;
   StoreU16LE(p + 1, 1);  // peer id
   p[3] = 0;              // flags
   p[4] = static_cast<uint8_t>(count_);
   StoreU32LE(p + 5, time_ms_);
   StoreU32LE(p + 9, 0x5048u);  // challenge
-  return pos_;
 }
 
-PaperEmulationEncoder::PaperEmulationEncoder() : ByteStateEncoder(kPaperHeader) {}
+PaperEmulationEncoder::PaperEmulationEncoder() : FixedHeaderEncoder(kPaperHeader) {}
 
 bool PaperEmulationEncoder::AddFields(const EntityState& s, uint8_t mask) {
   mask &= kFieldPosition | kFieldRotation;
@@ -68,18 +63,13 @@ bool PaperEmulationEncoder::AddFields(const EntityState& s, uint8_t mask) {
     StoreF32LE(p + 8, s.rotation.z);
     StoreF32LE(p + 12, s.rotation.w);
   }
-  pos_ += need;
-  ++count_;
-  return true;
+  return Appended(need);
 }
 
-size_t PaperEmulationEncoder::Finish() {
-  if (count_ == 0) return 0;
-  uint8_t* p = out_.data();
+void PaperEmulationEncoder::WriteHeader(uint8_t* p) const {
   p[0] = kFormatPaper;
   StoreU32LE(p + 1, time_ms_);
   StoreU16LE(p + 5, static_cast<uint16_t>(count_));
-  return pos_;
 }
 
 }  // namespace edgephys

@@ -30,23 +30,47 @@ namespace edgephys {
 inline constexpr uint8_t kFormatPhoton = 3;  // ids reserved in protocol/state_codec.h
 inline constexpr uint8_t kFormatPaper = 4;
 
-class PhotonEmulationEncoder final : public ByteStateEncoder {
+// The emulations' shared bookkeeping: states appended after a fixed-size header that
+// Finish() writes last.
+class FixedHeaderEncoder : public ByteStateEncoder {
+ public:
+  // 0 if nothing was added; else the header written (WriteHeader) and the payload's size.
+  size_t Finish() final {
+    if (count_ == 0) return 0;
+    WriteHeader(out_.data());
+    return pos_;
+  }
+
+ protected:
+  using ByteStateEncoder::ByteStateEncoder;
+  // Counts one state of `bytes` just written at out_ + pos_; true.
+  bool Appended(size_t bytes) {
+    pos_ += bytes;
+    ++count_;
+    return true;
+  }
+  virtual void WriteHeader(uint8_t* header) const = 0;
+};
+
+class PhotonEmulationEncoder final : public FixedHeaderEncoder {
  public:
   PhotonEmulationEncoder();
   bool Add(const EntityState& state) override;
-  size_t Finish() override;
 
  private:
+  void WriteHeader(uint8_t* header) const override;
   uint32_t sequence_ = 0;  // command sequence, continues across payloads
 };
 
-class PaperEmulationEncoder final : public ByteStateEncoder {
+class PaperEmulationEncoder final : public FixedHeaderEncoder {
  public:
   PaperEmulationEncoder();
   bool Add(const EntityState& state) override { return AddFields(state, kFieldPosition | kFieldRotation); }
   // Adds only the fields in `mask` (the scheduler's significance test decides).
   bool AddFields(const EntityState& state, uint8_t mask);
-  size_t Finish() override;
+
+ private:
+  void WriteHeader(uint8_t* header) const override;
 };
 
 // Decodes format 3 or 4 into `batch` (states appended after clearing). For format 4 an entity
